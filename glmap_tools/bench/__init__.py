@@ -1,0 +1,1 @@
+"""Benchmarks: `python -m glmap_tools.bench NAME` prints figures and ratios."""

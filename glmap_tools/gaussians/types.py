@@ -1,0 +1,110 @@
+"""`GaussianSet`: a structure-of-arrays of 3D Gaussians with the moments needed to merge them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from glmap_tools.errors import InvalidInputError
+
+DEFAULT_OPACITY = 0.8  # the paper's fixed opacity
+COVARIANCE_EPSILON = 1e-6  # m^2, the paper's eps*I regulariser
+
+
+@dataclass(frozen=True)
+class GaussianSet:
+    """N 3D Gaussians (mu, Sigma, c, alpha) plus the point count each was fitted from.
+
+    `covs` includes the +eps*I regulariser. Counts make merging exact: combining two
+    Gaussians by counts and second moments equals fitting the union of their points.
+
+    Attributes:
+        means: [N, 3] float32, metres (world).
+        covs: [N, 3, 3] float32, m^2, symmetric positive definite.
+        colors: [N, 3] float32, RGB in [0, 1].
+        opacities: [N] float32 in (0, 1].
+        counts: [N] uint32, number of points behind each Gaussian.
+    """
+
+    means: np.ndarray  # [N, 3]
+    covs: np.ndarray  # [N, 3, 3]
+    colors: np.ndarray  # [N, 3]
+    opacities: np.ndarray  # [N]
+    counts: np.ndarray  # [N]
+
+    def __post_init__(self) -> None:
+        n = self.means.shape[0]
+        shapes = {
+            "means": (self.means, (n, 3)),
+            "covs": (self.covs, (n, 3, 3)),
+            "colors": (self.colors, (n, 3)),
+            "opacities": (self.opacities, (n,)),
+            "counts": (self.counts, (n,)),
+        }
+        for name, (arr, shape) in shapes.items():
+            if arr.shape != shape:
+                raise InvalidInputError(f"GaussianSet.{name} has shape {arr.shape}, not {shape}.")
+        object.__setattr__(self, "means", np.ascontiguousarray(self.means, dtype=np.float32))
+        object.__setattr__(self, "covs", np.ascontiguousarray(self.covs, dtype=np.float32))
+        object.__setattr__(self, "colors", np.ascontiguousarray(self.colors, dtype=np.float32))
+        object.__setattr__(
+            self, "opacities", np.ascontiguousarray(self.opacities, dtype=np.float32)
+        )
+        object.__setattr__(self, "counts", np.ascontiguousarray(self.counts, dtype=np.uint32))
+
+    def __len__(self) -> int:
+        return int(self.means.shape[0])
+
+    @classmethod
+    def empty(cls) -> GaussianSet:
+        return cls(
+            np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0)
+        )
+
+    @classmethod
+    def concat(cls, sets: list[GaussianSet]) -> GaussianSet:
+        """All Gaussians of `sets`, in order."""
+        sets = [s for s in sets if len(s)]
+        if not sets:
+            return cls.empty()
+        return cls(
+            np.concatenate([s.means for s in sets]),
+            np.concatenate([s.covs for s in sets]),
+            np.concatenate([s.colors for s in sets]),
+            np.concatenate([s.opacities for s in sets]),
+            np.concatenate([s.counts for s in sets]),
+        )
+
+    def subset(self, index: np.ndarray) -> GaussianSet:
+        """The Gaussians selected by an integer or boolean index."""
+        return GaussianSet(
+            self.means[index],
+            self.covs[index],
+            self.colors[index],
+            self.opacities[index],
+            self.counts[index],
+        )
+
+    @property
+    def nbytes(self) -> int:
+        return int(
+            self.means.nbytes
+            + self.covs.nbytes
+            + self.colors.nbytes
+            + self.opacities.nbytes
+            + self.counts.nbytes
+        )
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned ([3] min, [3] max) of the means; raises on an empty set."""
+        if len(self) == 0:
+            raise InvalidInputError("an empty GaussianSet has no bounds.")
+        return self.means.min(axis=0), self.means.max(axis=0)
+
+    def equals(self, other: GaussianSet) -> bool:
+        """Bit-exact equality of every array."""
+        return all(
+            np.array_equal(getattr(self, f), getattr(other, f))
+            for f in ("means", "covs", "colors", "opacities", "counts")
+        )

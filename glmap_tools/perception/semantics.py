@@ -1,0 +1,88 @@
+"""`FrameSemantics`: what perception says about one frame (paper: S_t)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from glmap_tools.errors import InvalidInputError
+
+
+@dataclass(frozen=True)
+class ObjectObservation:
+    """One instance seen in a frame (local id n~_o, description T_o, its mask).
+
+    Attributes:
+        local_id: id within this frame only.
+        label: short category, e.g. "chair".
+        description: open-vocabulary description; may be empty (the label is used then).
+        mask: [H, W] bool pixels of the instance.
+    """
+
+    local_id: int
+    label: str
+    description: str
+    mask: np.ndarray  # [H, W]
+
+    @property
+    def text(self) -> str:
+        """The text that is embedded and stored: the description, else the label."""
+        return self.description.strip() or self.label.strip()
+
+
+@dataclass(frozen=True)
+class GroupObservation:
+    """One region seen in a frame (local id n~_r, description T_r, member local ids I~_r)."""
+
+    local_id: int
+    description: str
+    members: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class FrameSemantics:
+    """The instances and regions perceived in one frame."""
+
+    objects: list[ObjectObservation] = field(default_factory=list)
+    groups: list[GroupObservation] = field(default_factory=list)
+
+    def validate(self, height: int, width: int) -> None:
+        """Raise InvalidInputError on duplicate ids, bad masks or unknown group members."""
+        seen: set[int] = set()
+        for obj in self.objects:
+            if obj.local_id in seen:
+                raise InvalidInputError(
+                    f"object local id {obj.local_id} appears twice; give each object in a "
+                    "frame its own id."
+                )
+            seen.add(obj.local_id)
+            if not obj.text:
+                raise InvalidInputError(
+                    f"object {obj.local_id} has neither a label nor a description; give it one."
+                )
+            if obj.mask.shape != (height, width):
+                raise InvalidInputError(
+                    f"mask of object {obj.local_id} has shape {obj.mask.shape} but the frame is "
+                    f"{(height, width)}; masks must match the depth image pixel for pixel."
+                )
+            if not obj.mask.any():
+                raise InvalidInputError(
+                    f"mask of object {obj.local_id} ({obj.text!r}) is empty; drop the object "
+                    "or give it the pixels it covers."
+                )
+        group_ids: set[int] = set()
+        for group in self.groups:
+            if group.local_id in group_ids:
+                raise InvalidInputError(
+                    f"group local id {group.local_id} appears twice; give each group its own id."
+                )
+            group_ids.add(group.local_id)
+            if not group.description.strip():
+                raise InvalidInputError(f"group {group.local_id} has no description; add one.")
+            unknown = sorted(set(group.members) - seen)
+            if unknown:
+                raise InvalidInputError(
+                    f"group {group.local_id} ({group.description!r}) lists unknown member ids "
+                    f"{unknown}; members must be object ids of this frame {sorted(seen)}."
+                )
