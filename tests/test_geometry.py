@@ -1,0 +1,111 @@
+import math
+
+import numpy as np
+import pytest
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.geometry import Intrinsics, Pose, adapters, backproject, depth_from_uint16
+from glmap_tools.geometry.frame import RGBDFrame
+
+
+def test_intrinsics_from_fov_put_the_principal_point_at_the_image_centre():
+    k = Intrinsics.from_fov(640, 480, 90.0)
+    assert k.fx == pytest.approx(320.0)
+    assert (k.cx, k.cy) == (319.5, 239.5)
+
+
+@pytest.mark.parametrize("bad", [dict(fx=0.0), dict(fy=-1.0), dict(cx=float("nan")), dict(width=0)])
+def test_non_positive_or_non_finite_intrinsics_are_refused(bad):
+    args = dict(fx=525.0, fy=525.0, cx=319.5, cy=239.5, width=640, height=480) | bad
+    with pytest.raises(InvalidInputError, match=next(iter(bad))):
+        Intrinsics(**args)
+
+
+def test_a_scaled_pose_is_refused_as_not_rigid():
+    m = np.eye(4)
+    m[:3, :3] *= 1.1
+    with pytest.raises(InvalidInputError, match="not rigid"):
+        Pose(m)
+
+
+def test_a_pose_with_nan_is_refused():
+    m = np.eye(4)
+    m[0, 3] = np.nan
+    with pytest.raises(InvalidInputError, match="NaN"):
+        Pose(m)
+
+
+def test_looking_at_points_the_optical_axis_at_the_target_with_image_down_toward_minus_z():
+    pose = Pose.looking_at(np.array([0, 0, 1.0]), np.array([2.0, 0, 1.0]))
+    np.testing.assert_allclose(pose.rotation[:, 2], [1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(pose.rotation[:, 1], [0, 0, -1], atol=1e-12)
+    assert pose.heading == pytest.approx(0.0)
+
+
+def test_backprojection_of_the_principal_point_lands_on_the_optical_axis():
+    k = Intrinsics(100.0, 100.0, 2.0, 2.0, 5, 5)
+    pose = Pose.from_position_heading(1.0, 2.0, 0.5, math.pi / 2)
+    depth = np.zeros((5, 5), np.float32)
+    depth[2, 2] = 3.0
+    cloud = backproject(depth, k, pose)
+    np.testing.assert_allclose(cloud.points, [[1.0, 5.0, 0.5]], atol=1e-9)
+
+
+def test_backprojection_skips_zero_nan_inf_and_far_depth():
+    k = Intrinsics(10.0, 10.0, 1.0, 0.5, 3, 2)
+    depth = np.array([[0.0, np.nan, np.inf], [1.0, 9.0, 2.0]], np.float32)
+    cloud = backproject(depth, k, Pose.identity(), max_range=5.0)
+    assert len(cloud) == 2
+    np.testing.assert_allclose(sorted(cloud.points[:, 2]), [1.0, 2.0])
+
+
+def test_backprojection_keeps_only_masked_pixels_and_their_colours():
+    k = Intrinsics(10.0, 10.0, 1.0, 1.0, 3, 3)
+    depth = np.ones((3, 3), np.float32)
+    rgb = np.zeros((3, 3, 3), np.uint8)
+    rgb[1, 2] = (255, 0, 0)
+    mask = np.zeros((3, 3), bool)
+    mask[1, 2] = True
+    cloud = backproject(depth, k, Pose.identity(), rgb, mask)
+    np.testing.assert_allclose(cloud.colors, [[1.0, 0.0, 0.0]])
+
+
+def test_mismatched_depth_and_rgb_shapes_name_both_shapes():
+    k = Intrinsics(10.0, 10.0, 1.0, 1.0, 3, 3)
+    with pytest.raises(InvalidInputError, match=r"\(2, 3, 3\)"):
+        RGBDFrame(np.zeros((2, 3, 3), np.uint8), np.ones((3, 3), np.float32), k, Pose.identity())
+
+
+def test_uint16_depth_converts_with_the_stated_scale():
+    d = depth_from_uint16(np.array([[1000, 0]], np.uint16), 1000.0)
+    np.testing.assert_allclose(d, [[1.0, 0.0]])
+    with pytest.raises(InvalidInputError, match="depth_scale"):
+        depth_from_uint16(np.zeros((1, 1), np.uint16), 0)
+
+
+def test_opengl_adapter_flips_the_camera_y_and_z_axes():
+    gl = np.eye(4)
+    pose = adapters.from_opengl(gl)
+    np.testing.assert_allclose(pose.rotation, np.diag([1.0, -1.0, -1.0]))
+    np.testing.assert_allclose(adapters.to_opengl(pose), gl)
+
+
+def test_habitat_identity_camera_looks_along_minus_z_habitat_which_is_plus_y_here():
+    pose = adapters.from_habitat(np.array([1.0, 1.5, -2.0]), np.array([1.0, 0, 0, 0]))
+    np.testing.assert_allclose(pose.translation, [1.0, 2.0, 1.5])
+    np.testing.assert_allclose(pose.rotation[:, 2], [0, 1, 0], atol=1e-12)  # forward
+    np.testing.assert_allclose(pose.rotation[:, 1], [0, 0, -1], atol=1e-12)  # image down
+
+
+@pytest.mark.parametrize("up", ["x", "-x", "y", "-y", "z", "-z"])
+def test_every_dataset_up_axis_maps_onto_plus_z(up):
+    r = adapters.world_zup_from_up_axis(up)
+    axis = {"x": [1, 0, 0], "y": [0, 1, 0], "z": [0, 0, 1]}[up.strip("-")]
+    sign = -1 if up.startswith("-") else 1
+    np.testing.assert_allclose(r @ (sign * np.array(axis, float)), [0, 0, 1], atol=1e-12)
+    assert np.linalg.det(r) == pytest.approx(1.0)
+
+
+def test_an_unknown_up_axis_is_refused():
+    with pytest.raises(InvalidInputError, match="up axis 'w'"):
+        adapters.world_zup_from_up_axis("w")
