@@ -1,0 +1,93 @@
+"""`python -m glmap_tools.bench integrate`: ms per `GLMap.integrate` of a 10-instance frame."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from glmap_tools import synthetic
+from glmap_tools.language.embed import Embedder, HashingEmbedder
+
+TARGET_MS = 150.0
+
+
+class TimedEmbedder:
+    """Wraps an embedder and accumulates the seconds spent embedding."""
+
+    def __init__(self, inner: Embedder) -> None:
+        self.inner = inner
+        self.name, self.dim, self.default_tau_s = inner.name, inner.dim, inner.default_tau_s
+        self.seconds = 0.0
+
+    def embed(self, texts):  # type: ignore[no-untyped-def]
+        start = time.perf_counter()
+        try:
+            return self.inner.embed(texts)
+        finally:
+            self.seconds += time.perf_counter() - start
+
+
+def scene_with_ten_objects() -> list[synthetic.Box]:
+    boxes = synthetic.floor()
+    for k in range(5):
+        boxes += synthetic.chair(-2.0 + k, 0.0, object_id=k + 1)
+        boxes += synthetic.table(-2.0 + k, 2.0, k + 6)
+    return boxes
+
+
+def main(argv: list[str] | None = None) -> int:
+    from glmap_tools.map import GLMap, MapConfig
+
+    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench integrate")
+    parser.add_argument("--frames", type=int, default=12)
+    parser.add_argument("--embedder", choices=["hashing", "minilm"], default="hashing")
+    args = parser.parse_args(argv)
+    if args.embedder == "minilm":
+        from glmap_tools.language.embed import default_embedder
+
+        inner: Embedder = default_embedder()
+    else:
+        inner = HashingEmbedder()
+    boxes = scene_with_ten_objects()
+    texts = {k: ("chair", f"a wooden chair number {k}") for k in range(1, 6)}
+    texts |= {k: ("table", f"a brown table number {k}") for k in range(6, 11)}
+    frames = []
+    for i in range(args.frames):
+        eye = (-0.5 + 0.1 * i, -4.5, 1.3)
+        frame, ids = synthetic.view(boxes, eye, (0.0, 1.0, 0.4), 640, 480)
+        frames.append((frame, synthetic.semantics(ids, texts)))
+    n_objects = np.mean([len(s.objects) for _, s in frames])
+    n_points = np.mean([sum(int(o.mask.sum()) for o in s.objects) for _, s in frames])
+    for label, store in (("in memory", False), ("with SQLite store", True)):
+        import tempfile
+        from pathlib import Path
+
+        embedder = TimedEmbedder(inner)
+        with tempfile.TemporaryDirectory() as tmp:
+            config = MapConfig(floor_z=0.0)
+            glmap = (
+                GLMap.open(Path(tmp) / "b.glmap", config, embedder=embedder)
+                if store
+                else GLMap(config, embedder=embedder)
+            )
+            glmap.integrate(*frames[0])  # warm-up: numba compile, caches
+            embedder.seconds = 0.0
+            times = []
+            for frame, sem in frames[1:]:
+                start = time.perf_counter()
+                glmap.integrate(frame, sem)
+                times.append(time.perf_counter() - start)
+            glmap.close()
+        total = np.array(times) * 1e3
+        embed_ms = embedder.seconds * 1e3 / len(times)
+        excl = np.median(total) - embed_ms
+        print(
+            f"integrate {label}: 640x480, {n_objects:.1f} objects, {n_points / 1e3:.0f}k masked "
+            f"points/frame: median {np.median(total):.1f} ms (p90 {np.percentile(total, 90):.1f}),"
+            f" embedding {embed_ms:.1f} ms, excluding embedding {excl:.1f} ms; "
+            f"target <= {TARGET_MS:.0f} ms: ratio {excl / TARGET_MS:.2f}"
+        )
+        print(f"  map: {len(glmap.instances)} instances after {len(frames)} frames")
+    return 0

@@ -1,0 +1,79 @@
+"""`MapConfig`: every tunable of a GLMap in one place (saved with the map)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+from glmap_tools.errors import InvalidInputError
+
+
+@dataclass(frozen=True)
+class MapConfig:
+    """Settings of a GLMap.
+
+    Attributes:
+        voxel_size: Gaussian Estimator voxel edge (m).
+        cell_size: index-grid and occupancy cell edge (m).
+        tau_s: text-similarity threshold; None = the embedder's calibrated default.
+        max_text_words: text buffer length that triggers the text merger.
+        max_range: depth beyond this (m) is ignored.
+        floor_z: world height of the floor (m); None = estimated from observed points.
+        obstacle_band: heights above the floor (m) whose points mark obstacles.
+        camera_height: agent camera height above the floor (m), for rendered views.
+        occupancy_stride: pixel stride for the occupancy update.
+        estimator: extra keyword overrides for the Gaussian Estimator config.
+    """
+
+    voxel_size: float = 0.02
+    cell_size: float = 0.05
+    tau_s: float | None = None
+    max_text_words: int = 300
+    max_range: float = 5.0
+    floor_z: float | None = None
+    obstacle_band: tuple[float, float] = (0.10, 1.50)
+    camera_height: float = 0.88
+    occupancy_stride: int = 4
+    estimator: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        positive = ("voxel_size", "cell_size", "max_range", "camera_height")
+        for name in positive:
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and value > 0):
+                raise InvalidInputError(f"MapConfig.{name}={value!r} must be a positive number.")
+        if self.tau_s is not None and not (-1.0 <= self.tau_s <= 1.0):
+            raise InvalidInputError(f"MapConfig.tau_s={self.tau_s!r} must be a cosine in [-1, 1].")
+        if not (isinstance(self.max_text_words, int) and self.max_text_words >= 10):
+            raise InvalidInputError(
+                f"MapConfig.max_text_words={self.max_text_words!r} must be an integer >= 10."
+            )
+        low, high = self.obstacle_band
+        if not (0 <= low < high):
+            raise InvalidInputError(
+                f"MapConfig.obstacle_band={self.obstacle_band!r} "
+                "must be (low, high) with 0 <= low < high."
+            )
+        if not (isinstance(self.occupancy_stride, int) and self.occupancy_stride >= 1):
+            raise InvalidInputError(
+                f"MapConfig.occupancy_stride={self.occupancy_stride!r} must be an integer >= 1."
+            )
+        object.__setattr__(self, "obstacle_band", (float(low), float(high)))
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["obstacle_band"] = list(self.obstacle_band)
+        return d
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> MapConfig:
+        known = {f.name for f in fields(cls)}
+        unknown = set(data) - known
+        if unknown:
+            raise InvalidInputError(
+                f"unknown MapConfig keys {sorted(unknown)}; known keys are {sorted(known)}."
+            )
+        d = dict(data)
+        if "obstacle_band" in d:
+            d["obstacle_band"] = tuple(d["obstacle_band"])
+        return cls(**d)

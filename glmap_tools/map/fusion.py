@@ -1,0 +1,249 @@
+"""Incremental update (paper §3.1): plan a frame's changes without touching the map.
+
+`plan_frame` turns one frame + its semantics into a `FramePlan`: new or replaced units,
+their grid cells, updated occupancy chunks and the report. `GLMap.integrate` commits the
+plan to the store (one transaction) and only then swaps it into memory, so a failure at
+any step leaves the map and the file as they were.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.gaussians.merge import any_mergeable, remerge
+from glmap_tools.gaussians.types import GaussianSet
+from glmap_tools.geometry.backproject import backproject
+from glmap_tools.geometry.frame import RGBDFrame
+from glmap_tools.language.text_merger import DELIMITER, append_text
+from glmap_tools.map.grid import Cell, cells_of_points
+from glmap_tools.map.report import SkippedObservation, UnitChange, UpdateReport
+from glmap_tools.map.units import InstanceUnit, RegionUnit
+from glmap_tools.perception.semantics import FrameSemantics
+
+if TYPE_CHECKING:
+    from glmap_tools.map.glmap import GLMap
+
+FLOOR_PERCENTILE = 1.0
+
+
+@dataclass
+class FramePlan:
+    """Everything one frame changes, computed before anything is changed."""
+
+    frame_index: int
+    pose: np.ndarray  # [4, 4]
+    instances: dict[int, InstanceUnit] = field(default_factory=dict)
+    regions: dict[int, RegionUnit] = field(default_factory=dict)
+    cells: dict[int, frozenset[Cell]] = field(default_factory=dict)
+    occupancy: dict[tuple[int, int], np.ndarray] = field(default_factory=dict)
+    next_id: int = 1
+    floor_z: float | None = None
+    report: UpdateReport | None = None
+
+
+def _normalised(v: np.ndarray) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    return (v / n).astype(np.float32) if n > 0 else v.astype(np.float32)
+
+
+def _boxes_touch(a: GaussianSet, b: GaussianSet, margin: float) -> bool:
+    amin, amax = a.bounds()
+    bmin, bmax = b.bounds()
+    return bool(np.all(amin - margin <= bmax) and np.all(bmin - margin <= amax))
+
+
+def _merged_text(glmap: GLMap, buffer: str, text: str) -> str:
+    merged = append_text(buffer, text)
+    if len(merged.split()) > glmap.config.max_text_words:
+        merged = glmap.text_merger.merge(merged.split(DELIMITER), glmap.config.max_text_words)
+    return merged
+
+
+def plan_frame(
+    glmap: GLMap, frame: RGBDFrame, semantics: FrameSemantics, frame_index: int
+) -> FramePlan:
+    """Compute the changes one frame makes to `glmap` (which is not modified).
+
+    Raises:
+        InvalidInputError: semantics that do not fit the frame, or no valid depth at all.
+    """
+    cfg = glmap.config
+    height, width = frame.depth.shape
+    semantics.validate(height, width)
+    valid = frame.valid_depth(cfg.max_range)
+    if not valid.any():
+        raise InvalidInputError(
+            f"depth has no valid pixel (all are 0, NaN, inf or beyond max_range="
+            f"{cfg.max_range} m); check the depth scale (1000 for mm, 5000 for TUM) and units."
+        )
+    plan = FramePlan(frame_index=frame_index, pose=frame.pose.matrix.copy())
+    report = UpdateReport(frame_index=frame_index)
+    plan.next_id = glmap.next_id
+
+    # Occupancy and floor from the full depth image.
+    scene = backproject(
+        frame.depth,
+        frame.intrinsics,
+        frame.pose,
+        max_range=cfg.max_range,
+        stride=cfg.occupancy_stride,
+    )
+    floor_z = cfg.floor_z
+    if floor_z is None:
+        frame_floor = float(np.percentile(scene.points[:, 2], FLOOR_PERCENTILE))
+        floor_z = frame_floor if glmap.floor_z is None else min(glmap.floor_z, frame_floor)
+    plan.floor_z = floor_z
+    plan.occupancy = glmap.occupancy.compute_update(
+        frame.pose.translation[:2], scene.points, floor_z, cfg.obstacle_band
+    )
+
+    # Instances: mask -> points -> Gaussians.
+    observed: list[tuple[int, str, str, GaussianSet]] = []
+    for obj in semantics.objects:
+        cloud = backproject(
+            frame.depth, frame.intrinsics, frame.pose, frame.rgb, obj.mask, cfg.max_range
+        )
+        gaussians = glmap.estimator.fit(cloud.points, cloud.colors)
+        if len(gaussians) == 0:
+            report.skipped.append(
+                SkippedObservation(
+                    local_id=obj.local_id,
+                    kind="instance",
+                    reason=f"{len(cloud)} valid depth points in the mask gave no Gaussian",
+                )
+            )
+            continue
+        observed.append((obj.local_id, obj.label, obj.text, gaussians))
+
+    texts = [o[2] for o in observed] + [g.description.strip() for g in semantics.groups]
+    embeddings = glmap.embedder.embed(texts) if texts else np.zeros((0, 1), np.float32)
+    tau = glmap.tau_s
+    margin = glmap.estimator.config.voxel_size
+
+    # Candidate instances by text: the map's units plus those this frame adds.
+    ids, matrix = glmap.instance_matrix()
+    staged: dict[int, InstanceUnit] = {}
+    for k, (local_id, label, text, gaussians) in enumerate(observed):
+        e = embeddings[k]
+        sims = matrix @ e if len(ids) else np.zeros(0, np.float32)
+        new_ids = [i for i in staged if i not in glmap.instances]
+        cand = [(float(s), int(i)) for s, i in zip(sims, ids, strict=True) if s > tau]
+        cand += [(float(staged[i].embedding @ e), i) for i in new_ids]
+        cand = sorted((c for c in cand if c[0] > tau), key=lambda c: (-c[0], c[1]))
+        target = None
+        for sim, uid in cand:
+            unit = staged.get(uid) or glmap.instances[uid]
+            if _boxes_touch(unit.gaussians, gaussians, margin) and any_mergeable(
+                unit.gaussians, gaussians, glmap.estimator.config
+            ):
+                target = (sim, unit)
+                break
+        if target is None:
+            uid = plan.next_id
+            plan.next_id += 1
+            staged[uid] = InstanceUnit(
+                uid, label, text, _normalised(e), gaussians, 1, frame_index, frame_index
+            )
+            report.instances_added.append(UnitChange(local_id=local_id, global_id=uid, text=text))
+        else:
+            sim, unit = target
+            uid = unit.id
+            n = unit.observations
+            seen_now = unit.last_frame == frame_index and uid in staged
+            staged[uid] = InstanceUnit(
+                uid,
+                label or unit.label,
+                _merged_text(glmap, unit.text, text),
+                _normalised(unit.embedding * n + e),
+                remerge(GaussianSet.concat([unit.gaussians, gaussians]), glmap.estimator.config),
+                n if seen_now else n + 1,
+                unit.first_frame,
+                frame_index,
+            )
+            report.instances_merged.append(
+                UnitChange(local_id=local_id, global_id=uid, text=text, similarity=sim)
+            )
+        report.local_to_global[local_id] = uid
+        report.gaussians_added += len(gaussians)
+    plan.instances = staged
+    for uid, unit in staged.items():
+        plan.cells[uid] = frozenset(
+            map(tuple, cells_of_points(unit.gaussians.means, cfg.cell_size).tolist())
+        )
+
+    # Regions: local member ids -> global, match by text AND a shared instance.
+    rids, rmatrix = glmap.region_matrix()
+    staged_regions: dict[int, RegionUnit] = {}
+    for k, group in enumerate(semantics.groups):
+        members = {report.local_to_global[m] for m in group.members if m in report.local_to_global}
+        if not members:
+            report.skipped.append(
+                SkippedObservation(
+                    local_id=group.local_id,
+                    kind="region",
+                    reason="none of its member instances made it into the map",
+                )
+            )
+            continue
+        e = embeddings[len(observed) + k]
+        text = group.description.strip()
+        sims = rmatrix @ e if len(rids) else np.zeros(0, np.float32)
+        cand = [(float(s), int(i)) for s, i in zip(sims, rids, strict=True) if s > tau]
+        cand += [
+            (float(r.embedding @ e), r.id)
+            for r in staged_regions.values()
+            if r.id not in glmap.regions
+        ]
+        cand = sorted((c for c in cand if c[0] > tau), key=lambda c: (-c[0], c[1]))
+        target_region = None
+        for sim, rid in cand:
+            region = staged_regions.get(rid) or glmap.regions[rid]
+            if members & set(region.instance_ids):
+                target_region = (sim, region)
+                break
+        if target_region is None:
+            rid = plan.next_id
+            plan.next_id += 1
+            staged_regions[rid] = RegionUnit(
+                rid, text, _normalised(e), tuple(sorted(members)), 1, frame_index, frame_index
+            )
+            report.regions_added.append(
+                UnitChange(local_id=group.local_id, global_id=rid, text=text)
+            )
+        else:
+            sim, region = target_region
+            n = region.observations
+            seen_now = region.last_frame == frame_index and region.id in staged_regions
+            staged_regions[region.id] = RegionUnit(
+                region.id,
+                _merged_text(glmap, region.text, text),
+                _normalised(region.embedding * n + e),
+                tuple(sorted(members | set(region.instance_ids))),
+                n if seen_now else n + 1,
+                region.first_frame,
+                frame_index,
+            )
+            report.regions_merged.append(
+                UnitChange(local_id=group.local_id, global_id=region.id, text=text, similarity=sim)
+            )
+    plan.regions = staged_regions
+
+    # Region cells: the union of their instances' cells (also for regions whose members moved).
+    touched = set(staged_regions)
+    for uid in staged:
+        touched |= glmap.regions_of_instance(uid)
+    for rid in touched:
+        region = staged_regions.get(rid) or glmap.regions[rid]
+        cells: set[Cell] = set()
+        for iid in region.instance_ids:
+            cells |= plan.cells.get(iid) or glmap.grid.cells_of_unit(iid)
+        plan.cells[rid] = frozenset(cells)
+
+    report.num_instances = len(glmap.instances) + sum(i not in glmap.instances for i in staged)
+    report.num_regions = len(glmap.regions) + sum(r not in glmap.regions for r in staged_regions)
+    plan.report = report
+    return plan

@@ -1,0 +1,253 @@
+"""`GLMap`: the Multi-Scale Gaussian-Language Map M = {m, S_o, S_r}."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
+from glmap_tools.gaussians.estimator import EstimatorConfig, GaussianEstimator
+from glmap_tools.geometry.frame import RGBDFrame
+from glmap_tools.map import queries
+from glmap_tools.map.config import MapConfig
+from glmap_tools.map.fusion import FramePlan, plan_frame
+from glmap_tools.map.grid import IndexGrid
+from glmap_tools.map.occupancy import OccupancyGrid
+from glmap_tools.map.report import MapSummary, UnitInfo, UpdateReport
+from glmap_tools.map.units import InstanceUnit, RegionUnit
+from glmap_tools.perception.semantics import FrameSemantics
+
+if TYPE_CHECKING:
+    from glmap_tools.language.embed import Embedder
+    from glmap_tools.language.text_merger import TextMerger
+    from glmap_tools.map.store import MapStore
+
+Unit = InstanceUnit | RegionUnit
+
+
+class GLMap:
+    """A Gaussian-Language Map, built frame by frame and queried by text or position.
+
+    Args:
+        config: map settings (saved with the map).
+        embedder: text embedder phi; default: the bundled all-MiniLM-L6-v2, loaded lazily.
+        text_merger: rewrites text buffers past `config.max_text_words`; default extractive.
+    """
+
+    def __init__(
+        self,
+        config: MapConfig | None = None,
+        embedder: Embedder | None = None,
+        text_merger: TextMerger | None = None,
+    ) -> None:
+        self.config = config or MapConfig()
+        if embedder is None:
+            # Imported here so the core does not load a model library unless asked to.
+            from glmap_tools.language.embed import default_embedder
+
+            embedder = default_embedder()
+        self.embedder: Embedder = embedder
+        if text_merger is None:
+            from glmap_tools.language.text_merger import ExtractiveTextMerger
+
+            text_merger = ExtractiveTextMerger(embedder)
+        self.text_merger: TextMerger = text_merger
+        self.tau_s = self.config.tau_s if self.config.tau_s is not None else embedder.default_tau_s
+        self.estimator = GaussianEstimator(
+            EstimatorConfig(voxel_size=self.config.voxel_size, **self.config.estimator)
+        )
+        self.instances: dict[int, InstanceUnit] = {}
+        self.regions: dict[int, RegionUnit] = {}
+        self.grid = IndexGrid(self.config.cell_size)
+        self.occupancy = OccupancyGrid(self.config.cell_size)
+        self.next_id = 1
+        self.floor_z: float | None = self.config.floor_z
+        self.trajectory: list[np.ndarray] = []  # [4, 4] poses of integrated frames
+        self.store: MapStore | None = None
+        self._regions_by_instance: dict[int, set[int]] = {}
+        self._matrix_cache: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    # ----------------------------------------------------------------- persistence
+    @classmethod
+    def open(
+        cls,
+        path: str | os.PathLike[str],
+        config: MapConfig | None = None,
+        embedder: Embedder | None = None,
+        text_merger: TextMerger | None = None,
+    ) -> GLMap:
+        """Open the map stored at `path`, or create it there; every integrate then commits.
+
+        Raises:
+            StoreError: the file exists but is not a GLMap store, or is from a newer version.
+        """
+        from glmap_tools.map.store import MapStore
+
+        store = MapStore.open(Path(path), create_with=config or MapConfig())
+        glmap = cls(store.config, embedder, text_merger)
+        store.load_into(glmap)
+        glmap.store = store
+        return glmap
+
+    def save_as(self, path: str | os.PathLike[str]) -> None:
+        """Write the whole map to a new store file at `path` and keep committing there."""
+        from glmap_tools.map.store import MapStore
+
+        self.store = MapStore.create_from(Path(path), self)
+
+    def close(self) -> None:
+        if self.store is not None:
+            self.store.close()
+            self.store = None
+
+    # ----------------------------------------------------------------- update
+    def integrate(
+        self, frame: RGBDFrame, semantics: FrameSemantics, frame_index: int | None = None
+    ) -> UpdateReport:
+        """Fuse one posed RGB-D frame and its semantics into the map (paper §3.1).
+
+        Validation and all computation happen first; the store commits in one transaction;
+        only then does the map in memory change. On any error nothing changes.
+
+        Returns:
+            The update report: units added and merged, the local -> global id mapping.
+        """
+        if not isinstance(frame, RGBDFrame):
+            raise InvalidInputError(f"frame must be an RGBDFrame, got {type(frame).__name__}.")
+        index = len(self.trajectory) if frame_index is None else int(frame_index)
+        plan = plan_frame(self, frame, semantics, index)
+        if self.store is not None:
+            self.store.commit_frame(plan, self)
+        self._apply(plan)
+        assert plan.report is not None
+        return plan.report
+
+    def _apply(self, plan: FramePlan) -> None:
+        for uid, unit in plan.instances.items():
+            self.instances[uid] = unit
+        for rid, region in plan.regions.items():
+            old = self.regions.get(rid)
+            for iid in old.instance_ids if old else ():
+                self._regions_by_instance.get(iid, set()).discard(rid)
+            for iid in region.instance_ids:
+                self._regions_by_instance.setdefault(iid, set()).add(rid)
+            self.regions[rid] = region
+        for uid, cells in plan.cells.items():
+            self.grid.set_unit(uid, cells)
+        self.occupancy.apply(plan.occupancy)
+        self.next_id = plan.next_id
+        self.floor_z = plan.floor_z
+        self.trajectory.append(plan.pose)
+        self._matrix_cache.clear()
+
+    def _restore(
+        self,
+        instances: dict[int, InstanceUnit],
+        regions: dict[int, RegionUnit],
+        occupancy: OccupancyGrid,
+        next_id: int,
+        floor_z: float | None,
+        trajectory: list[np.ndarray],
+    ) -> None:
+        """Install loaded state and derive the index grid and reverse indices from it."""
+        from glmap_tools.map.grid import cells_of_points
+
+        self.instances, self.regions = dict(instances), dict(regions)
+        self.occupancy, self.next_id, self.floor_z = occupancy, next_id, floor_z
+        self.trajectory = list(trajectory)
+        self.grid = IndexGrid(self.config.cell_size)
+        for uid, unit in self.instances.items():
+            cells = cells_of_points(unit.gaussians.means, self.config.cell_size)
+            self.grid.set_unit(uid, map(tuple, cells.tolist()))
+        self._regions_by_instance = {}
+        for rid, region in self.regions.items():
+            cells_of_region: set[tuple[int, int]] = set()
+            for iid in region.instance_ids:
+                self._regions_by_instance.setdefault(iid, set()).add(rid)
+                cells_of_region |= self.grid.cells_of_unit(iid)
+            self.grid.set_unit(rid, cells_of_region)
+        self._matrix_cache.clear()
+
+    # ----------------------------------------------------------------- lookups
+    def regions_of_instance(self, instance_id: int) -> set[int]:
+        return set(self._regions_by_instance.get(instance_id, ()))
+
+    def _matrix(self, kind: str) -> tuple[np.ndarray, np.ndarray]:
+        cached = self._matrix_cache.get(kind)
+        if cached is None:
+            units: dict[int, InstanceUnit] | dict[int, RegionUnit] = (
+                self.instances if kind == "instance" else self.regions
+            )
+            ids = np.array(sorted(units), dtype=np.int64)
+            if len(ids):
+                matrix = np.stack([units[int(i)].embedding for i in ids]).astype(np.float32)
+            else:
+                matrix = np.zeros((0, self.embedder.dim), np.float32)
+            cached = self._matrix_cache[kind] = (ids, matrix)
+        return cached
+
+    def instance_matrix(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ids [N], embeddings [N, D]) of all instances, cached between updates."""
+        return self._matrix("instance")
+
+    def region_matrix(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ids [M], embeddings [M, D]) of all regions, cached between updates."""
+        return self._matrix("region")
+
+    def unit(self, unit_id: int) -> Unit:
+        """The instance or region with this id.
+
+        Raises:
+            UnknownIdError: no such unit; the message suggests the closest existing id.
+        """
+        found = self.instances.get(unit_id) or self.regions.get(unit_id)
+        if found is None:
+            ids = sorted(self.instances) + sorted(self.regions)
+            if not ids:
+                raise UnknownIdError(f"unit id {unit_id!r} does not exist: the map is empty.")
+            closest = min(ids, key=lambda i: (abs(i - int(unit_id)), i))
+            hint = did_you_mean(str(unit_id), [str(i) for i in ids]) or f" Closest id: {closest}."
+            raise UnknownIdError(
+                f"unit id {unit_id!r} does not exist (the map has {len(self.instances)} "
+                f"instances and {len(self.regions)} regions).{hint}"
+            )
+        return found
+
+    def summary(self) -> MapSummary:
+        """Counts and bounds of the map."""
+        n_gauss = sum(len(u.gaussians) for u in self.instances.values())
+        bounds = None
+        if self.instances:
+            lo = np.min([u.bounds()[0] for u in self.instances.values()], axis=0)
+            hi = np.max([u.bounds()[1] for u in self.instances.values()], axis=0)
+            bounds = [lo.round(3).tolist(), hi.round(3).tolist()]
+        return MapSummary(
+            instances=len(self.instances),
+            regions=len(self.regions),
+            gaussians=n_gauss,
+            gaussian_bytes=sum(u.gaussians.nbytes for u in self.instances.values()),
+            frames=len(self.trajectory),
+            grid_cells=len(self.grid),
+            floor_z=self.floor_z,
+            bounds=bounds,
+        )
+
+    # ----------------------------------------------------------------- queries
+    def find_instances(self, text: str, k: int = 5) -> list[UnitInfo]:
+        """The k instances whose descriptions are most similar to `text`, best first."""
+        return queries.find(self, "instance", text, k)
+
+    def find_regions(self, text: str, k: int = 5) -> list[UnitInfo]:
+        """The k regions whose descriptions are most similar to `text`, best first."""
+        return queries.find(self, "region", text, k)
+
+    def units_at(self, x: float, y: float, radius: float = 0.25) -> list[UnitInfo]:
+        """Units with a grid cell within `radius` m of (x, y), nearest first."""
+        return queries.units_at(self, x, y, radius)
+
+    def unit_details(self, unit_id: int) -> UnitInfo:
+        """Centroid, bounds, description and observation count of one unit."""
+        return queries.details(self, self.unit(unit_id))

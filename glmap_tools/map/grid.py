@@ -1,0 +1,100 @@
+"""`IndexGrid`: the paper's 2D indexing grid m — sparse cells holding unit ids."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+import numpy as np
+
+Cell = tuple[int, int]
+
+
+def cells_of_points(xy: np.ndarray, cell_size: float) -> np.ndarray:
+    """Unique integer cells [M, 2] containing the points xy [N, 2] (m)."""
+    if len(xy) == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    ij = np.floor(np.asarray(xy, dtype=np.float64)[:, :2] / cell_size).astype(np.int64)
+    # 1D keys make np.unique several times faster than unique rows.
+    keys = np.unique((ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF))
+    j = (keys & 0xFFFFFFFF).astype(np.int64)
+    j[j >= 1 << 31] -= 1 << 32
+    return np.stack([(keys - j) >> 32, j], axis=1)
+
+
+class IndexGrid:
+    """Sparse, unbounded 2D grid over the world x-y plane.
+
+    Each cell holds the ids of the units (instances and regions) whose Gaussians project
+    into it; a reverse index keeps each unit's cells so updates replace them cheaply.
+    """
+
+    def __init__(self, cell_size: float = 0.05) -> None:
+        self.cell_size = float(cell_size)
+        self._cells: dict[Cell, set[int]] = {}
+        self._unit_cells: dict[int, frozenset[Cell]] = {}
+
+    def __len__(self) -> int:
+        """Number of occupied cells."""
+        return len(self._cells)
+
+    def cell_of(self, x: float, y: float) -> Cell:
+        return (math.floor(x / self.cell_size), math.floor(y / self.cell_size))
+
+    def cell_center(self, cell: Cell) -> tuple[float, float]:
+        return ((cell[0] + 0.5) * self.cell_size, (cell[1] + 0.5) * self.cell_size)
+
+    def set_unit(self, unit_id: int, cells: Iterable[Cell]) -> None:
+        """Replace the cells of `unit_id`."""
+        self.remove_unit(unit_id)
+        new = frozenset((int(i), int(j)) for i, j in cells)
+        self._unit_cells[unit_id] = new
+        for c in new:
+            self._cells.setdefault(c, set()).add(unit_id)
+
+    def remove_unit(self, unit_id: int) -> None:
+        for c in self._unit_cells.pop(unit_id, frozenset()):
+            ids = self._cells[c]
+            ids.discard(unit_id)
+            if not ids:
+                del self._cells[c]
+
+    def cells_of_unit(self, unit_id: int) -> frozenset[Cell]:
+        return self._unit_cells.get(unit_id, frozenset())
+
+    def ids_at(self, cell: Cell) -> frozenset[int]:
+        return frozenset(self._cells.get(cell, ()))
+
+    def units_near(self, x: float, y: float, radius: float) -> list[tuple[int, float]]:
+        """Units with a cell within `radius` (m) of (x, y), as (id, distance), nearest first.
+
+        Distance is from (x, y) to the nearest point of the unit's nearest cell (0 inside).
+        """
+        s = self.cell_size
+        i0, i1 = math.floor((x - radius) / s), math.floor((x + radius) / s)
+        j0, j1 = math.floor((y - radius) / s), math.floor((y + radius) / s)
+        best: dict[int, float] = {}
+        for i in range(i0, i1 + 1):
+            dx = max(i * s - x, 0.0, x - (i + 1) * s)
+            for j in range(j0, j1 + 1):
+                ids = self._cells.get((i, j))
+                if not ids:
+                    continue
+                dy = max(j * s - y, 0.0, y - (j + 1) * s)
+                d = math.hypot(dx, dy)
+                if d > radius:
+                    continue
+                for uid in ids:
+                    if d < best.get(uid, math.inf):
+                        best[uid] = d
+        return sorted(best.items(), key=lambda item: (item[1], item[0]))
+
+    def snapshot(self) -> dict[Cell, frozenset[int]]:
+        """A copy of every non-empty cell (for equality checks)."""
+        return {c: frozenset(ids) for c, ids in self._cells.items()}
+
+    def copy(self) -> IndexGrid:
+        other = IndexGrid(self.cell_size)
+        other._cells = {c: set(ids) for c, ids in self._cells.items()}
+        other._unit_cells = dict(self._unit_cells)
+        return other

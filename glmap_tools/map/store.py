@@ -1,0 +1,286 @@
+"""`MapStore`: a GLMap as one SQLite file (arrays as .npy bytes, never pickle).
+
+Every `GLMap.integrate` commits in one transaction; reopening reproduces the map exactly.
+The index grid is not stored: it is derived from the Gaussians on load, identically.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import sqlite3
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from glmap_tools.errors import StoreError
+from glmap_tools.gaussians.types import GaussianSet
+from glmap_tools.map.config import MapConfig
+from glmap_tools.map.occupancy import OccupancyGrid
+from glmap_tools.map.units import InstanceUnit, RegionUnit
+
+if TYPE_CHECKING:
+    from glmap_tools.map.fusion import FramePlan
+    from glmap_tools.map.glmap import GLMap
+
+FORMAT = "glmap-tools map"
+SCHEMA_VERSION = 1
+
+SCHEMA = """
+CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE instances (
+  id INTEGER PRIMARY KEY, label TEXT NOT NULL, text TEXT NOT NULL, embedding BLOB NOT NULL,
+  means BLOB NOT NULL, covs BLOB NOT NULL, colors BLOB NOT NULL, opacities BLOB NOT NULL,
+  counts BLOB NOT NULL, observations INTEGER NOT NULL, first_frame INTEGER NOT NULL,
+  last_frame INTEGER NOT NULL);
+CREATE TABLE regions (
+  id INTEGER PRIMARY KEY, text TEXT NOT NULL, embedding BLOB NOT NULL,
+  instance_ids TEXT NOT NULL, observations INTEGER NOT NULL, first_frame INTEGER NOT NULL,
+  last_frame INTEGER NOT NULL);
+CREATE TABLE occupancy (ci INTEGER NOT NULL, cj INTEGER NOT NULL, counts BLOB NOT NULL,
+  PRIMARY KEY (ci, cj));
+CREATE TABLE frames (seq INTEGER PRIMARY KEY, frame_index INTEGER NOT NULL, pose BLOB NOT NULL);
+"""
+
+
+def to_npy(arr: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, np.ascontiguousarray(arr), allow_pickle=False)
+    return buf.getvalue()
+
+
+def from_npy(blob: bytes) -> np.ndarray:
+    return np.load(io.BytesIO(blob), allow_pickle=False)
+
+
+class MapStore:
+    """An open GLMap SQLite file."""
+
+    def __init__(self, path: Path, conn: sqlite3.Connection, config: MapConfig) -> None:
+        self.path = path
+        self.conn = conn
+        self.config = config
+
+    # ------------------------------------------------------------- open / create
+    @classmethod
+    def open(cls, path: Path, create_with: MapConfig | None = None) -> MapStore:
+        """Open an existing store, or create one with `create_with` if `path` does not exist.
+
+        Raises:
+            StoreError: not a GLMap store, a newer schema, or the path cannot be used.
+        """
+        path = Path(path)
+        if not path.exists():
+            if create_with is None:
+                raise StoreError(f"map file {str(path)!r} does not exist; check the path.")
+            return cls._create(path, create_with)
+        if path.is_dir():
+            raise StoreError(f"{str(path)!r} is a directory; pass the path of a map file.")
+        conn = _connect(path)
+        try:
+            meta = dict(conn.execute("SELECT key, value FROM meta").fetchall())
+        except sqlite3.DatabaseError as exc:
+            conn.close()
+            raise StoreError(
+                f"{str(path)!r} is not a GLMap store ({exc}); pass a .glmap file written by "
+                "glmap-tools, or a new path to create one."
+            ) from None
+        if meta.get("format") != FORMAT:
+            conn.close()
+            raise StoreError(
+                f"{str(path)!r} is an SQLite file but not a GLMap store (no "
+                f"format={FORMAT!r} in its meta table); pass a .glmap file or a new path."
+            )
+        version = int(meta.get("schema_version", "0"))
+        if version > SCHEMA_VERSION:
+            conn.close()
+            raise StoreError(
+                f"{str(path)!r} has schema version {version}; this glmap-tools reads up to "
+                f"{SCHEMA_VERSION}. Upgrade glmap-tools."
+            )
+        return cls(path, conn, MapConfig.from_dict(json.loads(meta["config"])))
+
+    @classmethod
+    def _create(cls, path: Path, config: MapConfig, glmap: GLMap | None = None) -> MapStore:
+        if not path.parent.is_dir():
+            raise StoreError(
+                f"folder {str(path.parent)!r} does not exist; create it or choose another path."
+            )
+        # Build in a temporary file beside the target, then rename: no partial map files.
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.close(fd)
+        try:
+            conn = _connect(Path(tmp))
+            with conn:
+                conn.executescript(SCHEMA)
+                store = cls(Path(tmp), conn, config)
+                store._write_meta(
+                    {
+                        "format": FORMAT,
+                        "schema_version": str(SCHEMA_VERSION),
+                        "config": json.dumps(config.to_dict(), sort_keys=True),
+                    }
+                )
+                if glmap is not None:
+                    store._write_everything(glmap)
+                else:
+                    store._write_meta({"next_id": "1", "floor_z": json.dumps(config.floor_z)})
+            conn.close()
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return cls(path, _connect(path), config)
+
+    @classmethod
+    def create_from(cls, path: Path, glmap: GLMap, overwrite: bool = False) -> MapStore:
+        """Write all of `glmap` to a new file at `path` (atomically)."""
+        path = Path(path)
+        if path.exists() and not overwrite:
+            raise StoreError(
+                f"{str(path)!r} already exists; choose a new path or pass overwrite=True."
+            )
+        return cls._create(path, glmap.config, glmap)
+
+    def close(self) -> None:
+        self.conn.close()
+
+    # ------------------------------------------------------------- writes
+    def _write_meta(self, items: dict[str, str]) -> None:
+        self.conn.executemany(
+            "INSERT OR REPLACE INTO meta (key, value) VALUES (?, ?)", list(items.items())
+        )
+
+    def _write_instance(self, u: InstanceUnit) -> None:
+        g = u.gaussians
+        self.conn.execute(
+            "INSERT OR REPLACE INTO instances VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
+            (
+                u.id,
+                u.label,
+                u.text,
+                to_npy(u.embedding),
+                to_npy(g.means),
+                to_npy(g.covs),
+                to_npy(g.colors),
+                to_npy(g.opacities),
+                to_npy(g.counts),
+                u.observations,
+                u.first_frame,
+                u.last_frame,
+            ),
+        )
+
+    def _write_region(self, r: RegionUnit) -> None:
+        self.conn.execute(
+            "INSERT OR REPLACE INTO regions VALUES (?,?,?,?,?,?,?)",
+            (
+                r.id,
+                r.text,
+                to_npy(r.embedding),
+                json.dumps(list(r.instance_ids)),
+                r.observations,
+                r.first_frame,
+                r.last_frame,
+            ),
+        )
+
+    def _write_chunks(self, chunks: dict[tuple[int, int], np.ndarray]) -> None:
+        self.conn.executemany(
+            "INSERT OR REPLACE INTO occupancy VALUES (?,?,?)",
+            [(ci, cj, to_npy(c)) for (ci, cj), c in chunks.items()],
+        )
+
+    def _write_embedder(self, glmap: GLMap) -> None:
+        self._write_meta(
+            {"embedder": glmap.embedder.name, "embedding_dim": str(glmap.embedder.dim)}
+        )
+
+    def _write_everything(self, glmap: GLMap) -> None:
+        for u in glmap.instances.values():
+            self._write_instance(u)
+        for r in glmap.regions.values():
+            self._write_region(r)
+        self._write_chunks(glmap.occupancy.chunks)
+        self.conn.executemany(
+            "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
+            [(i, to_npy(p)) for i, p in enumerate(glmap.trajectory)],
+        )
+        self._write_embedder(glmap)
+        self._write_meta({"next_id": str(glmap.next_id), "floor_z": json.dumps(glmap.floor_z)})
+
+    def commit_frame(self, plan: FramePlan, glmap: GLMap) -> None:
+        """Write one frame's changes in a single transaction (all or nothing)."""
+        try:
+            with self.conn:
+                for u in plan.instances.values():
+                    self._write_instance(u)
+                for r in plan.regions.values():
+                    self._write_region(r)
+                self._write_chunks(plan.occupancy)
+                self.conn.execute(
+                    "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
+                    (plan.frame_index, to_npy(plan.pose)),
+                )
+                self._write_embedder(glmap)
+                self._write_meta(
+                    {"next_id": str(plan.next_id), "floor_z": json.dumps(plan.floor_z)}
+                )
+        except sqlite3.Error as exc:
+            raise StoreError(
+                f"could not write frame {plan.frame_index} to {str(self.path)!r}: {exc}; the "
+                "file is unchanged. Check disk space and permissions."
+            ) from exc
+
+    # ------------------------------------------------------------- reads
+    def load_into(self, glmap: GLMap) -> None:
+        """Install the stored state into a freshly constructed GLMap."""
+        c = self.conn
+        meta = dict(c.execute("SELECT key, value FROM meta").fetchall())
+        name = meta.get("embedder")
+        if name is not None and name != glmap.embedder.name:
+            raise StoreError(
+                f"{str(self.path)!r} was built with the embedder {name!r} but was opened with "
+                f"{glmap.embedder.name!r}; open it with the same embedder (embeddings differ)."
+            )
+        instances = {}
+        for row in c.execute("SELECT * FROM instances ORDER BY id"):
+            g = GaussianSet(*(from_npy(b) for b in row[4:9]))
+            instances[row[0]] = InstanceUnit(
+                row[0], row[1], row[2], from_npy(row[3]), g, row[9], row[10], row[11]
+            )
+        regions = {}
+        for row in c.execute("SELECT * FROM regions ORDER BY id"):
+            regions[row[0]] = RegionUnit(
+                row[0],
+                row[1],
+                from_npy(row[2]),
+                tuple(json.loads(row[3])),
+                row[4],
+                row[5],
+                row[6],
+            )
+        occupancy = OccupancyGrid(self.config.cell_size)
+        for ci, cj, blob in c.execute("SELECT ci, cj, counts FROM occupancy"):
+            occupancy.chunks[(ci, cj)] = from_npy(blob)
+        trajectory = [from_npy(b) for (b,) in c.execute("SELECT pose FROM frames ORDER BY seq")]
+        glmap._restore(
+            instances,
+            regions,
+            occupancy,
+            int(meta.get("next_id", "1")),
+            json.loads(meta.get("floor_z", "null")),
+            trajectory,
+        )
+
+
+def _connect(path: Path) -> sqlite3.Connection:
+    try:
+        conn = sqlite3.connect(str(path), isolation_level="DEFERRED", check_same_thread=False)
+        conn.execute("PRAGMA synchronous=NORMAL")
+    except sqlite3.Error as exc:
+        raise StoreError(f"cannot open {str(path)!r} as a map file: {exc}.") from None
+    return conn
