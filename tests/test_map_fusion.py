@@ -83,7 +83,7 @@ def test_a_similar_region_without_a_shared_instance_is_a_new_region(glmap):
 
 def test_queries_find_units_by_text_and_by_position(glmap):
     boxes = scenes.floor() + scenes.table(0.0, 0.0, 1) + scenes.chair(1.5, 0.0, object_id=2)
-    frame, ids = scenes.view(boxes, (0.5, -3.0, 1.4), (0.5, 0.0, 0.4))
+    frame, ids = scenes.view(boxes, (0.5, -3.0, 1.4), (0.5, 0.0, 0.4), 640, 480)
     report = glmap.integrate(
         frame, scenes.semantics(ids, {1: ("table", "a brown wooden dining table"), 2: CHAIR})
     )
@@ -102,7 +102,14 @@ def test_occupancy_marks_furniture_as_obstacles_and_the_floor_in_between_as_free
     boxes = scenes.floor() + scenes.table(0.0, 0.0, 1)
     frame, ids = scenes.view(boxes, (0.0, -3.0, 1.4), (0.0, 0.0, 0.4))
     glmap.integrate(frame, FrameSemantics())
-    assert glmap.occupancy.state_at(0.0, -0.35) == OBSTACLE  # table edge facing the camera
+    dense = glmap.occupancy.to_dense()
+    rows, cols = np.nonzero(dense.state == OBSTACLE)
+    xy = np.array([dense.index_to_world(r, c) for r, c in zip(rows, cols, strict=True)])
+    # Every obstacle cell lies on the table (0.6 x 0.4 half-extents, one cell of slack) ...
+    assert np.all(np.abs(xy[:, 0]) <= 0.65) and np.all(np.abs(xy[:, 1]) <= 0.45)
+    # ... and the table's edge facing the camera is an obstacle along its whole width.
+    front = xy[xy[:, 1] < -0.3]
+    assert len(np.unique(np.round(front[:, 0], 3))) >= 20
     assert glmap.occupancy.state_at(0.0, -1.5) == FREE
     assert glmap.occupancy.state_at(0.0, 5.5) == UNKNOWN  # behind the camera's view
 

@@ -48,11 +48,15 @@ def test_reopening_a_map_reproduces_it_exactly(tmp_path):
             unit.first_frame,
             unit.last_frame,
         )
-    assert again.regions == glmap.regions or all(
-        again.regions[r].instance_ids == glmap.regions[r].instance_ids
-        and again.regions[r].text == glmap.regions[r].text
-        for r in glmap.regions
-    )
+    assert sorted(again.regions) == sorted(glmap.regions)
+    for rid, region in glmap.regions.items():
+        other = again.regions[rid]
+        assert (other.text, other.instance_ids, other.observations) == (
+            region.text,
+            region.instance_ids,
+            region.observations,
+        )
+        assert np.array_equal(other.embedding, region.embedding)
     assert again.grid.snapshot() == glmap.grid.snapshot()
     assert again.occupancy.equals(glmap.occupancy)
     assert again.next_id == glmap.next_id and again.floor_z == glmap.floor_z

@@ -33,7 +33,7 @@ class MapConfig:
     floor_z: float | None = None
     obstacle_band: tuple[float, float] = (0.10, 1.50)
     camera_height: float = 0.88
-    occupancy_stride: int = 4
+    occupancy_stride: int = 2
     estimator: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:

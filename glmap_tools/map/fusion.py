@@ -19,7 +19,7 @@ from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry.backproject import backproject
 from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.language.text_merger import DELIMITER, append_text
-from glmap_tools.map.grid import Cell, cells_of_points
+from glmap_tools.map.grid import Cell, unit_cells
 from glmap_tools.map.report import SkippedObservation, UnitChange, UpdateReport
 from glmap_tools.map.units import InstanceUnit, RegionUnit
 from glmap_tools.perception.semantics import FrameSemantics
@@ -171,9 +171,7 @@ def plan_frame(
         report.gaussians_added += len(gaussians)
     plan.instances = staged
     for uid, unit in staged.items():
-        plan.cells[uid] = frozenset(
-            map(tuple, cells_of_points(unit.gaussians.means, cfg.cell_size).tolist())
-        )
+        plan.cells[uid] = unit_cells(unit.gaussians, cfg.cell_size)
 
     # Regions: local member ids -> global, match by text AND a shared instance.
     rids, rmatrix = glmap.region_matrix()

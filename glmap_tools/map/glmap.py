@@ -153,15 +153,14 @@ class GLMap:
         trajectory: list[np.ndarray],
     ) -> None:
         """Install loaded state and derive the index grid and reverse indices from it."""
-        from glmap_tools.map.grid import cells_of_points
+        from glmap_tools.map.grid import unit_cells
 
         self.instances, self.regions = dict(instances), dict(regions)
         self.occupancy, self.next_id, self.floor_z = occupancy, next_id, floor_z
         self.trajectory = list(trajectory)
         self.grid = IndexGrid(self.config.cell_size)
         for uid, unit in self.instances.items():
-            cells = cells_of_points(unit.gaussians.means, self.config.cell_size)
-            self.grid.set_unit(uid, map(tuple, cells.tolist()))
+            self.grid.set_unit(uid, unit_cells(unit.gaussians, self.config.cell_size))
         self._regions_by_instance = {}
         for rid, region in self.regions.items():
             cells_of_region: set[tuple[int, int]] = set()

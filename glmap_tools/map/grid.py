@@ -7,6 +7,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from glmap_tools.gaussians.types import GaussianSet
+
 Cell = tuple[int, int]
 
 
@@ -20,6 +22,39 @@ def cells_of_points(xy: np.ndarray, cell_size: float) -> np.ndarray:
     j = (keys & 0xFFFFFFFF).astype(np.int64)
     j[j >= 1 << 31] -= 1 << 32
     return np.stack([(keys - j) >> 32, j], axis=1)
+
+
+def gaussian_cells(
+    means: np.ndarray, covs: np.ndarray, cell_size: float, k: float = 1.0
+) -> np.ndarray:
+    """Unique cells [M, 2] covered by the x-y footprints (mean +- k sigma) of Gaussians.
+
+    Args:
+        means: [N, 3] metres.
+        covs: [N, 3, 3] m^2.
+        cell_size: metres.
+        k: footprint half-width in standard deviations.
+    """
+    if len(means) == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    xy = np.asarray(means, dtype=np.float64)[:, :2]
+    sigma = np.sqrt(np.maximum(np.asarray(covs, dtype=np.float64)[:, [0, 1], [0, 1]], 0.0))
+    lo = np.floor((xy - k * sigma) / cell_size).astype(np.int64)
+    hi = np.floor((xy + k * sigma) / cell_size).astype(np.int64)
+    nx, ny = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
+    per = nx * ny
+    owner = np.repeat(np.arange(len(xy)), per)
+    local = np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per)
+    i = lo[owner, 0] + local % nx[owner]
+    j = lo[owner, 1] + local // nx[owner]
+    centres = (np.stack([i, j], axis=1) + 0.5) * cell_size
+    return cells_of_points(centres, cell_size)
+
+
+def unit_cells(gaussians: GaussianSet, cell_size: float) -> frozenset[Cell]:
+    """The cells an instance's Gaussians project into."""
+    cells = gaussian_cells(gaussians.means, gaussians.covs, cell_size)
+    return frozenset(map(tuple, cells.tolist()))
 
 
 class IndexGrid:

@@ -101,7 +101,7 @@ class OccupancyGrid:
             obstacle_band: heights above the floor (m) whose points are obstacles.
             ray_stride: carve free-space rays to every `ray_stride`-th point.
 
-        Each cell counts at most one free and one obstacle observation per frame.
+        Each cell counts at most one observation per frame, obstacle before free.
         """
         s = self.cell_size
         out: dict[tuple[int, int], np.ndarray] = {}
@@ -123,8 +123,13 @@ class OccupancyGrid:
             offsets = np.arange(n_steps.sum()) - np.repeat(np.cumsum(n_steps) - n_steps, n_steps)
             t = (offsets * step) / length[far][ray]
             free_parts.append(camera_xy[None, :] + delta[far][ray] * t[:, None])
-        self._added(cells_of_points(np.concatenate(free_parts), s), 0, out)
-        self._added(cells_of_points(points[obstacle, :2], s), 1, out)
+        free = cells_of_points(np.concatenate(free_parts), s)
+        blocked = cells_of_points(points[obstacle, :2], s)
+        # Within one frame an obstacle hit wins: a 2D ray passing over a table top is no
+        # evidence that the table's cells are free.
+        free = free[~_rows_in(free, blocked)]
+        self._added(free, 0, out)
+        self._added(blocked, 1, out)
         return out
 
     def apply(self, chunks: dict[tuple[int, int], np.ndarray]) -> None:
@@ -169,3 +174,12 @@ class OccupancyGrid:
         if set(self.chunks) != set(other.chunks):
             return False
         return all(np.array_equal(v, other.chunks[k]) for k, v in self.chunks.items())
+
+
+def _rows_in(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """[len(a)] bool: which integer rows of a [N, 2] appear in b [M, 2]."""
+    if len(a) == 0 or len(b) == 0:
+        return np.zeros(len(a), dtype=bool)
+    ka = (a[:, 0] << 32) + (a[:, 1] & 0xFFFFFFFF)
+    kb = (b[:, 0] << 32) + (b[:, 1] & 0xFFFFFFFF)
+    return np.isin(ka, kb)

@@ -281,6 +281,11 @@ def _connect(path: Path) -> sqlite3.Connection:
     try:
         conn = sqlite3.connect(str(path), isolation_level="DEFERRED", check_same_thread=False)
         conn.execute("PRAGMA synchronous=NORMAL")
+    except sqlite3.DatabaseError as exc:
+        raise StoreError(
+            f"{str(path)!r} is not a GLMap store ({exc}); pass a .glmap file written by "
+            "glmap-tools, or a new path to create one."
+        ) from None
     except sqlite3.Error as exc:
         raise StoreError(f"cannot open {str(path)!r} as a map file: {exc}.") from None
     return conn

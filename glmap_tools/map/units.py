@@ -9,11 +9,12 @@ import numpy as np
 from glmap_tools.gaussians.types import GaussianSet
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class InstanceUnit:
     """An instance o = (G, T_o): 3D Gaussians and a language description buffer.
 
     Units are immutable; an update builds a new unit, so a failed update changes nothing.
+    Equality is identity (the arrays make field-wise == ambiguous).
 
     Attributes:
         id: stable global id (shared id space with regions, never reused).
@@ -50,7 +51,7 @@ class InstanceUnit:
         return self.gaussians.bounds()
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RegionUnit:
     """A region r = (I_r, T_r): a set of instance ids and a description buffer.
 
