@@ -1,0 +1,166 @@
+"""Offscreen (EGL) rendering of a layout: RGB, metric depth and an exact instance-id mask.
+
+Lighting is baked into per-vertex colours (`face_shade`) and drawn with pyrender's FLAT
+pass: software (llvmpipe) rendering stays fast and colours do not depend on the view.
+One `SceneRenderer` per scene holds one pyrender `OffscreenRenderer` (creating one is slow).
+Each object is one mesh node with per-vertex colours; all walls, floors and ceilings are one
+node whose segmentation colour is 0. The id mask comes from pyrender's flat SEG pass
+(multisampling off), so every pixel is exactly one object id or 0; depth is read from the same
+pass so depth and mask agree pixel for pixel.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+from dataclasses import dataclass  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pyrender  # noqa: E402
+
+from glmap_tools.errors import InvalidInputError  # noqa: E402
+from glmap_tools.geometry import Intrinsics, Pose  # noqa: E402
+from glmap_tools.geometry.adapters import to_opengl  # noqa: E402
+from glmap_tools.sim.architecture import floor_and_ceiling, room_walls  # noqa: E402
+from glmap_tools.sim.layout import Layout  # noqa: E402
+from glmap_tools.sim.meshes import PlacedPart, object_parts  # noqa: E402
+
+Z_NEAR = 0.05  # metres
+Z_FAR = 40.0  # metres
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """The agent camera: image size, horizontal field of view and height above the floor."""
+
+    width: int = 640
+    height: int = 480
+    hfov_deg: float = 79.0
+    camera_height: float = 0.88
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        return Intrinsics.from_fov(self.width, self.height, self.hfov_deg)
+
+
+@dataclass(frozen=True)
+class RenderedView:
+    """One rendered view.
+
+    Attributes:
+        rgb: [H, W, 3] uint8.
+        depth: [H, W] float32 metres along the optical axis, 0 where nothing was hit.
+        instance_mask: [H, W] int32 layout object ids, 0 for walls, floors, ceilings.
+    """
+
+    rgb: np.ndarray  # [H, W, 3]
+    depth: np.ndarray  # [H, W]
+    instance_mask: np.ndarray  # [H, W]
+
+
+def id_color(object_id: int) -> tuple[int, int, int]:
+    """Segmentation colour of an object id (low byte red, high byte green)."""
+    return (object_id & 255, (object_id >> 8) & 255, 0)
+
+
+def ids_from_color(seg: np.ndarray) -> np.ndarray:
+    """[H, W] int32 ids from an [H, W, 3] uint8 segmentation image."""
+    return seg[..., 0].astype(np.int32) | (seg[..., 1].astype(np.int32) << 8)
+
+
+# Baked lighting: a key light from above and a fill light from the side, per face.
+_KEY = np.array([0.3, 0.5, 1.0]) / np.linalg.norm([0.3, 0.5, 1.0])
+_FILL = np.array([1.0, -0.6, 0.3]) / np.linalg.norm([1.0, -0.6, 0.3])
+AMBIENT, KEY, FILL = 0.5, 0.35, 0.25
+
+
+def face_shade(normals: np.ndarray) -> np.ndarray:
+    """[M] brightness factors of faces with unit [M, 3] normals (view independent)."""
+    return (
+        AMBIENT
+        + KEY * np.clip(normals @ _KEY, 0.0, None)
+        + FILL * np.clip(normals @ _FILL, 0.0, None)
+    )
+
+
+def _primitive(parts: list[PlacedPart]) -> pyrender.Primitive:
+    """One primitive with per-vertex colours (lighting baked per face) from coloured parts."""
+    positions, colors = [], []
+    for part in parts:
+        tri = part.vertices[part.faces]  # [M, 3, 3]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        rgb = np.clip(np.asarray(part.color)[None, :] * face_shade(n)[:, None], 0.0, 1.0)
+        rgba = np.concatenate([rgb, np.ones((len(rgb), 1))], axis=1)
+        positions.append(tri.reshape(-1, 3))
+        colors.append(np.repeat(rgba, 3, axis=0))
+    material = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0))
+    return pyrender.Primitive(
+        positions=np.concatenate(positions).astype(np.float32),
+        color_0=np.concatenate(colors).astype(np.float32),
+        material=material,
+    )
+
+
+class SceneRenderer:
+    """Renders a layout from world_from_camera poses (OpenCV camera, z-up world).
+
+    Args:
+        layout: the scene.
+        camera: image size, field of view (the camera height is the caller's business).
+    """
+
+    def __init__(self, layout: Layout, camera: CameraSpec | None = None) -> None:
+        self.camera = camera or CameraSpec()
+        self.intrinsics = self.camera.intrinsics
+        self.scene = pyrender.Scene(bg_color=(0.0, 0.0, 0.0, 1.0), ambient_light=(1.0,) * 3)
+        self.seg_node_map: dict[pyrender.Node, tuple[int, int, int]] = {}
+        for obj in layout.objects:
+            node = self.scene.add(pyrender.Mesh([_primitive(object_parts(obj))]), name=str(obj.id))
+            self.seg_node_map[node] = id_color(obj.id)
+        shell = list(room_walls(layout).values())
+        for room in layout.rooms:
+            shell.extend(floor_and_ceiling(room))
+        node = self.scene.add(pyrender.Mesh([_primitive(shell)]), name="architecture")
+        self.seg_node_map[node] = (0, 0, 0)
+        k = self.intrinsics
+        # pyrender puts pixel centres at +0.5 where OpenCV intrinsics put them at integers.
+        cam = pyrender.IntrinsicsCamera(
+            k.fx, k.fy, k.cx + 0.5, k.cy + 0.5, znear=Z_NEAR, zfar=Z_FAR
+        )
+        self.camera_node = self.scene.add(cam, pose=np.eye(4))
+        self._renderer: pyrender.OffscreenRenderer | None = pyrender.OffscreenRenderer(
+            self.camera.width, self.camera.height
+        )
+
+    def render(self, pose: Pose) -> RenderedView:
+        """Render RGB, depth and the instance mask seen from `pose` (world_from_camera)."""
+        if self._renderer is None:
+            raise InvalidInputError("this SceneRenderer was closed; make a new one to render.")
+        if not isinstance(pose, Pose):
+            raise InvalidInputError(
+                f"pose must be a glmap_tools.geometry.Pose, got {type(pose).__name__}."
+            )
+        self.scene.set_pose(self.camera_node, to_opengl(pose))
+        rgb, _ = self._renderer.render(self.scene, flags=pyrender.RenderFlags.FLAT)
+        seg, depth = self._renderer.render(
+            self.scene, flags=pyrender.RenderFlags.SEG, seg_node_map=self.seg_node_map
+        )
+        mask = ids_from_color(seg)
+        return RenderedView(
+            np.ascontiguousarray(rgb), np.ascontiguousarray(depth, dtype=np.float32), mask
+        )
+
+    def close(self) -> None:
+        """Free the OpenGL context."""
+        if self._renderer is not None:
+            self._renderer.delete()
+            self._renderer = None
+
+    def __enter__(self) -> SceneRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
