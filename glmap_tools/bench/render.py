@@ -1,0 +1,127 @@
+"""Benchmark the splatting rasterizer: ms per frame, fast vs reference.
+
+`python -m glmap_tools.bench render [--counts 10000 50000 ...] [--sizes 320x240 ...]`
+
+The scene is N small Gaussians (std 1-3 cm per axis, random orientation, opacity 0.5-1)
+spread uniformly over the image at 1-5 m in front of the camera. The fast path is timed as
+the median of `--repeats` frames after a warm-up call (its first call, which compiles or
+loads the numba kernels, is reported apart). The reference is timed on the same scene at
+1/`--reference-scale` of the image size (its cost per pixel does not depend on the image
+size) and extrapolated by the pixel ratio; it is skipped past `--reference-max` Gaussians.
+Sample images go to `--out` (PNG).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from glmap_tools.gaussians.render import render
+from glmap_tools.gaussians.types import GaussianSet
+from glmap_tools.geometry import Intrinsics, Pose
+
+HFOV_DEG = 79.0
+
+
+def random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
+    """[n, 3, 3] uniformly random rotation matrices (from unit quaternions)."""
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        axis=1,
+    )
+
+
+def bench_scene(n: int, pose: Pose, intrinsics: Intrinsics, seed: int = 0) -> GaussianSet:
+    """N small random Gaussians covering the view of `intrinsics` at `pose`, 1-5 m away."""
+    rng = np.random.default_rng(seed)
+    k = intrinsics
+    z = rng.uniform(1.0, 5.0, n)
+    u = rng.uniform(-0.5, k.width - 0.5, n)
+    v = rng.uniform(-0.5, k.height - 0.5, n)
+    points_cam = np.stack([(u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z], axis=1)
+    rot = random_rotations(rng, n)
+    sigma = rng.uniform(0.01, 0.03, (n, 3))
+    covs = np.einsum("nij,nj,nkj->nik", rot, sigma**2, rot) + 1e-6 * np.eye(3)
+    colors = rng.uniform(0.0, 1.0, (n, 3))
+    return GaussianSet(
+        pose.transform_points(points_cam),
+        covs,
+        colors,
+        rng.uniform(0.5, 1.0, n),
+        np.ones(n),
+    )
+
+
+def _time_ms(fn, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return 1000.0 * float(np.median(times))
+
+
+def _parse_size(text: str) -> tuple[int, int]:
+    w, _, h = text.lower().partition("x")
+    return int(w), int(h)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench render", description=__doc__)
+    parser.add_argument(
+        "--counts", type=int, nargs="+", default=[10_000, 50_000, 100_000, 1_000_000]
+    )
+    parser.add_argument("--sizes", nargs="+", default=["320x240", "640x480"])
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--reference-scale", type=int, default=8)
+    parser.add_argument("--reference-max", type=int, default=100_000)
+    parser.add_argument("--out", type=Path, default=Path("out/bench_render"))
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+
+    import cv2
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    pose = Pose.from_position_heading(0.0, 0.0, 1.5, heading=0.3)
+    tiny = Intrinsics.from_fov(32, 24, HFOV_DEG)
+    t0 = time.perf_counter()
+    render(bench_scene(100, pose, tiny), pose, tiny, return_depth=True)
+    print(f"first call (numba compile or cache load): {time.perf_counter() - t0:.2f} s")
+    print(f"{'N':>9} {'size':>9} {'fast ms':>9} {'ref ms':>11} {'ref/fast':>9}")
+    for size in args.sizes:
+        w, h = _parse_size(size)
+        intrinsics = Intrinsics.from_fov(w, h, HFOV_DEG)
+        for n in args.counts:
+            scene = bench_scene(n, pose, intrinsics, args.seed)
+            result = render(scene, pose, intrinsics)  # warm-up
+            fast_ms = _time_ms(lambda s=scene, k=intrinsics: render(s, pose, k), args.repeats)
+            ref_text, ratio_text = "skipped", "-"
+            if n <= args.reference_max:
+                small = intrinsics.scaled(
+                    max(1, w // args.reference_scale), max(1, h // args.reference_scale)
+                )
+                ref_small = _time_ms(
+                    lambda s=scene, k=small: render(s, pose, k, backend="reference"), 1
+                )
+                ref_ms = ref_small * (w * h) / (small.width * small.height)
+                ref_text = f"~{ref_ms:,.0f}"
+                ratio_text = f"{ref_ms / fast_ms:,.0f}x"
+            print(f"{n:>9} {size:>9} {fast_ms:>9.1f} {ref_text:>11} {ratio_text:>9}", flush=True)
+            path = args.out / f"render_{n}_{w}x{h}.png"
+            cv2.imwrite(str(path), cv2.cvtColor(result.to_uint8(), cv2.COLOR_RGB2BGR))
+    targets = "targets (2 cores): 50k @ 320x240 <= 30 ms; 1M @ 640x480 <= 1000 ms"
+    print(
+        f"{targets}; reference extrapolated from 1/{args.reference_scale} size; "
+        f"images in {args.out}/"
+    )
+    return 0

@@ -1,0 +1,456 @@
+"""Fast tile-based EWA splatting with numba; same contract as `render_reference`.
+
+Pipeline: project every Gaussian in parallel (cull by near/far, opacity and the image
+rectangle) -> one global stable depth sort of the survivors, gathered into depth order ->
+per-tile Gaussian lists by a counting sort (each list stays front to back) -> rasterize tiles
+in parallel, each Gaussian visiting only the pixels of its footprint inside the tile.
+
+The rendering constants of `_render_common` are passed to the kernels as arguments, so a
+cached compiled kernel never holds a stale copy of them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from glmap_tools.gaussians._render_common import (
+    ALPHA_MAX,
+    ALPHA_MIN,
+    LOW_PASS,
+    SIGMA_EXTENT,
+    T_MIN,
+    TILE,
+    camera_setup,
+)
+from glmap_tools.gaussians.types import GaussianSet
+from glmap_tools.geometry import Intrinsics, Pose
+
+# Columns of the per-Gaussian screen parameters. The footprint on pixel row y is the column
+# interval centre(y) +- sqrt(HALF0 - HALF1 dy^2) where the alpha can reach ALPHA_MIN.
+# DECAY_X, DECAY_Y, DECAY_XY = exp(-ca), exp(-cc), exp(-cb) step exp(-m/2) across pixels.
+# COMPACT is 1 when d^T conic d stays below M_COMPACT over the whole footprint rectangle.
+(U, V, CONIC_A, CONIC_B, CONIC_C, OPACITY, HALF0, HALF1, SLOPE) = range(9)
+DECAY_X, DECAY_Y, DECAY_XY, COMPACT, RED, GREEN, BLUE, DEPTH = range(9, 17)
+N_PARAMS = 17
+M_COMPACT = 200.0  # exp(-m/2) by forward differences stays far from under/overflow below this
+PAD = 1e-6  # px slack on the footprint bounds; the exact alpha test decides inside them
+
+
+@njit(parallel=True, cache=True)
+def project_kernel(
+    means: np.ndarray,  # [N, 3] float32
+    covs: np.ndarray,  # [N, 3, 3] float32
+    colors: np.ndarray,  # [N, 3] float32
+    opacities: np.ndarray,  # [N] float32
+    rot: np.ndarray,  # [3, 3] float64, camera_from_world
+    trans: np.ndarray,  # [3] float64
+    camera: np.ndarray,  # [8] float64: fx, fy, cx, cy, tan_lo x, y, tan_hi x, y
+    width: int,
+    height: int,
+    near: float,
+    far: float,
+    low_pass: float,
+    alpha_min: float,
+    sigma_extent: float,
+    params: np.ndarray,  # [N, N_PARAMS] float64, out
+    rects: np.ndarray,  # [N, 4] int32 out: x0, x1, y0, y1 (inclusive pixel footprint)
+    valid: np.ndarray,  # [N] bool, out
+) -> None:
+    """EWA projection of every Gaussian; `valid[i]` is False for culled ones."""
+    fx, fy, cx, cy = camera[0], camera[1], camera[2], camera[3]
+    for i in prange(means.shape[0]):
+        valid[i] = False
+        op = np.float64(opacities[i])
+        if not op >= alpha_min:  # can never reach the alpha threshold (or NaN)
+            continue
+        mx, my, mz = np.float64(means[i, 0]), np.float64(means[i, 1]), np.float64(means[i, 2])
+        x = rot[0, 0] * mx + rot[0, 1] * my + rot[0, 2] * mz + trans[0]
+        y = rot[1, 0] * mx + rot[1, 1] * my + rot[1, 2] * mz + trans[1]
+        z = rot[2, 0] * mx + rot[2, 1] * my + rot[2, 2] * mz + trans[2]
+        if not (z >= near and z <= far):
+            continue
+        u = fx * x / z + cx
+        v = fy * y / z + cy
+        if not (math.isfinite(u) and math.isfinite(v)):
+            continue
+        # Jacobian of the projection at the mean, x/z and y/z clamped.
+        tx = min(max(x / z, camera[4]), camera[6]) * z
+        ty = min(max(y / z, camera[5]), camera[7]) * z
+        j00 = fx / z
+        j02 = -fx * tx / (z * z)
+        j11 = fy / z
+        j12 = -fy * ty / (z * z)
+        # Rows p, q of M = J W; cov2d = M Sigma M^T (Sigma symmetric).
+        p0 = j00 * rot[0, 0] + j02 * rot[2, 0]
+        p1 = j00 * rot[0, 1] + j02 * rot[2, 1]
+        p2 = j00 * rot[0, 2] + j02 * rot[2, 2]
+        q0 = j11 * rot[1, 0] + j12 * rot[2, 0]
+        q1 = j11 * rot[1, 1] + j12 * rot[2, 1]
+        q2 = j11 * rot[1, 2] + j12 * rot[2, 2]
+        s00 = np.float64(covs[i, 0, 0])
+        s01 = np.float64(covs[i, 0, 1])
+        s02 = np.float64(covs[i, 0, 2])
+        s11 = np.float64(covs[i, 1, 1])
+        s12 = np.float64(covs[i, 1, 2])
+        s22 = np.float64(covs[i, 2, 2])
+        sq0 = s00 * q0 + s01 * q1 + s02 * q2
+        sq1 = s01 * q0 + s11 * q1 + s12 * q2
+        sq2 = s02 * q0 + s12 * q1 + s22 * q2
+        a = p0 * (s00 * p0 + s01 * p1 + s02 * p2)
+        a += p1 * (s01 * p0 + s11 * p1 + s12 * p2)
+        a += p2 * (s02 * p0 + s12 * p1 + s22 * p2)
+        b = p0 * sq0 + p1 * sq1 + p2 * sq2
+        c = q0 * sq0 + q1 * sq1 + q2 * sq2
+        a += low_pass
+        c += low_pass
+        det = a * c - b * b
+        if not det > 0.0:
+            continue
+        mid = 0.5 * (a + c)
+        radius = math.ceil(sigma_extent * math.sqrt(mid + math.sqrt(max(mid * mid - det, 0.0))))
+        # alpha >= alpha_min  <=>  d^T conic d <= m_cut; its ellipse bounds the footprint.
+        m_cut = 2.0 * math.log(op / alpha_min) + PAD
+        ext_x = min(radius, math.sqrt(m_cut * a) + PAD)
+        ext_y = min(radius, math.sqrt(m_cut * c) + PAD)
+        x0 = max(math.ceil(u - ext_x), 0.0)
+        x1 = min(math.floor(u + ext_x), width - 1.0)
+        y0 = max(math.ceil(v - ext_y), 0.0)
+        y1 = min(math.floor(v + ext_y), height - 1.0)
+        if not (x0 <= x1 and y0 <= y1):
+            continue
+        ca = c / det
+        cb = -b / det
+        cc = a / det
+        params[i, U] = u
+        params[i, V] = v
+        params[i, CONIC_A] = ca
+        params[i, CONIC_B] = cb
+        params[i, CONIC_C] = cc
+        params[i, OPACITY] = op
+        params[i, HALF0] = m_cut / ca
+        params[i, HALF1] = (ca * cc - cb * cb) / (ca * ca)
+        params[i, SLOPE] = cb / ca
+        params[i, DECAY_X] = math.exp(-ca)
+        params[i, DECAY_Y] = math.exp(-cc)
+        params[i, DECAY_XY] = math.exp(-cb)
+        m_corner = 0.0
+        for cx_ in (x0, x1):
+            for cy_ in (y0, y1):
+                ddx = cx_ - u
+                ddy = cy_ - v
+                m_corner = max(m_corner, ca * ddx * ddx + 2.0 * cb * ddx * ddy + cc * ddy * ddy)
+        params[i, COMPACT] = 1.0 if m_corner <= M_COMPACT else 0.0
+        params[i, RED] = colors[i, 0]
+        params[i, GREEN] = colors[i, 1]
+        params[i, BLUE] = colors[i, 2]
+        params[i, DEPTH] = z
+        rects[i, 0] = int(x0)
+        rects[i, 1] = int(x1)
+        rects[i, 2] = int(y0)
+        rects[i, 3] = int(y1)
+        valid[i] = True
+
+
+@njit(parallel=True, cache=True)
+def gather_kernel(
+    order: np.ndarray,  # [M] int64
+    params: np.ndarray,  # [N, N_PARAMS] float64
+    rects: np.ndarray,  # [N, 4] int32
+) -> tuple[np.ndarray, np.ndarray]:
+    """Rows `order` of params and rects, contiguous (depth order)."""
+    m = order.shape[0]
+    out_params = np.empty((m, params.shape[1]), dtype=params.dtype)
+    out_rects = np.empty((m, 4), dtype=rects.dtype)
+    for j in prange(m):
+        g = order[j]
+        for k in range(params.shape[1]):
+            out_params[j, k] = params[g, k]
+        for k in range(4):
+            out_rects[j, k] = rects[g, k]
+    return out_params, out_rects
+
+
+@njit(cache=True)
+def bin_kernel(
+    rects: np.ndarray,  # [M, 4] int32, in depth order
+    tile_w: int,
+    tile_h: int,
+    tiles_x: int,
+    n_tiles: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-tile Gaussian lists by counting sort; each list keeps the front-to-back order.
+
+    Returns:
+        offsets [n_tiles + 1] int64 and lists [offsets[-1]] int32 (rows of `rects`).
+    """
+    offsets = np.zeros(n_tiles + 1, dtype=np.int64)
+    for g in range(rects.shape[0]):
+        for ty in range(rects[g, 2] // tile_h, rects[g, 3] // tile_h + 1):
+            for tx in range(rects[g, 0] // tile_w, rects[g, 1] // tile_w + 1):
+                offsets[ty * tiles_x + tx + 1] += 1
+    for t in range(n_tiles):
+        offsets[t + 1] += offsets[t]
+    lists = np.empty(offsets[n_tiles], dtype=np.int32)
+    cursor = offsets[:n_tiles].copy()
+    for g in range(rects.shape[0]):
+        for ty in range(rects[g, 2] // tile_h, rects[g, 3] // tile_h + 1):
+            for tx in range(rects[g, 0] // tile_w, rects[g, 1] // tile_w + 1):
+                t = ty * tiles_x + tx
+                lists[cursor[t]] = g
+                cursor[t] += 1
+    return offsets, lists
+
+
+@njit(cache=True, inline="always")
+def _composite_row(
+    row: int,
+    px_lo: int,
+    px_hi: int,
+    gauss: float,
+    ratio: float,
+    decay: float,
+    op: float,
+    red: float,
+    green: float,
+    blue: float,
+    z: float,
+    alpha_min: float,
+    alpha_max: float,
+    t_min: float,
+    trans: np.ndarray,  # [P] tile transmittance
+    acc: np.ndarray,  # [P, 4] tile r, g, b, z sums
+    done: np.ndarray,  # [P] bool, pixel terminated
+    n_done: int,
+) -> int:
+    """Composite one Gaussian over pixels px_lo..px_hi of a tile row; returns n_done.
+
+    `gauss` is exp(-m/2) at px_lo and `ratio` its ratio to the next pixel; successive
+    ratios shrink by `decay` = exp(-conic_a).
+    """
+    for px in range(px_lo, px_hi + 1):
+        p = row + px
+        a = min(alpha_max, op * gauss)
+        gauss *= ratio
+        ratio *= decay
+        if done[p] or a < alpha_min:
+            continue
+        next_t = trans[p] * (1.0 - a)
+        if next_t < t_min:
+            done[p] = True
+            n_done += 1
+            continue
+        w = a * trans[p]
+        acc[p, 0] += w * red
+        acc[p, 1] += w * green
+        acc[p, 2] += w * blue
+        acc[p, 3] += w * z
+        trans[p] = next_t
+    return n_done
+
+
+@njit(parallel=True, cache=True)
+def rasterize_kernel(
+    params: np.ndarray,  # [M, N_PARAMS] float64, depth order
+    rects: np.ndarray,  # [M, 4] int32
+    offsets: np.ndarray,  # [n_tiles + 1] int64
+    lists: np.ndarray,  # [K] int32
+    tile_w: int,
+    tile_h: int,
+    tiles_x: int,
+    background: np.ndarray,  # [3] float64
+    alpha_min: float,
+    alpha_max: float,
+    t_min: float,
+    rgb: np.ndarray,  # [H, W, 3] float32, out
+    depth: np.ndarray,  # [H, W] float32, out
+    alpha: np.ndarray,  # [H, W] float32, out
+) -> None:
+    """Front-to-back alpha compositing of each tile's Gaussians, tiles in parallel."""
+    height, width = alpha.shape
+    n_tiles = offsets.shape[0] - 1
+    for t in prange(n_tiles):
+        tx0 = (t % tiles_x) * tile_w
+        ty0 = (t // tiles_x) * tile_h
+        tx1 = min(tx0 + tile_w, width) - 1
+        ty1 = min(ty0 + tile_h, height) - 1
+        n_pixels = (tx1 - tx0 + 1) * (ty1 - ty0 + 1)
+        trans = np.ones(tile_w * tile_h)
+        acc = np.zeros((tile_w * tile_h, 4))  # r, g, b, z sums
+        n_done = 0
+        done = np.zeros(tile_w * tile_h, dtype=np.bool_)
+        for k in range(offsets[t], offsets[t + 1]):
+            g = lists[k]
+            u = params[g, U]
+            v = params[g, V]
+            ca = params[g, CONIC_A]
+            cb = params[g, CONIC_B]
+            cc = params[g, CONIC_C]
+            op = params[g, OPACITY]
+            half0 = params[g, HALF0]
+            half1 = params[g, HALF1]
+            slope = params[g, SLOPE]
+            decay_x = params[g, DECAY_X]
+            decay_y = params[g, DECAY_Y]
+            decay_xy = params[g, DECAY_XY]
+            red = params[g, RED]
+            green = params[g, GREEN]
+            blue = params[g, BLUE]
+            z = params[g, DEPTH]
+            x_lo = max(rects[g, 0], tx0)
+            x_hi = min(rects[g, 1], tx1)
+            y_lo = max(rects[g, 2], ty0)
+            y_hi = min(rects[g, 3], ty1)
+            if params[g, COMPACT] != 0.0:
+                # Whole rectangle; exp(-m/2) by forward differences: m is quadratic in
+                # (px, py), so the ratios of exp(-m/2) between neighbours (ratio_x to the
+                # right, ratio_y below) change by constant factors per step.
+                dx = x_lo - u
+                dy = y_lo - v
+                start = math.exp(-0.5 * (ca * dx * dx + 2.0 * cb * dx * dy + cc * dy * dy))
+                ratio_x = math.exp(-(ca * dx + cb * dy + 0.5 * ca))
+                ratio_y = math.exp(-(cc * dy + cb * dx + 0.5 * cc))
+                for py in range(y_lo, y_hi + 1):
+                    n_done = _composite_row(
+                        (py - ty0) * tile_w - tx0,
+                        x_lo,
+                        x_hi,
+                        start,
+                        ratio_x,
+                        decay_x,
+                        op,
+                        red,
+                        green,
+                        blue,
+                        z,
+                        alpha_min,
+                        alpha_max,
+                        t_min,
+                        trans,
+                        acc,
+                        done,
+                        n_done,
+                    )
+                    start *= ratio_y
+                    ratio_x *= decay_xy
+                    ratio_y *= decay_y
+            else:
+                # Thin, slanted footprints: only the columns of each row inside the ellipse
+                # where alpha can reach alpha_min.
+                for py in range(y_lo, y_hi + 1):
+                    dy = py - v
+                    half2 = half0 - half1 * dy * dy
+                    if half2 < 0.0:
+                        continue
+                    half = math.sqrt(half2) + PAD
+                    centre = u - slope * dy
+                    px_lo = max(x_lo, math.ceil(centre - half))
+                    px_hi = min(x_hi, math.floor(centre + half))
+                    if px_lo > px_hi:
+                        continue
+                    dx = px_lo - u
+                    start = math.exp(-0.5 * (ca * dx * dx + 2.0 * cb * dx * dy + cc * dy * dy))
+                    ratio_x = math.exp(-(ca * dx + cb * dy + 0.5 * ca))
+                    n_done = _composite_row(
+                        (py - ty0) * tile_w - tx0,
+                        px_lo,
+                        px_hi,
+                        start,
+                        ratio_x,
+                        decay_x,
+                        op,
+                        red,
+                        green,
+                        blue,
+                        z,
+                        alpha_min,
+                        alpha_max,
+                        t_min,
+                        trans,
+                        acc,
+                        done,
+                        n_done,
+                    )
+            if n_done == n_pixels:
+                break
+        for py in range(ty0, ty1 + 1):
+            for px in range(tx0, tx1 + 1):
+                p = (py - ty0) * tile_w + px - tx0
+                tr = trans[p]
+                for ch in range(3):
+                    rgb[py, px, ch] = min(max(acc[p, ch] + tr * background[ch], 0.0), 1.0)
+                opacity = 1.0 - tr
+                alpha[py, px] = opacity
+                depth[py, px] = acc[p, 3] / opacity if opacity > 0.0 else 0.0
+
+
+def render_fast(
+    gaussians: GaussianSet,
+    pose: Pose,
+    intrinsics: Intrinsics,
+    background: tuple[float, float, float],
+    near: float,
+    far: float,
+    tile: tuple[int, int] = (TILE, TILE),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tile-rasterize `gaussians`; same outputs as `render_reference.render_reference`.
+
+    Args:
+        tile: (width, height) of a tile in pixels; the result does not depend on it.
+    """
+    cam = camera_setup(pose, intrinsics)
+    k = intrinsics
+    w, h = int(k.width), int(k.height)
+    n = len(gaussians)
+    params = np.empty((n, N_PARAMS), dtype=np.float64)
+    rects = np.empty((n, 4), dtype=np.int32)
+    valid = np.empty(n, dtype=np.bool_)
+    camera = np.array([k.fx, k.fy, k.cx, k.cy, *cam.tan_lo, *cam.tan_hi], dtype=np.float64)
+    project_kernel(
+        gaussians.means,
+        gaussians.covs,
+        gaussians.colors,
+        gaussians.opacities,
+        cam.rotation,
+        cam.translation,
+        camera,
+        w,
+        h,
+        float(near),
+        float(far),
+        LOW_PASS,
+        ALPHA_MIN,
+        SIGMA_EXTENT,
+        params,
+        rects,
+        valid,
+    )
+    kept = np.flatnonzero(valid)
+    order = kept[np.argsort(params[kept, DEPTH], kind="stable")]
+    params, rects = gather_kernel(order, params, rects)
+    tile_w, tile_h = tile
+    tiles_x = (w + tile_w - 1) // tile_w
+    n_tiles = tiles_x * ((h + tile_h - 1) // tile_h)
+    offsets, lists = bin_kernel(rects, tile_w, tile_h, tiles_x, n_tiles)
+    rgb = np.empty((h, w, 3), dtype=np.float32)
+    depth = np.empty((h, w), dtype=np.float32)
+    alpha = np.empty((h, w), dtype=np.float32)
+    rasterize_kernel(
+        params,
+        rects,
+        offsets,
+        lists,
+        tile_w,
+        tile_h,
+        tiles_x,
+        np.asarray(background, dtype=np.float64),
+        ALPHA_MIN,
+        ALPHA_MAX,
+        T_MIN,
+        rgb,
+        depth,
+        alpha,
+    )
+    return rgb, depth, alpha
