@@ -1,0 +1,158 @@
+"""`glmap-mcp` / `python -m glmap_tools.server`: serve GLMap over stdio or streamable HTTP.
+
+HTTP binds 127.0.0.1 unless --host is given, and a non-loopback --host needs a bearer
+token (--token or $GLMAP_MCP_TOKEN) that every request must carry.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hmac
+import os
+import socket
+import sys
+from pathlib import Path
+from typing import Any
+
+from glmap_tools.errors import GLMapError
+from glmap_tools.map import MapConfig
+from glmap_tools.server.config import MIB, ServerConfig, default_maps_dir
+
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+TOKEN_ENV = "GLMAP_MCP_TOKEN"
+MCP_PATH = "/mcp"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="glmap-mcp",
+        description="Serve a GLMap (Gaussian-Language Map) to MCP clients.",
+    )
+    p.add_argument(
+        "--transport", choices=["stdio", "streamable-http"], default="stdio", help="default stdio"
+    )
+    p.add_argument("--host", help="HTTP bind address (default 127.0.0.1; others need --token)")
+    p.add_argument("--port", type=int, default=8765, help="HTTP port (0 = any free port)")
+    p.add_argument("--token", help=f"bearer token required on HTTP (or ${TOKEN_ENV})")
+    p.add_argument(
+        "--maps-dir",
+        type=Path,
+        default=None,
+        help=f"saved maps folder (default {default_maps_dir()})",
+    )
+    p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
+    p.add_argument("--max-frame-mb", type=float, default=24.0, help="files per observed frame")
+    p.add_argument(
+        "--file-root",
+        type=Path,
+        action="append",
+        help="folder observe_frame may read files from (repeatable); stdio default: any, "
+        "HTTP default: none (base64 only)",
+    )
+    p.add_argument("--voxel-size", type=float, default=0.02, help="Gaussian voxel (m)")
+    p.add_argument("--no-warm-up", action="store_true", help="skip the renderer warm-up")
+    p.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    return p
+
+
+def config_from_args(args: argparse.Namespace) -> ServerConfig:
+    """The ServerConfig the command line asks for."""
+    # stdio serves the local user: any file; HTTP may serve others: base64 unless told.
+    roots: tuple[Path, ...] | None = None if args.transport == "stdio" else ()
+    if args.file_root:
+        roots = tuple(args.file_root)
+    return ServerConfig(
+        maps_dir=args.maps_dir or default_maps_dir(),
+        embedder=args.embedder,
+        map_config=MapConfig(voxel_size=args.voxel_size),
+        max_frame_bytes=int(args.max_frame_mb * MIB),
+        file_roots=roots,
+        warm_up=not args.no_warm_up,
+    )
+
+
+class BearerAuth:
+    """ASGI middleware: refuse HTTP requests without `Authorization: Bearer <token>`."""
+
+    def __init__(self, app: Any, token: str) -> None:
+        self.app = app
+        self.expected = f"Bearer {token}".encode()
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        if scope["type"] == "http":
+            given = dict(scope.get("headers") or []).get(b"authorization", b"")
+            if not hmac.compare_digest(given, self.expected):
+                await send(
+                    {
+                        "type": "http.response.start",
+                        "status": 401,
+                        "headers": [
+                            (b"content-type", b"text/plain"),
+                            (b"www-authenticate", b"Bearer"),
+                        ],
+                    }
+                )
+                await send(
+                    {"type": "http.response.body", "body": b"missing or wrong bearer token\n"}
+                )
+                return
+        await self.app(scope, receive, send)
+
+
+def serve_http(server: Any, config: ServerConfig, host: str, port: int, token: str | None) -> None:
+    """Serve streamable HTTP on host:port; prints the URL on stderr once it accepts."""
+    import anyio
+    import uvicorn
+
+    app = server.streamable_http_app(
+        streamable_http_path=MCP_PATH, max_request_body_size=config.http_body_limit, host=host
+    )
+    asgi: Any = BearerAuth(app, token) if token else app
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind((host, port))
+    sock.listen(128)
+    bound = sock.getsockname()[1]
+    shown = f"[{host}]" if ":" in host else host
+    uv = uvicorn.Server(uvicorn.Config(asgi, log_level="warning", lifespan="on"))
+    print(f"glmap-mcp: serving http://{shown}:{bound}{MCP_PATH}", file=sys.stderr, flush=True)
+    anyio.run(lambda: uv.serve(sockets=[sock]))
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    import logging
+
+    logging.basicConfig(level=args.log_level, stream=sys.stderr)
+    token = args.token or os.environ.get(TOKEN_ENV) or None
+    try:
+        config = config_from_args(args)
+    except GLMapError as exc:
+        print(f"glmap-mcp: error: {exc}", file=sys.stderr)
+        return 2
+    if args.transport == "stdio":
+        if args.host or args.token:
+            print("glmap-mcp: error: --host/--token are for streamable-http.", file=sys.stderr)
+            return 2
+        from glmap_tools.server.app import build_server
+
+        build_server(config).run("stdio")
+        return 0
+    host = args.host or "127.0.0.1"
+    if host not in LOOPBACK and not token:
+        print(
+            f"glmap-mcp: error: --host {host} exposes the server beyond this machine; give a "
+            f"bearer token with --token or ${TOKEN_ENV} (clients send 'Authorization: Bearer "
+            "<token>').",
+            file=sys.stderr,
+        )
+        return 2
+    from glmap_tools.server.app import build_server
+
+    serve_http(build_server(config), config, host, args.port, token)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

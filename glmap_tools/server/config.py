@@ -1,0 +1,88 @@
+"""`ServerConfig`: every setting of the MCP server (maps folder, embedder, input limits)."""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.map.config import MapConfig
+
+EmbedderName = Literal["minilm", "hashing"]
+EMBEDDERS: tuple[str, ...] = ("minilm", "hashing")
+
+MIB = 1024 * 1024
+# JSON envelope, pose, intrinsics and annotation labels on top of the base64 payload.
+HTTP_BODY_OVERHEAD = 1 * MIB
+
+
+def default_maps_dir() -> Path:
+    """`$GLMAP_MAPS_DIR`, else `~/.glmap/maps`."""
+    env = os.environ.get("GLMAP_MAPS_DIR")
+    return Path(env).expanduser() if env else Path.home() / ".glmap" / "maps"
+
+
+@dataclass(frozen=True)
+class ServerConfig:
+    """Settings of one MCP server process.
+
+    Attributes:
+        maps_dir: the only folder map files are read from or written to (created if missing).
+        embedder: text embedder, 'minilm' (bundled all-MiniLM-L6-v2) or 'hashing' (fast,
+            deterministic, less accurate; for tests and benchmarks).
+        map_config: settings of every new map (saved maps keep their own).
+        max_frame_bytes: the most bytes of encoded files (RGB + depth + mask) one
+            observe_frame call may carry; the HTTP body limit is derived from it.
+        max_frame_pixels: the most pixels of one observed image (checked before decoding).
+        file_roots: folders whose files observe_frame may read by path; None = any local
+            file, () = no file paths at all (base64 only).
+        max_sessions: client sessions kept at once; the least recently used one is
+            dropped (its unsaved map with it) when a new one would exceed this.
+        render_size: default (width, height) of render_view images.
+        warm_up: render once in the lifespan so the first render_view is not slowed by
+            JIT compilation.
+    """
+
+    maps_dir: Path = field(default_factory=default_maps_dir)
+    embedder: EmbedderName = "minilm"
+    map_config: MapConfig = field(default_factory=MapConfig)
+    max_frame_bytes: int = 24 * MIB
+    max_frame_pixels: int = 2048 * 2048
+    file_roots: tuple[Path, ...] | None = None
+    max_sessions: int = 32
+    render_size: tuple[int, int] = (320, 240)
+    warm_up: bool = True
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "maps_dir", Path(self.maps_dir).expanduser())
+        if self.embedder not in EMBEDDERS:
+            raise InvalidInputError(
+                f"embedder={self.embedder!r} is not one of {list(EMBEDDERS)}; use 'minilm' "
+                "(accurate) or 'hashing' (fast, for tests)."
+            )
+        if not (isinstance(self.max_frame_bytes, int) and self.max_frame_bytes >= 1024):
+            raise InvalidInputError(
+                f"max_frame_bytes={self.max_frame_bytes!r} must be an integer >= 1024."
+            )
+        if not (isinstance(self.max_frame_pixels, int) and self.max_frame_pixels >= 64):
+            raise InvalidInputError(
+                f"max_frame_pixels={self.max_frame_pixels!r} must be an integer >= 64."
+            )
+        if not (isinstance(self.max_sessions, int) and self.max_sessions >= 1):
+            raise InvalidInputError(f"max_sessions={self.max_sessions!r} must be an integer >= 1.")
+        w, h = self.render_size
+        if not (16 <= w <= 2048 and 16 <= h <= 2048):
+            raise InvalidInputError(
+                f"render_size={self.render_size!r} must be (width, height) within 16..2048."
+            )
+        if self.file_roots is not None:
+            roots = tuple(Path(r).expanduser().resolve() for r in self.file_roots)
+            object.__setattr__(self, "file_roots", roots)
+
+    @property
+    def http_body_limit(self) -> int:
+        """Bytes of one HTTP request body: base64 of `max_frame_bytes` plus the envelope."""
+        return math.ceil(self.max_frame_bytes * 4 / 3) + HTTP_BODY_OVERHEAD

@@ -1,0 +1,434 @@
+"""Tool inputs of observe_frame: files as base64 or local paths, intrinsics, pose, annotations.
+
+Every check runs before any map state is touched, and each failure names the bad value and
+the fix. Image sizes are read from the PNG/JPEG headers before decoding, so a small file
+that would decode to a huge image is refused without being decoded.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import io
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import cv2
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.geometry import Intrinsics, Pose
+from glmap_tools.geometry.adapters import from_dataset
+from glmap_tools.geometry.backproject import depth_from_uint16
+from glmap_tools.geometry.frame import RGBDFrame
+from glmap_tools.perception.annotated import semantics_from_annotation
+from glmap_tools.perception.semantics import FrameSemantics
+from glmap_tools.server.config import MIB, ServerConfig
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+JPEG_MAGIC = b"\xff\xd8\xff"
+NPY_MAGIC = b"\x93NUMPY"
+MAX_OBJECTS = 512
+
+
+class FileInput(BaseModel):
+    """A file given by value (base64) or by reference (a local path); exactly one of the two."""
+
+    model_config = ConfigDict(extra="forbid")
+    base64: str | None = Field(
+        default=None,
+        description="the file's bytes, base64-encoded (a 'data:...;base64,' prefix is accepted)",
+    )
+    path: str | None = Field(
+        default=None, description="absolute path of a local file the server may read"
+    )
+
+
+class IntrinsicsInput(BaseModel):
+    """Pinhole intrinsics in pixels (fx, fy, cx, cy), or a horizontal field of view."""
+
+    model_config = ConfigDict(extra="forbid")
+    fx: float | None = Field(default=None, description="focal length x (pixels)")
+    fy: float | None = Field(default=None, description="focal length y (pixels)")
+    cx: float | None = Field(default=None, description="principal point x (pixels)")
+    cy: float | None = Field(default=None, description="principal point y (pixels)")
+    hfov_deg: float | None = Field(
+        default=None, description="horizontal field of view (degrees), instead of fx..cy"
+    )
+
+
+class PoseInput(BaseModel):
+    """A 4x4 world_from_camera matrix and the conventions it is written in."""
+
+    model_config = ConfigDict(extra="forbid")
+    matrix: list[list[float | None]] = Field(
+        max_length=8,
+        description="4x4 row-major world_from_camera (camera centre in the last column, metres)",
+    )
+    camera: Literal["opencv", "opengl"] = Field(
+        default="opencv",
+        description="camera axes: opencv = x right, y down, z forward; opengl = x right, "
+        "y up, looking down -z (pyrender, Blender, Habitat)",
+    )
+    world_up: Literal["z", "y", "-y", "x", "-x", "-z"] = Field(
+        default="z", description="the world's up axis: z (this server, ROS) or y (Habitat, glTF)"
+    )
+
+
+class ObjectAnnotation(BaseModel):
+    """One object of the frame: its value in the mask and its words."""
+
+    model_config = ConfigDict(extra="forbid")
+    id: int = Field(ge=1, le=65535, description="the object's pixel value in the mask")
+    label: str = Field(default="", max_length=200, description="short category, e.g. 'chair'")
+    description: str = Field(default="", max_length=4000, description="open-vocabulary description")
+
+
+class GroupAnnotation(BaseModel):
+    """One region of the frame: a described group of objects."""
+
+    model_config = ConfigDict(extra="forbid")
+    id: int = Field(ge=0, le=65535, description="the group's id within this frame")
+    description: str = Field(max_length=4000, description="e.g. 'dining area: table, chairs'")
+    members: list[int] = Field(max_length=MAX_OBJECTS, description="object ids of this frame")
+
+
+class AnnotationInput(BaseModel):
+    """Instance masks and labels for the frame (the simulator's or your detector's output)."""
+
+    model_config = ConfigDict(extra="forbid")
+    mask: FileInput = Field(
+        description="instance-id image: single-channel 8/16-bit PNG or integer .npy, "
+        "same size as the depth image; 0 = no object"
+    )
+    objects: list[ObjectAnnotation] = Field(max_length=MAX_OBJECTS)
+    groups: list[GroupAnnotation] = Field(default_factory=list, max_length=MAX_OBJECTS)
+
+
+@dataclass
+class Budget:
+    """Bytes left for the files of one observe_frame call."""
+
+    left: int
+    limit: int
+
+    def take(self, n: int, what: str) -> None:
+        if n > self.left:
+            raise InvalidInputError(
+                f"{what} is {n / MIB:.1f} MiB, which exceeds the {self.limit / MIB:.0f} MiB "
+                "limit for one frame's files (--max-frame-mb); send a smaller or more "
+                "compressed image (JPEG colour, PNG depth), or raise the limit."
+            )
+        self.left -= n
+
+
+# ---------------------------------------------------------------------- bytes
+
+
+def read_file_input(
+    src: FileInput, what: str, config: ServerConfig, budget: Budget
+) -> tuple[bytes, str]:
+    """The bytes of a FileInput and a short name of where they came from.
+
+    Raises:
+        InvalidInputError: neither or both given, malformed base64, a path that is not
+            absolute, outside the allowed roots, missing, or over the byte budget.
+    """
+    if (src.base64 is None) == (src.path is None):
+        raise InvalidInputError(
+            f"{what} needs exactly one of 'base64' (the file's bytes) or 'path' (a local "
+            'file), e.g. {"base64": "iVBORw0..."}.'
+        )
+    if src.base64 is not None:
+        text = src.base64.strip()
+        if text.startswith("data:"):
+            head, sep, text = text.partition(",")
+            if not sep or ";base64" not in head:
+                raise InvalidInputError(
+                    f"{what}.base64 is a data URI without ';base64,'; send "
+                    "'data:image/png;base64,<bytes>' or the bare base64 text."
+                )
+        budget.take(len(text) * 3 // 4, what)
+        try:
+            data = base64.b64decode("".join(text.split()), validate=True)
+        except (binascii.Error, ValueError) as exc:
+            raise InvalidInputError(
+                f"{what}.base64 is not valid base64 ({exc}); encode the raw file bytes, e.g. "
+                "base64.b64encode(open(path, 'rb').read()).decode()."
+            ) from None
+        if not data:
+            raise InvalidInputError(f"{what}.base64 is empty; send the file's bytes.")
+        return data, f"{what} (base64)"
+    assert src.path is not None
+    return _read_path(src.path, what, config, budget), src.path
+
+
+def _read_path(raw: str, what: str, config: ServerConfig, budget: Budget) -> bytes:
+    if config.file_roots is not None and not config.file_roots:
+        raise InvalidInputError(
+            f"{what}.path: this server does not read local files (started without "
+            "--file-root); send the file as base64 instead."
+        )
+    if "\x00" in raw:
+        raise InvalidInputError(f"{what}.path contains a NUL byte; give a plain file path.")
+    path = Path(raw).expanduser()
+    if not path.is_absolute():
+        raise InvalidInputError(
+            f"{what}.path {raw!r} is relative; give an absolute path (the server's working "
+            "folder is not yours)."
+        )
+    try:
+        resolved = path.resolve()
+    except (OSError, RuntimeError) as exc:
+        raise InvalidInputError(f"{what}.path {raw!r} cannot be resolved ({exc}).") from None
+    if config.file_roots is not None and not any(
+        resolved.is_relative_to(root) for root in config.file_roots
+    ):
+        roots = [str(r) for r in config.file_roots]
+        raise InvalidInputError(
+            f"{what}.path {raw!r} is outside the folders this server may read {roots}; "
+            "move the file there or send it as base64."
+        )
+    if not resolved.is_file():
+        raise InvalidInputError(
+            f"{what}.path {raw!r} is not a readable file; check the path, or send base64."
+        )
+    try:
+        budget.take(resolved.stat().st_size, what)
+        return resolved.read_bytes()
+    except OSError as exc:
+        raise InvalidInputError(f"cannot read {what}.path {raw!r}: {exc}.") from None
+
+
+# ---------------------------------------------------------------------- images
+
+
+def image_header(data: bytes) -> tuple[str, int, int, int | None, int | None]:
+    """(format, width, height, png bit depth, png colour type) from a PNG or JPEG header.
+
+    Raises:
+        InvalidInputError: not a PNG or JPEG, or a truncated header.
+    """
+    if data.startswith(PNG_MAGIC):
+        if len(data) < 26 or data[12:16] != b"IHDR":
+            raise InvalidInputError("the PNG is truncated (no IHDR header); send the whole file.")
+        w = int.from_bytes(data[16:20], "big")
+        h = int.from_bytes(data[20:24], "big")
+        return "png", w, h, data[24], data[25]
+    if data.startswith(JPEG_MAGIC):
+        size = _jpeg_size(data)
+        if size is None:
+            raise InvalidInputError("the JPEG is truncated (no frame header); send the whole file.")
+        return "jpeg", size[0], size[1], None, None
+    head = data[:8]
+    raise InvalidInputError(
+        f"the file is not a PNG or JPEG (it starts with {head!r}); send PNG or JPEG bytes."
+    )
+
+
+def _jpeg_size(data: bytes) -> tuple[int, int] | None:
+    """(width, height) from the first SOF marker of a JPEG, or None."""
+    i = 2
+    n = len(data)
+    while i + 4 <= n:
+        if data[i] != 0xFF:
+            return None
+        marker = data[i + 1]
+        if marker == 0xFF:
+            i += 1
+            continue
+        if marker in (0x01, 0xD8) or 0xD0 <= marker <= 0xD7:
+            i += 2
+            continue
+        length = int.from_bytes(data[i + 2 : i + 4], "big")
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            if i + 9 > n:
+                return None
+            h = int.from_bytes(data[i + 5 : i + 7], "big")
+            w = int.from_bytes(data[i + 7 : i + 9], "big")
+            return w, h
+        if length < 2:
+            return None
+        i += 2 + length
+    return None
+
+
+def _check_pixels(w: int, h: int, what: str, config: ServerConfig) -> None:
+    if w <= 0 or h <= 0:
+        raise InvalidInputError(f"{what} has an empty size {w}x{h}; send a real image.")
+    if w * h > config.max_frame_pixels:
+        raise InvalidInputError(
+            f"{what} is {w}x{h} = {w * h} pixels, over the limit of {config.max_frame_pixels} "
+            "pixels per image; downscale it (and scale the intrinsics with it)."
+        )
+
+
+def _imdecode(data: bytes, flags: int, what: str) -> np.ndarray:
+    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), flags)
+    if image is None:
+        raise InvalidInputError(f"{what} could not be decoded; the file is corrupt or truncated.")
+    return image
+
+
+def decode_rgb(data: bytes, config: ServerConfig) -> np.ndarray:  # -> [H, W, 3] uint8
+    """Decode colour PNG/JPEG bytes to uint8 RGB."""
+    fmt, w, h, bits, _ = image_header(data)
+    _check_pixels(w, h, "rgb", config)
+    if fmt == "png" and bits == 16:
+        raise InvalidInputError("rgb is a 16-bit PNG; send 8-bit colour (PNG or JPEG).")
+    image = _imdecode(data, cv2.IMREAD_COLOR, "rgb")
+    return np.ascontiguousarray(cv2.cvtColor(image, cv2.COLOR_BGR2RGB))
+
+
+def load_npy(data: bytes, what: str, config: ServerConfig) -> np.ndarray:
+    """A 2D numeric array from .npy bytes (shape read and checked before loading)."""
+    f = io.BytesIO(data)
+    try:
+        version = np.lib.format.read_magic(f)
+        header = (
+            np.lib.format.read_array_header_1_0(f)
+            if version == (1, 0)
+            else np.lib.format.read_array_header_2_0(f)
+        )
+    except (ValueError, OSError) as exc:
+        raise InvalidInputError(f"{what} is not a valid .npy file ({exc}).") from None
+    shape, _, dtype = header
+    if len(shape) != 2 or dtype.hasobject or dtype.kind not in "iuf":
+        raise InvalidInputError(
+            f"{what}.npy holds {dtype} with shape {shape}; send a 2D numeric [H, W] array."
+        )
+    _check_pixels(int(shape[1]), int(shape[0]), what, config)
+    try:
+        return np.load(io.BytesIO(data), allow_pickle=False)
+    except (ValueError, OSError, EOFError) as exc:
+        raise InvalidInputError(f"{what} is a damaged .npy file ({exc}).") from None
+
+
+def decode_depth(data: bytes, depth_scale: float, config: ServerConfig) -> np.ndarray:  # [H, W]
+    """Depth in metres from a 16-bit PNG (raw units / depth_scale) or a .npy array.
+
+    A float .npy is taken as metres; an integer .npy as raw units divided by depth_scale.
+    """
+    if data.startswith(NPY_MAGIC):
+        arr = load_npy(data, "depth", config)
+        if arr.dtype.kind == "f":
+            return arr.astype(np.float32)
+        return depth_from_uint16(arr, depth_scale)
+    fmt, w, h, bits, colour = image_header(data)
+    if fmt != "png" or bits != 16 or colour != 0:
+        kind = "a JPEG" if fmt == "jpeg" else f"a {bits}-bit PNG of colour type {colour}"
+        raise InvalidInputError(
+            f"depth is {kind}; send a single-channel 16-bit PNG of raw depth units (with "
+            "depth_scale units per metre) or a float32 .npy in metres."
+        )
+    _check_pixels(w, h, "depth", config)
+    raw = _imdecode(data, cv2.IMREAD_UNCHANGED, "depth")
+    return depth_from_uint16(raw, depth_scale)
+
+
+def decode_mask(data: bytes, config: ServerConfig) -> np.ndarray:  # [H, W] int
+    """Instance ids from a single-channel 8/16-bit PNG or an integer .npy."""
+    if data.startswith(NPY_MAGIC):
+        arr = load_npy(data, "annotations.mask", config)
+        if arr.dtype.kind not in "iu":
+            raise InvalidInputError(
+                f"annotations.mask.npy has dtype {arr.dtype}; send integer object ids."
+            )
+        return arr
+    fmt, w, h, bits, colour = image_header(data)
+    if fmt != "png" or colour != 0 or bits not in (8, 16):
+        kind = "a JPEG (lossy: ids would blur)" if fmt == "jpeg" else f"colour type {colour}"
+        raise InvalidInputError(
+            f"annotations.mask is {kind}; send a single-channel 8- or 16-bit PNG whose "
+            "pixel values are object ids (0 = none)."
+        )
+    _check_pixels(w, h, "annotations.mask", config)
+    return _imdecode(data, cv2.IMREAD_UNCHANGED, "annotations.mask")
+
+
+# ---------------------------------------------------------------------- camera
+
+
+def intrinsics_of(src: IntrinsicsInput, width: int, height: int) -> Intrinsics:
+    """Intrinsics for a width x height image from fx/fy/cx/cy or hfov_deg."""
+    values = (src.fx, src.fy, src.cx, src.cy)
+    if src.hfov_deg is not None:
+        if any(v is not None for v in values):
+            raise InvalidInputError("intrinsics: give either fx, fy, cx, cy or hfov_deg, not both.")
+        return Intrinsics.from_fov(width, height, src.hfov_deg)
+    if any(v is None for v in values):
+        raise InvalidInputError(
+            'intrinsics need fx, fy, cx and cy (pixels), e.g. {"fx": 525, "fy": 525, '
+            '"cx": 319.5, "cy": 239.5}, or hfov_deg.'
+        )
+    fx, fy, cx, cy = (float(v) for v in values)  # type: ignore[arg-type]
+    return Intrinsics(fx, fy, cx, cy, width, height)
+
+
+def pose_of(src: PoseInput) -> Pose:
+    """The pose in this project's conventions (OpenCV camera, z-up world)."""
+    rows = src.matrix
+    if len(rows) != 4 or any(len(r) != 4 for r in rows):
+        shape = f"{len(rows)}x{'/'.join(str(len(r)) for r in rows)}"
+        raise InvalidInputError(
+            f"pose.matrix is {shape}; send 4 rows of 4 numbers (row-major world_from_camera)."
+        )
+    matrix = np.array([[np.nan if v is None else v for v in r] for r in rows], np.float64)
+    if not np.all(np.isfinite(matrix)):
+        raise InvalidInputError(
+            "pose.matrix contains NaN, infinity or null; send a finite 4x4 world_from_camera "
+            "matrix (a lost tracking pose cannot be observed: skip that frame)."
+        )
+    return from_dataset(matrix, up=src.world_up, camera=src.camera)
+
+
+# ---------------------------------------------------------------------- frame
+
+
+def decode_frame(
+    rgb: FileInput,
+    depth: FileInput,
+    depth_scale: float,
+    intrinsics: IntrinsicsInput,
+    pose: PoseInput,
+    annotations: AnnotationInput | None,
+    config: ServerConfig,
+) -> tuple[RGBDFrame, FrameSemantics | None]:
+    """Decode and check every input of observe_frame; nothing is integrated here.
+
+    Raises:
+        InvalidInputError: any malformed, oversized or inconsistent input.
+    """
+    budget = Budget(config.max_frame_bytes, config.max_frame_bytes)
+    cam_pose = pose_of(pose)
+    rgb_bytes, _ = read_file_input(rgb, "rgb", config, budget)
+    depth_bytes, _ = read_file_input(depth, "depth", config, budget)
+    mask_bytes = (
+        read_file_input(annotations.mask, "annotations.mask", config, budget)[0]
+        if annotations is not None
+        else None
+    )
+    rgb_image = decode_rgb(rgb_bytes, config)
+    depth_m = decode_depth(depth_bytes, depth_scale, config)
+    h, w = depth_m.shape
+    if rgb_image.shape[:2] != (h, w):
+        raise InvalidInputError(
+            f"rgb is {rgb_image.shape[1]}x{rgb_image.shape[0]} but depth is {w}x{h}; send a "
+            "colour image registered to the depth image, at the same size."
+        )
+    frame = RGBDFrame(rgb_image, depth_m, intrinsics_of(intrinsics, w, h), cam_pose)
+    if annotations is None or mask_bytes is None:
+        return frame, None
+    mask = decode_mask(mask_bytes, config)
+    if mask.shape != (h, w):
+        raise InvalidInputError(
+            f"annotations.mask is {mask.shape[1]}x{mask.shape[0]} but depth is {w}x{h}; draw "
+            "the mask at the depth image's size."
+        )
+    labels = {
+        "objects": [o.model_dump() for o in annotations.objects],
+        "groups": [g.model_dump() for g in annotations.groups],
+    }
+    return frame, semantics_from_annotation(mask, labels)

@@ -1,0 +1,314 @@
+"""Per-session map state: which map each client session works on, and who shares a saved map.
+
+A *session* is what one client works in. Its key comes from the transport:
+
+- an explicit `session` handle a tool was given (returned by new_map/load_map; this is how
+  clients keep apart on the stateless 2026-07-28 protocol, which has no sessions);
+- the `Mcp-Session-Id` header of a stateful streamable-HTTP connection;
+- otherwise the server's *default* session (stdio and in-memory serve one client each).
+
+Each session starts on its own in-memory scratch map. A saved (named) map is one `LiveMap`
+shared by every session that opened it, behind one lock, so concurrent sessions stay
+consistent: there is one map in memory and one store file, never two diverging copies.
+"""
+
+from __future__ import annotations
+
+import re
+import secrets
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from glmap_tools.errors import InvalidInputError, StoreError, UnknownIdError, did_you_mean
+from glmap_tools.map import GLMap
+from glmap_tools.server.config import ServerConfig
+
+if TYPE_CHECKING:
+    from glmap_tools.language.embed import Embedder
+
+MAP_SUFFIX = ".glmap"
+MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
+DEFAULT_HANDLE = "default"
+
+
+@dataclass
+class LiveMap:
+    """A map in memory, possibly backed by a store file, with the lock that guards it.
+
+    Attributes:
+        glmap: the map.
+        name: saved map name (its file is `<maps_dir>/<name>.glmap`), None for scratch maps.
+        lock: held by every read and write of `glmap`.
+        users: sessions currently working on it.
+    """
+
+    glmap: GLMap
+    name: str | None = None
+    lock: threading.RLock = field(default_factory=threading.RLock)
+    users: int = 0
+
+
+@dataclass
+class Session:
+    """One client's working state: its map and (later) its simulator episode."""
+
+    handle: str
+    live: LiveMap
+    last_used: float = field(default_factory=time.monotonic)
+    extras: dict[str, Any] = field(default_factory=dict)
+
+
+def check_map_name(name: str) -> str:
+    """Return `name` if it is a bare map name, else raise naming the fix.
+
+    Raises:
+        InvalidInputError: a path separator, '..', a suffix or other characters.
+    """
+    if not isinstance(name, str):
+        raise InvalidInputError(f"map name must be a string, got {type(name).__name__}.")
+    if "/" in name or "\\" in name or ".." in name or name.startswith("~"):
+        raise InvalidInputError(
+            f"map name {name!r} contains a path; give a bare name such as 'kitchen' "
+            "(maps are kept in the server's maps folder, which nothing outside of is touched)."
+        )
+    stem = name[: -len(MAP_SUFFIX)] if name.endswith(MAP_SUFFIX) else name
+    if not MAP_NAME.fullmatch(stem):
+        raise InvalidInputError(
+            f"map name {name!r} is not allowed; use 1-64 letters, digits, '-' or '_', "
+            "starting with a letter or digit, e.g. 'flat-3'."
+        )
+    return stem
+
+
+class SessionRegistry:
+    """All sessions and open maps of one server process (thread-safe).
+
+    Args:
+        config: the server settings (maps folder, session limit, map settings).
+        embedder: the text embedder every map uses.
+    """
+
+    def __init__(self, config: ServerConfig, embedder: Embedder) -> None:
+        self.config = config
+        self.embedder = embedder
+        self.maps_dir = config.maps_dir.resolve()
+        self._lock = threading.RLock()
+        self._sessions: dict[str, Session] = {}
+        self._by_transport: dict[str, str] = {}
+        self._named: dict[str, LiveMap] = {}
+        self._sessions[DEFAULT_HANDLE] = Session(DEFAULT_HANDLE, self._scratch())
+
+    # ------------------------------------------------------------------ maps
+    def _scratch(self) -> LiveMap:
+        live = LiveMap(GLMap(self.config.map_config, embedder=self.embedder))
+        live.users = 1
+        return live
+
+    def map_path(self, name: str) -> Path:
+        """`<maps_dir>/<name>.glmap`, refusing anything that would leave the maps folder."""
+        stem = check_map_name(name)
+        path = (self.maps_dir / f"{stem}{MAP_SUFFIX}").resolve()
+        if path.parent != self.maps_dir:
+            raise InvalidInputError(
+                f"map name {name!r} resolves outside the maps folder; give a bare name."
+            )
+        return path
+
+    def saved_names(self) -> list[str]:
+        """Names of the map files in the maps folder, sorted."""
+        if not self.maps_dir.is_dir():
+            return []
+        return sorted(
+            p.name[: -len(MAP_SUFFIX)]
+            for p in self.maps_dir.iterdir()
+            if p.name.endswith(MAP_SUFFIX) and not p.name.startswith(".") and p.is_file()
+        )
+
+    def open_names(self) -> set[str]:
+        with self._lock:
+            return set(self._named)
+
+    def _release(self, live: LiveMap) -> None:
+        """One session stops using `live`; the last one out closes its store."""
+        live.users -= 1
+        if live.users > 0:
+            return
+        if live.name is not None and self._named.get(live.name) is live:
+            del self._named[live.name]
+        with live.lock:
+            live.glmap.close()
+
+    def _switch(self, session: Session, live: LiveMap) -> None:
+        old = session.live
+        session.live = live
+        if old is not live:
+            self._release(old)
+
+    def new_map(self, session: Session, name: str | None) -> LiveMap:
+        """Give `session` a fresh empty map: scratch, or a new store file `name`.
+
+        Raises:
+            InvalidInputError: a bad name.
+            StoreError: a map of that name already exists.
+        """
+        with self._lock:
+            if name is None:
+                self._switch(session, self._scratch())
+                return session.live
+            path = self.map_path(name)
+            stem = path.name[: -len(MAP_SUFFIX)]
+            if path.exists() or stem in self._named:
+                raise StoreError(
+                    f"a map named {stem!r} already exists; open it with load_map, or choose "
+                    "another name."
+                )
+            self.maps_dir.mkdir(parents=True, exist_ok=True)
+            glmap = GLMap.open(path, self.config.map_config, embedder=self.embedder)
+            live = LiveMap(glmap, stem, users=1)
+            self._named[stem] = live
+            self._switch(session, live)
+            return live
+
+    def load_map(self, session: Session, name: str) -> LiveMap:
+        """Attach `session` to the saved map `name` (shared if another session has it open).
+
+        Raises:
+            InvalidInputError: a bad name.
+            UnknownIdError: no such map; the message suggests the closest name.
+            StoreError: the file is not a map, or was built with another embedder.
+        """
+        with self._lock:
+            path = self.map_path(name)
+            stem = path.name[: -len(MAP_SUFFIX)]
+            live = self._named.get(stem)
+            if live is None:
+                if not path.is_file():
+                    names = self.saved_names()
+                    listing = f" Saved maps: {names}." if names else " No map is saved yet."
+                    raise UnknownIdError(
+                        f"no saved map named {stem!r}.{did_you_mean(stem, names)}{listing}"
+                    )
+                glmap = GLMap.open(path, embedder=self.embedder)
+                live = LiveMap(glmap, stem)
+                self._named[stem] = live
+            if session.live is not live:
+                live.users += 1
+                self._switch(session, live)
+            return live
+
+    def save_map(self, session: Session, name: str, overwrite: bool) -> tuple[LiveMap, bool]:
+        """Write `session`'s map to `name` (atomically) and keep committing every frame there.
+
+        Returns:
+            (the live map, whether a file was written; False when it already commits there).
+
+        Raises:
+            InvalidInputError: a bad name.
+            StoreError: `name` exists and `overwrite` is false, or another map has it open.
+        """
+        from glmap_tools.map.store import MapStore
+
+        with self._lock:
+            path = self.map_path(name)
+            stem = path.name[: -len(MAP_SUFFIX)]
+            live = session.live
+            if live.name == stem:
+                return live, False
+            other = self._named.get(stem)
+            if other is not None:
+                raise StoreError(
+                    f"map {stem!r} is open in another session; save under another name."
+                )
+            if path.exists() and not overwrite:
+                raise StoreError(
+                    f"a map named {stem!r} already exists; pass overwrite=true to replace it, "
+                    "or choose another name."
+                )
+            self.maps_dir.mkdir(parents=True, exist_ok=True)
+            with live.lock:
+                old_store = live.glmap.store
+                live.glmap.store = MapStore.create_from(path, live.glmap, overwrite=overwrite)
+                if old_store is not None:
+                    old_store.close()
+            if live.name is not None:
+                self._named.pop(live.name, None)
+            live.name = stem
+            self._named[stem] = live
+            return live, True
+
+    # ------------------------------------------------------------------ sessions
+    def resolve(self, handle: str | None, transport_id: str | None) -> Session:
+        """The session a call belongs to (see the module docstring).
+
+        Raises:
+            UnknownIdError: `handle` names no session; the message lists what to do.
+        """
+        with self._lock:
+            if handle is not None:
+                session = self._sessions.get(handle)
+                if session is None:
+                    raise UnknownIdError(
+                        f"session {handle!r} does not exist (it may have been dropped after "
+                        f"{self.config.max_sessions} newer sessions). Call new_map or load_map "
+                        "without a session to start a new one, or omit session."
+                    )
+            elif transport_id is not None:
+                key = self._by_transport.get(transport_id)
+                session = self._sessions.get(key) if key else None
+                if session is None:
+                    session = self._create_session()
+                    self._by_transport[transport_id] = session.handle
+            else:
+                session = self._sessions[DEFAULT_HANDLE]
+            session.last_used = time.monotonic()
+            return session
+
+    def start_session(self) -> Session:
+        """A new session with its own scratch map and a fresh unguessable handle."""
+        with self._lock:
+            return self._create_session()
+
+    def _create_session(self) -> Session:
+        self._evict(self.config.max_sessions - 1)
+        handle = secrets.token_urlsafe(12)
+        session = Session(handle, self._scratch())
+        self._sessions[handle] = session
+        return session
+
+    def _evict(self, keep: int) -> None:
+        """Drop least recently used sessions (never the default) until `keep` others remain."""
+        others = [s for h, s in self._sessions.items() if h != DEFAULT_HANDLE]
+        others.sort(key=lambda s: s.last_used)
+        while len(others) > keep:
+            victim = others.pop(0)
+            del self._sessions[victim.handle]
+            for tid in [t for t, h in self._by_transport.items() if h == victim.handle]:
+                del self._by_transport[tid]
+            self._close_session(victim)
+
+    def _close_session(self, session: Session) -> None:
+        closer: Callable[[], None] | None = session.extras.pop("close", None)
+        if closer is not None:
+            closer()
+        self._release(session.live)
+
+    def close(self) -> None:
+        """Close every session and map (lifespan exit)."""
+        with self._lock:
+            for session in list(self._sessions.values()):
+                self._close_session(session)
+            self._sessions.clear()
+            self._by_transport.clear()
+
+
+@contextmanager
+def locked(session: Session) -> Iterator[GLMap]:
+    """Hold the lock of the session's current map and yield the map."""
+    live = session.live
+    with live.lock:
+        yield live.glmap

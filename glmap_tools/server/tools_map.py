@@ -1,0 +1,235 @@
+"""Map tools: observe_frame, find_instance, find_region, what_is_at, describe_unit, map_summary.
+
+No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+"""
+
+from typing import Annotated
+
+from mcp.server.mcpserver import Context, Image, MCPServer
+from mcp.types import TextContent, ToolAnnotations
+from pydantic import Field
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.map import FREE, OBSTACLE
+from glmap_tools.map.report import UnitInfo
+from glmap_tools.server import views
+from glmap_tools.server.inputs import (
+    AnnotationInput,
+    FileInput,
+    IntrinsicsInput,
+    PoseInput,
+    decode_frame,
+)
+from glmap_tools.server.results import Hits, MapInfo, ObserveResult, UnitsAt
+from glmap_tools.server.runtime import app_state, in_thread, session_of, tool_errors
+from glmap_tools.server.state import locked
+
+READ_ONLY = ToolAnnotations(read_only_hint=True, open_world_hint=False)
+SessionArg = Annotated[
+    str | None,
+    Field(
+        max_length=64,
+        description="session handle from new_map/load_map; only needed when several "
+        "clients share one stateless HTTP server. Omit it otherwise.",
+    ),
+]
+Query = Annotated[
+    str,
+    Field(
+        min_length=1,
+        max_length=500,
+        description="what to look for, in words, e.g. 'a red armchair near the window'",
+    ),
+]
+TopK = Annotated[int, Field(ge=1, le=50, description="how many hits to return, best first")]
+UnitId = Annotated[int, Field(ge=1, le=2**62, description="an instance or region id")]
+OCCUPANCY_NAMES = {FREE: "free", OBSTACLE: "obstacle"}
+
+
+def resource_uris(handle: str) -> list[str]:
+    """The glmap:// resources of one session."""
+    return [
+        f"glmap://{handle}/summary",
+        f"glmap://{handle}/instances",
+        f"glmap://{handle}/regions",
+        f"glmap://{handle}/topdown.png",
+        f"glmap://{handle}/instances/{{id}}",
+        f"glmap://{handle}/regions/{{id}}",
+    ]
+
+
+def register(server: MCPServer) -> None:
+    """Add the map tools to `server`."""
+
+    @server.tool(annotations=ToolAnnotations(destructive_hint=False, idempotent_hint=False))
+    @tool_errors
+    async def observe_frame(
+        rgb: Annotated[FileInput, Field(description="colour image, PNG or JPEG")],
+        depth: Annotated[
+            FileInput,
+            Field(description="depth: 16-bit PNG of raw units, or .npy (float metres)"),
+        ],
+        intrinsics: IntrinsicsInput,
+        pose: Annotated[PoseInput, Field(description="where the camera was")],
+        ctx: Context,
+        depth_scale: Annotated[
+            float,
+            Field(gt=0, le=1e6, description="raw depth units per metre (1000 = millimetres)"),
+        ] = 1000.0,
+        annotations: Annotated[
+            AnnotationInput | None,
+            Field(
+                description="instance mask + labels; required unless the server has a "
+                "perception backend"
+            ),
+        ] = None,
+        session: SessionArg = None,
+    ) -> ObserveResult:
+        """Add one posed RGB-D frame to the map: its objects become or merge into instances.
+
+        Give the colour image, the registered depth image, the camera intrinsics, the
+        camera pose (a 4x4 world_from_camera matrix; say which camera and world axes it
+        uses), and the annotations: an instance-id mask and, for each id, a label and a
+        description; optional groups describe regions (e.g. 'dining area'). Files go as
+        base64 or as an absolute local path. Returns the ids of the instances and regions
+        added or merged. Nothing changes if any input is rejected.
+        """
+        state = app_state(ctx)
+        target = session_of(ctx, session)
+        await ctx.report_progress(0, 3, "decoding the frame")
+        frame, semantics = await in_thread(
+            lambda: decode_frame(
+                rgb, depth, depth_scale, intrinsics, pose, annotations, state.config
+            )
+        )
+        if semantics is None:
+            if state.perception is None:
+                raise InvalidInputError(
+                    "observe_frame needs annotations: this server has no perception backend "
+                    "(an MLLM backend comes later), so pass annotations={'mask': {'base64': "
+                    "<single-channel PNG of object ids, 0 = none>}, 'objects': [{'id': 1, "
+                    "'label': 'chair', 'description': 'a blue office chair'}], 'groups': "
+                    "[{'id': 1, 'description': 'desk corner', 'members': [1]}]}."
+                )
+            perceive = state.perception
+            semantics = await in_thread(lambda: perceive(frame))
+        await ctx.report_progress(1, 3, f"fusing {len(semantics.objects)} objects")
+
+        def integrate() -> ObserveResult:
+            with locked(target) as glmap:
+                report = glmap.integrate(frame, semantics)
+                name = target.live.name
+            return ObserveResult(
+                session=target.handle, map_name=name, summary=report.summary(), report=report
+            )
+
+        result = await in_thread(integrate)
+        await ctx.report_progress(3, 3, "done")
+        return result
+
+    @server.tool(annotations=READ_ONLY)
+    @tool_errors
+    async def find_instance(
+        query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = None
+    ) -> Hits:
+        """Find objects in the map by description, e.g. 'the sofa' or 'something to sit on'.
+
+        Returns the best-matching instances with id, description, score (text cosine;
+        higher is closer), centroid and bounds in metres (world z up).
+        """
+        target = session_of(ctx, session)
+
+        def run() -> Hits:
+            with locked(target) as glmap:
+                return Hits(query=query, hits=glmap.find_instances(query, top_k))
+
+        return await in_thread(run)
+
+    @server.tool(annotations=READ_ONLY)
+    @tool_errors
+    async def find_region(
+        query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = None
+    ) -> Hits:
+        """Find regions (groups of objects such as 'the dining area') by description.
+
+        Returns the best-matching regions with id, description, score, centroid, bounds and
+        their member instance ids.
+        """
+        target = session_of(ctx, session)
+
+        def run() -> Hits:
+            with locked(target) as glmap:
+                return Hits(query=query, hits=glmap.find_regions(query, top_k))
+
+        return await in_thread(run)
+
+    @server.tool(annotations=READ_ONLY)
+    @tool_errors
+    async def what_is_at(
+        x: Annotated[float, Field(ge=-1e4, le=1e4, description="world x (metres)")],
+        y: Annotated[float, Field(ge=-1e4, le=1e4, description="world y (metres)")],
+        ctx: Context,
+        radius: Annotated[
+            float, Field(ge=0, le=5, description="search radius on the floor plan (metres)")
+        ] = 0.25,
+        session: SessionArg = None,
+    ) -> UnitsAt:
+        """List the instances and regions on the floor plan around (x, y), nearest first.
+
+        Also says whether (x, y) itself is free space, an obstacle, or unseen.
+        """
+        target = session_of(ctx, session)
+
+        def run() -> UnitsAt:
+            with locked(target) as glmap:
+                units = glmap.units_at(x, y, radius)
+                occ = OCCUPANCY_NAMES.get(glmap.occupancy.state_at(x, y), "unknown")
+            return UnitsAt(x=x, y=y, radius=radius, occupancy=occ, units=units)
+
+        return await in_thread(run)
+
+    @server.tool(annotations=READ_ONLY)
+    @tool_errors
+    async def describe_unit(id: UnitId, ctx: Context, session: SessionArg = None) -> UnitInfo:
+        """Everything the map knows about one instance or region, by id."""
+        target = session_of(ctx, session)
+
+        def run() -> UnitInfo:
+            with locked(target) as glmap:
+                return glmap.unit_details(id)
+
+        return await in_thread(run)
+
+    @server.tool(annotations=READ_ONLY)
+    @tool_errors
+    async def map_summary(
+        ctx: Context,
+        include_image: Annotated[bool, Field(description="attach the top-down map image")] = True,
+        session: SessionArg = None,
+    ) -> list[TextContent | Image]:
+        """Counts and extent of the map, the session handle, and a top-down map image.
+
+        The image shows free space, obstacles, each instance (labelled with its id) and the
+        camera trajectory; the text says how its pixels map to world metres.
+        """
+        target = session_of(ctx, session)
+
+        def run() -> tuple[MapInfo, views.TopDown | None]:
+            with locked(target) as glmap:
+                info = MapInfo(
+                    session=target.handle,
+                    map_name=target.live.name,
+                    summary=glmap.summary(),
+                    resources=resource_uris(target.handle),
+                )
+                image = views.topdown(glmap) if include_image else None
+            return info, image
+
+        info, image = await in_thread(run)
+        content: list[TextContent | Image] = [
+            TextContent(type="text", text=info.model_dump_json(indent=2))
+        ]
+        if image is not None:
+            content.append(TextContent(type="text", text=image.describe()))
+            content.append(Image(data=image.png, format="png"))
+        return content

@@ -1,0 +1,146 @@
+"""Map-store tools: new_map, save_map, load_map, list_maps (names only, in the maps folder).
+
+No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+"""
+
+import datetime as dt
+from typing import Annotated
+
+from mcp.server.mcpserver import Context, MCPServer
+from mcp.types import ToolAnnotations
+from pydantic import Field
+
+from glmap_tools.server.results import MapEntry, MapInfo, MapList, SavedMap
+from glmap_tools.server.runtime import (
+    app_state,
+    in_thread,
+    session_for_new_map,
+    session_of,
+    tool_errors,
+)
+from glmap_tools.server.state import MAP_SUFFIX, Session, locked
+from glmap_tools.server.tools_map import READ_ONLY, SessionArg, resource_uris
+
+MapName = Annotated[
+    str,
+    Field(
+        min_length=1,
+        max_length=70,
+        description="a bare map name: letters, digits, '-' or '_' (no folders, no suffix)",
+    ),
+]
+
+
+def _info(session: Session) -> MapInfo:
+    with locked(session) as glmap:
+        return MapInfo(
+            session=session.handle,
+            map_name=session.live.name,
+            summary=glmap.summary(),
+            resources=resource_uris(session.handle),
+        )
+
+
+def register(server: MCPServer) -> None:
+    """Add the map-store tools to `server`."""
+
+    @server.tool(annotations=ToolAnnotations(destructive_hint=True, idempotent_hint=False))
+    @tool_errors
+    async def new_map(
+        ctx: Context,
+        name: Annotated[
+            str | None,
+            Field(
+                max_length=70,
+                description="save under this name from the start (every frame is "
+                "committed to it); omit for an unsaved scratch map",
+            ),
+        ] = None,
+        session: SessionArg = None,
+    ) -> MapInfo:
+        """Start an empty map for this session; the current map is dropped unless saved.
+
+        Returns the session handle. On a stateless HTTP server shared by several clients,
+        calling this without a session starts a new session of your own: pass its handle as
+        `session` to every later call.
+        """
+        target = session_for_new_map(ctx, session)
+        registry = app_state(ctx).registry
+
+        def run() -> MapInfo:
+            registry.new_map(target, name)
+            return _info(target)
+
+        return await in_thread(run)
+
+    @server.tool(annotations=ToolAnnotations(destructive_hint=True, idempotent_hint=True))
+    @tool_errors
+    async def save_map(
+        name: MapName,
+        ctx: Context,
+        overwrite: Annotated[
+            bool, Field(description="replace an existing saved map of this name")
+        ] = False,
+        session: SessionArg = None,
+    ) -> SavedMap:
+        """Save this session's map under a name; later frames are committed to it too.
+
+        Maps live in the server's maps folder; give a bare name such as 'flat-3'.
+        """
+        target = session_of(ctx, session)
+        registry = app_state(ctx).registry
+
+        def run() -> SavedMap:
+            live, written = registry.save_map(target, name, overwrite)
+            path = registry.map_path(live.name or name)
+            return SavedMap(
+                session=target.handle,
+                map_name=live.name,
+                written=written,
+                bytes=path.stat().st_size,
+            )
+
+        return await in_thread(run)
+
+    @server.tool(annotations=ToolAnnotations(destructive_hint=True, idempotent_hint=True))
+    @tool_errors
+    async def load_map(name: MapName, ctx: Context, session: SessionArg = None) -> MapInfo:
+        """Open a saved map for this session (the current map is dropped unless saved).
+
+        Sessions that open the same saved map share it: all see each other's frames.
+        """
+        target = session_for_new_map(ctx, session)
+        registry = app_state(ctx).registry
+
+        def run() -> MapInfo:
+            registry.load_map(target, name)
+            return _info(target)
+
+        return await in_thread(run)
+
+    @server.tool(annotations=READ_ONLY)
+    @tool_errors
+    async def list_maps(ctx: Context) -> MapList:
+        """List the saved maps by name (open one with load_map)."""
+        registry = app_state(ctx).registry
+
+        def run() -> MapList:
+            open_names = registry.open_names()
+            entries = []
+            for name in registry.saved_names():
+                try:
+                    stat = (registry.maps_dir / f"{name}{MAP_SUFFIX}").stat()
+                except OSError:
+                    continue  # removed since listed
+                modified = dt.datetime.fromtimestamp(stat.st_mtime, dt.UTC)
+                entries.append(
+                    MapEntry(
+                        name=name,
+                        bytes=stat.st_size,
+                        modified=modified.isoformat(timespec="seconds"),
+                        open=name in open_names,
+                    )
+                )
+            return MapList(maps=entries)
+
+        return await in_thread(run)
