@@ -282,3 +282,15 @@ def test_bad_render_arguments_are_rejected_with_a_fix(kwargs, message):
 def test_a_raw_matrix_instead_of_a_pose_is_rejected_with_a_fix():
     with pytest.raises(InvalidInputError, match="Pose"):
         render(random_blobs(0, n=3), np.eye(4), Intrinsics.from_fov(8, 8, 60))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 5000])
+def test_the_radix_depth_order_equals_a_stable_argsort_with_ties_in_input_order(n):
+    rng = np.random.default_rng(n)
+    depth = rng.uniform(0.05, 50.0, n)
+    depth[::3] = np.round(depth[::3])  # many exact ties
+    valid = rng.uniform(size=n) < 0.8
+    depth[~valid] = np.nan  # culled entries hold garbage
+    kept = np.flatnonzero(valid)
+    expected = kept[np.argsort(depth[kept], kind="stable")]
+    np.testing.assert_array_equal(_render_numba.depth_order_kernel(valid, depth), expected)

@@ -36,6 +36,8 @@ from glmap_tools.geometry import Intrinsics, Pose
 DECAY_X, DECAY_Y, DECAY_XY, COMPACT, RED, GREEN, BLUE, DEPTH = range(9, 17)
 N_PARAMS = 17
 M_COMPACT = 200.0  # exp(-m/2) by forward differences stays far from under/overflow below this
+RADIX_BITS = 11  # depth sort: bits per radix pass
+RADIX = 1 << RADIX_BITS
 PAD = 1e-6  # px slack on the footprint bounds; the exact alpha test decides inside them
 
 
@@ -152,6 +154,54 @@ def project_kernel(
         rects[i, 2] = int(y0)
         rects[i, 3] = int(y1)
         valid[i] = True
+
+
+@njit(cache=True)
+def depth_order_kernel(valid: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """Indices of the valid Gaussians by increasing depth, ties in index order (stable).
+
+    An LSD radix sort on the bits of the float64 depths (all positive, so their bit patterns
+    order like the numbers), 11 bits a pass; passes where every key shares the digit are
+    skipped.
+
+    Args:
+        valid: [N] bool.
+        depth: [N] float64 camera z, > 0 where valid.
+    """
+    n = 0
+    for i in range(valid.shape[0]):
+        n += valid[i]
+    index = np.empty(n, dtype=np.int64)
+    keys = np.empty(n, dtype=np.uint64)
+    bits = depth.view(np.uint64)
+    j = 0
+    for i in range(valid.shape[0]):
+        if valid[i]:
+            index[j] = i
+            keys[j] = bits[i]
+            j += 1
+    index_tmp = np.empty_like(index)
+    keys_tmp = np.empty_like(keys)
+    counts = np.empty(RADIX + 1, dtype=np.int64)
+    mask = np.uint64(RADIX - 1)
+    for shift in range(0, 64, RADIX_BITS):
+        sh = np.uint64(shift)
+        counts[:] = 0
+        for j in range(n):
+            counts[np.int64((keys[j] >> sh) & mask) + 1] += 1
+        if n == 0 or counts.max() == n:
+            continue
+        for b in range(RADIX):
+            counts[b + 1] += counts[b]
+        for j in range(n):
+            d = np.int64((keys[j] >> sh) & mask)
+            pos = counts[d]
+            counts[d] = pos + 1
+            index_tmp[pos] = index[j]
+            keys_tmp[pos] = keys[j]
+        index, index_tmp = index_tmp, index
+        keys, keys_tmp = keys_tmp, keys
+    return index
 
 
 @njit(parallel=True, cache=True)
@@ -427,8 +477,7 @@ def render_fast(
         rects,
         valid,
     )
-    kept = np.flatnonzero(valid)
-    order = kept[np.argsort(params[kept, DEPTH], kind="stable")]
+    order = depth_order_kernel(valid, np.ascontiguousarray(params[:, DEPTH]))
     params, rects = gather_kernel(order, params, rects)
     tile_w, tile_h = tile
     tiles_x = (w + tile_w - 1) // tile_w
