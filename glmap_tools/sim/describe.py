@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 
 NUMBER_WORDS = [
@@ -59,7 +60,8 @@ def object_phrase(category: str, attributes: Mapping[str, str]) -> str:
     if template is not None:
         keys = [k for k in ORDER if "{" + k + "}" in template]
         if all(attributes.get(k) for k in keys):
-            return template.format(**{k: attributes[k] for k in keys})
+            text = template.format(**{k: attributes[k] for k in keys})
+            return re.sub(r"\ba ([aeiou])", r"an \1", text)
     words = [attributes[k] for k in ORDER if attributes.get(k)]
     material = attributes.get("material")
     if material in ("wood", "oak", "walnut") and "color" not in attributes:

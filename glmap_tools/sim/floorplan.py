@@ -211,7 +211,8 @@ def _rooms(types: list[str], rects: dict[int, Rect], rng: np.random.Generator) -
     for i, room_type in enumerate(types):
         r = rects[i]
         counts[room_type] = counts.get(room_type, 0) + 1
-        name = room_type if counts[room_type] == 1 else f"{room_type} {counts[room_type]}"
+        ordinal = ("", "", "second ", "third ")[min(counts[room_type], 3)]
+        name = ordinal + room_type
         floor = str(rng.choice(FLOORS[room_type]))
         rooms.append(
             Room(

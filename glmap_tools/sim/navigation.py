@@ -70,6 +70,19 @@ class NavGrid:
             axis=1,
         )
 
+    def cell_of(self, x: float, y: float) -> tuple[int, int]:
+        """(row, col) of one world point (scalar fast path of `to_cell`)."""
+        return (
+            math.floor((y - self.origin[1]) / self.cell),
+            math.floor((x - self.origin[0]) / self.cell),
+        )
+
+    def navigable_at(self, x: float, y: float) -> bool:
+        """Whether one world point is navigable (scalar fast path of `is_navigable`)."""
+        r, c = self.cell_of(x, y)
+        h, w = self.navigable.shape
+        return bool(0 <= r < h and 0 <= c < w and self.navigable[r, c])
+
     def is_navigable(self, xy: np.ndarray) -> np.ndarray:
         """[N] bool for [N, 2] world points (False outside the grid)."""
         rc = self.to_cell(xy)

@@ -2,9 +2,11 @@
 
 Lighting is baked into per-vertex colours (`face_shade`) and drawn with pyrender's FLAT
 pass: software (llvmpipe) rendering stays fast and colours do not depend on the view.
-One `SceneRenderer` per scene holds one pyrender `OffscreenRenderer` (creating one is slow).
-Each object is one mesh node with per-vertex colours; all walls, floors and ceilings are one
-node whose segmentation colour is 0. The id mask comes from pyrender's flat SEG pass
+`SceneRenderer`s share one pyrender `OffscreenRenderer` per image size (creating one is
+slow; deleting one breaks the others, see `shared_offscreen_renderer`).
+The colour pass draws everything as one merged mesh with per-vertex colours; the id pass
+draws one node per object in its id colour and one node (colour 0) for walls, floors and
+ceilings. The id mask comes from pyrender's flat SEG pass
 (multisampling off), so every pixel is exactly one object id or 0; depth is read from the same
 pass so depth and mask agree pixel for pixel.
 """
@@ -58,6 +60,21 @@ class RenderedView:
     rgb: np.ndarray  # [H, W, 3]
     depth: np.ndarray  # [H, W]
     instance_mask: np.ndarray  # [H, W]
+
+
+_OFFSCREEN: dict[tuple[int, int], pyrender.OffscreenRenderer] = {}
+
+
+def shared_offscreen_renderer(width: int, height: int) -> pyrender.OffscreenRenderer:
+    """One process-wide `OffscreenRenderer` per image size.
+
+    Creating one is slow, and deleting one terminates the EGL display under every other
+    one, so they are created once and kept for the life of the process.
+    """
+    key = (int(width), int(height))
+    if key not in _OFFSCREEN:
+        _OFFSCREEN[key] = pyrender.OffscreenRenderer(key[0], key[1])
+    return _OFFSCREEN[key]
 
 
 def id_color(object_id: int) -> tuple[int, int, int]:
@@ -117,21 +134,31 @@ class SceneRenderer:
         self.intrinsics = self.camera.intrinsics
         self.scene = pyrender.Scene(bg_color=(0.0, 0.0, 0.0, 1.0), ambient_light=(1.0,) * 3)
         self.seg_node_map: dict[pyrender.Node, tuple[int, int, int]] = {}
-        for obj in layout.objects:
-            node = self.scene.add(pyrender.Mesh([_primitive(object_parts(obj))]), name=str(obj.id))
-            self.seg_node_map[node] = id_color(obj.id)
+        # The colour pass draws one merged mesh (one draw call); the id pass draws one node per
+        # object with its id colour. Each pass shows only its own meshes.
+        object_parts_all = [object_parts(obj) for obj in layout.objects]
         shell = list(room_walls(layout).values())
         for room in layout.rooms:
             shell.extend(floor_and_ceiling(room))
-        node = self.scene.add(pyrender.Mesh([_primitive(shell)]), name="architecture")
-        self.seg_node_map[node] = (0, 0, 0)
+        merged = [part for parts in object_parts_all for part in parts] + shell
+        self._color_mesh = pyrender.Mesh([_primitive(merged)])
+        self.scene.add(self._color_mesh, name="color")
+        self._id_meshes = []
+        for obj, parts in zip(layout.objects, object_parts_all, strict=True):
+            mesh = pyrender.Mesh([_primitive(parts)])
+            node = self.scene.add(mesh, name=str(obj.id))
+            self.seg_node_map[node] = id_color(obj.id)
+            self._id_meshes.append(mesh)
+        shell_mesh = pyrender.Mesh([_primitive(shell)])
+        self.seg_node_map[self.scene.add(shell_mesh, name="architecture")] = (0, 0, 0)
+        self._id_meshes.append(shell_mesh)
         k = self.intrinsics
         # pyrender puts pixel centres at +0.5 where OpenCV intrinsics put them at integers.
         cam = pyrender.IntrinsicsCamera(
             k.fx, k.fy, k.cx + 0.5, k.cy + 0.5, znear=Z_NEAR, zfar=Z_FAR
         )
         self.camera_node = self.scene.add(cam, pose=np.eye(4))
-        self._renderer: pyrender.OffscreenRenderer | None = pyrender.OffscreenRenderer(
+        self._renderer: pyrender.OffscreenRenderer | None = shared_offscreen_renderer(
             self.camera.width, self.camera.height
         )
 
@@ -144,7 +171,9 @@ class SceneRenderer:
                 f"pose must be a glmap_tools.geometry.Pose, got {type(pose).__name__}."
             )
         self.scene.set_pose(self.camera_node, to_opengl(pose))
+        self._show(color=True)
         rgb, _ = self._renderer.render(self.scene, flags=pyrender.RenderFlags.FLAT)
+        self._show(color=False)
         seg, depth = self._renderer.render(
             self.scene, flags=pyrender.RenderFlags.SEG, seg_node_map=self.seg_node_map
         )
@@ -153,11 +182,14 @@ class SceneRenderer:
             np.ascontiguousarray(rgb), np.ascontiguousarray(depth, dtype=np.float32), mask
         )
 
+    def _show(self, color: bool) -> None:
+        self._color_mesh.is_visible = color
+        for mesh in self._id_meshes:
+            mesh.is_visible = not color
+
     def close(self) -> None:
-        """Free the OpenGL context."""
-        if self._renderer is not None:
-            self._renderer.delete()
-            self._renderer = None
+        """Stop using the shared OpenGL context (it stays alive for other renderers)."""
+        self._renderer = None
 
     def __enter__(self) -> SceneRenderer:
         return self

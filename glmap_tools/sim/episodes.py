@@ -1,0 +1,288 @@
+"""Navigation episodes: seeded generation, JSON episode sets, validation against a layout.
+
+An episode is a start (position, heading) and a goal: every instance of a category
+(ObjectNav) or one instance named by a unique description (InstNav). Success means stopping
+within `success_distance` metres of a goal object's footprint. `geodesic_distance` is the
+shortest path on the navigable grid from the start to the goal cells (the navigable cells
+within `success_distance - cell` of a goal footprint, so standing in one is a success).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
+from glmap_tools.sim.instnav import instance_goals
+from glmap_tools.sim.layout import Layout, SceneObject
+from glmap_tools.sim.navigation import NavGrid, build_nav_grid
+
+FORMAT = "glmap-sim-episodes"
+VERSION = 1
+TASKS = ("objectnav", "instnav")
+SUCCESS_DISTANCE = 1.0  # metres
+MIN_START_DISTANCE = 1.5  # metres of geodesic distance from start to goal
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One navigation episode."""
+
+    episode_id: int
+    task: str
+    start_position: tuple[float, float]
+    start_heading: float
+    goal_text: str
+    goal_object_ids: tuple[int, ...]
+    geodesic_distance: float
+
+
+@dataclass(frozen=True)
+class EpisodeSet:
+    """Episodes of one task in one scene."""
+
+    task: str
+    scene: str
+    scene_seed: int | None
+    episodes: list[Episode]
+    success_distance: float = SUCCESS_DISTANCE
+
+
+def goal_cells(
+    grid: NavGrid, targets: Sequence[SceneObject], success_distance: float
+) -> np.ndarray:
+    """[H, W] bool navigable cells whose centre is within reach of a target's footprint."""
+    xs, ys = grid.cell_centers()
+    pts = np.column_stack([xs.ravel(), ys.ravel()])
+    near = np.zeros(len(pts), dtype=bool)
+    for obj in targets:
+        near |= obj.distance_to(pts) <= success_distance - grid.cell
+    return near.reshape(grid.shape) & grid.navigable
+
+
+def goal_distance_field(
+    grid: NavGrid, targets: Sequence[SceneObject], success_distance: float = SUCCESS_DISTANCE
+) -> np.ndarray:
+    """[H, W] geodesic metres to the nearest goal cell (inf where unreachable)."""
+    return grid.distance_field(goal_cells(grid, targets, success_distance))
+
+
+GoalPool = list[tuple[str, tuple[int, ...], np.ndarray]]  # (text, object ids, field)
+
+
+def goal_pool(
+    layout: Layout,
+    task: str,
+    grid: NavGrid,
+    success_distance: float = SUCCESS_DISTANCE,
+    min_distance: float = MIN_START_DISTANCE,
+) -> GoalPool:
+    """Every goal of `task` that is reachable from somewhere at least `min_distance` away."""
+    if task not in TASKS:
+        raise InvalidInputError(f"task {task!r} is not one of {TASKS}.{did_you_mean(task, TASKS)}")
+    if task == "objectnav":
+        candidates = [
+            (c, tuple(o.id for o in layout.objects if o.category == c)) for c in layout.categories
+        ]
+    else:
+        candidates = [(text, (i,)) for i, text in instance_goals(layout).items()]
+    pool: GoalPool = []
+    for text, ids in candidates:
+        field = goal_distance_field(grid, [layout.object(i) for i in ids], success_distance)
+        if (np.isfinite(field) & (field >= min_distance)).any():
+            pool.append((text, ids, field))
+    if not pool:
+        raise InvalidInputError(
+            f"layout {layout.name!r} has no {task} goal reachable from at least {min_distance} m "
+            "away; add objects or rooms, or lower min_distance."
+        )
+    return pool
+
+
+def sample_episode(
+    rng: np.random.Generator,
+    grid: NavGrid,
+    pool: GoalPool,
+    task: str,
+    episode_id: int,
+    min_distance: float = MIN_START_DISTANCE,
+) -> Episode:
+    """A random goal from the pool and a random start at least `min_distance` from it."""
+    text, ids, field = pool[int(rng.integers(len(pool)))]
+    rows, cols = np.nonzero(np.isfinite(field) & (field >= min_distance))
+    k = int(rng.integers(len(rows)))
+    xy = grid.to_world(np.array([[rows[k], cols[k]]]))[0]
+    return Episode(
+        episode_id=episode_id,
+        task=task,
+        start_position=(round(float(xy[0]), 4), round(float(xy[1]), 4)),
+        start_heading=round(float(rng.uniform(-math.pi, math.pi)), 5),
+        goal_text=text,
+        goal_object_ids=ids,
+        geodesic_distance=round(float(field[rows[k], cols[k]]), 4),
+    )
+
+
+def generate_episodes(
+    layout: Layout,
+    task: str,
+    count: int,
+    seed: int,
+    grid: NavGrid | None = None,
+    success_distance: float = SUCCESS_DISTANCE,
+    min_distance: float = MIN_START_DISTANCE,
+) -> EpisodeSet:
+    """`count` episodes with reachable goals, drawn from `seed` (deterministic).
+
+    Raises:
+        InvalidInputError: unknown task, bad count, or no reachable goal in the layout.
+    """
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise InvalidInputError(f"count={count!r} must be a positive integer.")
+    grid = grid or build_nav_grid(layout)
+    pool = goal_pool(layout, task, grid, success_distance, min_distance)
+    rng = np.random.default_rng([int(seed), 7])
+    episodes = [sample_episode(rng, grid, pool, task, i, min_distance) for i in range(count)]
+    return EpisodeSet(task, layout.name, layout.seed, episodes, success_distance)
+
+
+def episodes_to_dict(episode_set: EpisodeSet) -> dict[str, Any]:
+    """The JSON object of an episode set."""
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "task": episode_set.task,
+        "scene": episode_set.scene,
+        "scene_seed": episode_set.scene_seed,
+        "success_distance": episode_set.success_distance,
+        "episodes": [
+            {
+                "episode_id": e.episode_id,
+                "start_position": list(e.start_position),
+                "start_heading": e.start_heading,
+                "goal": {"text": e.goal_text, "object_ids": list(e.goal_object_ids)},
+                "geodesic_distance": e.geodesic_distance,
+            }
+            for e in episode_set.episodes
+        ],
+    }
+
+
+def _episode(entry: Mapping[str, Any], task: str, where: str) -> Episode:
+    try:
+        goal = entry["goal"]
+        start = [float(v) for v in entry["start_position"]]
+        ids = tuple(int(i) for i in goal["object_ids"])
+        return Episode(
+            episode_id=int(entry["episode_id"]),
+            task=task,
+            start_position=(start[0], start[1]),
+            start_heading=float(entry.get("start_heading", 0.0)),
+            goal_text=str(goal["text"]),
+            goal_object_ids=ids,
+            geodesic_distance=float(entry.get("geodesic_distance", math.nan)),
+        )
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise InvalidInputError(
+            f"{where} is malformed ({exc!r}); each episode needs episode_id, start_position "
+            "[x, y], start_heading and goal {text, object_ids}."
+        ) from exc
+
+
+def episodes_from_dict(
+    data: Mapping[str, Any], layout: Layout | None = None, grid: NavGrid | None = None
+) -> EpisodeSet:
+    """Parse an episode set; with a layout, check ids, starts and that every goal is reachable.
+
+    Raises:
+        InvalidInputError: malformed JSON, a start off the navigable floor, an unreachable goal.
+        UnknownIdError: a goal object id the layout does not have.
+    """
+    if data.get("format") != FORMAT or data.get("version") != VERSION:
+        raise InvalidInputError(
+            f"episode file format {data.get('format')!r} version {data.get('version')!r} is not "
+            f"{FORMAT!r} version {VERSION}; regenerate it with `glmap sim episodes`."
+        )
+    task = str(data.get("task"))
+    if task not in TASKS:
+        raise InvalidInputError(f"task {task!r} is not one of {TASKS}.{did_you_mean(task, TASKS)}")
+    entries = data.get("episodes")
+    if not isinstance(entries, list) or not entries:
+        raise InvalidInputError("an episode set needs a non-empty 'episodes' list.")
+    episodes = [_episode(e, task, f"episodes[{i}]") for i, e in enumerate(entries)]
+    episode_set = EpisodeSet(
+        task=task,
+        scene=str(data.get("scene", "")),
+        scene_seed=data.get("scene_seed"),
+        episodes=episodes,
+        success_distance=float(data.get("success_distance", SUCCESS_DISTANCE)),
+    )
+    if layout is not None:
+        validate_episodes(episode_set, layout, grid)
+    return episode_set
+
+
+def validate_episodes(episode_set: EpisodeSet, layout: Layout, grid: NavGrid | None = None) -> None:
+    """Raise unless every episode starts on navigable floor with a reachable goal."""
+    if episode_set.scene and episode_set.scene != layout.name:
+        raise InvalidInputError(
+            f"the episodes are for scene {episode_set.scene!r} but the layout is {layout.name!r}; "
+            "pass the layout they were generated from."
+        )
+    grid = grid or build_nav_grid(layout)
+    by_id = layout.objects_by_id
+    fields: dict[tuple[int, ...], np.ndarray] = {}
+    for e in episode_set.episodes:
+        missing = [i for i in e.goal_object_ids if i not in by_id]
+        if missing or not e.goal_object_ids:
+            raise UnknownIdError(
+                f"episode {e.episode_id}: goal object ids {missing or '[]'} are not in layout "
+                f"{layout.name!r}; regenerate the episodes for this layout."
+            )
+        start = np.array(e.start_position)
+        if not grid.is_navigable(start[None])[0]:
+            raise InvalidInputError(
+                f"episode {e.episode_id}: start {e.start_position} is not on navigable floor "
+                f"(walls, furniture or outside); move it or regenerate the episodes."
+            )
+        if e.goal_object_ids not in fields:
+            targets = [by_id[i] for i in e.goal_object_ids]
+            fields[e.goal_object_ids] = goal_distance_field(
+                grid, targets, episode_set.success_distance
+            )
+        r, c = grid.to_cell(start[None])[0]
+        if not math.isfinite(float(fields[e.goal_object_ids][r, c])):
+            raise InvalidInputError(
+                f"episode {e.episode_id}: goal {e.goal_text!r} (objects "
+                f"{list(e.goal_object_ids)}) is unreachable from start {e.start_position}: no "
+                f"navigable path ends within {episode_set.success_distance} m of it. Add an "
+                "opening to its room, move the objects that block the way, or drop the episode."
+            )
+
+
+def save_episodes(episode_set: EpisodeSet, path: str | os.PathLike[str]) -> None:
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(episodes_to_dict(episode_set), f, indent=1)
+        f.write("\n")
+
+
+def load_episodes(
+    path: str | os.PathLike[str], layout: Layout | None = None, grid: NavGrid | None = None
+) -> EpisodeSet:
+    """Read (and with a layout, validate) an episode set JSON file."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = json.load(f)
+    except FileNotFoundError as exc:
+        raise InvalidInputError(
+            f"episode file {str(path)!r} does not exist; make one with `glmap sim episodes`."
+        ) from exc
+    except json.JSONDecodeError as exc:
+        raise InvalidInputError(f"episode file {str(path)!r} is not valid JSON: {exc}.") from exc
+    return episodes_from_dict(data, layout, grid)

@@ -1,0 +1,124 @@
+"""Episode sets (JSON, reachability) and InstNav goal descriptions."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from glmap_tools.errors import InvalidInputError, UnknownIdError
+from glmap_tools.sim.episodes import (
+    episodes_from_dict,
+    episodes_to_dict,
+    generate_episodes,
+    load_episodes,
+    save_episodes,
+)
+from glmap_tools.sim.generator import generate_apartment
+from glmap_tools.sim.instnav import describe_instance, instance_goals
+from glmap_tools.sim.layout_io import layout_from_dict
+from glmap_tools.sim.navigation import build_nav_grid
+
+
+@pytest.fixture(scope="module")
+def layout():
+    return generate_apartment(8, n_rooms=4)
+
+
+def _chair(i, x, y, color="blue", material="metal"):
+    return {"id": i, "category": "chair", "mesh": "kenney/chairCushion", "position": [x, y, 0],
+            "attributes": {"color": color, "material": material}}  # fmt: skip
+
+
+def _room(room_id: int, name: str, x0: float, x1: float) -> dict:
+    return {
+        "id": room_id,
+        "type": name,
+        "name": name,
+        "polygon": [[x0, 0], [x1, 0], [x1, 4], [x0, 4]],
+    }
+
+
+ROOMS = {
+    "rooms": [_room(1, "kitchen", 0, 5), _room(2, "office", 5, 9), _room(3, "closet", 9, 11)],
+    "openings": [{"id": 1, "rooms": [1, 2], "center": [5, 2], "width": 0.9}],
+}
+
+
+def _scene(objects):
+    return layout_from_dict({**copy.deepcopy(ROOMS), "objects": objects})
+
+
+def test_episodes_are_seeded_reachable_and_round_trip_through_json(layout, tmp_path) -> None:
+    a = generate_episodes(layout, "objectnav", 12, seed=3)
+    b = generate_episodes(layout, "objectnav", 12, seed=3)
+    assert episodes_to_dict(a) == episodes_to_dict(b)
+    grid = build_nav_grid(layout)
+    for e in a.episodes:
+        assert grid.is_navigable(np.array([e.start_position]))[0]
+        assert 1.5 <= e.geodesic_distance < np.inf
+        assert {layout.object(i).category for i in e.goal_object_ids} == {e.goal_text}
+        assert e.goal_object_ids == tuple(o.id for o in layout.objects if o.category == e.goal_text)
+    save_episodes(a, tmp_path / "episodes.json")
+    again = load_episodes(tmp_path / "episodes.json", layout)
+    assert episodes_to_dict(again) == episodes_to_dict(a)
+
+
+def test_an_episode_whose_goal_cannot_be_reached_is_refused() -> None:
+    # The closet (room 3) has no opening: its chair is unreachable from the kitchen.
+    scene = _scene([_chair(1, 1, 1), _chair(2, 10, 2, color="red")])
+    data = {
+        "format": "glmap-sim-episodes", "version": 1, "task": "objectnav",
+        "scene": scene.name, "scene_seed": None,
+        "episodes": [{"episode_id": 0, "start_position": [3.0, 2.0], "start_heading": 0.0,
+                      "goal": {"text": "red chair", "object_ids": [2]}}],
+    }  # fmt: skip
+    with pytest.raises(InvalidInputError, match=r"episode 0: goal 'red chair' .* is unreachable"):
+        episodes_from_dict(data, scene)
+    data["episodes"][0]["goal"]["object_ids"] = [1]
+    episodes_from_dict(data, scene)  # the kitchen chair is fine
+    data["episodes"][0]["goal"]["object_ids"] = [5]
+    with pytest.raises(UnknownIdError, match=r"goal object ids \[5\]"):
+        episodes_from_dict(data, scene)
+    data["episodes"][0]["goal"]["object_ids"] = [1]
+    data["episodes"][0]["start_position"] = [1.0, 1.0]  # on the chair
+    with pytest.raises(InvalidInputError, match="not on navigable floor"):
+        episodes_from_dict(data, scene)
+
+
+def test_an_unknown_task_suggests_the_closest() -> None:
+    with pytest.raises(InvalidInputError, match="Did you mean 'objectnav'"):
+        generate_episodes(_scene([_chair(1, 1, 1)]), "objnav", 1, seed=0)
+
+
+def test_identical_chairs_are_told_apart_by_what_they_stand_next_to() -> None:
+    table = {"id": 3, "category": "table", "mesh": "kenney/tableRound", "position": [1.5, 2.8, 0],
+             "attributes": {"shape": "round"}}  # fmt: skip
+    desk = {"id": 4, "category": "desk", "mesh": "kenney/desk", "position": [7.0, 3.3, 0]}
+    scene = _scene([_chair(1, 1.5, 1.7), _chair(2, 7.0, 2.5), table, desk])
+    assert (
+        describe_instance(scene, scene.object(1)) == "the blue metal chair next to the round table"
+    )
+    assert describe_instance(scene, scene.object(2)) == "the blue metal chair next to the desk"
+
+
+def test_a_chair_with_its_own_colour_needs_no_relation_beyond_its_room() -> None:
+    scene = _scene([_chair(1, 1.5, 1.7), _chair(2, 3.5, 1.7, color="red")])
+    assert describe_instance(scene, scene.object(2)) == "the red metal chair in the kitchen"
+
+
+def test_two_identical_chairs_side_by_side_cannot_be_singled_out() -> None:
+    scene = _scene([_chair(1, 1.5, 1.7), _chair(2, 2.2, 1.7)])
+    assert describe_instance(scene, scene.object(1)) is None
+    assert instance_goals(scene) == {}
+
+
+def test_every_instnav_goal_matches_only_its_target(layout) -> None:
+    goals = instance_goals(layout)
+    assert len(goals) >= 10
+    descriptions = list(goals.values())
+    assert len(set(descriptions)) == len(descriptions)
+    episodes = generate_episodes(layout, "instnav", 5, seed=0)
+    for e in episodes.episodes:
+        assert len(e.goal_object_ids) == 1 and goals[e.goal_object_ids[0]] == e.goal_text
