@@ -1,0 +1,81 @@
+"""The fast Gaussian Estimator: numba kernels glued together (twin of `_estimator_reference`)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numba
+import numpy as np
+
+from glmap_tools.gaussians import _estimator_clusters as clusters
+from glmap_tools.gaussians import _estimator_grid as grid
+from glmap_tools.gaussians import _estimator_numba as kernels
+from glmap_tools.gaussians._estimator_union import union_additive
+from glmap_tools.gaussians.types import GaussianSet
+
+if TYPE_CHECKING:
+    from glmap_tools.gaussians.estimator import EstimatorConfig
+
+CHUNKS_PER_THREAD = 4
+
+
+def scan(points: np.ndarray, colors: np.ndarray) -> tuple[bool, bool, np.ndarray, np.ndarray]:
+    """(points all finite, colours all in [0, 1], [3] point min, [3] point max), one pass."""
+    stats = kernels.scan_cloud(points, colors)
+    return bool(stats[0]), bool(stats[1]), stats[2:5], stats[5:8]
+
+
+def fit_fast(
+    points: np.ndarray, colors: np.ndarray, config: EstimatorConfig, lo: np.ndarray
+) -> GaussianSet:
+    """Fit and merge Gaussians to a validated, non-empty cloud.
+
+    Args:
+        points: [N, 3] float64, finite.
+        colors: [N, 3] float32 or float64 in [0, 1].
+        config: estimator settings.
+        lo: [3] float64 smallest point coordinate per axis.
+    """
+    voxel = float(config.voxel_size)
+    n_chunks = CHUNKS_PER_THREAD * numba.get_num_threads()
+    lo_cell = np.floor(lo / voxel).astype(np.int64)
+    origin = (lo_cell - kernels.CELL_MARGIN).astype(np.float64) * voxel
+    point_voxel, slot_voxel, voxel_block, voxel_slot, keys, table_keys, table_ids = (
+        kernels.voxelize(points, voxel, lo_cell)
+    )
+    block_nbrs = grid.block_neighbours(keys, table_keys, table_ids)
+    moments = kernels.voxel_moments(points, colors, point_voxel, len(voxel_block), origin)
+    neighbours, sums = kernels.neighbourhood_moments(
+        voxel_block, voxel_slot, slot_voxel, block_nbrs, moments, n_chunks
+    )
+    emitted = np.flatnonzero(sums[:, 0] >= config.min_points)
+    if len(emitted) == 0:
+        return GaussianSet.empty()
+    if config.merge and len(emitted) > 1:
+        means, covs, cols, kappa = kernels.candidate_gaussians(
+            sums, emitted, config.epsilon, n_chunks
+        )
+        m_cells = clusters.mean_cells(means, config.candidate_radius)
+        m_block, m_keys, m_table_keys, m_table_ids = grid.blocks_of(m_cells)
+        m_nbrs = grid.block_neighbours(m_keys, m_table_keys, m_table_ids)
+        head, nxt = clusters.cell_lists(m_cells, m_block, len(m_keys))
+        params = np.array(
+            [config.candidate_radius, voxel, config.tau, config.lambda_cov, config.lambda_color]
+        )
+        pi, pj, d = clusters.pairs_by_chunk(
+            n_chunks, m_cells, m_block, m_nbrs, head, nxt, means, covs, cols, kappa, params
+        )
+        labels = union_additive(
+            clusters.trace_rows(sums, emitted),
+            clusters.sort_pairs(pi, pj, d),
+            config.merge_cap_trace,
+            config.epsilon,
+        )
+        sums = clusters.cluster_moments(
+            labels, emitted, neighbours, sums, moments, numba.get_num_threads()
+        )
+        emitted = np.arange(len(sums))
+    means32, covs32, cols32, counts = kernels.output_gaussians(
+        sums, emitted, config.epsilon, origin
+    )
+    return GaussianSet(means32, covs32, cols32, np.full(len(means32), config.opacity), counts)

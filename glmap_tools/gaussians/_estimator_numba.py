@@ -1,0 +1,368 @@
+"""Numba kernels of the fast Gaussian Estimator: voxels, per-voxel moments, Gaussians.
+
+Moment rows hold, relative to an origin, (n, sx, sy, sz, sxx, sxy, sxz, syy, syz, szz,
+r, g, b) in float64; a Gaussian is read off the sum of the rows of its points' voxels.
+Voxels are numbered in the order their first point appears in the input.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from glmap_tools.gaussians._estimator_grid import (
+    SLOTS,
+    block_key,
+    hash_slot,
+    neighbour_tables,
+    slot_of,
+)
+
+N_MOMENTS = 13
+CELL_MARGIN = 4  # one block of empty cells below the smallest coordinate
+
+
+@numba.njit(cache=True)
+def scan_cloud(points: np.ndarray, colors: np.ndarray) -> np.ndarray:
+    """[8] = (points all finite, colours all in [0, 1], point min xyz, point max xyz)."""
+    out = np.empty(8)
+    out[0], out[1] = 1.0, 1.0
+    out[2:5] = np.inf
+    out[5:8] = -np.inf
+    for i in range(points.shape[0]):
+        for a in range(3):
+            p = points[i, a]
+            if not math.isfinite(p):
+                out[0] = 0.0
+            out[2 + a] = min(out[2 + a], p)
+            out[5 + a] = max(out[5 + a], p)
+            k = colors[i, a]
+            if not (k >= 0.0 and k <= 1.0):  # also NaN
+                out[1] = 0.0
+    return out
+
+
+@numba.njit(cache=True)
+def _voxelize_until_full(
+    points: np.ndarray,
+    voxel: float,
+    lo: np.ndarray,
+    start: int,
+    state: np.ndarray,
+    table_keys: np.ndarray,
+    table_ids: np.ndarray,
+    keys: np.ndarray,
+    slot_voxel: np.ndarray,
+    point_voxel: np.ndarray,
+    voxel_block: np.ndarray,
+    voxel_slot: np.ndarray,
+) -> int:
+    """Voxelize points from `start` until a new block would overfill the table.
+
+    `state` = (n_blocks, n_voxels, last block key, its block) is updated in place.
+    Returns the index of the first point not processed.
+    """
+    cap = table_keys.shape[0]
+    n_blocks, n_voxels, last_key, b = state[0], state[1], state[2], state[3]
+    i = start
+    while i < points.shape[0]:
+        cx = np.int64(math.floor(points[i, 0] / voxel)) - lo[0] + CELL_MARGIN
+        cy = np.int64(math.floor(points[i, 1] / voxel)) - lo[1] + CELL_MARGIN
+        cz = np.int64(math.floor(points[i, 2] / voxel)) - lo[2] + CELL_MARGIN
+        k = block_key(cx, cy, cz)
+        if k != last_key:
+            h = hash_slot(k, cap - 1)
+            while True:
+                tk = table_keys[h]
+                if tk == k:
+                    b = table_ids[h]
+                    break
+                if tk == -1:
+                    if 2 * (n_blocks + 1) > cap:
+                        state[0], state[1], state[2], state[3] = n_blocks, n_voxels, last_key, b
+                        return i
+                    table_keys[h] = k
+                    table_ids[h] = n_blocks
+                    keys[n_blocks] = k
+                    b = n_blocks
+                    n_blocks += 1
+                    break
+                h = (h + 1) & (cap - 1)
+            last_key = k
+        s = slot_of(cx, cy, cz)
+        flat = b * SLOTS + s
+        v = slot_voxel[flat]
+        if v < 0:
+            v = n_voxels
+            slot_voxel[flat] = v
+            voxel_block[v] = b
+            voxel_slot[v] = s
+            n_voxels += 1
+        point_voxel[i] = v
+        i += 1
+    state[0], state[1], state[2], state[3] = n_blocks, n_voxels, last_key, b
+    return i
+
+
+@numba.njit(cache=True)
+def _grown(values: np.ndarray, size: int, fill: int) -> np.ndarray:
+    """A copy of 1-D `values` padded with `fill` to `size` entries."""
+    out = np.empty(size, dtype=values.dtype)
+    for i in range(values.shape[0]):
+        out[i] = values[i]
+    for i in range(values.shape[0], size):
+        out[i] = fill
+    return out
+
+
+@numba.njit(cache=True)
+def _rehash(keys: np.ndarray, n_keys: int, cap: int) -> tuple[np.ndarray, np.ndarray]:
+    """A fresh open-addressing table of `cap` slots holding keys[:n_keys] -> their index."""
+    table_keys = np.full(cap, -1, dtype=np.int64)
+    table_ids = np.zeros(cap, dtype=np.int32)
+    for q in range(n_keys):
+        h = hash_slot(keys[q], cap - 1)
+        while table_keys[h] != -1:
+            h = (h + 1) & (cap - 1)
+        table_keys[h] = keys[q]
+        table_ids[h] = q
+    return table_keys, table_ids
+
+
+@numba.njit(cache=True)
+def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
+    """Number the blocks and occupied voxels of a cloud in first-seen order, in one pass.
+
+    Voxel cell coordinates are floor(p / voxel) - lo + CELL_MARGIN.
+
+    Returns:
+        (voxel of each point [N], voxel in each block slot [B * 64] (-1 = empty),
+         block [V] and slot [V] of each voxel, block keys [B], hash table keys, table ids).
+    """
+    n = points.shape[0]
+    cap = 1024
+    while cap < n // 8:
+        cap *= 2
+    table_keys, table_ids = _rehash(np.empty(0, dtype=np.int64), 0, cap)
+    keys = np.empty(cap // 2, dtype=np.int64)
+    slot_voxel = np.full((cap // 2) * SLOTS, -1, dtype=np.int32)
+    point_voxel = np.empty(n, dtype=np.int32)
+    voxel_block = np.empty(n, dtype=np.int32)
+    voxel_slot = np.empty(n, dtype=np.int32)
+    state = np.array([0, 0, -1, -1], dtype=np.int64)
+    i = 0
+    while True:
+        i = _voxelize_until_full(
+            points, voxel, lo, i, state, table_keys, table_ids, keys, slot_voxel,
+            point_voxel, voxel_block, voxel_slot,
+        )  # fmt: skip
+        if i == n:
+            break
+        cap *= 2  # grow the table and the block storage, rehash
+        keys = _grown(keys, cap // 2, 0)
+        slot_voxel = _grown(slot_voxel, (cap // 2) * SLOTS, -1)
+        table_keys, table_ids = _rehash(keys, state[0], cap)
+    n_blocks, n_voxels = state[0], state[1]
+    return (
+        point_voxel,
+        slot_voxel[: n_blocks * SLOTS],
+        voxel_block[:n_voxels],
+        voxel_slot[:n_voxels],
+        keys[:n_blocks],
+        table_keys,
+        table_ids,
+    )
+
+
+@numba.njit(cache=True)
+def voxel_moments(
+    points: np.ndarray,
+    colors: np.ndarray,
+    point_voxel: np.ndarray,
+    n_voxels: int,
+    origin: np.ndarray,
+) -> np.ndarray:
+    """[V, 13] moment rows of the points of each voxel, relative to `origin`."""
+    out = np.zeros((n_voxels, N_MOMENTS))
+    ox, oy, oz = origin[0], origin[1], origin[2]
+    for i in range(points.shape[0]):
+        v = point_voxel[i]
+        x = points[i, 0] - ox
+        y = points[i, 1] - oy
+        z = points[i, 2] - oz
+        out[v, 0] += 1.0
+        out[v, 1] += x
+        out[v, 2] += y
+        out[v, 3] += z
+        out[v, 4] += x * x
+        out[v, 5] += x * y
+        out[v, 6] += x * z
+        out[v, 7] += y * y
+        out[v, 8] += y * z
+        out[v, 9] += z * z
+        out[v, 10] += colors[i, 0]
+        out[v, 11] += colors[i, 1]
+        out[v, 12] += colors[i, 2]
+    return out
+
+
+@numba.njit(cache=True)
+def _neighbourhood_range(
+    lo: int,
+    hi: int,
+    voxel_block: np.ndarray,
+    voxel_slot: np.ndarray,
+    slot_voxel: np.ndarray,
+    block_nbrs: np.ndarray,
+    moments: np.ndarray,
+    neighbours: np.ndarray,
+    sums: np.ndarray,
+) -> None:
+    codes, slots = neighbour_tables()
+    acc = np.empty(N_MOMENTS)
+    for v in range(lo, hi):
+        acc[:] = 0.0
+        b, s = voxel_block[v], voxel_slot[v]
+        for k in range(27):
+            nb = block_nbrs[b, codes[s, k]]
+            u = -1 if nb < 0 else slot_voxel[nb * SLOTS + slots[s, k]]
+            neighbours[v, k] = u
+            if u >= 0:
+                for c in range(N_MOMENTS):
+                    acc[c] += moments[u, c]
+        for c in range(N_MOMENTS):
+            sums[v, c] = acc[c]
+
+
+@numba.njit(cache=True, parallel=True)
+def neighbourhood_moments(
+    voxel_block: np.ndarray,
+    voxel_slot: np.ndarray,
+    slot_voxel: np.ndarray,
+    block_nbrs: np.ndarray,
+    moments: np.ndarray,
+    n_chunks: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each voxel's occupied 27-neighbours ([V, 27] int32, -1 = empty) and their summed moments."""
+    v_count = moments.shape[0]
+    neighbours = np.empty((v_count, 27), dtype=np.int32)
+    sums = np.empty((v_count, N_MOMENTS))
+    for c in numba.prange(n_chunks):
+        _neighbourhood_range(
+            c * v_count // n_chunks, (c + 1) * v_count // n_chunks, voxel_block, voxel_slot,
+            slot_voxel, block_nbrs, moments, neighbours, sums,
+        )  # fmt: skip
+    return neighbours, sums
+
+
+@numba.njit(cache=True)
+def min_eigenvalue(a: float, b: float, c: float, d: float, e: float, f: float) -> float:
+    """Smallest eigenvalue of the symmetric [[a, b, c], [b, d, e], [c, e, f]] (closed form)."""
+    p1 = b * b + c * c + e * e
+    if p1 == 0.0:
+        return min(a, min(d, f))
+    q = (a + d + f) / 3.0
+    p2 = (a - q) ** 2 + (d - q) ** 2 + (f - q) ** 2 + 2.0 * p1
+    p = math.sqrt(p2 / 6.0)
+    b00, b11, b22 = (a - q) / p, (d - q) / p, (f - q) / p
+    b01, b02, b12 = b / p, c / p, e / p
+    det = (
+        b00 * (b11 * b22 - b12 * b12)
+        - b01 * (b01 * b22 - b12 * b02)
+        + b02 * (b01 * b12 - b11 * b02)
+    )
+    r = min(1.0, max(-1.0, det / 2.0))
+    phi = math.acos(r) / 3.0
+    return q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+
+
+@numba.njit(cache=True)
+def _candidates_range(
+    lo: int,
+    hi: int,
+    sums: np.ndarray,
+    rows: np.ndarray,
+    epsilon: float,
+    means: np.ndarray,
+    covs: np.ndarray,
+    colors: np.ndarray,
+    kappa: np.ndarray,
+) -> None:
+    for i in range(lo, hi):
+        s = sums[rows[i]]
+        n = s[0]
+        mx, my, mz = s[1] / n, s[2] / n, s[3] / n
+        cxx = s[4] / n - mx * mx + epsilon
+        cxy = s[5] / n - mx * my
+        cxz = s[6] / n - mx * mz
+        cyy = s[7] / n - my * my + epsilon
+        cyz = s[8] / n - my * mz
+        czz = s[9] / n - mz * mz + epsilon
+        means[i, 0], means[i, 1], means[i, 2] = mx, my, mz
+        covs[i, 0], covs[i, 1], covs[i, 2] = cxx, cxy, cxz
+        covs[i, 3], covs[i, 4], covs[i, 5] = cyy, cyz, czz
+        colors[i, 0], colors[i, 1], colors[i, 2] = s[10] / n, s[11] / n, s[12] / n
+        lam = max(min_eigenvalue(cxx, cxy, cxz, cyy, cyz, czz), 0.0)
+        kappa[i] = lam / (cxx + cyy + czz)
+
+
+@numba.njit(cache=True, parallel=True)
+def candidate_gaussians(
+    sums: np.ndarray, rows: np.ndarray, epsilon: float, n_chunks: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Float64 Gaussians of the moment rows sums[rows].
+
+    Returns:
+        (means [G, 3] relative to the moments' origin, covariances [G, 6] as
+         (xx, xy, xz, yy, yz, zz) with +eps, colours [G, 3], curvature kappa [G]).
+    """
+    g = rows.shape[0]
+    means = np.empty((g, 3))
+    covs = np.empty((g, 6))
+    colors = np.empty((g, 3))
+    kappa = np.empty(g)
+    for c in numba.prange(n_chunks):
+        _candidates_range(
+            c * g // n_chunks, (c + 1) * g // n_chunks, sums, rows, epsilon, means, covs,
+            colors, kappa,
+        )  # fmt: skip
+    return means, covs, colors, kappa
+
+
+@numba.njit(cache=True)
+def output_gaussians(
+    sums: np.ndarray, rows: np.ndarray, epsilon: float, origin: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Float32 Gaussians of the moment rows sums[rows].
+
+    Returns:
+        (means [G, 3] in the world, covariances [G, 3, 3] with +eps, colours [G, 3],
+         uint32 counts [G]).
+    """
+    g = rows.shape[0]
+    means = np.empty((g, 3), dtype=np.float32)
+    covs = np.empty((g, 3, 3), dtype=np.float32)
+    colors = np.empty((g, 3), dtype=np.float32)
+    counts = np.empty(g, dtype=np.uint32)
+    for i in range(g):
+        s = sums[rows[i]]
+        n = s[0]
+        mx, my, mz = s[1] / n, s[2] / n, s[3] / n
+        cov = (
+            s[4] / n - mx * mx + epsilon,
+            s[5] / n - mx * my,
+            s[6] / n - mx * mz,
+            s[7] / n - my * my + epsilon,
+            s[8] / n - my * mz,
+            s[9] / n - mz * mz + epsilon,
+        )
+        means[i, 0], means[i, 1], means[i, 2] = mx + origin[0], my + origin[1], mz + origin[2]
+        covs[i, 0, 0], covs[i, 0, 1], covs[i, 0, 2] = cov[0], cov[1], cov[2]
+        covs[i, 1, 0], covs[i, 1, 1], covs[i, 1, 2] = cov[1], cov[3], cov[4]
+        covs[i, 2, 0], covs[i, 2, 1], covs[i, 2, 2] = cov[2], cov[4], cov[5]
+        for c in range(3):
+            colors[i, c] = min(1.0, max(0.0, s[10 + c] / n))
+        counts[i] = np.uint32(n)
+    return means, covs, colors, counts

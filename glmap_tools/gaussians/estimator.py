@@ -1,0 +1,260 @@
+"""The Gaussian Estimator f_GE (paper §3.1): analytic Gaussians from a coloured point cloud.
+
+The cloud is voxelised; every occupied voxel v fits one Gaussian to the points of its
+27-voxel Chebyshev neighbourhood (mean, 1/n covariance + eps*I, mean colour, fixed
+opacity), and the curvature-aware merge then unites similar neighbours so flat areas keep
+few Gaussians and curved ones many. See `design.md` beside this file for every decision.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal, get_args
+
+import numpy as np
+
+from glmap_tools.errors import InvalidInputError, did_you_mean
+from glmap_tools.gaussians.types import COVARIANCE_EPSILON, DEFAULT_OPACITY, GaussianSet
+
+Backend = Literal["fast", "reference"]
+BACKENDS: tuple[str, ...] = get_args(Backend)
+MAX_VOXEL_SPAN = (1 << 21) - 3  # voxels per axis the fast path's 21-bit packed keys can hold
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """Settings of the Gaussian Estimator (paper §3.1) and its curvature-aware merge.
+
+    Attributes:
+        voxel_size: voxel edge in metres (the paper used 0.01).
+        min_points: fewest points in a voxel's 27-neighbourhood that still emit a Gaussian.
+        opacity: the fixed opacity alpha of every Gaussian.
+        epsilon: the eps*I covariance regulariser, m^2.
+        tau: curvature scaling in the merge threshold 2*voxel*(1 + tau*(kappa_i + kappa_j)).
+        lambda_cov: weight of ||Sigma_i - Sigma_j||_F (m^2 read as m) in the distance D.
+        lambda_color: weight of ||c_i - c_j|| (RGB in [0, 1] read as m) in the distance D.
+        max_merge_sigma: size cap in voxels: a union is refused when the merged Gaussian
+            would have sqrt(trace(Sigma)) > max_merge_sigma * voxel_size; None = no cap.
+        remerge_sigma: the same cap (voxels) for `merge.remerge`, which unites Gaussians
+            fitted in different frames; a little larger than `max_merge_sigma` so a capped
+            tile can absorb its re-observation.
+        merge: run the curvature-aware merge (False = one Gaussian per voxel).
+    """
+
+    voxel_size: float = 0.02
+    min_points: int = 5
+    opacity: float = DEFAULT_OPACITY
+    epsilon: float = COVARIANCE_EPSILON
+    tau: float = -20.0
+    lambda_cov: float = 0.6
+    lambda_color: float = 0.4
+    max_merge_sigma: float | None = 1.5
+    remerge_sigma: float | None = 2.0
+    merge: bool = True
+
+    def __post_init__(self) -> None:
+        _check_number(self, "voxel_size", self.voxel_size, "a positive edge in metres, e.g. 0.02")
+        if not self.voxel_size > 0:
+            raise InvalidInputError(
+                f"EstimatorConfig.voxel_size={self.voxel_size!r} must be positive; pass the "
+                "voxel edge in metres, e.g. 0.02."
+            )
+        if isinstance(self.min_points, bool) or not isinstance(self.min_points, int | np.integer):
+            raise InvalidInputError(
+                f"EstimatorConfig.min_points={self.min_points!r} must be an integer >= 1."
+            )
+        if self.min_points < 1:
+            raise InvalidInputError(
+                f"EstimatorConfig.min_points={self.min_points!r} must be >= 1, e.g. 5."
+            )
+        _check_number(self, "opacity", self.opacity, "a value in (0, 1], e.g. 0.8")
+        if not 0 < self.opacity <= 1:
+            raise InvalidInputError(
+                f"EstimatorConfig.opacity={self.opacity!r} must lie in (0, 1], e.g. 0.8."
+            )
+        _check_number(self, "epsilon", self.epsilon, "a small positive m^2, e.g. 1e-6")
+        if not self.epsilon > 0:
+            raise InvalidInputError(
+                f"EstimatorConfig.epsilon={self.epsilon!r} must be positive (m^2), e.g. 1e-6, "
+                "so every covariance stays invertible."
+            )
+        _check_number(self, "tau", self.tau, "a negative factor, e.g. -20")
+        for name in ("lambda_cov", "lambda_color"):
+            value = getattr(self, name)
+            _check_number(self, name, value, "a weight >= 0")
+            if value < 0:
+                raise InvalidInputError(f"EstimatorConfig.{name}={value!r} must be >= 0.")
+        for name in ("max_merge_sigma", "remerge_sigma"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            _check_number(self, name, value, "a size in voxels, e.g. 2.5, or None for no cap")
+            if not value > 0:
+                raise InvalidInputError(
+                    f"EstimatorConfig.{name}={value!r} must be a positive size in voxels "
+                    "(e.g. 2.5) or None for no cap."
+                )
+        if not isinstance(self.merge, bool | np.bool_):
+            raise InvalidInputError(f"EstimatorConfig.merge={self.merge!r} must be True or False.")
+
+    @property
+    def merge_cap_trace(self) -> float:
+        """Largest trace(Sigma) (m^2) a union inside one fit may produce; inf = no cap."""
+        return _cap_trace(self.max_merge_sigma, self.voxel_size)
+
+    @property
+    def remerge_cap_trace(self) -> float:
+        """Largest trace(Sigma) (m^2) a union in `merge.remerge` may produce; inf = no cap."""
+        return _cap_trace(self.remerge_sigma, self.voxel_size)
+
+    @property
+    def candidate_radius(self) -> float:
+        """Means closer than this (m) are candidate merge pairs: one voxel."""
+        return float(self.voxel_size)
+
+
+def _cap_trace(sigma_voxels: float | None, voxel_size: float) -> float:
+    return math.inf if sigma_voxels is None else float((sigma_voxels * voxel_size) ** 2)
+
+
+def _check_number(config: EstimatorConfig, name: str, value: object, hint: str) -> None:
+    del config
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise InvalidInputError(f"EstimatorConfig.{name}={value!r} must be {hint}.")
+    if not math.isfinite(float(value)):
+        raise InvalidInputError(f"EstimatorConfig.{name}={value!r} must be finite; pass {hint}.")
+
+
+class GaussianEstimator:
+    """f_GE: fits 3D Gaussians to a coloured point cloud (paper §3.1), then merges them.
+
+    Args:
+        config: estimator settings.
+        backend: "fast" (numba) or "reference" (plain Python, slow; for tests).
+    """
+
+    def __init__(self, config: EstimatorConfig | None = None, backend: Backend = "fast") -> None:
+        if config is None:
+            config = EstimatorConfig()
+        if not isinstance(config, EstimatorConfig):
+            raise InvalidInputError(
+                f"config is a {type(config).__name__}; pass an EstimatorConfig."
+            )
+        if backend not in BACKENDS:
+            raise InvalidInputError(
+                f"backend={backend!r} is unknown.{did_you_mean(str(backend), BACKENDS)} "
+                f"Choose from {list(BACKENDS)}."
+            )
+        self.config = config
+        self.backend: Backend = backend
+
+    def fit(self, points: np.ndarray, colors: np.ndarray) -> GaussianSet:
+        """Fit (and merge) Gaussians to a coloured point cloud.
+
+        Args:
+            points: [N, 3] float, metres (world).
+            colors: [N, 3] float RGB in [0, 1].
+
+        Returns:
+            The Gaussians, ordered by the packed key of the smallest voxel of each;
+            empty when N = 0 or no neighbourhood holds `min_points` points.
+
+        Raises:
+            InvalidInputError: NaN/inf points, mismatched shapes, colours outside [0, 1],
+                or a cloud wider than the voxel grid can index.
+        """
+        pts, cols, lo = validate_cloud(points, colors, self.config.voxel_size)
+        if len(pts) == 0:
+            return GaussianSet.empty()
+        if self.backend == "reference":
+            from glmap_tools.gaussians._estimator_reference import fit_reference
+
+            return fit_reference(pts, cols.astype(np.float64), self.config).gaussians
+        from glmap_tools.gaussians._estimator_fast import fit_fast
+
+        return fit_fast(pts, cols, self.config, lo)
+
+    def fit_with_support(
+        self, points: np.ndarray, colors: np.ndarray
+    ) -> tuple[GaussianSet, list[np.ndarray]]:
+        """Reference fit that also returns, per Gaussian, the indices of its points.
+
+        Always runs the slow reference algorithm, whatever the backend; for tests.
+
+        Returns:
+            (gaussians, support) where support[k] is a sorted int64 array of the indices
+            into `points` that Gaussian k was fitted from (the set union of its members'
+            neighbourhoods).
+        """
+        from glmap_tools.gaussians._estimator_reference import fit_reference
+
+        pts, cols, _ = validate_cloud(points, colors, self.config.voxel_size)
+        if len(pts) == 0:
+            return GaussianSet.empty(), []
+        fit = fit_reference(pts, cols.astype(np.float64), self.config)
+        return fit.gaussians, fit.support
+
+
+def validate_cloud(
+    points: np.ndarray, colors: np.ndarray, voxel_size: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Check a coloured cloud in one pass.
+
+    Returns:
+        (points [N, 3] float64, colors [N, 3] float32, [3] smallest point coordinate per
+        axis), contiguous.
+
+    Raises:
+        InvalidInputError: naming the bad value and the fix.
+    """
+    from glmap_tools.gaussians._estimator_fast import scan
+
+    pts = np.ascontiguousarray(_as_float_array(points, "points"), dtype=np.float64)
+    cols = _as_float_array(colors, "colors")
+    cols = np.ascontiguousarray(cols, dtype=np.float32)
+    if pts.size == 0 and cols.size == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(3)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise InvalidInputError(f"points has shape {pts.shape}; pass an [N, 3] array of xyz.")
+    if cols.ndim != 2 or cols.shape[1] != 3:
+        raise InvalidInputError(f"colors has shape {cols.shape}; pass an [N, 3] array of RGB.")
+    if len(pts) != len(cols):
+        raise InvalidInputError(
+            f"points has {len(pts)} rows but colors has {len(cols)}; pass one colour per point."
+        )
+    finite, in_range, lo, hi = scan(pts, cols)
+    if not finite:
+        bad = ~np.isfinite(pts).all(axis=1)
+        k = int(np.argmax(bad))
+        raise InvalidInputError(
+            f"points[{k}] = {pts[k].tolist()} is not finite ({int(bad.sum())} such rows); "
+            "drop NaN/inf points first (e.g. points[np.isfinite(points).all(axis=1)])."
+        )
+    if not in_range:
+        bad = ~((cols >= 0.0) & (cols <= 1.0)).all(axis=1)
+        k = int(np.argmax(bad))
+        hint = " (uint8 colours: divide by 255)" if np.nanmax(cols) > 1.0 else ""
+        raise InvalidInputError(
+            f"colors[{k}] = {cols[k].tolist()} is outside [0, 1] ({int(bad.sum())} such rows); "
+            f"pass finite RGB in [0, 1]{hint}."
+        )
+    span = float((hi - lo).max()) / voxel_size
+    if span >= MAX_VOXEL_SPAN:
+        raise InvalidInputError(
+            f"the cloud spans {span * voxel_size:.4g} m = {span:.4g} voxels along one axis, "
+            f"more than {MAX_VOXEL_SPAN}; crop the cloud or use a larger voxel_size."
+        )
+    return pts, cols, lo
+
+
+def _as_float_array(value: np.ndarray, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(value)
+    except Exception as exc:  # ragged lists and the like
+        raise InvalidInputError(f"{name} is not an array ({exc}); pass an [N, 3] array.") from exc
+    if arr.dtype.kind not in "fiub":
+        raise InvalidInputError(
+            f"{name} has dtype {arr.dtype}; pass an [N, 3] array of real numbers."
+        )
+    return arr if arr.dtype.kind == "f" else arr.astype(np.float64)
