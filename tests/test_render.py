@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.gaussians import _render_numba
+from glmap_tools.gaussians import _render_bins, _render_numba
 from glmap_tools.gaussians.render import (
     LOW_PASS,
     MAX_RENDER_PIXELS,
@@ -293,4 +293,4 @@ def test_the_radix_depth_order_equals_a_stable_argsort_with_ties_in_input_order(
     depth[~valid] = np.nan  # culled entries hold garbage
     kept = np.flatnonzero(valid)
     expected = kept[np.argsort(depth[kept], kind="stable")]
-    np.testing.assert_array_equal(_render_numba.depth_order_kernel(valid, depth), expected)
+    np.testing.assert_array_equal(_render_bins.depth_order_kernel(valid, depth), expected)

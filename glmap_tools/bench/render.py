@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glmap_tools.gaussians.render import render
+from glmap_tools.gaussians.render import render, warm_up
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Intrinsics, Pose
 
@@ -101,15 +101,10 @@ def main(argv: list[str] | None = None) -> int:
 
     args.out.mkdir(parents=True, exist_ok=True)
     pose = Pose.from_position_heading(0.0, 0.0, 1.5, heading=0.3)
-    tiny = Intrinsics.from_fov(32, 24, HFOV_DEG)
-    t0 = time.perf_counter()
-    render(bench_scene(100, pose, tiny), pose, tiny, return_depth=True)
-    first = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    render(bench_scene(100, pose, tiny), pose, tiny, return_depth=True)
+    first = warm_up()
     print(
         f"first call {first:.2f} s (numba compile, or loading it from the on-disk cache), "
-        f"then {1000 * (time.perf_counter() - t0):.1f} ms; numba threads "
+        f"then {1000 * warm_up():.1f} ms; numba threads "
         f"{numba.get_num_threads()}, layer {numba.threading_layer()}"
     )
     ref_w, ref_h = _parse_size(args.reference_size)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
@@ -48,6 +49,7 @@ __all__ = [
     "RenderResult",
     "render",
     "render_image",
+    "warm_up",
 ]
 
 
@@ -197,3 +199,22 @@ def render_image(
         gaussians, pose, intrinsics, background=background, near=near, far=far, backend=backend
     )
     return result.to_uint8()
+
+
+def warm_up() -> float:
+    """Compile the fast kernels (or load them from numba's on-disk cache); return seconds.
+
+    Call once at start-up, e.g. in the MCP server's lifespan, so that the first real render
+    does not pay for it.
+    """
+    t0 = time.perf_counter()
+    k = Intrinsics(8.0, 8.0, 3.5, 3.5, 8, 8)
+    g = GaussianSet(
+        np.array([[0.0, 0.0, 1.0]]),
+        np.eye(3)[None] * 0.01,
+        np.full((1, 3), 0.5),
+        np.ones(1),
+        np.ones(1),
+    )
+    render(g, Pose.identity(), k)
+    return time.perf_counter() - t0
