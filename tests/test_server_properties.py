@@ -40,6 +40,9 @@ TOOLS = [
     "save_map",
     "load_map",
     "list_maps",
+    "render_view",
+    "sim_step",
+    "sim_reset",
     "no_such_tool",
 ]
 VALID_FRAME = frame_args(eye=(0.0, -2.6, 1.4), width=80, height=60)
@@ -147,6 +150,30 @@ def tool_call() -> st.SearchStrategy[tuple[str, dict[str, Any]]]:
         ),
         "load_map": st.fixed_dictionaries({"name": names}),
         "list_maps": st.just({}),
+        "render_view": st.fixed_dictionaries(
+            {"target": st.sampled_from(["instance", "region", "map", "pose", "situated"])},
+            optional={
+                "unit_id": st.integers(-2, 12) | json_value,
+                "pose": st.just(VALID_FRAME["pose"]) | json_value,
+                "x": number,
+                "y": number,
+                "heading_deg": number,
+                "width": st.integers(-10, 200),
+                "height": st.integers(-10, 200),
+            },
+        ),
+        "sim_step": st.fixed_dictionaries(
+            {"action": st.sampled_from(["move_forward", "turn_left", "stop", "jump"]) | json_value},
+            optional={"repeat": st.integers(-1, 3)},
+        ),
+        "sim_reset": st.fixed_dictionaries(
+            {},
+            optional={
+                "goal": st.sampled_from(["sofa", "tv", "sofaa"]) | st.text(max_size=10),
+                "seed": st.integers(-1, 5),
+                "task": st.sampled_from(["objectnav", "instnav", "fly"]),
+            },
+        ),
         "no_such_tool": st.dictionaries(st.text(max_size=5), json_value, max_size=3),
     }
     junk_args = st.dictionaries(st.text(max_size=8), json_value, max_size=4)
@@ -181,7 +208,15 @@ class Harness:
 @pytest.fixture(scope="module")
 def harness(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Harness]:
     root = tmp_path_factory.mktemp("props")
-    server = build_server(config(root, max_frame_bytes=64 * 1024, max_frame_pixels=200_000))
+    server = build_server(
+        config(
+            root,
+            max_frame_bytes=64 * 1024,
+            max_frame_pixels=200_000,
+            sim_size=(64, 48),
+            render_size=(48, 32),
+        )
+    )
     with (
         anyio.from_thread.start_blocking_portal() as portal,
         portal.wrap_async_context_manager(Client(server)) as client,

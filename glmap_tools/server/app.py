@@ -9,7 +9,7 @@ from contextlib import asynccontextmanager
 from mcp.server.mcpserver import MCPServer
 
 from glmap_tools import __version__
-from glmap_tools.server import resources, tools_map, tools_store
+from glmap_tools.server import resources, tools_map, tools_sim, tools_store, tools_view
 from glmap_tools.server.config import ServerConfig
 from glmap_tools.server.runtime import AppState, PerceptionBackend
 from glmap_tools.server.state import SessionRegistry
@@ -75,5 +75,7 @@ def build_server(
     )
     tools_map.register(server)
     tools_store.register(server)
+    tools_view.register(server)
+    tools_sim.register(server)
     resources.register(server, config)
     return server

@@ -44,6 +44,8 @@ class ServerConfig:
         render_size: default (width, height) of render_view images.
         warm_up: render once in the lifespan so the first render_view is not slowed by
             JIT compilation.
+        sim_size: (width, height) of the simulator's camera images.
+        sim_max_steps: actions per simulator episode before it is cut off.
     """
 
     maps_dir: Path = field(default_factory=default_maps_dir)
@@ -55,6 +57,8 @@ class ServerConfig:
     max_sessions: int = 32
     render_size: tuple[int, int] = (320, 240)
     warm_up: bool = True
+    sim_size: tuple[int, int] = (320, 240)
+    sim_max_steps: int = 500
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "maps_dir", Path(self.maps_dir).expanduser())
@@ -78,6 +82,13 @@ class ServerConfig:
             raise InvalidInputError(
                 f"render_size={self.render_size!r} must be (width, height) within 16..2048."
             )
+        sw, sh = self.sim_size
+        if not (32 <= sw <= 1920 and 32 <= sh <= 1440):
+            raise InvalidInputError(
+                f"sim_size={self.sim_size!r} must be (width, height) within 32..1920 x 32..1440."
+            )
+        if not (isinstance(self.sim_max_steps, int) and self.sim_max_steps >= 1):
+            raise InvalidInputError(f"sim_max_steps={self.sim_max_steps!r} must be >= 1.")
         if self.file_roots is not None:
             roots = tuple(Path(r).expanduser().resolve() for r in self.file_roots)
             object.__setattr__(self, "file_roots", roots)

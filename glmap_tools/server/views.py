@@ -26,7 +26,7 @@ from glmap_tools.map.units import InstanceUnit, RegionUnit
 AGENT_HFOV_DEG = 79.0
 VIEW_ELEVATION = math.radians(35.0)
 MAP_ELEVATION = math.radians(60.0)
-MIN_RADIUS = 0.3  # m: never frame less than this around a unit
+MIN_RADIUS = 0.5  # m: never frame less than this around a unit
 TOPDOWN_MAX_SIDE = 768  # px
 SITUATED = (("front", 0.0), ("left", math.pi / 2), ("back", math.pi), ("right", -math.pi / 2))
 
@@ -49,12 +49,12 @@ class View:
         """One line: the label, camera position, heading and pitch."""
         eye = self.pose.translation
         forward = self.pose.rotation[:, 2]
-        pitch = math.degrees(math.asin(max(-1.0, min(1.0, -float(forward[2])))))
+        pitch = round(math.degrees(math.asin(max(-1.0, min(1.0, -float(forward[2]))))))
         hfov = math.degrees(2 * math.atan(self.intrinsics.width / (2 * self.intrinsics.fx)))
         return (
             f"{self.label}: camera at ({eye[0]:.2f}, {eye[1]:.2f}, {eye[2]:.2f}) m, heading "
-            f"{math.degrees(self.pose.heading):.0f} deg (from +x, counter-clockwise), pitch "
-            f"{pitch:.0f} deg down, hfov {hfov:.0f} deg"
+            f"{round(math.degrees(self.pose.heading))} deg (from +x, counter-clockwise), pitch "
+            f"{pitch} deg down, hfov {hfov:.0f} deg"
         )
 
 

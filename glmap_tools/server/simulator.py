@@ -1,0 +1,229 @@
+"""A session's simulator episode: a navigation env, driven on one thread, frames for the map.
+
+The simulator renders with one process-wide OpenGL (EGL) context per image size, and a
+context can be current on one thread only. So every env call of every session (create,
+reset, step, close) runs on one process-wide simulator thread, which releases the context
+after each call.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, TypeVar
+
+import numpy as np
+
+from glmap_tools.errors import InvalidInputError, did_you_mean
+from glmap_tools.geometry import Pose
+from glmap_tools.geometry.frame import RGBDFrame
+from glmap_tools.perception.annotated import semantics_from_annotation
+from glmap_tools.perception.semantics import FrameSemantics
+
+if TYPE_CHECKING:
+    from glmap_tools.sim.env import NavEnv
+
+T = TypeVar("T")
+ACTIONS = ("stop", "move_forward", "turn_left", "turn_right")  # the env's action numbers
+TASKS = ("objectnav", "instnav")
+MAX_GOALS_LISTED = 25
+
+_thread_lock = threading.Lock()
+_thread: ThreadPoolExecutor | None = None
+
+
+def on_sim_thread(fn: Any, *args: Any) -> Any:
+    """Run fn(*args) on the process-wide simulator thread; return its result or raise."""
+    global _thread
+    with _thread_lock:
+        if _thread is None:
+            _thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="glmap-sim")
+        executor = _thread
+
+    def call() -> Any:
+        try:
+            return fn(*args)
+        finally:
+            _release_context()
+
+    return executor.submit(call).result()
+
+
+def _release_context() -> None:
+    """Make no EGL context current on this thread, so another thread may render."""
+    if os.environ.get("PYOPENGL_PLATFORM") != "egl":
+        return
+    try:
+        from OpenGL import EGL
+
+        display = EGL.eglGetCurrentDisplay()
+        if display != EGL.EGL_NO_DISPLAY:
+            EGL.eglMakeCurrent(display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
+    except Exception:  # best effort: the next render reports any real trouble
+        pass
+
+
+@dataclass
+class SimEpisode:
+    """One env and the state of its current episode.
+
+    Attributes:
+        task: 'objectnav' or 'instnav'.
+        scene: seed of the generated apartment.
+        env: the gymnasium env (used on the simulator thread only).
+        obs, info: the latest observation and info.
+        over: whether the episode ended (stop or step limit).
+        truncated: whether it ended by the step limit.
+    """
+
+    task: str
+    scene: int
+    env: NavEnv
+    obs: dict[str, Any] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+    over: bool = False
+    truncated: bool = False
+    pool: list[tuple[str, tuple[int, ...], np.ndarray]] | None = None
+
+    def run(self, fn: Any, *args: Any) -> Any:
+        """Run fn(*args) on the simulator thread and return its result."""
+        return on_sim_thread(fn, *args)
+
+    def close(self) -> None:
+        self.run(self.env.close)
+
+
+def open_episode(task: str, scene: int, size: tuple[int, int], max_steps: int) -> SimEpisode:
+    """Create the env for (task, scene) on the simulator thread.
+
+    Raises:
+        InvalidInputError: an unknown task.
+    """
+    if task not in TASKS:
+        raise InvalidInputError(f"task {task!r} is not one of {TASKS}.{did_you_mean(task, TASKS)}")
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+    def make() -> NavEnv:
+        from glmap_tools.sim.env import InstNavEnv, ObjectNavEnv
+        from glmap_tools.sim.render import CameraSpec
+
+        cls = ObjectNavEnv if task == "objectnav" else InstNavEnv
+        return cls(
+            scene_seed=scene, camera=CameraSpec(width=size[0], height=size[1]), max_steps=max_steps
+        )
+
+    return SimEpisode(task, scene, on_sim_thread(make))
+
+
+def _goals(sim: SimEpisode) -> list[tuple[str, tuple[int, ...], np.ndarray]]:
+    if sim.pool is None:
+        from glmap_tools.sim.episodes import MIN_START_DISTANCE, goal_pool
+
+        env = sim.env
+        sim.pool = goal_pool(
+            env.layout, sim.task, env.grid, env.success_distance, MIN_START_DISTANCE
+        )
+    return sim.pool
+
+
+def goal_names(sim: SimEpisode) -> list[str]:
+    """The goals this scene offers for the task."""
+    return [text for text, _, _ in sim.run(_goals, sim)]
+
+
+def reset(sim: SimEpisode, seed: int, goal: str | None) -> None:
+    """Start an episode: a random one from `seed`, or one whose goal text is `goal`.
+
+    Raises:
+        InvalidInputError: `goal` is not a goal of this scene (the message lists them).
+    """
+
+    def run() -> None:
+        env = sim.env
+        options: dict[str, Any] = {}
+        if goal is not None:
+            from glmap_tools.sim.episodes import sample_episode
+
+            pool = _goals(sim)
+            wanted = goal.strip().lower()
+            match = [entry for entry in pool if entry[0].lower() == wanted]
+            if not match:
+                texts = [entry[0] for entry in pool]
+                shown = texts[:MAX_GOALS_LISTED] + (
+                    ["..."] if len(texts) > MAX_GOALS_LISTED else []
+                )
+                raise InvalidInputError(
+                    f"goal {goal!r} is not in scene {sim.scene} for {sim.task}."
+                    f"{did_you_mean(goal, texts)} Goals here: {shown}; or omit goal for a "
+                    "random one."
+                )
+            rng = np.random.default_rng(seed)
+            options["episode"] = sample_episode(rng, env.grid, match, sim.task, seed)
+        sim.obs, sim.info = env.reset(seed=seed, options=options)
+        sim.over = sim.truncated = False
+
+    sim.run(run)
+
+
+def step(sim: SimEpisode, action: str) -> None:
+    """Take one action.
+
+    Raises:
+        InvalidInputError: an unknown action, or the episode is over.
+    """
+    if action not in ACTIONS:
+        raise InvalidInputError(
+            f"action {action!r} is not one of {list(ACTIONS)}.{did_you_mean(action, ACTIONS)}"
+        )
+    if sim.over:
+        raise InvalidInputError("the episode is over; call sim_reset to start another.")
+
+    def run() -> None:
+        sim.obs, _, terminated, truncated, sim.info = sim.env.step(ACTIONS.index(action))
+        sim.over = bool(terminated or truncated)
+        sim.truncated = bool(truncated)
+
+    sim.run(run)
+
+
+def frame(sim: SimEpisode) -> tuple[RGBDFrame, FrameSemantics]:
+    """The latest observation as a posed RGB-D frame with the simulator's annotations."""
+    obs, info = sim.obs, sim.info
+    m = np.asarray(obs["pose"], dtype=np.float64)
+    # The observation carries the pose as float32; re-orthonormalise the rotation exactly.
+    u, _, vt = np.linalg.svd(m[:3, :3])
+    m[:3, :3] = u @ vt
+    m[3] = (0.0, 0.0, 0.0, 1.0)
+    rgbd = RGBDFrame(obs["rgb"], obs["depth"], sim.env.camera.intrinsics, Pose(m))
+    semantics = semantics_from_annotation(info["instance_mask"], info["annotation"])
+    return rgbd, semantics
+
+
+def status(sim: SimEpisode) -> dict[str, Any]:
+    """What the agent may know: goal, pose, steps, collisions; metrics once the episode ends."""
+    info = sim.info
+    x, y = (float(v) for v in info["position"])
+    out: dict[str, Any] = {
+        "task": sim.task,
+        "scene": sim.scene,
+        "goal": sim.obs["goal"],
+        "steps": int(info["steps"]),
+        "max_steps": sim.env.max_steps,
+        "position": [round(x, 3), round(y, 3)],
+        "heading_deg": round(math.degrees(float(info["heading"])), 1),
+        "camera_pose": np.round(np.asarray(sim.obs["pose"], np.float64), 4).tolist(),
+        "collided": bool(info["collided"]),
+        "status": "running",
+    }
+    if sim.over:
+        if info["success"]:
+            out["status"] = "success"
+        else:
+            out["status"] = "out of steps" if sim.truncated else "stopped, not at the goal"
+        out["success"] = bool(info["success"])
+        out["spl"] = round(float(info["spl"]), 4)
+        out["distance_to_goal"] = round(float(info["distance_to_goal"]), 3)
+    return out

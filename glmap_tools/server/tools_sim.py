@@ -1,0 +1,141 @@
+"""sim_reset and sim_step: drive a simulated apartment; every frame goes into the map.
+
+No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+"""
+
+import json
+from typing import Annotated, Any, Literal
+
+import cv2
+from mcp.server.mcpserver import Context, Image, MCPServer
+from mcp.types import TextContent, ToolAnnotations
+from pydantic import Field
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.server import simulator
+from glmap_tools.server.runtime import app_state, in_thread, session_of, tool_errors
+from glmap_tools.server.state import Session, locked
+from glmap_tools.server.tools_map import SessionArg
+
+Action = Literal["move_forward", "turn_left", "turn_right", "stop"]
+SIM_KEY = "sim"
+
+
+def _jpeg(rgb: Any) -> bytes:
+    ok, buf = cv2.imencode(
+        ".jpg", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 85]
+    )
+    assert ok
+    return buf.tobytes()
+
+
+def _integrate(session: Session, sim: simulator.SimEpisode) -> str:
+    frame, semantics = simulator.frame(sim)
+    with locked(session) as glmap:
+        return glmap.integrate(frame, semantics).summary()
+
+
+def _reply(
+    session: Session, sim: simulator.SimEpisode, updates: list[str]
+) -> list[TextContent | Image]:
+    info = simulator.status(sim)
+    info["session"] = session.handle
+    info["map_updates"] = updates
+    info["actions"] = list(simulator.ACTIONS)
+    text = json.dumps(info, indent=1)
+    return [TextContent(type="text", text=text), Image(data=_jpeg(sim.obs["rgb"]), format="jpeg")]
+
+
+def register(server: MCPServer) -> None:
+    """Add the simulator tools to `server`."""
+
+    @server.tool(annotations=ToolAnnotations(destructive_hint=True, open_world_hint=False))
+    @tool_errors
+    async def sim_reset(
+        ctx: Context,
+        task: Annotated[
+            Literal["objectnav", "instnav"],
+            Field(
+                description="objectnav: find any object of a category; instnav: find the "
+                "one object a description singles out"
+            ),
+        ] = "objectnav",
+        scene: Annotated[int, Field(ge=0, le=100_000, description="which generated apartment")] = 0,
+        seed: Annotated[int, Field(ge=0, le=2**31 - 1, description="which episode")] = 0,
+        goal: Annotated[
+            str | None,
+            Field(
+                max_length=256,
+                description="pick the goal (a category or description) instead of a random one",
+            ),
+        ] = None,
+        keep_map: Annotated[
+            bool, Field(description="add to the current map instead of starting a new one")
+        ] = False,
+        session: SessionArg = None,
+    ) -> list[TextContent | Image]:
+        """Start a navigation episode in a simulated apartment and show what the agent sees.
+
+        Returns the goal, the camera pose and the egocentric image; the frame is added to
+        this session's map (a fresh one unless keep_map). Then move with sim_step, query the
+        map (find_instance, what_is_at, render_view), and sim_step('stop') at the goal.
+        """
+        state = app_state(ctx)
+        target = session_of(ctx, session)
+        size, max_steps = state.config.sim_size, state.config.sim_max_steps
+
+        def run() -> list[TextContent | Image]:
+            sim = target.extras.get(SIM_KEY)
+            if sim is None or (sim.task, sim.scene) != (task, scene):
+                fresh = simulator.open_episode(task, scene, size, max_steps)
+                if sim is not None:
+                    sim.close()
+                sim = target.extras[SIM_KEY] = fresh
+                target.extras["close"] = fresh.close
+            simulator.reset(sim, seed, goal)
+            if not keep_map:
+                state.registry.new_map(target, None)
+            return _reply(target, sim, [_integrate(target, sim)])
+
+        await ctx.report_progress(0, 1, "building the apartment")
+        return await in_thread(run)
+
+    @server.tool(annotations=ToolAnnotations(destructive_hint=False, open_world_hint=False))
+    @tool_errors
+    async def sim_step(
+        action: Annotated[
+            Action,
+            Field(
+                description="move_forward 0.25 m, turn_left / turn_right 30 degrees, or "
+                "stop (ends the episode: success if the goal is within 1 m)"
+            ),
+        ],
+        ctx: Context,
+        repeat: Annotated[
+            int, Field(ge=1, le=20, description="take the action this many times")
+        ] = 1,
+        session: SessionArg = None,
+    ) -> list[TextContent | Image]:
+        """Act in the simulator; each new frame is added to the map. Returns the new view.
+
+        The text gives the pose, whether the agent bumped into something, the map updates,
+        and once the episode ends its result (success, SPL).
+        """
+        target = session_of(ctx, session)
+        sim = target.extras.get(SIM_KEY)
+        if sim is None:
+            raise InvalidInputError("no simulator episode in this session; call sim_reset first.")
+        updates: list[str] = []
+        for i in range(repeat):
+            await ctx.report_progress(i, repeat, f"{action} {i + 1}/{repeat}")
+
+            def one() -> str:
+                with locked(target):  # one step and its integration at a time per session
+                    simulator.step(sim, action)
+                    return _integrate(target, sim)
+
+            updates.append(await in_thread(one))
+            if sim.over:
+                break
+        await ctx.report_progress(repeat, repeat, "done")
+        return _reply(target, sim, updates)

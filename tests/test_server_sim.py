@@ -1,0 +1,70 @@
+"""sim_reset and sim_step through an in-memory client: frames flow into the session's map."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import pytest
+from mcp import Client
+
+from glmap_tools.server import build_server
+from tests.test_server_fixtures import config
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+pytestmark = pytest.mark.anyio
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+def status(result) -> dict:  # type: ignore[no-untyped-def, type-arg]
+    assert not result.is_error, result.content[0].text
+    assert [b.type for b in result.content] == ["text", "image"]
+    assert result.content[1].mime_type == "image/jpeg"
+    return json.loads(result.content[0].text)
+
+
+async def test_a_chat_user_can_play_an_episode_that_builds_the_map(tmp_path):
+    server = build_server(config(tmp_path, sim_size=(160, 120), sim_max_steps=6))
+    async with Client(server) as client:
+        start = status(await client.call_tool("sim_reset", {"scene": 0, "seed": 3}))
+        assert start["status"] == "running" and start["steps"] == 0 and start["goal"]
+        assert "distance_to_goal" not in start  # no ground truth while playing
+        turned = status(await client.call_tool("sim_step", {"action": "turn_left", "repeat": 3}))
+        assert turned["steps"] == 3 and len(turned["map_updates"]) == 3
+        assert turned["heading_deg"] != start["heading_deg"]
+        summary = json.loads(
+            (await client.call_tool("map_summary", {"include_image": False})).content[0].text
+        )["summary"]
+        assert summary["frames"] == 4 and summary["instances"] >= 1
+        unknown = await client.call_tool("sim_step", {"action": "jump"})
+        assert unknown.is_error and "'move_forward'" in unknown.content[0].text
+        ended = status(await client.call_tool("sim_step", {"action": "stop"}))
+        assert ended["status"] in ("success", "stopped, not at the goal")
+        assert "spl" in ended and "distance_to_goal" in ended
+        after = await client.call_tool("sim_step", {"action": "move_forward"})
+        assert after.is_error and "call sim_reset" in after.content[0].text
+        again = json.loads(
+            (await client.call_tool("map_summary", {"include_image": False})).content[0].text
+        )["summary"]
+        assert again["frames"] == 5  # the refused steps added nothing
+
+
+async def test_a_goal_can_be_chosen_and_a_wrong_one_gets_the_closest_suggestion(tmp_path):
+    server = build_server(config(tmp_path, sim_size=(96, 72)))
+    async with Client(server) as client:
+        chosen = status(await client.call_tool("sim_reset", {"scene": 0, "goal": "Sofa"}))
+        wrong = await client.call_tool("sim_reset", {"scene": 0, "goal": "sofaa"})
+        never = await client.call_tool("sim_step", {"action": "stop", "session": "nope"})
+    assert chosen["goal"] == "sofa"
+    assert wrong.is_error and "Did you mean 'sofa'?" in wrong.content[0].text
+    assert never.is_error and "session 'nope' does not exist" in never.content[0].text
+
+
+async def test_stepping_before_any_reset_says_to_reset_first(tmp_path):
+    async with Client(build_server(config(tmp_path))) as client:
+        result = await client.call_tool("sim_step", {"action": "move_forward"})
+    assert result.is_error and "call sim_reset first" in result.content[0].text
