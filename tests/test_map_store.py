@@ -117,11 +117,9 @@ def test_a_map_built_with_another_embedder_is_refused(tmp_path):
     path = tmp_path / "room.glmap"
     _build(path, frames=1)[0].close()
 
-    class Other(HashingEmbedder):
-        name = "other-embedder"
-
+    other = HashingEmbedder(dim=256)
     with pytest.raises(StoreError, match="same embedder"):
-        GLMap.open(path, embedder=Other())
+        GLMap.open(path, embedder=other)
 
 
 def test_save_as_writes_a_copy_and_refuses_to_overwrite(tmp_path):

@@ -72,10 +72,11 @@ def test_gaussians_of_the_same_object_agree_across_frames_within_5_cm(redwood_ma
             assert np.median(d) < 0.05 and np.percentile(d, 95) < 0.05, label
 
 
-def test_the_floor_is_estimated_below_the_camera_and_the_room_has_free_space(redwood_map):
-    glmap, _ = redwood_map
-    camera_z = glmap.trajectory[0][2, 3]
-    assert glmap.floor_z is not None and 0.8 < camera_z - glmap.floor_z < 2.5
+def test_the_floor_estimate_matches_the_annotated_floor_and_the_room_has_free_space(redwood_map):
+    glmap, per_frame = redwood_map
+    floor = glmap.instances[per_frame["floor"][0][0]]
+    assert glmap.floor_z is not None and abs(glmap.floor_z - floor.centroid[2]) < 0.02
+    assert glmap.trajectory[0][2, 3] > glmap.floor_z + 0.3  # the camera is above it
     dense = glmap.occupancy.to_dense()
     assert (dense.state == 1).sum() > 100 and (dense.state == 2).sum() > 100
 
