@@ -11,6 +11,7 @@ from glmap_tools.errors import GLMapError
 # Each module provides `register(subparsers)`, adding its subcommand(s) with a `func`.
 COMMAND_MODULES = [
     "glmap_tools.ingest.cli",
+    "glmap_tools.sim.cli",
 ]
 
 

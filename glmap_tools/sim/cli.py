@@ -1,0 +1,197 @@
+"""`glmap sim ...`: make apartments, render tours, generate episodes and QA, run agents."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+
+from glmap_tools.errors import InvalidInputError
+
+
+def _camera(args: argparse.Namespace):  # noqa: ANN202 - imported lazily
+    from glmap_tools.sim.render import CameraSpec
+
+    return CameraSpec(args.width, args.height, args.hfov, args.camera_height)
+
+
+def _add_camera(p: argparse.ArgumentParser, width: int = 640, height: int = 480) -> None:
+    p.add_argument("--width", type=int, default=width, help="image width (px)")
+    p.add_argument("--height", type=int, default=height, help="image height (px)")
+    p.add_argument("--hfov", type=float, default=79.0, help="horizontal field of view (deg)")
+    p.add_argument("--camera-height", type=float, default=0.88, help="camera height (m)")
+
+
+def _check_out(path: Path, overwrite: bool) -> None:
+    if path.exists() and not overwrite:
+        raise InvalidInputError(f"{str(path)!r} exists; pass --overwrite or choose another --out.")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    sim = subparsers.add_parser(
+        "sim",
+        help="simulated apartments: layouts, tours, episodes, QA",
+        description="Simulated apartments for ObjectNav, InstNav and situated QA (pyrender).",
+    )
+    sub = sim.add_subparsers(dest="sim_command", metavar="SIM_COMMAND")
+    sim.set_defaults(func=lambda args: (sim.print_help(), 2)[1])
+
+    p = sub.add_parser("new", help="generate a furnished apartment layout (JSON)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same layout)")
+    p.add_argument("--rooms", type=int, help="number of rooms, 3..7 (default: from the seed)")
+    p.add_argument("--out", type=Path, required=True, help="layout JSON to write")
+    p.add_argument("--topdown", type=Path, help="also write a top-down PNG of the layout")
+    p.add_argument("--overwrite", action="store_true")
+    p.set_defaults(func=run_new)
+
+    p = sub.add_parser("from-scan", help="convert a scan's object list (oriented boxes)")
+    p.add_argument("scan", type=Path, help="JSON with 'objects': category, center, size, yaw")
+    p.add_argument("--out", type=Path, required=True, help="layout JSON to write")
+    p.add_argument("--up-axis", help="the scan world's up axis (default: its 'up' or z)")
+    p.add_argument("--boxes", action="store_true", help="draw every object as a box")
+    p.add_argument("--overwrite", action="store_true")
+    p.set_defaults(func=run_from_scan)
+
+    p = sub.add_parser("tour", help="render a walk through every room into an RGB-D folder")
+    p.add_argument("layout", type=Path, help="layout JSON")
+    p.add_argument("--out", type=Path, required=True, help="folder to write")
+    p.add_argument("--step", type=float, default=0.4, help="metres between walking frames")
+    p.add_argument("--spin", type=int, default=8, help="headings looked at in each room")
+    p.add_argument("--max-frames", type=int, help="stop after this many frames")
+    _add_camera(p)
+    p.set_defaults(func=run_tour)
+
+    p = sub.add_parser("episodes", help="generate an ObjectNav or InstNav episode set")
+    p.add_argument("layout", type=Path, help="layout JSON")
+    p.add_argument("--task", choices=["objectnav", "instnav"], default="objectnav")
+    p.add_argument("--count", type=int, default=50, help="number of episodes")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=Path, required=True, help="episode JSON to write")
+    p.add_argument("--overwrite", action="store_true")
+    p.set_defaults(func=run_episodes)
+
+    p = sub.add_parser("eval", help="run the oracle or random agent on an episode set")
+    p.add_argument("layout", type=Path, help="layout JSON")
+    p.add_argument("episodes", type=Path, help="episode JSON (from `glmap sim episodes`)")
+    p.add_argument("--agent", choices=["oracle", "random"], default="oracle")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random agent")
+    _add_camera(p, 160, 120)
+    p.set_defaults(func=run_eval)
+
+    p = sub.add_parser("qa", help="generate a situated QA set (SQA3D-like JSON)")
+    p.add_argument("layout", type=Path, help="layout JSON")
+    p.add_argument("--situations", type=int, default=20)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=Path, required=True, help="QA JSON to write")
+    p.add_argument("--overwrite", action="store_true")
+    p.set_defaults(func=run_qa)
+
+
+def run_new(args: argparse.Namespace) -> int:
+    from glmap_tools.sim.generator import generate_apartment
+    from glmap_tools.sim.layout_io import save_layout
+
+    _check_out(args.out, args.overwrite)
+    layout = generate_apartment(args.seed, n_rooms=args.rooms)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    save_layout(layout, args.out)
+    rooms = ", ".join(r.name for r in layout.rooms)
+    print(
+        f"wrote {args.out}: {len(layout.rooms)} rooms ({rooms}), {len(layout.objects)} objects, "
+        f"{len(layout.regions)} regions"
+    )
+    if args.topdown:
+        import cv2
+
+        from glmap_tools.sim.navigation import build_nav_grid
+        from glmap_tools.sim.topdown import draw_topdown
+
+        img = draw_topdown(layout, build_nav_grid(layout))
+        cv2.imwrite(str(args.topdown), img[:, :, ::-1])
+        print(f"wrote {args.topdown}")
+    return 0
+
+
+def run_from_scan(args: argparse.Namespace) -> int:
+    from glmap_tools.sim.layout_io import save_layout
+    from glmap_tools.sim.scan import layout_from_scan
+
+    _check_out(args.out, args.overwrite)
+    try:
+        data = json.loads(args.scan.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise InvalidInputError(f"cannot read scan file {str(args.scan)!r}: {exc}") from exc
+    layout = layout_from_scan(data, name=args.scan.stem, up=args.up_axis, use_meshes=not args.boxes)
+    save_layout(layout, args.out)
+    print(f"wrote {args.out}: {len(layout.objects)} objects in one room")
+    return 0
+
+
+def run_tour(args: argparse.Namespace) -> int:
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    from glmap_tools.sim.layout_io import load_layout
+    from glmap_tools.sim.tour import write_tour
+
+    layout = load_layout(args.layout)
+    n = write_tour(layout, args.out, _camera(args), args.step, args.spin, args.max_frames)
+    print(
+        f"wrote {n} frames to {args.out} (color/, depth/, annotations/, trajectory.log, "
+        f"camera_intrinsics.json); look at {args.out}/topdown.png and {args.out}/preview/"
+    )
+    return 0
+
+
+def run_episodes(args: argparse.Namespace) -> int:
+    from glmap_tools.sim.episodes import generate_episodes, save_episodes
+    from glmap_tools.sim.layout_io import load_layout
+
+    _check_out(args.out, args.overwrite)
+    layout = load_layout(args.layout)
+    episodes = generate_episodes(layout, args.task, args.count, args.seed)
+    save_episodes(episodes, args.out)
+    goals = len({e.goal_text for e in episodes.episodes})
+    mean = sum(e.geodesic_distance for e in episodes.episodes) / len(episodes.episodes)
+    print(
+        f"wrote {args.out}: {len(episodes.episodes)} {args.task} episodes, {goals} distinct "
+        f"goals, mean shortest path {mean:.2f} m"
+    )
+    return 0
+
+
+def run_eval(args: argparse.Namespace) -> int:
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    from glmap_tools.sim.agents import OracleAgent, RandomAgent, run_episodes, summarize
+    from glmap_tools.sim.env import InstNavEnv, ObjectNavEnv
+    from glmap_tools.sim.episodes import load_episodes
+    from glmap_tools.sim.layout_io import load_layout
+
+    layout = load_layout(args.layout)
+    episodes = load_episodes(args.episodes, layout)
+    env_cls = ObjectNavEnv if episodes.task == "objectnav" else InstNavEnv
+    env = env_cls(layout=layout, episodes=episodes, camera=_camera(args))
+    if args.agent == "oracle":
+        results = run_episodes(env, OracleAgent)
+    else:
+        results = run_episodes(env, lambda e: RandomAgent(e, args.seed))
+    env.close()
+    s = summarize(results)
+    print(
+        f"{args.agent} agent on {int(s['episodes'])} {episodes.task} episodes: success "
+        f"{s['success']:.1%}, SPL {s['spl']:.3f}, final distance to goal "
+        f"{s['distance_to_goal']:.2f} m, {s['steps']:.1f} steps"
+    )
+    return 0
+
+
+def run_qa(args: argparse.Namespace) -> int:
+    from glmap_tools.sim.layout_io import load_layout
+    from glmap_tools.sim.qa import generate_qa
+
+    _check_out(args.out, args.overwrite)
+    layout = load_layout(args.layout)
+    qa = generate_qa(layout, args.situations, args.seed)
+    args.out.write_text(json.dumps(qa, indent=1) + "\n", encoding="utf-8")
+    n_sit = len({q["situation"] for q in qa["questions"]})
+    print(f"wrote {args.out}: {len(qa['questions'])} questions in {n_sit} situations")
+    return 0

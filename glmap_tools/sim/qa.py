@@ -1,0 +1,271 @@
+"""Situated question answering (SQA3D-like) generated from a layout's facts.
+
+A situation is a standing position and heading next to an object, facing another ("I am
+standing at the kitchen sink, facing the refrigerator."). Questions about it have short
+answers derived from the layout: what is to my left/right/behind, what colour something is,
+how many chairs a region has, what stands on something, which room I am in, and whether I can
+walk straight ahead to something. JSON (format "glmap-sim-sqa")::
+
+    {"format": "glmap-sim-sqa", "version": 1, "scene": ..., "scene_seed": ...,
+     "questions": [{"question_id": 0, "scene_id": ..., "situation": ..., "question": ...,
+                    "question_type": "left", "answers": [{"answer": "chair",
+                    "answer_confidence": "yes", "answer_id": 1}],
+                    "position": {"_x": ..., "_y": ..., "_z": 0.0},
+                    "rotation": {"_w": ..., "_x": 0.0, "_y": 0.0, "_z": ...},
+                    "heading": ..., "room": ..., "object_ids": [...]}]}
+
+`position` is on the floor (z = 0, metres, z-up world); `rotation` is the quaternion of the
+yaw `heading` (radians counter-clockwise from +x) the person faces.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.sim.describe import number_word, plural
+from glmap_tools.sim.instnav import anchor_phrase
+from glmap_tools.sim.layout import Layout, SceneObject
+from glmap_tools.sim.motion import wrap_angle
+from glmap_tools.sim.navigation import NavGrid, build_nav_grid
+
+FORMAT = "glmap-sim-sqa"
+VERSION = 1
+AROUND = 4.0  # metres: objects farther away are not "to my left"
+STAND_NEAR = (0.3, 1.0)  # metres from the anchor's footprint
+AT_CATEGORIES = {"sink", "stove", "desk", "kitchen cabinet", "bookcase", "refrigerator"}
+
+
+def _landmarks(layout: Layout) -> list[SceneObject]:
+    return [
+        o
+        for o in layout.objects
+        if o.supported_by is None and o.size[2] >= 0.3 and o.category not in ("picture", "rug")
+    ]
+
+
+def _name(layout: Layout, obj: SceneObject) -> str:
+    return anchor_phrase(layout, obj)[0]
+
+
+def bearing(position: np.ndarray, heading: float, obj: SceneObject) -> float:
+    """Angle of `obj` from the facing direction, radians, positive to the left."""
+    d = obj.position[:2] - position
+    return wrap_angle(math.atan2(d[1], d[0]) - heading)
+
+
+def _quaternion(heading: float) -> dict[str, float]:
+    return {
+        "_w": round(math.cos(heading / 2), 6),
+        "_x": 0.0,
+        "_y": 0.0,
+        "_z": round(math.sin(heading / 2), 6),
+    }
+
+
+def _stand_point(
+    layout: Layout, grid: NavGrid, anchor: SceneObject, rng: np.random.Generator
+) -> np.ndarray | None:
+    xs, ys = grid.cell_centers()
+    pts = np.column_stack([xs[grid.navigable], ys[grid.navigable]])
+    d = anchor.distance_to(pts)
+    ok = (d >= STAND_NEAR[0]) & (d <= STAND_NEAR[1])
+    room = layout.room(anchor.room)
+    ok &= room.contains(pts)
+    front = np.array([math.cos(anchor.heading), math.sin(anchor.heading)])
+    in_front = ok & ((pts - anchor.position[:2]) @ front > anchor.size[1] / 2)
+    choice = np.nonzero(in_front if in_front.any() else ok)[0]
+    if len(choice) == 0:
+        return None
+    return pts[int(choice[rng.integers(len(choice))])]
+
+
+def _sector(
+    layout: Layout, position: np.ndarray, heading: float, room: int, lo: float, hi: float
+) -> list[tuple[float, SceneObject]]:
+    out = []
+    for o in _landmarks(layout):
+        if o.room != room:
+            continue
+        dist = float(o.distance_to(position[None])[0])
+        b = bearing(position, heading, o)
+        if dist <= AROUND and lo <= b <= hi:
+            out.append((dist, o))
+    return sorted(out, key=lambda t: (t[0], t[1].id))
+
+
+def _clear_answer(hits: list[tuple[float, SceneObject]]) -> SceneObject | None:
+    """The nearest object, when no other category is nearly as close."""
+    if not hits:
+        return None
+    first = hits[0][1]
+    for dist, o in hits[1:]:
+        if o.category != first.category and dist - hits[0][0] < 0.5:
+            return None
+    return first
+
+
+def _questions(
+    layout: Layout,
+    grid: NavGrid,
+    position: np.ndarray,
+    heading: float,
+    anchor: SceneObject,
+    facing: SceneObject,
+    rng: np.random.Generator,
+) -> Iterator[tuple[str, str, list[str], list[int]]]:
+    room = layout.room(anchor.room)
+    sectors = {
+        "left": ("What is to my left?", math.radians(45), math.radians(135)),
+        "right": ("What is to my right?", -math.radians(135), -math.radians(45)),
+        "behind": ("What is behind me?", math.radians(150), math.radians(181)),
+    }
+    behind: SceneObject | None = None
+    for kind, (question, lo, hi) in sectors.items():
+        hits = _sector(layout, position, heading, room.id, lo, hi)
+        if kind == "behind":
+            hits += _sector(layout, position, heading, room.id, -math.radians(181), -lo)
+            hits.sort(key=lambda t: (t[0], t[1].id))
+        obj = _clear_answer([h for h in hits if h[1].id != anchor.id])
+        if obj is not None:
+            yield kind, question, [obj.category], [obj.id]
+            if kind == "behind":
+                behind = obj
+    yield "room", "Which room am I in?", [room.name], []
+    in_room = [o for o in layout.objects if o.room == room.id and "color" in o.attributes]
+    rng.shuffle(in_room)
+    for o in in_room:
+        same = [p for p in layout.objects if p.category == o.category]
+        where = "" if len(same) == 1 else f" in the {room.name}"
+        if where and sum(p.room == room.id for p in same) > 1:
+            continue
+        yield "color", f"What colour is the {o.category}{where}?", [o.attributes["color"]], [o.id]
+        break
+    for region in layout.regions:
+        if region.room != room.id:
+            continue
+        members = [layout.object(i) for i in region.members]
+        counts: dict[str, int] = {}
+        for m in members:
+            counts[m.category] = counts.get(m.category, 0) + 1
+        several = sorted(c for c in counts if counts[c] >= 2)
+        category = several[0] if several else members[0].category
+        name = region.name
+        if sum(g.name == name for g in layout.regions) > 1:
+            name = f"{name} of the {room.name}"
+        n = counts[category]
+        yield (
+            "count",
+            f"How many {plural(category)} are in the {name}?",
+            [number_word(n), str(n)],
+            [m.id for m in members if m.category == category],
+        )
+        break
+    supports = [o for o in layout.objects if o.room == room.id and o.supported_by is not None]
+    for o in supports:
+        base = layout.object(o.supported_by or 0)
+        on_base = [p for p in layout.objects if p.supported_by == base.id]
+        if len(on_base) == 1 and sum(p.category == base.category for p in layout.objects) == 1:
+            yield "on", f"What is on the {base.category}?", [o.category], [o.id]
+            break
+    # Straight ahead: the object I face (yes when the way is clear), something behind (no).
+    dist = float(facing.distance_to(position[None])[0])
+    direction = np.array([math.cos(heading), math.sin(heading)])
+    end = position + direction * max(dist - 0.6, 0.0)
+    clear = grid.segment_is_free(position, end) and abs(bearing(position, heading, facing)) < 0.35
+    if behind is not None and rng.random() < 0.5:
+        yield (
+            "reach",
+            f"Can I reach the {_name(layout, behind)} by walking straight ahead?",
+            ["no"],
+            [behind.id],
+        )
+    else:
+        yield (
+            "reach",
+            f"Can I reach the {_name(layout, facing)} by walking straight ahead?",
+            ["yes" if clear else "no"],
+            [facing.id],
+        )
+
+
+def generate_qa(
+    layout: Layout, situations: int, seed: int, grid: NavGrid | None = None
+) -> dict[str, Any]:
+    """A situated QA set with up to `situations` situations and several questions each.
+
+    Raises:
+        InvalidInputError: `situations` < 1, or no object with floor to stand on next to it.
+    """
+    if isinstance(situations, bool) or not isinstance(situations, int) or situations < 1:
+        raise InvalidInputError(f"situations={situations!r} must be a positive integer.")
+    grid = grid or build_nav_grid(layout)
+    rng = np.random.default_rng([int(seed), 11])
+    landmarks = _landmarks(layout)
+    questions: list[dict[str, Any]] = []
+    made = 0
+    for _ in range(situations * 4):
+        if made >= situations or not landmarks:
+            break
+        anchor = landmarks[int(rng.integers(len(landmarks)))]
+        position = _stand_point(layout, grid, anchor, rng)
+        if position is None:
+            continue
+        others = [o for o in landmarks if o.room == anchor.room and o.id != anchor.id]
+        others = [o for o in others if o.distance_to(position[None])[0] > 0.5]
+        if not others:
+            continue
+        facing = others[int(rng.integers(len(others)))]
+        d = facing.position[:2] - position
+        heading = math.atan2(d[1], d[0])
+        made += 1
+        prep = "at" if anchor.category in AT_CATEGORIES else "next to"
+        situation = (
+            f"I am standing {prep} the {_name(layout, anchor)}, facing the {_name(layout, facing)}."
+        )
+        for kind, question, answers, ids in _questions(
+            layout, grid, position, heading, anchor, facing, rng
+        ):
+            questions.append(
+                {
+                    "question_id": len(questions),
+                    "scene_id": layout.name,
+                    "situation": situation,
+                    "alternative_situation": [],
+                    "question": question,
+                    "question_type": kind,
+                    "answers": [
+                        {"answer": a, "answer_confidence": "yes", "answer_id": i + 1}
+                        for i, a in enumerate(answers)
+                    ],
+                    "position": {
+                        "_x": round(float(position[0]), 4),
+                        "_y": round(float(position[1]), 4),
+                        "_z": 0.0,
+                    },
+                    "rotation": _quaternion(heading),
+                    "heading": round(heading, 5),
+                    "room": layout.room(anchor.room).name,
+                    "object_ids": [anchor.id, facing.id, *ids],
+                }
+            )
+    if not questions:
+        raise InvalidInputError(
+            f"layout {layout.name!r} has no object with navigable floor next to it to stand at."
+        )
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "scene": layout.name,
+        "scene_seed": layout.seed,
+        "questions": questions,
+    }
+
+
+def heading_from_rotation(rotation: dict[str, float]) -> float:
+    """The yaw (radians) of an SQA3D-style quaternion {_w, _x, _y, _z} about +z."""
+    return 2.0 * math.atan2(float(rotation["_z"]), float(rotation["_w"]))

@@ -1,0 +1,86 @@
+"""Situated QA generation: SQA3D-like records whose answers agree with the layout."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.sim.generator import generate_apartment
+from glmap_tools.sim.navigation import build_nav_grid
+from glmap_tools.sim.qa import bearing, generate_qa, heading_from_rotation
+
+
+@pytest.fixture(scope="module")
+def layout():
+    return generate_apartment(3, n_rooms=6)
+
+
+@pytest.fixture(scope="module")
+def qa(layout):
+    return generate_qa(layout, 12, seed=0)
+
+
+def _position(q: dict) -> np.ndarray:
+    return np.array([q["position"]["_x"], q["position"]["_y"]])
+
+
+def test_the_set_is_seeded_and_has_sqa3d_fields(layout, qa) -> None:
+    assert generate_qa(layout, 12, seed=0) == qa
+    assert generate_qa(layout, 12, seed=1) != qa
+    q = qa["questions"][0]
+    assert {"situation", "question", "answers", "position", "rotation", "scene_id"} <= set(q)
+    assert q["answers"][0]["answer_id"] == 1 and q["answers"][0]["answer_confidence"] == "yes"
+    assert q["situation"].startswith("I am standing ")
+    assert {q["question_type"] for q in qa["questions"]} >= {"room", "color", "count", "reach"}
+
+
+def test_the_rotation_quaternion_encodes_the_heading(qa) -> None:
+    for q in qa["questions"]:
+        assert math.isclose(math.cos(heading_from_rotation(q["rotation"]) - q["heading"]), 1.0)
+
+
+def test_left_right_and_behind_answers_lie_on_that_side(layout, qa) -> None:
+    sides = {"left": (45, 135), "right": (-135, -45)}
+    checked = 0
+    for q in qa["questions"]:
+        if q["question_type"] in sides:
+            obj = layout.object(q["object_ids"][-1])
+            assert obj.category == q["answers"][0]["answer"]
+            b = math.degrees(bearing(_position(q), heading_from_rotation(q["rotation"]), obj))
+            lo, hi = sides[q["question_type"]]
+            assert lo <= b <= hi
+            checked += 1
+    assert checked >= 3
+
+
+def test_colour_count_and_room_answers_come_from_the_layout(layout, qa) -> None:
+    for q in qa["questions"]:
+        answer = q["answers"][0]["answer"]
+        if q["question_type"] == "color":
+            assert layout.object(q["object_ids"][-1]).attributes["color"] == answer
+        if q["question_type"] == "count":
+            assert int(q["answers"][1]["answer"]) == len(q["object_ids"]) - 2
+        if q["question_type"] == "room":
+            assert layout.room(layout.room_at(_position(q))).name == answer == q["room"]
+
+
+def test_reach_straight_ahead_is_yes_only_when_the_way_is_clear(layout, qa) -> None:
+    grid = build_nav_grid(layout)
+    for q in qa["questions"]:
+        if q["question_type"] != "reach":
+            continue
+        obj = layout.object(q["object_ids"][-1])
+        pos, heading = _position(q), heading_from_rotation(q["rotation"])
+        if q["answers"][0]["answer"] == "yes":
+            assert abs(bearing(pos, heading, obj)) < 0.35
+            d = float(obj.distance_to(pos[None])[0])
+            end = pos + np.array([math.cos(heading), math.sin(heading)]) * max(d - 0.6, 0.0)
+            assert grid.segment_is_free(pos, end)
+
+
+def test_zero_situations_are_refused(layout) -> None:
+    with pytest.raises(InvalidInputError, match="situations=0"):
+        generate_qa(layout, 0, seed=0)
