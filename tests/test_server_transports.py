@@ -57,7 +57,7 @@ async def test_glmap_mcp_over_stdio_serves_a_real_client_session(tmp_path):
             observed = await client.call_tool("observe_frame", frame_args())
             hits = await client.call_tool("find_instance", {"query": "blue office chair"})
             bad = await client.call_tool("load_map", {"name": "../../etc/passwd"})
-    assert {"observe_frame", "find_instance", "map_summary"} <= tools
+    assert {"observe_frame", "find_instance", "render_view", "sim_step", "map_summary"} <= tools
     assert not observed.is_error, observed.content[0].text
     assert hits.structured_content["hits"][0]["description"] == "a blue office chair"
     assert bad.is_error and "contains a path" in bad.content[0].text

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import functools
-from collections.abc import Awaitable, Callable
+import json
+from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 
@@ -103,3 +104,9 @@ def tool_errors(fn: Callable[P, Awaitable[T]]) -> Callable[P, Awaitable[T]]:
             raise ToolError(str(exc)) from exc
 
     return wrapper
+
+
+def compact_json(data: Mapping[str, Any]) -> str:
+    """JSON with one top-level key per line and each value on its line (matrices stay short)."""
+    lines = [f"  {json.dumps(str(k))}: {json.dumps(v)}" for k, v in data.items()]
+    return "{\n" + ",\n".join(lines) + "\n}"

@@ -21,7 +21,13 @@ from glmap_tools.server.inputs import (
     decode_frame,
 )
 from glmap_tools.server.results import Hits, MapInfo, ObserveResult, UnitsAt
-from glmap_tools.server.runtime import app_state, in_thread, session_of, tool_errors
+from glmap_tools.server.runtime import (
+    app_state,
+    compact_json,
+    in_thread,
+    session_of,
+    tool_errors,
+)
 from glmap_tools.server.state import locked
 
 READ_ONLY = ToolAnnotations(read_only_hint=True, open_world_hint=False)
@@ -227,7 +233,7 @@ def register(server: MCPServer) -> None:
 
         info, image = await in_thread(run)
         content: list[TextContent | Image] = [
-            TextContent(type="text", text=info.model_dump_json(indent=2))
+            TextContent(type="text", text=compact_json(info.model_dump(mode="json")))
         ]
         if image is not None:
             content.append(TextContent(type="text", text=image.describe()))

@@ -3,7 +3,6 @@
 No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
 """
 
-import json
 from typing import Annotated, Any, Literal
 
 import cv2
@@ -13,7 +12,13 @@ from pydantic import Field
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.server import simulator
-from glmap_tools.server.runtime import app_state, in_thread, session_of, tool_errors
+from glmap_tools.server.runtime import (
+    app_state,
+    compact_json,
+    in_thread,
+    session_of,
+    tool_errors,
+)
 from glmap_tools.server.state import Session, locked
 from glmap_tools.server.tools_map import SessionArg
 
@@ -42,7 +47,7 @@ def _reply(
     info["session"] = session.handle
     info["map_updates"] = updates
     info["actions"] = list(simulator.ACTIONS)
-    text = json.dumps(info, indent=1)
+    text = compact_json(info)
     return [TextContent(type="text", text=text), Image(data=_jpeg(sim.obs["rgb"]), format="jpeg")]
 
 
