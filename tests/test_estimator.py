@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.gaussians import _estimator_fast
 from glmap_tools.gaussians._estimator_reference import fit_reference
 from glmap_tools.gaussians.estimator import EstimatorConfig, GaussianEstimator
 from glmap_tools.gaussians.types import GaussianSet
@@ -68,6 +69,19 @@ def test_fast_and_reference_fits_agree(cloud, n, seed, min_points, merge):
     reference = GaussianEstimator(config, backend="reference").fit(points, colors)
     assert len(fast) > 0
     assert_same_gaussians(fast, reference)
+
+
+@pytest.mark.parametrize(
+    ("cloud", "n", "seed"), [(bumpy_surface, 6000, 14), (sparse_cloud, 4000, 15)]
+)
+def test_the_multithreaded_fast_path_agrees_with_the_reference(cloud, n, seed, monkeypatch):
+    monkeypatch.setattr(_estimator_fast, "PARALLEL_MIN_VOXELS", 0)  # thread even tiny clouds
+    points, colors = cloud(n, seed)
+    config = EstimatorConfig(min_points=1)
+    assert_same_gaussians(
+        GaussianEstimator(config).fit(points, colors),
+        GaussianEstimator(config, backend="reference").fit(points, colors),
+    )
 
 
 def test_fast_and_reference_agree_without_a_size_cap():

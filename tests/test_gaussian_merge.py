@@ -5,6 +5,7 @@ import pytest
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.gaussians import merge
+from glmap_tools.gaussians._estimator_fast import gaussian_rows, sorted_mergeable_pairs
 from glmap_tools.gaussians._estimator_reference import direct_fit, fit_reference
 from glmap_tools.gaussians._estimator_union import union_additive, union_additive_reference
 from glmap_tools.gaussians.estimator import EstimatorConfig, GaussianEstimator
@@ -108,6 +109,29 @@ def test_any_mergeable_agrees_with_a_brute_force_all_pairs_search(seed, monkeypa
         assert merge.any_mergeable(a, b, CONFIG) == bool(brute_force_pairs(a, b, CONFIG))
         assert merge.any_mergeable(b, a, CONFIG) == bool(brute_force_pairs(b, a, CONFIG))
     assert not merge.any_mergeable(a, GaussianSet.empty(), CONFIG)
+
+
+@pytest.mark.parametrize(("n", "seed", "extent"), [(10, 20, 0.03), (150, 21, 0.1), (600, 22, 0.2)])
+def test_the_numba_pair_search_within_a_set_agrees_with_brute_force(n, seed, extent):
+    g = random_set(n, seed, extent)
+    pairs = sorted_mergeable_pairs(*gaussian_rows(g), CONFIG)
+    expected = {p for p in brute_force_pairs(g, g, CONFIG) if p[0] < p[1]}
+    assert len(expected) > 0
+    assert {tuple(p) for p in pairs.tolist()} == expected
+    d = merge.gaussian_distance(g, pairs[:, 0], g, pairs[:, 1], CONFIG)
+    assert np.all(np.diff(d) >= 0)  # visited by increasing D
+
+
+def test_the_closed_form_curvature_matches_eigvalsh():
+    rng = np.random.default_rng(23)
+    scales = rng.uniform(1e-6, 1e-3, (3000, 3))
+    scales[::3, 2] = 0.0  # planes
+    scales[1::5, 1] = scales[1::5, 2]  # lines: a repeated smallest eigenvalue
+    scales[2::7] = scales[2::7, :1]  # balls: all three equal
+    rotations = np.linalg.qr(rng.normal(size=(3000, 3, 3)))[0]
+    covs = rotations @ (scales[:, :, None] * rotations.transpose(0, 2, 1)) + 1e-6 * np.eye(3)
+    g = GaussianSet(np.zeros((3000, 3)), covs, np.zeros((3000, 3)), np.ones(3000), np.ones(3000))
+    np.testing.assert_allclose(gaussian_rows(g)[3], merge.curvature(g.covs), atol=1e-6)
 
 
 def test_combine_of_two_direct_fits_equals_the_direct_fit_of_the_concatenation():

@@ -15,11 +15,14 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
 from glmap_tools.gaussians.estimator import EstimatorConfig, GaussianEstimator
-from glmap_tools.geometry import Intrinsics, Pose, backproject
+from glmap_tools.gaussians.types import GaussianSet
+from glmap_tools.geometry import Intrinsics, Pose, backproject, depth_from_uint16
 
 ROOM = (2.8, 2.5, 2.5)  # corner walls at x = 2.8 and y = 2.5, ceiling at z = 2.5
 EYE, TARGET = (0.4, 0.3, 1.3), (2.4, 2.0, 0.5)  # camera position and look-at point, metres
@@ -104,23 +107,25 @@ def synthetic_frame(
 
 
 def instance_window(points: np.ndarray, n: int = 50_000) -> np.ndarray:
-    """The `n` points nearest the big box's centre: one spatially coherent instance."""
+    """Indices of the `n` points nearest the big box's centre, in pixel order: an instance
+    as a mask would cut it out of the frame."""
     centre = np.array([1.95, 1.65, 0.6])
     d = np.linalg.norm(points - centre, axis=1)
-    return np.argsort(d)[:n]
+    return np.sort(np.argpartition(d, n)[:n])
 
 
-def _time_ms(fn, repeats: int) -> float:  # type: ignore[no-untyped-def]
+def _times_ms(fn, repeats: int) -> tuple[float, float]:  # type: ignore[no-untyped-def]
+    """(min, median) wall time of `repeats` calls, ms."""
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         fn()
         times.append((time.perf_counter() - t0) * 1e3)
-    return float(np.median(times))
+    return float(np.min(times)), float(np.median(times))
 
 
 def _cold_compile_seconds() -> float:
-    """First fit in a fresh process with an empty numba cache (compile time), seconds."""
+    """First fit and remerge in a fresh process with an empty numba cache, seconds."""
     code = (
         "import time, numpy as np\n"
         "t = time.perf_counter()\n"
@@ -140,62 +145,132 @@ def _cold_compile_seconds() -> float:
     return float(out.stdout.strip().splitlines()[-1])
 
 
+def redwood_frame() -> tuple[np.ndarray, np.ndarray] | None:
+    """Camera-frame points and colours of the bundled Redwood living-room frame 0, if readable."""
+    import cv2
+
+    root = Path(__file__).resolve().parents[1] / "data" / "redwood_livingroom1_5frames"
+    depth = cv2.imread(str(root / "depth" / "00000.png"), cv2.IMREAD_UNCHANGED)
+    bgr = cv2.imread(str(root / "color" / "00000.jpg"))
+    if depth is None or bgr is None:
+        return None
+    intrinsics = Intrinsics(525.0, 525.0, 319.5, 239.5, 640, 480)  # PrimeSense, as bundled
+    cloud = backproject(
+        depth_from_uint16(depth, 1000.0), intrinsics, Pose.identity(), bgr[:, :, ::-1]
+    )
+    return cloud.points, cloud.colors
+
+
+def psnr_table(points: np.ndarray, colors: np.ndarray, voxel: float) -> None:
+    """Print Gaussians and same-view render PSNR per merge size cap (needs the renderer)."""
+    try:
+        from glmap_tools.gaussians.render import render
+    except ImportError:
+        print("(no glmap_tools.gaussians.render: PSNR table skipped)")
+        return
+    truth = synthetic_frame(noise=0.0)[1].reshape(480, 640, 3)
+    camera = Intrinsics.from_fov(640, 480, 79.0)
+    pose = Pose.looking_at(np.array(EYE), np.array(TARGET))
+    print(f"\nmerge size cap vs same-view render PSNR at {voxel * 100:.1f} cm (exact colours):")
+    print(f"{'max_merge_sigma':>16} {'Gaussians':>10} {'PSNR dB':>8}")
+    for cap in ("unmerged", 1.25, 1.5, 2.0, 2.5, None):
+        if cap == "unmerged":
+            config = EstimatorConfig(voxel_size=voxel, merge=False)
+        else:
+            config = EstimatorConfig(voxel_size=voxel, max_merge_sigma=cap)  # type: ignore[arg-type]
+        g = GaussianEstimator(config).fit(points, colors)
+        rgb = render(g, pose, camera).rgb
+        psnr = 10 * np.log10(1.0 / float(np.mean((rgb - truth) ** 2)))
+        print(f"{cap!s:>16} {len(g):>10} {psnr:>8.2f}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench estimator")
-    parser.add_argument("--repeats", type=int, default=7, help="timed runs per figure (median)")
-    parser.add_argument(
-        "--reference-points", type=int, default=20_000, help="subsample for the reference"
-    )
+    parser.add_argument("--repeats", type=int, default=9, help="timed runs per figure")
     parser.add_argument("--no-cold", action="store_true", help="skip the cold-compile probe")
+    parser.add_argument("--psnr", action="store_true", help="also print the size-cap PSNR table")
     args = parser.parse_args(argv)
 
     import numba
 
+    from glmap_tools.gaussians import _estimator_fast
+    from glmap_tools.gaussians.merge import remerge
+
     t0 = time.perf_counter()
     points, colors = synthetic_frame()
+    pose = Pose.looking_at(np.array(EYE), np.array(TARGET))
+    depth = (points - pose.translation) @ pose.rotation[:, 2]
     print(
-        f"synthetic 640x480 frame: {len(points)} points ({time.perf_counter() - t0:.2f} s to "
-        f"ray-cast); numba threads: {numba.get_num_threads()}"
+        f"synthetic 640x480 frame: {len(points)} points, depth 5/50/95% "
+        f"{np.percentile(depth, [5, 50, 95]).round(2).tolist()} m "
+        f"({time.perf_counter() - t0:.2f} s to ray-cast)"
+    )
+    print(
+        f"numba threads: {numba.get_num_threads()}; kernels split over them only for clouds "
+        f"of >= {_estimator_fast.PARALLEL_MIN_VOXELS} voxels"
     )
     t0 = time.perf_counter()
     GaussianEstimator().fit(points[:2000], colors[:2000])
-    print(
-        f"first call in this process (numba cache load or compile): "
-        f"{time.perf_counter() - t0:.2f} s"
-    )
+    print(f"first call in this process (numba cache load): {time.perf_counter() - t0:.2f} s")
     if not args.no_cold:
         print(f"cold compile (fresh process, empty numba cache): {_cold_compile_seconds():.1f} s")
 
-    rng = np.random.default_rng(0)
-    sub = np.sort(rng.choice(len(points), min(args.reference_points, len(points)), replace=False))
+    window = (np.arange(180, 300)[:, None] * 640 + np.arange(240, 400)[None, :]).ravel()
     inst = instance_window(points)
-    print()
-    header = (
-        f"{'voxel':>6} {'fast ms/frame':>14} {'ref ms/frame*':>14} {'ratio':>7} "
-        f"{'G unmerged':>11} {'G merged':>9} {'B/G':>5} {'ms/50k inst':>12} {'G inst':>7}"
+    print(
+        f"\n{'voxel':>6} {'voxels':>7} {'fast ms/frame':>14} {'ref ms/frame*':>14} {'ratio':>6} "
+        f"{'G unmerged':>10} {'G merged':>9} {'B/G':>4} {'ms/50k inst':>12} {'G inst':>7}"
     )
-    print(header)
     for voxel in (0.015, 0.02):
         cfg = EstimatorConfig(voxel_size=voxel)
         fast = GaussianEstimator(cfg)
-        ref = GaussianEstimator(cfg, backend="reference")
         merged = fast.fit(points, colors)
-        unmerged = GaussianEstimator(EstimatorConfig(voxel_size=voxel, merge=False)).fit(
-            points, colors
-        )
-        fast_ms = _time_ms(lambda f=fast: f.fit(points, colors), args.repeats)
-        ref_ms = _time_ms(lambda r=ref: r.fit(points[sub], colors[sub]), 1)
-        ref_frame_ms = ref_ms * len(points) / len(sub)
-        inst_ms = _time_ms(lambda f=fast: f.fit(points[inst], colors[inst]), args.repeats)
+        unmerged = GaussianEstimator(replace(cfg, merge=False)).fit(points, colors)
+        n_voxels = len(np.unique(np.floor(points / voxel).astype(np.int64), axis=0))
+        fast_ms = _times_ms(lambda f=fast: f.fit(points, colors), args.repeats)
+        reference = GaussianEstimator(cfg, backend="reference")
+        ref_ms = _times_ms(lambda r=reference: r.fit(points[window], colors[window]), 1)[0]
+        ref_frame_ms = ref_ms * len(points) / len(window)
+        inst_ms = _times_ms(lambda f=fast: f.fit(points[inst], colors[inst]), args.repeats)
         n_inst = len(fast.fit(points[inst], colors[inst]))
         print(
-            f"{voxel * 100:>4.1f}cm {fast_ms:>14.1f} {ref_frame_ms:>14.0f} "
-            f"{ref_frame_ms / fast_ms:>6.0f}x {len(unmerged):>11} {len(merged):>9} "
-            f"{merged.nbytes / max(len(merged), 1):>5.0f} {inst_ms:>12.2f} {n_inst:>7}"
+            f"{voxel * 100:>4.1f}cm {n_voxels:>7} {fast_ms[0]:>6.1f} /{fast_ms[1]:>6.1f} "
+            f"{ref_frame_ms:>14.0f} {ref_frame_ms / fast_ms[1]:>5.0f}x {len(unmerged):>10} "
+            f"{len(merged):>9} {merged.nbytes / max(len(merged), 1):>4.0f} "
+            f"{inst_ms[0]:>5.2f} /{inst_ms[1]:>5.2f} {n_inst:>7}"
         )
     print(
-        f"* reference timed once on a {len(sub)}-point random subsample and extrapolated "
-        "linearly by point count (it is slower than linear on dense clouds)."
+        f"fast: min / median of {args.repeats} runs. * reference: one run on the central "
+        f"160x120-pixel window ({len(window)} points), extrapolated by point count."
     )
     print("targets (2 cores): <= 40 ms per frame at 1.5 cm, <= 5 ms per 50k-point instance")
+
+    cfg = EstimatorConfig(voxel_size=0.02)
+    again, again_colors = synthetic_frame(seed=1)  # the same view, colour noise re-drawn
+    both = GaussianSet.concat(
+        [
+            GaussianEstimator(cfg).fit(p[inst], c[inst])
+            for p, c in ((points, colors), (again, again_colors))
+        ]
+    )
+    remerge_ms = _times_ms(lambda: remerge(both, cfg), args.repeats)
+    print(
+        f"\nremerge of the instance fitted in two frames (2 cm): {len(both)} -> "
+        f"{len(remerge(both, cfg))} Gaussians, {remerge_ms[0]:.2f} / {remerge_ms[1]:.2f} ms"
+    )
+
+    real = redwood_frame()
+    if real is not None:
+        for voxel in (0.015, 0.02):
+            cfg = EstimatorConfig(voxel_size=voxel)
+            fast = GaussianEstimator(cfg)
+            real_ms = _times_ms(lambda f=fast: f.fit(*real), args.repeats)
+            unmerged = GaussianEstimator(replace(cfg, merge=False)).fit(*real)
+            print(
+                f"Redwood living room frame 0 ({len(real[0])} points) at {voxel * 100:.1f} cm: "
+                f"{real_ms[0]:.1f} / {real_ms[1]:.1f} ms, {len(unmerged)} -> "
+                f"{len(fast.fit(*real))} Gaussians"
+            )
+    if args.psnr:
+        psnr_table(*synthetic_frame(noise=0.0), 0.02)
     return 0

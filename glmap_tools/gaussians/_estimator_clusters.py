@@ -124,6 +124,33 @@ def _pairs_of_range(
 
 
 @numba.njit(cache=True, parallel=True)
+def _pairs_parallel(
+    n_chunks: int,
+    cells: np.ndarray,
+    block: np.ndarray,
+    block_nbrs: np.ndarray,
+    head: np.ndarray,
+    nxt: np.ndarray,
+    means: np.ndarray,
+    covs: np.ndarray,
+    colors: np.ndarray,
+    kappa: np.ndarray,
+    params: np.ndarray,
+    buf_i: np.ndarray,
+    buf_j: np.ndarray,
+    buf_d: np.ndarray,
+    room: int,
+    found: np.ndarray,
+) -> None:
+    g = means.shape[0]
+    for c in numba.prange(n_chunks):  # nothing else here: array code would spawn parfors
+        found[c] = _pairs_of_range(
+            c * g // n_chunks, (c + 1) * g // n_chunks, cells, block, block_nbrs, head, nxt,
+            means, covs, colors, kappa, params, buf_i, buf_j, buf_d, c * room, room,
+        )  # fmt: skip
+
+
+@numba.njit(cache=True)
 def pairs_by_chunk(
     n_chunks: int,
     cells: np.ndarray,
@@ -151,10 +178,15 @@ def pairs_by_chunk(
     buf_j = np.empty(n_chunks * room, dtype=np.int64)
     buf_d = np.empty(n_chunks * room)
     found = np.zeros(n_chunks, dtype=np.int64)
-    for c in numba.prange(n_chunks):
-        found[c] = _pairs_of_range(
-            c * g // n_chunks, (c + 1) * g // n_chunks, cells, block, block_nbrs, head, nxt,
-            means, covs, colors, kappa, params, buf_i, buf_j, buf_d, c * room, room,
+    if n_chunks == 1:  # no thread team at all: small inputs
+        found[0] = _pairs_of_range(
+            0, g, cells, block, block_nbrs, head, nxt, means, covs, colors, kappa, params,
+            buf_i, buf_j, buf_d, 0, room,
+        )  # fmt: skip
+    else:
+        _pairs_parallel(
+            n_chunks, cells, block, block_nbrs, head, nxt, means, covs, colors, kappa, params,
+            buf_i, buf_j, buf_d, room, found,
         )  # fmt: skip
     total = found.sum()
     out_i = np.empty(total, dtype=np.int64)
@@ -238,12 +270,11 @@ def _clusters_range(
     out: np.ndarray,
 ) -> None:
     stamp = np.full(moments.shape[0], -1, dtype=np.int32)
-    acc = np.empty(N_MOMENTS)
     for c in range(lo, hi):
         if start[c + 1] - start[c] == 1:
             out[c] = sums[emitted[members[start[c]]]]
             continue
-        acc[:] = 0.0
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = a10 = a11 = a12 = 0.0
         for k in range(start[c], start[c + 1]):
             v = emitted[members[k]]
             for q in range(27):
@@ -251,12 +282,35 @@ def _clusters_range(
                 if u < 0 or stamp[u] == c:
                     continue
                 stamp[u] = c
-                for m in range(N_MOMENTS):
-                    acc[m] += moments[u, m]
-        out[c] = acc
+                m = moments[u]
+                a0, a1, a2, a3 = a0 + m[0], a1 + m[1], a2 + m[2], a3 + m[3]
+                a4, a5, a6, a7 = a4 + m[4], a5 + m[5], a6 + m[6], a7 + m[7]
+                a8, a9, a10, a11, a12 = a8 + m[8], a9 + m[9], a10 + m[10], a11 + m[11], a12 + m[12]
+        o = out[c]
+        o[0], o[1], o[2], o[3], o[4], o[5], o[6] = a0, a1, a2, a3, a4, a5, a6
+        o[7], o[8], o[9], o[10], o[11], o[12] = a7, a8, a9, a10, a11, a12
 
 
 @numba.njit(cache=True, parallel=True)
+def _clusters_parallel(
+    n_chunks: int,
+    start: np.ndarray,
+    members: np.ndarray,
+    emitted: np.ndarray,
+    neighbours: np.ndarray,
+    sums: np.ndarray,
+    moments: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    n_clusters = out.shape[0]
+    for chunk in numba.prange(n_chunks):
+        _clusters_range(
+            chunk * n_clusters // n_chunks, (chunk + 1) * n_clusters // n_chunks, start,
+            members, emitted, neighbours, sums, moments, out,
+        )  # fmt: skip
+
+
+@numba.njit(cache=True)
 def cluster_moments(
     labels: np.ndarray,
     emitted: np.ndarray,
@@ -295,9 +349,8 @@ def cluster_moments(
         members[fill[c]] = e
         fill[c] += 1
     out = np.empty((n_clusters, N_MOMENTS))
-    for chunk in numba.prange(n_chunks):
-        _clusters_range(
-            chunk * n_clusters // n_chunks, (chunk + 1) * n_clusters // n_chunks, start,
-            members, emitted, neighbours, sums, moments, out,
-        )  # fmt: skip
+    if n_chunks == 1:
+        _clusters_range(0, n_clusters, start, members, emitted, neighbours, sums, moments, out)
+    else:
+        _clusters_parallel(n_chunks, start, members, emitted, neighbours, sums, moments, out)
     return out

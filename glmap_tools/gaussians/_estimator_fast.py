@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from glmap_tools.gaussians.estimator import EstimatorConfig
 
 CHUNKS_PER_THREAD = 4
+PARALLEL_MIN_VOXELS = 100_000  # smaller clouds run on one thread (see design.md)
 
 
 def scan(points: np.ndarray, colors: np.ndarray) -> tuple[bool, bool, np.ndarray, np.ndarray]:
@@ -37,13 +38,14 @@ def fit_fast(
         lo: [3] float64 smallest point coordinate per axis.
     """
     voxel = float(config.voxel_size)
-    n_chunks = CHUNKS_PER_THREAD * numba.get_num_threads()
     lo_cell = np.floor(lo / voxel).astype(np.int64)
     origin = (lo_cell - kernels.CELL_MARGIN).astype(np.float64) * voxel
     point_voxel, slot_voxel, voxel_block, voxel_slot, keys, table_keys, table_ids = (
         kernels.voxelize(points, voxel, lo_cell)
     )
     block_nbrs = grid.block_neighbours(keys, table_keys, table_ids)
+    threads = numba.get_num_threads() if len(voxel_block) >= PARALLEL_MIN_VOXELS else 1
+    n_chunks = 1 if threads == 1 else CHUNKS_PER_THREAD * threads
     moments = kernels.voxel_moments(points, colors, point_voxel, len(voxel_block), origin)
     neighbours, sums = kernels.neighbourhood_moments(
         voxel_block, voxel_slot, slot_voxel, block_nbrs, moments, n_chunks
@@ -55,27 +57,70 @@ def fit_fast(
         means, covs, cols, kappa = kernels.candidate_gaussians(
             sums, emitted, config.epsilon, n_chunks
         )
-        m_cells = clusters.mean_cells(means, config.candidate_radius)
-        m_block, m_keys, m_table_keys, m_table_ids = grid.blocks_of(m_cells)
-        m_nbrs = grid.block_neighbours(m_keys, m_table_keys, m_table_ids)
-        head, nxt = clusters.cell_lists(m_cells, m_block, len(m_keys))
-        params = np.array(
-            [config.candidate_radius, voxel, config.tau, config.lambda_cov, config.lambda_color]
-        )
-        pi, pj, d = clusters.pairs_by_chunk(
-            n_chunks, m_cells, m_block, m_nbrs, head, nxt, means, covs, cols, kappa, params
-        )
+        pairs = sorted_mergeable_pairs(means, covs, cols, kappa, config, n_chunks)
         labels = union_additive(
             clusters.trace_rows(sums, emitted),
-            clusters.sort_pairs(pi, pj, d),
+            pairs,
             config.merge_cap_trace,
             config.epsilon,
         )
-        sums = clusters.cluster_moments(
-            labels, emitted, neighbours, sums, moments, numba.get_num_threads()
-        )
+        sums = clusters.cluster_moments(labels, emitted, neighbours, sums, moments, threads)
         emitted = np.arange(len(sums))
     means32, covs32, cols32, counts = kernels.output_gaussians(
         sums, emitted, config.epsilon, origin
     )
     return GaussianSet(means32, covs32, cols32, np.full(len(means32), config.opacity), counts)
+
+
+def sorted_mergeable_pairs(
+    means: np.ndarray,
+    covs: np.ndarray,
+    colors: np.ndarray,
+    kappa: np.ndarray,
+    config: EstimatorConfig,
+    n_chunks: int = 1,
+) -> np.ndarray:
+    """Mergeable pairs of G Gaussians, ordered by (D, i, j).
+
+    A pair (i < j) is mergeable when ||mu_i - mu_j|| <= one voxel and
+    D < 2 voxel (1 + tau (kappa_i + kappa_j)).
+
+    Args:
+        means: [G, 3] float64, every coordinate >= 0 (shift by an origin first).
+        covs: [G, 6] float64 covariance rows (xx, xy, xz, yy, yz, zz) with their eps.
+        colors: [G, 3] float64.
+        kappa: [G] curvature.
+        config: estimator settings.
+        n_chunks: split the search over the thread team when > 1.
+
+    Returns:
+        [K, 2] int64.
+    """
+    m_cells = clusters.mean_cells(means, config.candidate_radius)
+    m_block, m_keys, m_table_keys, m_table_ids = grid.blocks_of(m_cells)
+    m_nbrs = grid.block_neighbours(m_keys, m_table_keys, m_table_ids)
+    head, nxt = clusters.cell_lists(m_cells, m_block, len(m_keys))
+    params = np.array(
+        [
+            config.candidate_radius,
+            config.voxel_size,
+            config.tau,
+            config.lambda_cov,
+            config.lambda_color,
+        ]
+    )
+    pi, pj, d = clusters.pairs_by_chunk(
+        n_chunks, m_cells, m_block, m_nbrs, head, nxt, means, covs, colors, kappa, params
+    )
+    return clusters.sort_pairs(pi, pj, d)
+
+
+def gaussian_rows(g: GaussianSet) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Float64 (means [N, 3] shifted to be >= 0, covariance rows [N, 6], colours, kappa)."""
+    means = g.means.astype(np.float64)
+    means -= means.min(axis=0)
+    c = g.covs.astype(np.float64)
+    rows = np.stack(
+        [c[:, 0, 0], c[:, 0, 1], c[:, 0, 2], c[:, 1, 1], c[:, 1, 2], c[:, 2, 2]], axis=1
+    )
+    return means, rows, g.colors.astype(np.float64), kernels.curvatures(rows)

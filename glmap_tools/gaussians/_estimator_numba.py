@@ -22,6 +22,7 @@ from glmap_tools.gaussians._estimator_grid import (
 
 N_MOMENTS = 13
 CELL_MARGIN = 4  # one block of empty cells below the smallest coordinate
+NEWTON_STEPS = 6  # for the smallest eigenvalue; past this the closed form takes over
 
 
 @numba.njit(cache=True)
@@ -221,22 +222,44 @@ def _neighbourhood_range(
     sums: np.ndarray,
 ) -> None:
     codes, slots = neighbour_tables()
-    acc = np.empty(N_MOMENTS)
     for v in range(lo, hi):
-        acc[:] = 0.0
+        # 13 scalar accumulators stay in registers (an array would go through memory)
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = a10 = a11 = a12 = 0.0
         b, s = voxel_block[v], voxel_slot[v]
         for k in range(27):
             nb = block_nbrs[b, codes[s, k]]
             u = -1 if nb < 0 else slot_voxel[nb * SLOTS + slots[s, k]]
             neighbours[v, k] = u
             if u >= 0:
-                for c in range(N_MOMENTS):
-                    acc[c] += moments[u, c]
-        for c in range(N_MOMENTS):
-            sums[v, c] = acc[c]
+                m = moments[u]
+                a0, a1, a2, a3 = a0 + m[0], a1 + m[1], a2 + m[2], a3 + m[3]
+                a4, a5, a6, a7 = a4 + m[4], a5 + m[5], a6 + m[6], a7 + m[7]
+                a8, a9, a10, a11, a12 = a8 + m[8], a9 + m[9], a10 + m[10], a11 + m[11], a12 + m[12]
+        o = sums[v]
+        o[0], o[1], o[2], o[3], o[4], o[5], o[6] = a0, a1, a2, a3, a4, a5, a6
+        o[7], o[8], o[9], o[10], o[11], o[12] = a7, a8, a9, a10, a11, a12
 
 
 @numba.njit(cache=True, parallel=True)
+def _neighbourhood_parallel(
+    n_chunks: int,
+    voxel_block: np.ndarray,
+    voxel_slot: np.ndarray,
+    slot_voxel: np.ndarray,
+    block_nbrs: np.ndarray,
+    moments: np.ndarray,
+    neighbours: np.ndarray,
+    sums: np.ndarray,
+) -> None:
+    v_count = moments.shape[0]
+    for c in numba.prange(n_chunks):  # nothing else here: array code would spawn parfors
+        _neighbourhood_range(
+            c * v_count // n_chunks, (c + 1) * v_count // n_chunks, voxel_block, voxel_slot,
+            slot_voxel, block_nbrs, moments, neighbours, sums,
+        )  # fmt: skip
+
+
+@numba.njit(cache=True)
 def neighbourhood_moments(
     voxel_block: np.ndarray,
     voxel_slot: np.ndarray,
@@ -245,21 +268,27 @@ def neighbourhood_moments(
     moments: np.ndarray,
     n_chunks: int,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Each voxel's occupied 27-neighbours ([V, 27] int32, -1 = empty) and their summed moments."""
+    """Each voxel's occupied 27-neighbours ([V, 27] int32, -1 = empty) and their summed moments.
+
+    `n_chunks` > 1 splits the voxels over the thread team; 1 runs on this thread alone.
+    """
     v_count = moments.shape[0]
     neighbours = np.empty((v_count, 27), dtype=np.int32)
     sums = np.empty((v_count, N_MOMENTS))
-    for c in numba.prange(n_chunks):
+    if n_chunks == 1:
         _neighbourhood_range(
-            c * v_count // n_chunks, (c + 1) * v_count // n_chunks, voxel_block, voxel_slot,
-            slot_voxel, block_nbrs, moments, neighbours, sums,
-        )  # fmt: skip
+            0, v_count, voxel_block, voxel_slot, slot_voxel, block_nbrs, moments, neighbours, sums
+        )
+    else:
+        _neighbourhood_parallel(
+            n_chunks, voxel_block, voxel_slot, slot_voxel, block_nbrs, moments, neighbours, sums
+        )
     return neighbours, sums
 
 
 @numba.njit(cache=True)
-def min_eigenvalue(a: float, b: float, c: float, d: float, e: float, f: float) -> float:
-    """Smallest eigenvalue of the symmetric [[a, b, c], [b, d, e], [c, e, f]] (closed form)."""
+def _min_eigenvalue_trig(a: float, b: float, c: float, d: float, e: float, f: float) -> float:
+    """Smallest eigenvalue of [[a, b, c], [b, d, e], [c, e, f]] by the trigonometric formula."""
     p1 = b * b + c * c + e * e
     if p1 == 0.0:
         return min(a, min(d, f))
@@ -276,6 +305,40 @@ def min_eigenvalue(a: float, b: float, c: float, d: float, e: float, f: float) -
     r = min(1.0, max(-1.0, det / 2.0))
     phi = math.acos(r) / 3.0
     return q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+
+
+@numba.njit(cache=True)
+def min_eigenvalue(a: float, b: float, c: float, d: float, e: float, f: float) -> float:
+    """Smallest eigenvalue of the symmetric positive [[a, b, c], [b, d, e], [c, e, f]].
+
+    Newton on the characteristic cubic from 0 climbs monotonically to the smallest root
+    (the cubic is concave and increasing there); it converges in a few steps when that
+    root stands apart, as on surfaces. Otherwise the trigonometric formula is used.
+    """
+    tr = a + d + f
+    c2 = a * d - b * b + a * f - c * c + d * f - e * e
+    det = a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c)
+    lam = 0.0
+    for _ in range(NEWTON_STEPS):
+        slope = (3.0 * lam - 2.0 * tr) * lam + c2
+        if slope <= 0.0:
+            break
+        step = (((lam - tr) * lam + c2) * lam - det) / slope
+        lam -= step
+        if -step <= 1e-14 * tr:
+            return lam
+    return _min_eigenvalue_trig(a, b, c, d, e, f)
+
+
+@numba.njit(cache=True)
+def curvatures(covs: np.ndarray) -> np.ndarray:
+    """[G] kappa = lambda_min / trace of covariance rows [G, 6] (xx xy xz yy yz zz)."""
+    out = np.empty(covs.shape[0])
+    for i in range(covs.shape[0]):
+        c = covs[i]
+        lam = max(min_eigenvalue(c[0], c[1], c[2], c[3], c[4], c[5]), 0.0)
+        out[i] = lam / (c[0] + c[3] + c[5])
+    return out
 
 
 @numba.njit(cache=True)
@@ -309,6 +372,25 @@ def _candidates_range(
 
 
 @numba.njit(cache=True, parallel=True)
+def _candidates_parallel(
+    n_chunks: int,
+    sums: np.ndarray,
+    rows: np.ndarray,
+    epsilon: float,
+    means: np.ndarray,
+    covs: np.ndarray,
+    colors: np.ndarray,
+    kappa: np.ndarray,
+) -> None:
+    g = rows.shape[0]
+    for c in numba.prange(n_chunks):
+        _candidates_range(
+            c * g // n_chunks, (c + 1) * g // n_chunks, sums, rows, epsilon, means, covs,
+            colors, kappa,
+        )  # fmt: skip
+
+
+@numba.njit(cache=True)
 def candidate_gaussians(
     sums: np.ndarray, rows: np.ndarray, epsilon: float, n_chunks: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -323,11 +405,10 @@ def candidate_gaussians(
     covs = np.empty((g, 6))
     colors = np.empty((g, 3))
     kappa = np.empty(g)
-    for c in numba.prange(n_chunks):
-        _candidates_range(
-            c * g // n_chunks, (c + 1) * g // n_chunks, sums, rows, epsilon, means, covs,
-            colors, kappa,
-        )  # fmt: skip
+    if n_chunks == 1:
+        _candidates_range(0, g, sums, rows, epsilon, means, covs, colors, kappa)
+    else:
+        _candidates_parallel(n_chunks, sums, rows, epsilon, means, covs, colors, kappa)
     return means, covs, colors, kappa
 
 

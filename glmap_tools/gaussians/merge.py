@@ -119,8 +119,8 @@ def _filter_mergeable(
     if len(ia) == 0:
         return np.zeros(0, dtype=bool), np.zeros(0)
     d = gaussian_distance(a, ia, b, ib, config)
-    ka = curvature(a.covs[ia]) if kappa_a is None else kappa_a[ia]
-    kb = curvature(b.covs[ib]) if kappa_b is None else kappa_b[ib]
+    ka = (curvature(a.covs) if kappa_a is None else kappa_a)[ia]
+    kb = (curvature(b.covs) if kappa_b is None else kappa_b)[ib]
     return d < merge_threshold(ka, kb, config), d
 
 
@@ -225,11 +225,12 @@ def combine(g: GaussianSet, groups: np.ndarray, epsilon: float = COVARIANCE_EPSI
             f"Gaussian {k} has count 0, so it cannot be weighted; set counts to the number "
             "of points behind each Gaussian (1 when unknown)."
         )
-    _, inverse = np.unique(groups, return_inverse=True)
+    labels, inverse = np.unique(groups, return_inverse=True)
     inverse = inverse.reshape(-1)
-    m = int(inverse.max()) + 1
+    order = np.argsort(inverse, kind="stable")
+    starts = np.searchsorted(inverse[order], np.arange(len(labels)))
     w = g.counts.astype(np.float64)
-    n = np.bincount(inverse, weights=w, minlength=m)
+    n = np.add.reduceat(w[order], starts)
     if n.max() > np.iinfo(np.uint32).max:
         raise InvalidInputError(
             f"a combined Gaussian would hold {int(n.max())} points, more than uint32 counts "
@@ -237,10 +238,8 @@ def combine(g: GaussianSet, groups: np.ndarray, epsilon: float = COVARIANCE_EPSI
         )
 
     def weighted_mean(x: np.ndarray) -> np.ndarray:  # [N, ...] -> [M, ...]
-        flat = x.reshape(len(x), -1).astype(np.float64) * w[:, None]
-        out = np.zeros((m, flat.shape[1]))
-        np.add.at(out, inverse, flat)
-        return (out / n[:, None]).reshape((m, *x.shape[1:]))
+        flat = x.reshape(len(x), -1).astype(np.float64)[order] * w[order, None]
+        return (np.add.reduceat(flat, starts, axis=0) / n[:, None]).reshape((-1, *x.shape[1:]))
 
     mu = weighted_mean(g.means)
     dev = g.means.astype(np.float64) - mu[inverse]
@@ -265,16 +264,16 @@ def remerge_groups(g: GaussianSet, config: EstimatorConfig) -> np.ndarray:
     Returns:
         [N] int64 labels; equal labels merge.
     """
+    from glmap_tools.gaussians._estimator_fast import gaussian_rows, sorted_mergeable_pairs
     from glmap_tools.gaussians._estimator_union import union_additive
 
-    pairs = candidate_pairs_within(g, config.candidate_radius)
-    keep, d = _filter_mergeable(g, pairs[:, 0], g, pairs[:, 1], config)
-    pairs, d = pairs[keep], d[keep]
-    order = np.lexsort((pairs[:, 1], pairs[:, 0], d))
-    origin = g.means.astype(np.float64).mean(axis=0) if len(g) else np.zeros(3)
+    if len(g) == 0:
+        return np.zeros(0, dtype=np.int64)
+    pairs = sorted_mergeable_pairs(*gaussian_rows(g), config)
+    origin = g.means.astype(np.float64).mean(axis=0)
     return union_additive(
         additive_moments(g, origin, config.epsilon),
-        pairs[order],
+        pairs,
         config.remerge_cap_trace,
         config.epsilon,
     )
