@@ -13,6 +13,7 @@ from glmap_tools.server import resources, tools_map, tools_sim, tools_store, too
 from glmap_tools.server.config import ServerConfig
 from glmap_tools.server.runtime import AppState, PerceptionBackend
 from glmap_tools.server.state import SessionRegistry
+from glmap_tools.server.threads import limited_threads
 
 logger = logging.getLogger(__name__)
 
@@ -60,10 +61,11 @@ def build_server(
             await anyio.to_thread.run_sync(views.warm_up)
         registry = SessionRegistry(config, embedder)
         state = AppState(config, embedder, registry, perception)
-        try:
-            yield state
-        finally:
-            registry.close()
+        with limited_threads(config.compute_threads):
+            try:
+                yield state
+            finally:
+                registry.close()
 
     server: MCPServer[AppState] = MCPServer(
         "glmap",

@@ -50,6 +50,12 @@ def build_parser() -> argparse.ArgumentParser:
         "HTTP default: none (base64 only)",
     )
     p.add_argument("--voxel-size", type=float, default=0.02, help="Gaussian voxel (m)")
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=1,
+        help="BLAS/torch threads (default 1: steady latency; 0 = the libraries' defaults)",
+    )
     p.add_argument("--no-warm-up", action="store_true", help="skip the renderer warm-up")
     p.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     return p
@@ -68,6 +74,7 @@ def config_from_args(args: argparse.Namespace) -> ServerConfig:
         max_frame_bytes=int(args.max_frame_mb * MIB),
         file_roots=roots,
         warm_up=not args.no_warm_up,
+        compute_threads=args.threads or None,
     )
 
 

@@ -46,6 +46,8 @@ class ServerConfig:
             JIT compilation.
         sim_size: (width, height) of the simulator's camera images.
         sim_max_steps: actions per simulator episode before it is cut off.
+        compute_threads: BLAS and torch threads while the server runs (None: leave the
+            process as it is); 1 keeps latency low and steady when calls overlap.
     """
 
     maps_dir: Path = field(default_factory=default_maps_dir)
@@ -59,6 +61,7 @@ class ServerConfig:
     warm_up: bool = True
     sim_size: tuple[int, int] = (320, 240)
     sim_max_steps: int = 500
+    compute_threads: int | None = 1
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "maps_dir", Path(self.maps_dir).expanduser())
@@ -89,6 +92,12 @@ class ServerConfig:
             )
         if not (isinstance(self.sim_max_steps, int) and self.sim_max_steps >= 1):
             raise InvalidInputError(f"sim_max_steps={self.sim_max_steps!r} must be >= 1.")
+        if self.compute_threads is not None and not (
+            isinstance(self.compute_threads, int) and self.compute_threads >= 1
+        ):
+            raise InvalidInputError(
+                f"compute_threads={self.compute_threads!r} must be an integer >= 1 or None."
+            )
         if self.file_roots is not None:
             roots = tuple(Path(r).expanduser().resolve() for r in self.file_roots)
             object.__setattr__(self, "file_roots", roots)
