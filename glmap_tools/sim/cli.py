@@ -79,6 +79,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _add_camera(p, 160, 120)
     p.set_defaults(func=run_eval)
 
+    p = sub.add_parser(
+        "map-eval", help="build a GLMap from a tour; instance precision/recall vs the layout"
+    )
+    p.add_argument("layout", type=Path, help="layout JSON")
+    p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
+    p.add_argument(
+        "--min-pixels", type=int, help="objects smaller in a frame are not annotated (default 64)"
+    )
+    p.add_argument("--step", type=float, default=0.4, help="metres between walking frames")
+    p.add_argument("--spin", type=int, default=8, help="headings looked at in each room")
+    p.add_argument("--max-frames", type=int, help="stop after this many frames")
+    _add_camera(p)
+    p.set_defaults(func=run_map_eval)
+
     p = sub.add_parser("qa", help="generate a situated QA set (SQA3D-like JSON)")
     p.add_argument("layout", type=Path, help="layout JSON")
     p.add_argument("--situations", type=int, default=20)
@@ -181,6 +195,39 @@ def run_eval(args: argparse.Namespace) -> int:
         f"{s['success']:.1%}, SPL {s['spl']:.3f}, final distance to goal "
         f"{s['distance_to_goal']:.2f} m, {s['steps']:.1f} steps"
     )
+    return 0
+
+
+def run_map_eval(args: argparse.Namespace) -> int:
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    import time
+
+    from glmap_tools.language import embed
+    from glmap_tools.map import GLMap
+    from glmap_tools.sim.layout_io import load_layout
+    from glmap_tools.sim.map_eval import build_map_from_tour, evaluate_instances
+
+    layout = load_layout(args.layout)
+    embedder = embed.HashingEmbedder() if args.embedder == "hashing" else embed.default_embedder()
+    glmap = GLMap(embedder=embedder)
+    start = time.perf_counter()
+    seen = build_map_from_tour(layout, glmap, _camera(args), args.step, args.spin, args.max_frames)
+    result = evaluate_instances(glmap, layout, seen)
+    print(
+        f"{layout.name}: {len(glmap.trajectory)} frames in {time.perf_counter() - start:.0f} s; "
+        f"{result.instances} map instances for {result.visible_objects} visible objects: "
+        f"precision {result.precision:.3f}, recall {result.recall:.3f}"
+    )
+    if result.missed:
+        print(
+            "  missed objects: "
+            + ", ".join(f"{i} {layout.object(i).category}" for i in result.missed)
+        )
+    if result.spurious:
+        print(
+            "  unmatched instances: "
+            + ", ".join(f"{i} {glmap.instances[i].label}" for i in result.spurious)
+        )
     return 0
 
 

@@ -205,6 +205,13 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
         if seed is not None:
             self._episode_counter = 0  # sampled episodes are numbered from each seeding
         self.episode = self._next_episode(dict(options or {}))
+        bad = sorted(set(self.episode.goal_text) - set(GOAL_CHARSET))
+        if bad or not 0 < len(self.episode.goal_text) <= GOAL_MAX_LENGTH:
+            raise InvalidInputError(
+                f"episode {self.episode.episode_id} goal {self.episode.goal_text!r} has "
+                f"characters {bad} outside the goal alphabet or is longer than "
+                f"{GOAL_MAX_LENGTH}; use letters, digits, spaces and -',. only."
+            )
         self.goal_field = self._field(self.episode.goal_object_ids)
         x, y = self.episode.start_position
         self.state = AgentState(float(x), float(y), float(self.episode.start_heading))

@@ -49,6 +49,7 @@ def tour_frames(
     step: float = 0.4,
     spin: int = 8,
     max_frames: int | None = None,
+    min_pixels: int | None = None,
 ) -> Iterator[tuple[RGBDFrame, FrameSemantics, set[int]]]:
     """The tour's frames with their semantics and the object ids they list."""
     camera = camera or CameraSpec()
@@ -57,7 +58,7 @@ def tour_frames(
         for stop in plan_tour(layout, step=step, spin=spin)[: max_frames or None]:
             pose = Pose.from_position_heading(stop.x, stop.y, camera.camera_height, stop.heading)
             view = renderer.render(pose)
-            mask, annotation = annotate_view(view.instance_mask, layout)
+            mask, annotation = annotate_view(view.instance_mask, layout, min_pixels)
             frame = RGBDFrame(view.rgb, view.depth, renderer.intrinsics, pose)
             listed = {o["id"] for o in annotation["objects"]}
             yield frame, semantics_from_annotation(mask, annotation), listed
@@ -111,11 +112,16 @@ def build_map_from_tour(
     step: float = 0.4,
     spin: int = 8,
     max_frames: int | None = None,
+    min_pixels: int | None = None,
 ) -> set[int]:
-    """Integrate a tour's frames into `glmap`; returns the ids of the objects seen."""
+    """Integrate a tour's frames into `glmap`; returns the ids of the objects seen.
+
+    `min_pixels`: objects smaller in a frame are left out of its annotation (default: 64 at
+    640x480, scaled with the image area).
+    """
     seen: set[int] = set()
     for i, (frame, semantics, listed) in enumerate(
-        tour_frames(layout, camera, step, spin, max_frames)
+        tour_frames(layout, camera, step, spin, max_frames, min_pixels)
     ):
         glmap.integrate(frame, semantics, frame_index=i)
         seen |= listed
