@@ -280,3 +280,21 @@ async def test_out_of_bounds_query_arguments_are_tool_errors_naming_the_bound(
         result = await client.call_tool(tool, args)
     assert result.is_error
     assert message in result.content[0].text
+
+
+@pytest.mark.parametrize("size", [(1, 1), (37, 5), (640, 480), (1023, 767)])
+def test_image_sizes_read_from_the_headers_match_the_decoded_images(size):
+    from glmap_tools.server.images import image_header
+
+    w, h = size
+    rng = np.random.default_rng(w * h)
+    rgb = rng.integers(0, 255, (h, w, 3), dtype=np.uint8)
+    grey16 = rng.integers(0, 65535, (h, w), dtype=np.uint16)
+    for encoded in (
+        base64.b64decode(png_base64(rgb)),
+        base64.b64decode(png_base64(grey16)),
+        base64.b64decode(jpeg_base64(rgb)),
+    ):
+        _, hw, hh, _, _ = image_header(encoded)
+        decoded = cv2.imdecode(np.frombuffer(encoded, np.uint8), cv2.IMREAD_UNCHANGED)
+        assert (hw, hh) == (decoded.shape[1], decoded.shape[0])
