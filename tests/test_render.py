@@ -294,3 +294,15 @@ def test_the_radix_depth_order_equals_a_stable_argsort_with_ties_in_input_order(
     kept = np.flatnonzero(valid)
     expected = kept[np.argsort(depth[kept], kind="stable")]
     np.testing.assert_array_equal(_render_bins.depth_order_kernel(valid, depth), expected)
+
+
+def test_renders_from_several_threads_at_once_equal_sequential_ones():
+    from concurrent.futures import ThreadPoolExecutor
+
+    k = Intrinsics.from_fov(48, 32, 80)
+    scenes = [random_blobs(seed, n=60) for seed in range(4)]
+    sequential = [render(g, CAMERA, k).rgb for g in scenes]
+    with ThreadPoolExecutor(4) as pool:
+        threaded = list(pool.map(lambda g: render(g, CAMERA, k).rgb, scenes))
+    for a, b in zip(sequential, threaded, strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -15,6 +15,7 @@ skipped past `--reference-max` Gaussians. Sample images go to `--out` (PNG).
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from collections.abc import Callable
 from functools import partial
@@ -101,6 +102,7 @@ def main(argv: list[str] | None = None) -> int:
 
     args.out.mkdir(parents=True, exist_ok=True)
     pose = Pose.from_position_heading(0.0, 0.0, 1.5, heading=0.3)
+    load_before = os.getloadavg()[0]
     first = warm_up()
     print(
         f"first call {first:.2f} s (numba compile, or loading it from the on-disk cache), "
@@ -136,6 +138,10 @@ def main(argv: list[str] | None = None) -> int:
             )
             path = args.out / f"render_{n}_{w}x{h}.png"
             cv2.imwrite(str(path), cv2.cvtColor(result.to_uint8(), cv2.COLOR_RGB2BGR))
+    print(
+        f"load average {os.getloadavg()[0]:.2f} (before: {load_before:.2f}); other processes "
+        "on the 2 cores slow the parallel kernels, so compare figures taken at low load"
+    )
     print(
         f"fast: median (and min) of {args.repeats} frames after a warm-up; reference: one "
         f"{small.width}x{small.height} frame of the same view, scaled by the pixel ratio; "

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -35,6 +36,8 @@ DEFAULT_BACKGROUND = (1.0, 1.0, 1.0)  # white
 DEFAULT_NEAR = 0.05  # m
 DEFAULT_FAR = 50.0  # m
 BACKENDS = ("fast", "reference")
+# numba's workqueue threading layer cannot run parallel kernels from two threads at once.
+_FAST_LOCK = threading.Lock()
 
 __all__ = [
     "ALPHA_MAX",
@@ -176,7 +179,10 @@ def render(
         depth = np.zeros((h, w), dtype=np.float32)
         alpha = np.zeros((h, w), dtype=np.float32)
     elif backend == "fast":
-        rgb, depth, alpha = render_fast(gaussians, pose, intrinsics, bg, float(near), float(far))
+        with _FAST_LOCK:  # the kernels already use every core; one frame at a time
+            rgb, depth, alpha = render_fast(
+                gaussians, pose, intrinsics, bg, float(near), float(far)
+            )
     else:
         rgb, depth, alpha = render_reference(
             gaussians, pose, intrinsics, bg, float(near), float(far)
