@@ -397,3 +397,15 @@ def test_a_zero_quaternion_names_its_groundtruth_line(tmp_path):
     (folder / "groundtruth.txt").write_text("# header\n10.0 0 0 0 0 0 0 0\n")
     with pytest.raises(InvalidInputError, match="groundtruth.txt line 2.*non-zero"):
         open_sequence(folder)
+
+
+def test_a_camera_json_that_declares_a_z_up_world_is_read_as_z_up(tmp_path):
+    from glmap_tools.ingest.cli import bundled_folder
+
+    folder = tmp_path / "tour"
+    shutil.copytree(bundled_folder(), folder)
+    camera = folder / "camera_primesense.json"
+    data = json.loads(camera.read_text())
+    camera.write_text(json.dumps(data | {"up_axis": "z"}))
+    assert open_sequence(folder).up_axis == "z"
+    assert open_sequence(bundled_folder()).up_axis == "y"

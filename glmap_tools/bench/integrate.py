@@ -31,9 +31,9 @@ class TimedEmbedder:
 
 def scene_with_ten_objects() -> list[synthetic.Box]:
     boxes = synthetic.floor()
-    for k in range(5):
-        boxes += synthetic.chair(-2.0 + k, 0.0, object_id=k + 1)
-        boxes += synthetic.table(-2.0 + k, 2.0, k + 6)
+    for k in range(5):  # five chairs in front of five tables, 1.5 m apart
+        boxes += synthetic.chair(-3.0 + 1.5 * k, 0.0, object_id=k + 1)
+        boxes += synthetic.table(-3.0 + 1.5 * k, 1.5, k + 6)
     return boxes
 
 
@@ -55,8 +55,8 @@ def main(argv: list[str] | None = None) -> int:
     texts |= {k: ("table", f"a brown table number {k}") for k in range(6, 11)}
     frames = []
     for i in range(args.frames):
-        eye = (-0.5 + 0.1 * i, -4.5, 1.3)
-        frame, ids = synthetic.view(boxes, eye, (0.0, 1.0, 0.4), 640, 480)
+        eye = (-0.5 + 0.1 * i, -3.2, 1.3)
+        frame, ids = synthetic.view(boxes, eye, (0.0, 0.8, 0.4), 640, 480, hfov=90.0)
         frames.append((frame, synthetic.semantics(ids, texts)))
     n_objects = np.mean([len(s.objects) for _, s in frames])
     n_points = np.mean([sum(int(o.mask.sum()) for o in s.objects) for _, s in frames])

@@ -96,6 +96,18 @@ def find_intrinsics(folder: Path) -> tuple[Intrinsics, str]:
     return PRIMESENSE, "default PrimeSense fx=fy=525 cx=319.5 cy=239.5"
 
 
+def declared_up_axis(folder: Path) -> str | None:
+    """The world up axis a camera JSON declares with an "up_axis" key (glmap tours write "z")."""
+    for path in sorted(folder.glob("*.json")):
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(data, dict) and "intrinsic_matrix" in data and "up_axis" in data:
+            return str(data["up_axis"])
+    return None
+
+
 def _color_dir(folder: Path) -> Path:
     for name in COLOR_DIRS:
         if (folder / name).is_dir():
@@ -153,8 +165,9 @@ def parse_redwood(folder: Path) -> ParsedFolder:
             "give one pose per frame (trim the log or the images so they match)."
         )
     intrinsics, source = find_intrinsics(folder)
+    up_axis = declared_up_axis(folder) or REDWOOD_UP_AXIS
     frames = [
         FrameSource(i, rgb, depth, pose, f"trajectory.log frame {i}")
         for i, ((rgb, depth), pose) in enumerate(zip(pairs, poses, strict=True))
     ]
-    return ParsedFolder("redwood", frames, intrinsics, source, REDWOOD_DEPTH_SCALE, REDWOOD_UP_AXIS)
+    return ParsedFolder("redwood", frames, intrinsics, source, REDWOOD_DEPTH_SCALE, up_axis)

@@ -1,8 +1,8 @@
 """Occupancy layer on the index-grid cells: seen-free, obstacle or unknown.
 
 Updated from every frame's full depth image: points in a height band above the floor mark
-obstacles; floor points and the 2D rays from the camera to every sampled point mark free
-space. Stored sparsely in 64x64-cell chunks of hit counters, so the map stays unbounded
+obstacles; floor points, and 2D rays from the camera up to the nearest obstacle in each
+bearing (as a planar laser scan would see it), mark free space. Stored sparsely in 64x64-cell chunks of hit counters, so the map stays unbounded
 and a store commit writes only the chunks a frame touched.
 """
 
@@ -90,7 +90,6 @@ class OccupancyGrid:
         points: np.ndarray,
         floor_z: float,
         obstacle_band: tuple[float, float],
-        ray_stride: int = 4,
     ) -> dict[tuple[int, int], np.ndarray]:
         """Updated copies of the chunks one frame touches; `apply` makes them current.
 
@@ -99,7 +98,6 @@ class OccupancyGrid:
             points: [N, 3] world points of the frame's valid depth.
             floor_z: floor height (m).
             obstacle_band: heights above the floor (m) whose points are obstacles.
-            ray_stride: carve free-space rays to every `ray_stride`-th point.
 
         Each cell counts at most one observation per frame, obstacle before free.
         """
@@ -110,19 +108,7 @@ class OccupancyGrid:
         h = points[:, 2] - floor_z
         obstacle = (h >= obstacle_band[0]) & (h <= obstacle_band[1])
         floor = np.abs(h) < obstacle_band[0]
-        free_parts = [points[floor, :2]]
-        # Carve 2D rays camera -> point, stopping one cell short of the point.
-        xy = points[::ray_stride, :2]
-        delta = xy - camera_xy[None, :]
-        length = np.linalg.norm(delta, axis=1)
-        far = length > s
-        if far.any():
-            step = s / 2.0
-            n_steps = np.maximum(((length[far] - s) / step).astype(np.int64), 0)
-            ray = np.repeat(np.arange(int(far.sum())), n_steps)
-            offsets = np.arange(n_steps.sum()) - np.repeat(np.cumsum(n_steps) - n_steps, n_steps)
-            t = (offsets * step) / length[far][ray]
-            free_parts.append(camera_xy[None, :] + delta[far][ray] * t[:, None])
+        free_parts = [points[floor, :2], _carve(camera_xy, points[:, :2], obstacle, s)]
         free = cells_of_points(np.concatenate(free_parts), s)
         blocked = cells_of_points(points[obstacle, :2], s)
         # Within one frame an obstacle hit wins: a 2D ray passing over a table top is no
@@ -183,3 +169,39 @@ def _rows_in(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     ka = (a[:, 0] << 32) + (a[:, 1] & 0xFFFFFFFF)
     kb = (b[:, 0] << 32) + (b[:, 1] & 0xFFFFFFFF)
     return np.isin(ka, kb)
+
+
+BEARING_BIN = np.radians(0.5)
+
+
+def _carve(
+    camera_xy: np.ndarray, xy: np.ndarray, obstacle: np.ndarray, cell_size: float
+) -> np.ndarray:
+    """Sample points [K, 2] on free 2D rays: per 0.5 degree bearing, from the camera to one
+    cell short of the nearest obstacle point, or of the farthest point if none.
+
+    Args:
+        camera_xy: [2] camera position.
+        xy: [N, 2] points of the frame.
+        obstacle: [N] bool, which points are obstacles.
+        cell_size: metres.
+    """
+    delta = xy - camera_xy[None, :]
+    dist = np.hypot(delta[:, 0], delta[:, 1])
+    bearing = np.floor(np.arctan2(delta[:, 1], delta[:, 0]) / BEARING_BIN).astype(np.int64)
+    b0 = bearing.min()
+    n_bins = int(bearing.max() - b0 + 1)
+    reach = np.zeros(n_bins)
+    np.maximum.at(reach, bearing - b0, dist)
+    blocked = np.full(n_bins, np.inf)
+    np.minimum.at(blocked, bearing[obstacle] - b0, dist[obstacle])
+    length = np.minimum(reach, blocked) - cell_size
+    bins = np.flatnonzero(length > 0)
+    if len(bins) == 0:
+        return np.zeros((0, 2))
+    step = cell_size / 2.0
+    n_steps = (length[bins] / step).astype(np.int64) + 1
+    ray = np.repeat(bins, n_steps)
+    t = (np.arange(n_steps.sum()) - np.repeat(np.cumsum(n_steps) - n_steps, n_steps)) * step
+    angle = (ray + b0 + 0.5) * BEARING_BIN
+    return camera_xy[None, :] + t[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)

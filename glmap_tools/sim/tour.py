@@ -5,7 +5,8 @@ path to a central spot of each room (a pose every `step` metres, looking along t
 looks around there (`spin` headings). The folder holds::
 
     color/NNNNN.png, depth/NNNNN.png (uint16 mm), annotations/NNNNN.png + .json,
-    trajectory.log (camera-to-world, OpenCV camera, z-up world: ingest with --up-axis z),
+    trajectory.log (camera-to-world, OpenCV camera, z-up world; the camera JSON says
+    "up_axis": "z", which `glmap build` reads),
     camera_intrinsics.json (width, height, intrinsic_matrix column-major),
     preview/NNNNN.png (colour | depth | instances, for people), topdown.png, tour.txt
 """
@@ -195,6 +196,7 @@ def write_tour(
         "width": k.width,
         "height": k.height,
         "intrinsic_matrix": [k.fx, 0, 0, 0, k.fy, 0, k.cx, k.cy, 1],
+        "up_axis": "z",  # poses are already z-up; `glmap build` reads this
     }
     (folder / "camera_intrinsics.json").write_text(json.dumps(intrinsics, indent=1) + "\n")
     path = np.array([[s.x, s.y] for s in stops])
@@ -202,7 +204,7 @@ def write_tour(
     (folder / "tour.txt").write_text(
         f"layout {layout.name} (seed {layout.seed}): {len(stops)} frames of "
         f"{camera.width}x{camera.height}, hfov {camera.hfov_deg} deg, camera height "
-        f"{camera.camera_height} m.\nPoses are z-up and OpenCV-camera already: ingest with "
-        "`glmap build FOLDER --up-axis z`; depth PNGs are millimetres (scale 1000).\n"
+        f"{camera.camera_height} m.\nPoses are z-up and OpenCV-camera already (the camera "
+        "JSON says so): ingest with `glmap build FOLDER`; depth PNGs are millimetres.\n"
     )
     return len(stops)
