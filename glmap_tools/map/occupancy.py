@@ -2,8 +2,9 @@
 
 Updated from every frame's full depth image: points in a height band above the floor mark
 obstacles; floor points, and 2D rays from the camera up to the nearest obstacle in each
-bearing (as a planar laser scan would see it), mark free space. Stored sparsely in 64x64-cell chunks of hit counters, so the map stays unbounded
-and a store commit writes only the chunks a frame touched.
+bearing (as a planar laser scan would see it), mark free space. Stored sparsely in
+64x64-cell chunks of hit counters, so the map stays unbounded and a store commit writes
+only the chunks a frame touched.
 """
 
 from __future__ import annotations
