@@ -202,6 +202,14 @@ def test_remerge_of_two_samplings_of_one_surface_reduces_the_count_and_stays_exa
     assert sigma[grown].max() <= CONFIG.remerge_sigma * VOXEL * (1 + 1e-5)
 
 
+def test_remerge_groups_match_on_the_grid_and_on_the_kd_tree_path(monkeypatch):
+    g = random_set(400, 24, 0.2)
+    grid = merge.remerge_groups(g, CONFIG)
+    monkeypatch.setattr(merge, "MAX_GRID_SPAN", 0)  # as if the set were kilometres wide
+    np.testing.assert_array_equal(merge.remerge_groups(g, CONFIG), grid)
+    assert len(np.unique(grid)) < len(g)
+
+
 def test_remerge_leaves_the_set_alone_when_merging_is_off():
     points = np.c_[np.random.default_rng(10).uniform(0, 0.3, (2000, 2)), np.full(2000, 0.1)]
     g = GaussianEstimator(EstimatorConfig(merge=False)).fit(points, np.full((2000, 3), 0.5))

@@ -103,7 +103,7 @@ def synthetic_frame(
     depth = np.where(np.isfinite(t), t, 0.0).reshape(height, width).astype(np.float32)
     colors = (rgb.reshape(height, width, 3) * 255).round().astype(np.uint8)
     cloud = backproject(depth, intrinsics, pose, colors, max_range=10.0)
-    return cloud.points, cloud.colors.astype(np.float64)
+    return cloud.points, cloud.colors
 
 
 def instance_window(points: np.ndarray, n: int = 50_000) -> np.ndarray:
@@ -217,6 +217,7 @@ def main(argv: list[str] | None = None) -> int:
 
     window = (np.arange(180, 300)[:, None] * 640 + np.arange(240, 400)[None, :]).ravel()
     inst = instance_window(points)
+    inst_points, inst_colors = points[inst], colors[inst]
     print(
         f"\n{'voxel':>6} {'voxels':>7} {'fast ms/frame':>14} {'ref ms/frame*':>14} {'ratio':>6} "
         f"{'G unmerged':>10} {'G merged':>9} {'B/G':>4} {'ms/50k inst':>12} {'G inst':>7}"
@@ -231,8 +232,8 @@ def main(argv: list[str] | None = None) -> int:
         reference = GaussianEstimator(cfg, backend="reference")
         ref_ms = _times_ms(lambda r=reference: r.fit(points[window], colors[window]), 1)[0]
         ref_frame_ms = ref_ms * len(points) / len(window)
-        inst_ms = _times_ms(lambda f=fast: f.fit(points[inst], colors[inst]), args.repeats)
-        n_inst = len(fast.fit(points[inst], colors[inst]))
+        inst_ms = _times_ms(lambda f=fast: f.fit(inst_points, inst_colors), args.repeats)
+        n_inst = len(fast.fit(inst_points, inst_colors))
         print(
             f"{voxel * 100:>4.1f}cm {n_voxels:>7} {fast_ms[0]:>6.1f} /{fast_ms[1]:>6.1f} "
             f"{ref_frame_ms:>14.0f} {ref_frame_ms / fast_ms[1]:>5.0f}x {len(unmerged):>10} "

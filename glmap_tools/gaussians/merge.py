@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     from glmap_tools.gaussians.estimator import EstimatorConfig
 
 ANY_MERGEABLE_CHUNK = 4096  # Gaussians per early-exit step of `any_mergeable`
+MAX_GRID_SPAN = 1 << 22  # candidate radii across a set that the numba grid search can key
 
 
 def curvature(covs: np.ndarray) -> np.ndarray:
@@ -269,7 +270,14 @@ def remerge_groups(g: GaussianSet, config: EstimatorConfig) -> np.ndarray:
 
     if len(g) == 0:
         return np.zeros(0, dtype=np.int64)
-    pairs = sorted_mergeable_pairs(*gaussian_rows(g), config)
+    span = float((g.means.max(axis=0) - g.means.min(axis=0)).max()) / config.candidate_radius
+    if span < MAX_GRID_SPAN:  # the numba grid search
+        pairs = sorted_mergeable_pairs(*gaussian_rows(g), config)
+    else:  # too wide for its 21-bit block keys: cKDTree, then sort by (D, i, j)
+        pairs = candidate_pairs_within(g, config.candidate_radius)
+        keep, d = _filter_mergeable(g, pairs[:, 0], g, pairs[:, 1], config)
+        pairs, d = pairs[keep], d[keep]
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0], d))]
     origin = g.means.astype(np.float64).mean(axis=0)
     return union_additive(
         additive_moments(g, origin, config.epsilon),
