@@ -28,7 +28,7 @@ def status(result) -> dict:  # type: ignore[no-untyped-def, type-arg]
 
 
 async def test_a_chat_user_can_play_an_episode_that_builds_the_map(tmp_path):
-    server = build_server(config(tmp_path, sim_size=(160, 120), sim_max_steps=6))
+    server = build_server(config(tmp_path, sim_size=(168, 126), sim_max_steps=6))
     async with Client(server) as client:
         start = status(await client.call_tool("sim_reset", {"scene": 0, "seed": 3}))
         assert start["status"] == "running" and start["steps"] == 0 and start["goal"]
