@@ -15,7 +15,8 @@ import numba
 import numpy as np
 
 from glmap_tools.gaussians._estimator_grid import SLOTS, neighbour_tables, slot_of
-from glmap_tools.gaussians._estimator_numba import CELL_MARGIN, N_MOMENTS
+from glmap_tools.gaussians._estimator_numba import N_MOMENTS
+from glmap_tools.gaussians._estimator_voxels import CELL_MARGIN
 
 PAIRS_PER_GAUSSIAN = 16  # output room per Gaussian before a chunk is redone with more
 

@@ -10,6 +10,7 @@ import numpy as np
 from glmap_tools.gaussians import _estimator_clusters as clusters
 from glmap_tools.gaussians import _estimator_grid as grid
 from glmap_tools.gaussians import _estimator_numba as kernels
+from glmap_tools.gaussians import _estimator_voxels as voxels
 from glmap_tools.gaussians._estimator_union import union_additive
 from glmap_tools.gaussians.types import GaussianSet
 
@@ -22,7 +23,7 @@ PARALLEL_MIN_VOXELS = 100_000  # smaller clouds run on one thread (see design.md
 
 def scan(points: np.ndarray, colors: np.ndarray) -> tuple[bool, bool, np.ndarray, np.ndarray]:
     """(points all finite, colours all in [0, 1], [3] point min, [3] point max), one pass."""
-    stats = kernels.scan_cloud(points, colors)
+    stats = voxels.scan_cloud(points, colors)
     return bool(stats[0]), bool(stats[1]), stats[2:5], stats[5:8]
 
 
@@ -33,15 +34,15 @@ def fit_fast(
 
     Args:
         points: [N, 3] float64, finite.
-        colors: [N, 3] float32 or float64 in [0, 1].
+        colors: [N, 3] float32 in [0, 1].
         config: estimator settings.
         lo: [3] float64 smallest point coordinate per axis.
     """
     voxel = float(config.voxel_size)
     lo_cell = np.floor(lo / voxel).astype(np.int64)
-    origin = (lo_cell - kernels.CELL_MARGIN).astype(np.float64) * voxel
-    point_voxel, slot_voxel, voxel_block, voxel_slot, keys, table_keys, table_ids = (
-        kernels.voxelize(points, voxel, lo_cell)
+    origin = (lo_cell - voxels.CELL_MARGIN).astype(np.float64) * voxel
+    point_voxel, slot_voxel, voxel_block, voxel_slot, keys, table_keys, table_ids = voxels.voxelize(
+        points, voxel, lo_cell
     )
     block_nbrs = grid.block_neighbours(keys, table_keys, table_ids)
     threads = numba.get_num_threads() if len(voxel_block) >= PARALLEL_MIN_VOXELS else 1

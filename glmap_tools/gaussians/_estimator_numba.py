@@ -1,8 +1,7 @@
-"""Numba kernels of the fast Gaussian Estimator: voxels, per-voxel moments, Gaussians.
+"""Numba kernels of the fast Gaussian Estimator: per-voxel moments and Gaussians.
 
 Moment rows hold, relative to an origin, (n, sx, sy, sz, sxx, sxy, sxz, syy, syz, szz,
 r, g, b) in float64; a Gaussian is read off the sum of the rows of its points' voxels.
-Voxels are numbered in the order their first point appears in the input.
 """
 
 from __future__ import annotations
@@ -12,169 +11,10 @@ import math
 import numba
 import numpy as np
 
-from glmap_tools.gaussians._estimator_grid import (
-    SLOTS,
-    block_key,
-    hash_slot,
-    neighbour_tables,
-    slot_of,
-)
+from glmap_tools.gaussians._estimator_grid import SLOTS, neighbour_tables
 
 N_MOMENTS = 13
-CELL_MARGIN = 4  # one block of empty cells below the smallest coordinate
 NEWTON_STEPS = 6  # for the smallest eigenvalue; past this the closed form takes over
-
-
-@numba.njit(cache=True)
-def scan_cloud(points: np.ndarray, colors: np.ndarray) -> np.ndarray:
-    """[8] = (points all finite, colours all in [0, 1], point min xyz, point max xyz)."""
-    out = np.empty(8)
-    out[0], out[1] = 1.0, 1.0
-    out[2:5] = np.inf
-    out[5:8] = -np.inf
-    for i in range(points.shape[0]):
-        for a in range(3):
-            p = points[i, a]
-            if not math.isfinite(p):
-                out[0] = 0.0
-            out[2 + a] = min(out[2 + a], p)
-            out[5 + a] = max(out[5 + a], p)
-            k = colors[i, a]
-            if not (k >= 0.0 and k <= 1.0):  # also NaN
-                out[1] = 0.0
-    return out
-
-
-@numba.njit(cache=True)
-def _voxelize_until_full(
-    points: np.ndarray,
-    voxel: float,
-    lo: np.ndarray,
-    start: int,
-    state: np.ndarray,
-    table_keys: np.ndarray,
-    table_ids: np.ndarray,
-    keys: np.ndarray,
-    slot_voxel: np.ndarray,
-    point_voxel: np.ndarray,
-    voxel_block: np.ndarray,
-    voxel_slot: np.ndarray,
-) -> int:
-    """Voxelize points from `start` until a new block would overfill the table.
-
-    `state` = (n_blocks, n_voxels, last block key, its block) is updated in place.
-    Returns the index of the first point not processed.
-    """
-    cap = table_keys.shape[0]
-    n_blocks, n_voxels, last_key, b = state[0], state[1], state[2], state[3]
-    i = start
-    while i < points.shape[0]:
-        cx = np.int64(math.floor(points[i, 0] / voxel)) - lo[0] + CELL_MARGIN
-        cy = np.int64(math.floor(points[i, 1] / voxel)) - lo[1] + CELL_MARGIN
-        cz = np.int64(math.floor(points[i, 2] / voxel)) - lo[2] + CELL_MARGIN
-        k = block_key(cx, cy, cz)
-        if k != last_key:
-            h = hash_slot(k, cap - 1)
-            while True:
-                tk = table_keys[h]
-                if tk == k:
-                    b = table_ids[h]
-                    break
-                if tk == -1:
-                    if 2 * (n_blocks + 1) > cap:
-                        state[0], state[1], state[2], state[3] = n_blocks, n_voxels, last_key, b
-                        return i
-                    table_keys[h] = k
-                    table_ids[h] = n_blocks
-                    keys[n_blocks] = k
-                    b = n_blocks
-                    n_blocks += 1
-                    break
-                h = (h + 1) & (cap - 1)
-            last_key = k
-        s = slot_of(cx, cy, cz)
-        flat = b * SLOTS + s
-        v = slot_voxel[flat]
-        if v < 0:
-            v = n_voxels
-            slot_voxel[flat] = v
-            voxel_block[v] = b
-            voxel_slot[v] = s
-            n_voxels += 1
-        point_voxel[i] = v
-        i += 1
-    state[0], state[1], state[2], state[3] = n_blocks, n_voxels, last_key, b
-    return i
-
-
-@numba.njit(cache=True)
-def _grown(values: np.ndarray, size: int, fill: int) -> np.ndarray:
-    """A copy of 1-D `values` padded with `fill` to `size` entries."""
-    out = np.empty(size, dtype=values.dtype)
-    for i in range(values.shape[0]):
-        out[i] = values[i]
-    for i in range(values.shape[0], size):
-        out[i] = fill
-    return out
-
-
-@numba.njit(cache=True)
-def _rehash(keys: np.ndarray, n_keys: int, cap: int) -> tuple[np.ndarray, np.ndarray]:
-    """A fresh open-addressing table of `cap` slots holding keys[:n_keys] -> their index."""
-    table_keys = np.full(cap, -1, dtype=np.int64)
-    table_ids = np.zeros(cap, dtype=np.int32)
-    for q in range(n_keys):
-        h = hash_slot(keys[q], cap - 1)
-        while table_keys[h] != -1:
-            h = (h + 1) & (cap - 1)
-        table_keys[h] = keys[q]
-        table_ids[h] = q
-    return table_keys, table_ids
-
-
-@numba.njit(cache=True)
-def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
-    """Number the blocks and occupied voxels of a cloud in first-seen order, in one pass.
-
-    Voxel cell coordinates are floor(p / voxel) - lo + CELL_MARGIN.
-
-    Returns:
-        (voxel of each point [N], voxel in each block slot [B * 64] (-1 = empty),
-         block [V] and slot [V] of each voxel, block keys [B], hash table keys, table ids).
-    """
-    n = points.shape[0]
-    cap = 1024
-    while cap < n // 8:
-        cap *= 2
-    table_keys, table_ids = _rehash(np.empty(0, dtype=np.int64), 0, cap)
-    keys = np.empty(cap // 2, dtype=np.int64)
-    slot_voxel = np.full((cap // 2) * SLOTS, -1, dtype=np.int32)
-    point_voxel = np.empty(n, dtype=np.int32)
-    voxel_block = np.empty(n, dtype=np.int32)
-    voxel_slot = np.empty(n, dtype=np.int32)
-    state = np.array([0, 0, -1, -1], dtype=np.int64)
-    i = 0
-    while True:
-        i = _voxelize_until_full(
-            points, voxel, lo, i, state, table_keys, table_ids, keys, slot_voxel,
-            point_voxel, voxel_block, voxel_slot,
-        )  # fmt: skip
-        if i == n:
-            break
-        cap *= 2  # grow the table and the block storage, rehash
-        keys = _grown(keys, cap // 2, 0)
-        slot_voxel = _grown(slot_voxel, (cap // 2) * SLOTS, -1)
-        table_keys, table_ids = _rehash(keys, state[0], cap)
-    n_blocks, n_voxels = state[0], state[1]
-    return (
-        point_voxel,
-        slot_voxel[: n_blocks * SLOTS],
-        voxel_block[:n_voxels],
-        voxel_slot[:n_voxels],
-        keys[:n_blocks],
-        table_keys,
-        table_ids,
-    )
 
 
 @numba.njit(cache=True)
