@@ -12,6 +12,7 @@ from glmap_tools.errors import GLMapError
 COMMAND_MODULES = [
     "glmap_tools.ingest.cli",
     "glmap_tools.sim.cli",
+    "glmap_tools.server.demo",
 ]
 
 

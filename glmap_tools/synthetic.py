@@ -6,6 +6,7 @@ Used by tests and benchmarks: known geometry, known poses, no assets needed.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,7 +114,7 @@ def view(
 def semantics(
     ids: np.ndarray,
     texts: dict[int, tuple[str, str]],
-    groups: list[tuple[int, str, tuple[int, ...]]] = (),
+    groups: Sequence[tuple[int, str, tuple[int, ...]]] = (),
 ) -> FrameSemantics:
     """FrameSemantics for the visible objects of `ids` with (label, description) per id."""
     objects = [

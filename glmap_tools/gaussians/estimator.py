@@ -46,7 +46,7 @@ class EstimatorConfig:
     min_points: int = 5
     opacity: float = DEFAULT_OPACITY
     epsilon: float = COVARIANCE_EPSILON
-    tau: float = -20.0
+    tau: float = -5.0  # DESIGN.md said -20; see design.md "tau and real depth noise"
     lambda_cov: float = 0.6
     lambda_color: float = 0.4
     max_merge_sigma: float | None = 1.5
@@ -79,7 +79,7 @@ class EstimatorConfig:
                 f"EstimatorConfig.epsilon={self.epsilon!r} must be positive (m^2), e.g. 1e-6, "
                 "so every covariance stays invertible."
             )
-        _check_number(self, "tau", self.tau, "a negative factor, e.g. -20")
+        _check_number(self, "tau", self.tau, "a negative factor, e.g. -5")
         for name in ("lambda_cov", "lambda_color"):
             value = getattr(self, name)
             _check_number(self, name, value, "a weight >= 0")

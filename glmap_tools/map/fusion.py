@@ -124,16 +124,16 @@ def plan_frame(
     tau = glmap.tau_s
     margin = glmap.estimator.config.voxel_size
 
-    # Candidate instances by text: the map's units plus those this frame adds.
+    # Candidate instances by text, then by Gaussian mergeability.
     ids, matrix = glmap.instance_matrix()
     staged: dict[int, InstanceUnit] = {}
     for k, (local_id, label, text, gaussians) in enumerate(observed):
         e = embeddings[k]
         sims = matrix @ e if len(ids) else np.zeros(0, np.float32)
-        new_ids = [i for i in staged if i not in glmap.instances]
+        # Candidates are the map's units only: two objects perception told apart in one
+        # frame stay apart (two may still merge into the same existing unit).
         cand = [(float(s), int(i)) for s, i in zip(sims, ids, strict=True) if s > tau]
-        cand += [(float(staged[i].embedding @ e), i) for i in new_ids]
-        cand = sorted((c for c in cand if c[0] > tau), key=lambda c: (-c[0], c[1]))
+        cand.sort(key=lambda c: (-c[0], c[1]))
         target = None
         for sim, uid in cand:
             unit = staged.get(uid) or glmap.instances[uid]
@@ -191,12 +191,7 @@ def plan_frame(
         text = group.description.strip()
         sims = rmatrix @ e if len(rids) else np.zeros(0, np.float32)
         cand = [(float(s), int(i)) for s, i in zip(sims, rids, strict=True) if s > tau]
-        cand += [
-            (float(r.embedding @ e), r.id)
-            for r in staged_regions.values()
-            if r.id not in glmap.regions
-        ]
-        cand = sorted((c for c in cand if c[0] > tau), key=lambda c: (-c[0], c[1]))
+        cand.sort(key=lambda c: (-c[0], c[1]))
         target_region = None
         for sim, rid in cand:
             region = staged_regions.get(rid) or glmap.regions[rid]
