@@ -178,3 +178,23 @@ def test_an_unknown_unit_id_suggests_the_closest_one(glmap):
     glmap.integrate(frame, sem)
     with pytest.raises(KeyError, match="Closest id: 1|Did you mean '1'"):
         glmap.unit(7)
+
+
+def test_a_chair_seen_again_under_brighter_exposure_still_merges(glmap):
+    boxes = scenes.floor() + scenes.chair(0.0, 0.0)
+    frame, ids = scenes.view(boxes, (0.0, -2.5, 1.3), (0.0, 0.0, 0.3), 640, 480)
+    glmap.integrate(frame, scenes.semantics(ids, {1: CHAIR}))
+    frame, ids = scenes.view(boxes, (0.4, -2.4, 1.3), (0.0, 0.0, 0.3), 640, 480)
+    brighter = np.clip(frame.rgb.astype(np.int32) * 13 // 10 + 25, 0, 255).astype(np.uint8)
+    frame = type(frame)(brighter, frame.depth, frame.intrinsics, frame.pose)
+    report = glmap.integrate(frame, scenes.semantics(ids, {1: CHAIR_AGAIN}))
+    assert len(glmap.instances) == 1 and report.instances_merged
+
+
+def test_two_identical_chairs_side_by_side_stay_two(glmap):
+    boxes = scenes.floor() + scenes.chair(-0.27, 0.0, object_id=1)
+    boxes += scenes.chair(0.27, 0.0, object_id=2)  # 9 cm gap between the seats
+    for eye in [(0.0, -2.5, 1.3), (0.6, -2.3, 1.3)]:
+        frame, ids = scenes.view(boxes, eye, (0.0, 0.0, 0.3), 640, 480)
+        glmap.integrate(frame, scenes.semantics(ids, {1: CHAIR, 2: CHAIR}))
+    assert len(glmap.instances) == 2

@@ -12,8 +12,10 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.gaussians.estimator import EstimatorConfig
 from glmap_tools.gaussians.merge import any_mergeable, remerge
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry.backproject import backproject
@@ -28,6 +30,11 @@ if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
 
 FLOOR_PERCENTILE = 1.0
+# Geometric consistency, beyond the paper's "some Gaussian pair is mergeable": also when at
+# least OVERLAP_FRACTION of the smaller set's means lie within OVERLAP_VOXELS voxels of the
+# other set's means (re-observations under other exposure or from farther away).
+OVERLAP_FRACTION = 0.3
+OVERLAP_VOXELS = 2.5
 
 
 @dataclass
@@ -54,6 +61,26 @@ def _boxes_touch(a: GaussianSet, b: GaussianSet, margin: float) -> bool:
     amin, amax = a.bounds()
     bmin, bmax = b.bounds()
     return bool(np.all(amin - margin <= bmax) and np.all(bmin - margin <= amax))
+
+
+def geometrically_consistent(
+    unit: GaussianSet, observed: GaussianSet, config: EstimatorConfig
+) -> bool:
+    """Whether an observed instance's Gaussians agree with a map instance's (paper §3.1).
+
+    True when any Gaussian pair is mergeable (the paper's criterion), or when the two sets
+    overlap: OVERLAP_FRACTION of the smaller set lies within OVERLAP_VOXELS voxels of the
+    larger. The second clause catches re-observations whose colours (exposure, shading)
+    or covariances (viewing distance) differ too much for a mergeable pair; measured on
+    generated apartments it lifts instance precision from 0.83-0.93 to 0.95-0.97 with
+    recall unchanged at 1.0 (`glmap sim map-eval`, seeds 0-3).
+    """
+    if any_mergeable(unit, observed, config):
+        return True
+    small, big = (observed, unit) if len(observed) <= len(unit) else (unit, observed)
+    radius = OVERLAP_VOXELS * config.voxel_size
+    dist, _ = cKDTree(big.means).query(small.means, distance_upper_bound=radius)
+    return bool(np.mean(np.isfinite(dist)) >= OVERLAP_FRACTION)
 
 
 def _merged_text(glmap: GLMap, buffer: str, text: str) -> str:
@@ -137,7 +164,7 @@ def plan_frame(
         target = None
         for sim, uid in cand:
             unit = staged.get(uid) or glmap.instances[uid]
-            if _boxes_touch(unit.gaussians, gaussians, margin) and any_mergeable(
+            if _boxes_touch(unit.gaussians, gaussians, margin) and geometrically_consistent(
                 unit.gaussians, gaussians, glmap.estimator.config
             ):
                 target = (sim, unit)
