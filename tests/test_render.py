@@ -306,3 +306,9 @@ def test_renders_from_several_threads_at_once_equal_sequential_ones():
         threaded = list(pool.map(lambda g: render(g, CAMERA, k).rgb, scenes))
     for a, b in zip(sequential, threaded, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_the_scattered_tile_order_visits_every_tile_once():
+    for n in [1, 2, 3, 12, 300, 1200, 4096]:
+        stride = _render_numba.scatter_stride(n)
+        assert sorted((np.arange(n) * stride) % n) == list(range(n))

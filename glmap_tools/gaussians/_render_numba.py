@@ -211,6 +211,7 @@ def rasterize_kernel(
     tile_w: int,
     tile_h: int,
     tiles_x: int,
+    tile_stride: int,
     background: np.ndarray,  # [3] float64
     alpha_min: float,
     alpha_max: float,
@@ -222,7 +223,11 @@ def rasterize_kernel(
     """Front-to-back alpha compositing of each tile's Gaussians, tiles in parallel."""
     height, width = alpha.shape
     n_tiles = offsets.shape[0] - 1
-    for t in prange(n_tiles):
+    # Tiles in a scattered order (a stride coprime to n_tiles), so that the threads' equal
+    # shares of iterations cover the image evenly even when the Gaussians do not.
+    stride = tile_stride
+    for i in prange(n_tiles):
+        t = (i * stride) % n_tiles
         tx0 = (t % tiles_x) * tile_w
         ty0 = (t // tiles_x) * tile_h
         tx1 = min(tx0 + tile_w, width) - 1
@@ -337,6 +342,14 @@ def rasterize_kernel(
                 depth[py, px] = acc[p, 3] / opacity if opacity > 0.0 else 0.0
 
 
+def scatter_stride(n: int) -> int:
+    """A stride coprime to n near n / golden ratio: k -> k * stride mod n scatters 0..n-1."""
+    stride = max(1, int(n * 0.618)) | 1
+    while math.gcd(stride, n) != 1:
+        stride += 2
+    return stride
+
+
 def render_fast(
     gaussians: GaussianSet,
     pose: Pose,
@@ -395,6 +408,7 @@ def render_fast(
         tile_w,
         tile_h,
         tiles_x,
+        scatter_stride(n_tiles),
         np.asarray(background, dtype=np.float64),
         ALPHA_MIN,
         ALPHA_MAX,
