@@ -9,6 +9,7 @@ import pytest
 
 from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.gaussians.types import GaussianSet
+from glmap_tools.geometry import Intrinsics
 from glmap_tools.map import FREE, OBSTACLE, OccupancyGrid
 from glmap_tools.map.occupancy import CHUNK
 from glmap_tools.views import (
@@ -19,7 +20,7 @@ from glmap_tools.views import (
     view_intrinsics,
 )
 from glmap_tools.views.visibility import facing
-from tests.test_views_fixtures import CHAIR_XY, WALL_Y, build_wall_scene
+from tests.test_views_fixtures import CHAIR_XY, WALL_Y, build_wall_scene, empty_map
 
 
 @pytest.fixture(scope="module")
@@ -126,6 +127,16 @@ def test_when_every_spot_is_an_obstacle_the_best_blocked_view_is_flagged():
     choice = select_view(scene.glmap, scene.chair)
     assert choice.placement == "blocked" and choice.fallback
     assert all(c.score is not None for c in choice.candidates)
+
+
+def test_selecting_a_view_in_an_empty_map_or_of_an_unknown_unit_says_so(scene):
+    with pytest.raises(GLMapError, match="the map is empty"):
+        select_view(empty_map(), 1)
+    with pytest.raises(GLMapError, match="does not exist"):
+        select_view(scene.glmap, 4242)
+    wide = Intrinsics(1000.0, 1000.0, 2999.5, 4.5, 6000, 10)  # a valid camera, over the cap
+    with pytest.raises(InvalidInputError, match="pixels"):
+        select_view(scene.glmap, scene.chair, wide)
 
 
 def test_bad_selection_settings_are_refused():

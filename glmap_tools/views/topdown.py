@@ -201,8 +201,8 @@ def _frame(
         hi_parts.append(ij)
     if not lo_parts:
         raise InvalidInputError(
-            "the map is empty (no instances, no observed space); integrate frames before "
-            "drawing it."
+            "the map is empty: no instance in the index grid and no observed space; integrate "
+            "frames before drawing it."
         )
     lo = np.min(lo_parts, 0).astype(np.int64) - 2
     hi = np.max(hi_parts, 0).astype(np.int64) + 2
