@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from glmap_tools.gaussians.estimator import EstimatorConfig
 
 CHUNKS_PER_THREAD = 4
-PARALLEL_MIN_VOXELS = 100_000  # smaller clouds run on one thread (see design.md)
+PARALLEL_MIN_VOXELS = 10_000  # smaller clouds run on one thread (see design.md)
 
 
 def scan(points: np.ndarray, colors: np.ndarray) -> tuple[bool, bool, np.ndarray, np.ndarray]:
