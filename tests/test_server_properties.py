@@ -2,7 +2,7 @@
 
 Whatever the arguments, every call returns in bounded time, failures are tool errors with
 a message (never a crash), a rejected frame leaves the map as it was, the maps folder only
-ever holds complete map files, and the server keeps serving.
+ever holds complete map and PLY files, and the server keeps serving.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcp import Client
 
+from glmap_tools.gaussians.ply import read_ply
 from glmap_tools.map.store import MapStore
 from glmap_tools.server import build_server
 from glmap_tools.server.frames import png_base64
@@ -41,6 +42,7 @@ TOOLS = [
     "load_map",
     "list_maps",
     "render_view",
+    "export_ply",
     "sim_step",
     "sim_reset",
     "no_such_tool",
@@ -158,8 +160,16 @@ def tool_call() -> st.SearchStrategy[tuple[str, dict[str, Any]]]:
                 "x": number,
                 "y": number,
                 "heading_deg": number,
+                "context": st.booleans() | json_value,
                 "width": st.integers(-10, 200),
                 "height": st.integers(-10, 200),
+            },
+        ),
+        "export_ply": st.fixed_dictionaries(
+            {"name": names},
+            optional={
+                "unit_id": st.integers(-2, 12) | json_value,
+                "overwrite": st.booleans() | json_value,
             },
         ),
         "sim_step": st.fixed_dictionaries(
@@ -225,12 +235,15 @@ def harness(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Harness]:
 
 
 def check_maps_folder(root: Path) -> None:
-    """Only `maps/` was written, and it holds complete map files and nothing else."""
+    """Only `maps/` was written, and it holds complete map and PLY files and nothing else."""
     assert {p.name for p in root.iterdir()} <= {"maps"}
     maps = root / "maps"
     for path in maps.iterdir() if maps.exists() else ():
-        assert path.suffix == ".glmap" and not path.name.startswith("."), path.name
-        MapStore.open(path).close()  # a complete, readable store
+        assert path.suffix in (".glmap", ".ply") and not path.name.startswith("."), path.name
+        if path.suffix == ".ply":
+            assert len(read_ply(path)) > 0  # a complete export
+        else:
+            MapStore.open(path).close()  # a complete, readable store
 
 
 @settings(

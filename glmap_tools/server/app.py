@@ -9,7 +9,14 @@ from contextlib import asynccontextmanager
 from mcp.server.mcpserver import MCPServer
 
 from glmap_tools import __version__
-from glmap_tools.server import resources, tools_map, tools_sim, tools_store, tools_view
+from glmap_tools.server import (
+    resources,
+    tools_export,
+    tools_map,
+    tools_sim,
+    tools_store,
+    tools_view,
+)
 from glmap_tools.server.config import ServerConfig
 from glmap_tools.server.runtime import AppState, PerceptionBackend
 from glmap_tools.server.state import SessionRegistry
@@ -23,7 +30,8 @@ GLMap keeps a 3D map of a place built from posed RGB-D frames: instances (object
 floor-plan grid. World frame: metres, z up. Feed frames with observe_frame (or walk the
 simulator with sim_reset / sim_step), then ask: find_instance and find_region by words,
 what_is_at by position, describe_unit by id, render_view to see, map_summary for counts
-and a top-down image. Maps can be saved and reopened by name (save_map, load_map)."""
+and a top-down image. Maps can be saved and reopened by name (save_map, load_map), and
+exported as 3D Gaussian Splatting PLY files (export_ply)."""
 
 
 def _load_embedder(config: ServerConfig):  # type: ignore[no-untyped-def]
@@ -56,9 +64,9 @@ def build_server(
         embedder = await anyio.to_thread.run_sync(lambda: _load_embedder(config))
         config.maps_dir.mkdir(parents=True, exist_ok=True)
         if config.warm_up:
-            from glmap_tools.server import views
+            from glmap_tools.server.views import warm_up
 
-            await anyio.to_thread.run_sync(views.warm_up)
+            await anyio.to_thread.run_sync(warm_up)
         registry = SessionRegistry(config, embedder)
         state = AppState(config, embedder, registry, perception)
         with limited_threads(config.compute_threads):
@@ -78,6 +86,7 @@ def build_server(
     tools_map.register(server)
     tools_store.register(server)
     tools_view.register(server)
+    tools_export.register(server)
     tools_sim.register(server)
     resources.register(server, config)
     return server

@@ -13,10 +13,11 @@ from mcp.server.mcpserver.exceptions import ResourceError, ResourceNotFoundError
 from glmap_tools.errors import GLMapError, UnknownIdError
 from glmap_tools.map import GLMap
 from glmap_tools.map.queries import details
-from glmap_tools.server import views
 from glmap_tools.server.config import ServerConfig
 from glmap_tools.server.runtime import app_state, transport_session_id
 from glmap_tools.server.state import MAP_SUFFIX, Session, locked
+from glmap_tools.server.views import EMPTY_MAP
+from glmap_tools.server.views import topdown as draw
 
 CURRENT = "current"
 
@@ -127,10 +128,13 @@ def register(server: MCPServer, config: ServerConfig) -> None:
 
     @server.resource("glmap://{session}/topdown.png", mime_type="image/png", name="top-down map")
     def topdown(session: str, ctx: Context) -> bytes:
-        """The top-down map image (free space, obstacles, instances, trajectory)."""
+        """The top-down map image (free space, obstacles, instances, regions, trajectory)."""
         target = _session(ctx, session)
         try:
             with locked(target) as glmap:
-                return views.topdown(glmap).png
+                image = draw(glmap)
         except GLMapError as exc:
             raise ResourceError(str(exc)) from exc
+        if image is None:
+            raise ResourceError("no top-down image yet: " + EMPTY_MAP)
+        return image.to_png()

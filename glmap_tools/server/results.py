@@ -74,3 +74,13 @@ class MapList(BaseModel):
     """The saved maps (names only; no paths are accepted or shown)."""
 
     maps: list[MapEntry]
+
+
+class Exported(SessionInfo):
+    """The result of export_ply."""
+
+    file: str = Field(description="the file written, in the server's maps folder")
+    what: str = Field(description="'whole map', 'instance 3 (chair)' or 'region 9'")
+    gaussians: int = Field(description="number of 3D Gaussians in the file")
+    instance_ids: list[int] = Field(description="the instances whose Gaussians it holds")
+    bytes: int = Field(description="size of the file")

@@ -63,23 +63,28 @@ class Session:
     extras: dict[str, Any] = field(default_factory=dict)
 
 
-def check_map_name(name: str) -> str:
-    """Return `name` if it is a bare map name, else raise naming the fix.
+def check_map_name(name: str, suffix: str = MAP_SUFFIX, what: str = "map name") -> str:
+    """Return `name` (less `suffix`) if it is a bare file name, else raise naming the fix.
+
+    Args:
+        name: the name a client gave.
+        suffix: the file suffix the name may end with (stripped).
+        what: what the name is, for the error message ("map name", "export name").
 
     Raises:
         InvalidInputError: a path separator, '..', a suffix or other characters.
     """
     if not isinstance(name, str):
-        raise InvalidInputError(f"map name must be a string, got {type(name).__name__}.")
+        raise InvalidInputError(f"{what} must be a string, got {type(name).__name__}.")
     if "/" in name or "\\" in name or ".." in name or name.startswith("~"):
         raise InvalidInputError(
-            f"map name {name!r} contains a path; give a bare name such as 'kitchen' "
-            "(maps are kept in the server's maps folder, which nothing outside of is touched)."
+            f"{what} {name!r} contains a path; give a bare name such as 'kitchen' "
+            "(files are kept in the server's maps folder, which nothing outside of is touched)."
         )
-    stem = name[: -len(MAP_SUFFIX)] if name.endswith(MAP_SUFFIX) else name
+    stem = name[: -len(suffix)] if name.endswith(suffix) else name
     if not MAP_NAME.fullmatch(stem):
         raise InvalidInputError(
-            f"map name {name!r} is not allowed; use 1-64 letters, digits, '-' or '_', "
+            f"{what} {name!r} is not allowed; use 1-64 letters, digits, '-' or '_', "
             "starting with a letter or digit, e.g. 'flat-3'."
         )
     return stem

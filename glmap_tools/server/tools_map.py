@@ -12,7 +12,6 @@ from pydantic import Field
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.map import FREE, OBSTACLE
 from glmap_tools.map.report import UnitInfo
-from glmap_tools.server import views
 from glmap_tools.server.inputs import (
     AnnotationInput,
     FileInput,
@@ -29,6 +28,8 @@ from glmap_tools.server.runtime import (
     tool_errors,
 )
 from glmap_tools.server.state import locked
+from glmap_tools.server.views import describe_topdown, topdown
+from glmap_tools.views import TopDownImage
 
 READ_ONLY = ToolAnnotations(read_only_hint=True, open_world_hint=False)
 SessionArg = Annotated[
@@ -215,12 +216,13 @@ def register(server: MCPServer) -> None:
     ) -> list[TextContent | Image]:
         """Counts and extent of the map, the session handle, and a top-down map image.
 
-        The image shows free space, obstacles, each instance (labelled with its id) and the
-        camera trajectory; the text says how its pixels map to world metres.
+        The image shows free space, obstacles, each instance (labelled with its id), region
+        outlines (R<id>), the camera trajectory and the latest camera as a red arrow; the
+        text says how its pixels map to world metres.
         """
         target = session_of(ctx, session)
 
-        def run() -> tuple[MapInfo, views.TopDown | None]:
+        def run() -> tuple[MapInfo, TopDownImage | None, bytes | None]:
             with locked(target) as glmap:
                 info = MapInfo(
                     session=target.handle,
@@ -228,14 +230,15 @@ def register(server: MCPServer) -> None:
                     summary=glmap.summary(),
                     resources=resource_uris(target.handle),
                 )
-                image = views.topdown(glmap) if include_image else None
-            return info, image
+                image = topdown(glmap) if include_image else None
+            return info, image, image.to_png() if image is not None else None
 
-        info, image = await in_thread(run)
+        info, image, png = await in_thread(run)
         content: list[TextContent | Image] = [
             TextContent(type="text", text=compact_json(info.model_dump(mode="json")))
         ]
-        if image is not None:
-            content.append(TextContent(type="text", text=image.describe()))
-            content.append(Image(data=image.png, format="png"))
+        if include_image:
+            content.append(TextContent(type="text", text=describe_topdown(image)))
+        if png is not None:
+            content.append(Image(data=png, format="png"))
         return content

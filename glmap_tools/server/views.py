@@ -1,263 +1,194 @@
-"""Images of a map for the MCP tools: cameras placed from unit bounds, splatted views, and a
-top-down map drawn from the occupancy layer and the index grid.
+"""What the view tools ask of `glmap_tools.views`: one call per render_view target, the
+server's empty-map check, the top-down image, and the renderer warm-up.
 
-The camera placement here is deliberately simple (look at the unit's bounding sphere from
-the side it was observed from, 35 degrees above the horizon); map-level view selection can
-replace it without changing the tools.
+Camera placement, view selection (paper §3.2), situated views and the top-down drawing all
+live in `glmap_tools.views`; this module only maps a tool request onto those calls and
+says, in words for the model, how each camera was chosen.
 """
 
 from __future__ import annotations
 
-import colorsys
 import math
-import threading
-import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-import cv2
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.gaussians.types import GaussianSet
-from glmap_tools.geometry import Intrinsics, Pose
-from glmap_tools.map import FREE, OBSTACLE, GLMap
+from glmap_tools.geometry import Pose
+from glmap_tools.map import GLMap
 from glmap_tools.map.units import InstanceUnit, RegionUnit
-
-AGENT_HFOV_DEG = 79.0
-VIEW_ELEVATION = math.radians(35.0)
-MAP_ELEVATION = math.radians(60.0)
-MIN_RADIUS = 0.5  # m: never frame less than this around a unit
-TOPDOWN_MAX_SIDE = 768  # px
-SITUATED = (("front", 0.0), ("left", math.pi / 2), ("back", math.pi), ("right", -math.pi / 2))
-
-_cache_lock = threading.Lock()
-_all_gaussians: weakref.WeakKeyDictionary[GLMap, tuple[int, GaussianSet]] = (
-    weakref.WeakKeyDictionary()
+from glmap_tools.views import (
+    RenderedView,
+    TopDownImage,
+    draw_topdown,
+    overview_pose,
+    render_map,
+    render_selected_view,
+    situated_views,
+    view_intrinsics,
 )
+
+EMPTY_MAP = (
+    "the map is empty; observe frames (observe_frame or sim_step) before rendering or exporting it."
+)
+MAP_ELEVATION_DEG = 50.0  # the whole map is seen from this far above the horizon
+# The server's order of the four situated views (views.situated gives front, back, left, right).
+SITUATED_ORDER = ("front", "left", "back", "right")
 
 
 @dataclass(frozen=True)
-class View:
-    """One rendered image and the camera it was rendered from."""
+class ViewRequest:
+    """A render_view request, already bounds-checked by the tool's argument schema.
 
-    label: str
-    png: bytes
-    pose: Pose
-    intrinsics: Intrinsics
+    Attributes:
+        target: "instance", "region", "map", "pose" or "situated".
+        size: (width, height) of each image in pixels.
+        unit_id: the instance or region, for those targets.
+        pose: the camera, for target="pose".
+        x: world x (m), for target="situated".
+        y: world y (m), for target="situated".
+        heading_deg: facing (degrees from +x, counter-clockwise), for target="situated".
+        context: instance/region: draw the whole map from the chosen camera (True) or the
+            unit's own Gaussians only (False).
+    """
 
-    def describe(self) -> str:
-        """One line: the label, camera position, heading and pitch."""
-        eye = self.pose.translation
-        forward = self.pose.rotation[:, 2]
-        pitch = round(math.degrees(math.asin(max(-1.0, min(1.0, -float(forward[2]))))))
-        hfov = math.degrees(2 * math.atan(self.intrinsics.width / (2 * self.intrinsics.fx)))
-        return (
-            f"{self.label}: camera at ({eye[0]:.2f}, {eye[1]:.2f}, {eye[2]:.2f}) m, heading "
-            f"{round(math.degrees(self.pose.heading))} deg (from +x, counter-clockwise), pitch "
-            f"{pitch} deg down, hfov {hfov:.0f} deg"
+    target: str
+    size: tuple[int, int]
+    unit_id: int | None = None
+    pose: Pose | None = None
+    x: float | None = None
+    y: float | None = None
+    heading_deg: float = 0.0
+    context: bool = True
+
+
+@dataclass(frozen=True)
+class Rendered:
+    """The images of one request and the sentences that say how their cameras were chosen."""
+
+    views: tuple[RenderedView, ...]
+    notes: tuple[str, ...]
+
+
+def check_request(request: ViewRequest) -> None:
+    """Raise naming what a target needs when the request lacks it (before any map work).
+
+    Raises:
+        InvalidInputError: a target without its unit_id, pose, or x and y.
+    """
+    if request.target in ("instance", "region") and request.unit_id is None:
+        raise InvalidInputError(
+            f"target='{request.target}' needs unit_id (find one with find_{request.target})."
+        )
+    if request.target == "pose" and request.pose is None:
+        raise InvalidInputError(
+            "target='pose' needs pose={'matrix': <4x4 world_from_camera>, 'camera': "
+            "'opencv'|'opengl', 'world_up': 'z'|'y'}."
+        )
+    if request.target == "situated" and (request.x is None or request.y is None):
+        raise InvalidInputError(
+            "target='situated' needs x and y (metres) and optionally heading_deg; it renders "
+            "front, left, back and right views from the agent's camera height there."
         )
 
 
-def encode_png(rgb: np.ndarray) -> bytes:  # rgb: [H, W, 3] uint8
-    """PNG bytes of an RGB image."""
-    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
-    assert ok, "PNG encoding of a uint8 image cannot fail"
-    return buf.tobytes()
+def render_request(glmap: GLMap, request: ViewRequest) -> Rendered:
+    """Render what `request` asks for (call with the map's lock held).
 
-
-def map_gaussians(glmap: GLMap) -> GaussianSet:
-    """All instance Gaussians of the map, cached until the map integrates another frame."""
-    version = len(glmap.trajectory) + glmap.next_id * 1_000_003
-    with _cache_lock:
-        cached = _all_gaussians.get(glmap)
-        if cached is not None and cached[0] == version:
-            return cached[1]
-    g = GaussianSet.concat([u.gaussians for u in glmap.instances.values()])
-    with _cache_lock:
-        _all_gaussians[glmap] = (version, g)
-    return g
-
-
-# ---------------------------------------------------------------------- cameras
-
-
-def unit_bounds(glmap: GLMap, unit: InstanceUnit | RegionUnit) -> tuple[np.ndarray, np.ndarray]:
-    """([3] min, [3] max) of a unit's Gaussian means (regions: of their members)."""
-    if isinstance(unit, InstanceUnit):
-        return unit.bounds()
-    members = [glmap.instances[i].bounds() for i in unit.instance_ids if i in glmap.instances]
-    if not members:
-        raise InvalidInputError(f"region {unit.id} has no instances to look at.")
-    return np.min([m[0] for m in members], 0), np.max([m[1] for m in members], 0)
-
-
-def map_bounds(glmap: GLMap) -> tuple[np.ndarray, np.ndarray]:
-    """([3] min, [3] max) of every instance; raises on an empty map."""
+    Raises:
+        InvalidInputError: a missing argument, an empty map, or a unit of the other kind.
+        UnknownIdError: no such unit (the message names the closest id).
+    """
+    check_request(request)
     if not glmap.instances:
-        raise InvalidInputError("the map is empty; observe frames before rendering it.")
-    b = [u.bounds() for u in glmap.instances.values()]
-    return np.min([x[0] for x in b], 0), np.max([x[1] for x in b], 0)
-
-
-def _observed_side(glmap: GLMap, center: np.ndarray) -> np.ndarray:
-    """Unit [2] direction from `center` towards the nearest camera of the trajectory."""
-    if glmap.trajectory:
-        eyes = np.array([p[:2, 3] for p in glmap.trajectory])
-        d = eyes - center[None, :2]
-        nearest = d[int(np.argmin(np.linalg.norm(d, axis=1)))]
-        n = float(np.linalg.norm(nearest))
-        if n > 1e-6:
-            return nearest / n
-    return np.array([0.0, -1.0])
-
-
-def framing_pose(
-    glmap: GLMap, lo: np.ndarray, hi: np.ndarray, intrinsics: Intrinsics, elevation: float
-) -> Pose:
-    """A camera that sees the bounding sphere of [lo, hi] whole, from the observed side."""
-    center = (np.asarray(lo, np.float64) + np.asarray(hi, np.float64)) / 2
-    radius = max(float(np.linalg.norm(np.asarray(hi) - np.asarray(lo))) / 2, MIN_RADIUS)
-    half_fov = math.atan(min(intrinsics.width, intrinsics.height) / (2 * intrinsics.fx))
-    distance = 1.15 * radius / math.sin(half_fov)
-    side = _observed_side(glmap, center)
-    eye = center + distance * np.array(
-        [math.cos(elevation) * side[0], math.cos(elevation) * side[1], math.sin(elevation)]
+        raise InvalidInputError(EMPTY_MAP)
+    intrinsics = view_intrinsics(*request.size)
+    if request.target in ("instance", "region"):
+        return _selected(glmap, request)
+    if request.target == "map":
+        pose = overview_pose(glmap, intrinsics, MAP_ELEVATION_DEG)
+        view = render_map(glmap, pose, intrinsics)
+        note = (
+            f"The camera looks down from {MAP_ELEVATION_DEG:.0f} deg above the horizon, from "
+            "the side the map was observed from, and frames all of it."
+        )
+        return Rendered((view,), (note,))
+    if request.target == "pose":
+        assert request.pose is not None
+        view = replace(render_map(glmap, request.pose, intrinsics), label="pose")
+        return Rendered((view,), ())
+    assert request.x is not None and request.y is not None
+    around = situated_views(
+        glmap, request.x, request.y, math.radians(request.heading_deg), intrinsics
     )
-    return Pose.looking_at(eye, center)
+    by_direction = around.by_direction()
+    note = (
+        f"situated at ({around.x:.2f}, {around.y:.2f}), the agent's eye height "
+        f"{around.camera_z:.2f} m; that spot is {around.cell_state} space in the map."
+    )
+    return Rendered(tuple(by_direction[d] for d in SITUATED_ORDER), (note,))
 
 
-def agent_intrinsics(width: int, height: int) -> Intrinsics:
-    return Intrinsics.from_fov(width, height, AGENT_HFOV_DEG)
-
-
-# ---------------------------------------------------------------------- rendering
-
-
-def render_views(
-    glmap: GLMap, cameras: list[tuple[str, Pose]], intrinsics: Intrinsics
-) -> list[View]:
-    """Splat the whole map from each (label, pose) camera onto a white background."""
-    from glmap_tools.gaussians.render import render
-
-    gaussians = map_gaussians(glmap)
-    views = []
-    for label, pose in cameras:
-        result = render(gaussians, pose, intrinsics, background=(1.0, 1.0, 1.0))
-        views.append(View(label, encode_png(result.to_uint8()), pose, intrinsics))
-    return views
-
-
-def situated_cameras(glmap: GLMap, x: float, y: float, heading: float) -> list[tuple[str, Pose]]:
-    """Front/left/back/right cameras at (x, y), agent camera height above the floor."""
-    floor = glmap.floor_z if glmap.floor_z is not None else 0.0
-    height = floor + glmap.config.camera_height
-    return [
-        (label, Pose.from_position_heading(x, y, height, heading + turn))
-        for label, turn in SITUATED
+def _selected(glmap: GLMap, request: ViewRequest) -> Rendered:
+    """The selected view of an instance or region (paper §3.2), with how it was chosen."""
+    assert request.unit_id is not None
+    unit = glmap.unit(request.unit_id)
+    if request.target == "instance" and not isinstance(unit, InstanceUnit):
+        raise InvalidInputError(f"unit {request.unit_id} is a region; use target='region'.")
+    if request.target == "region" and not isinstance(unit, RegionUnit):
+        raise InvalidInputError(f"unit {request.unit_id} is an instance; use target='instance'.")
+    view, choice = render_selected_view(
+        glmap, unit.id, view_intrinsics(*request.size), context=request.context
+    )
+    drawn = (
+        "the whole map from that camera (context=false draws the unit alone)"
+        if request.context
+        else "the unit's own Gaussians only (context=true adds the rest of the map)"
+    )
+    notes = [
+        f"view selection: {choice.note} Candidates stand at the agent's eye height in "
+        "navigable space, facing the unit; the one that sees most of it unoccluded wins. "
+        f"Drawn: {drawn}."
     ]
-
-
-def warm_up() -> None:
-    """Compile (or load from cache) the splatting kernels with a tiny render."""
-    from glmap_tools.gaussians.render import render
-
-    g = GaussianSet(
-        np.zeros((1, 3)), np.eye(3)[None] * 1e-3, np.ones((1, 3)), np.ones(1) * 0.8, np.ones(1)
-    )
-    render(g, Pose.looking_at(np.array([1.0, 0, 0]), np.zeros(3)), agent_intrinsics(16, 16))
+    if choice.fallback:
+        notes.append(
+            "The FALLBACK camera is not in space seen to be free; observe the space around "
+            "the unit (e.g. walk there with sim_step) for a view from where the agent could "
+            "stand."
+        )
+    return Rendered((view,), tuple(notes))
 
 
 # ---------------------------------------------------------------------- top-down
 
 
-def _palette(uid: int) -> tuple[int, int, int]:
-    """A distinct saturated BGR colour per unit id."""
-    r, g, b = colorsys.hsv_to_rgb((uid * 0.618033988749895) % 1.0, 0.75, 0.9)
-    return int(b * 255), int(g * 255), int(r * 255)
+def topdown(glmap: GLMap) -> TopDownImage | None:
+    """The labelled top-down image, the latest camera drawn as the agent; None when empty."""
+    if not glmap.instances and not glmap.occupancy.chunks:
+        return None
+    agent = Pose(np.asarray(glmap.trajectory[-1], np.float64)) if glmap.trajectory else None
+    return draw_topdown(glmap, agent=agent)
 
 
-@dataclass(frozen=True)
-class TopDown:
-    """A top-down map image and how its pixels map to the world.
-
-    World (x, y) is at pixel column (x / cell_size - origin[0]) * scale and row
-    (origin[1] + rows - y / cell_size) * scale: +x to the right, +y up.
-    """
-
-    png: bytes
-    origin: tuple[int, int]
-    cell_size: float
-    scale: int
-    rows: int
-
-    def describe(self) -> str:
-        x0 = self.origin[0] * self.cell_size
-        y1 = (self.origin[1] + self.rows) * self.cell_size
-        return (
-            f"top-down map: +x right, +y up, {self.cell_size * 100:.0f} cm cells at {self.scale} "
-            f"px each; the top-left pixel corner is world (x, y) = ({x0:.2f}, {y1:.2f}) m. "
-            "White = free, dark grey = obstacle, light grey = unseen, coloured = instances "
-            "(labelled with their ids), blue = the camera trajectory."
-        )
+def describe_topdown(image: TopDownImage | None) -> str:
+    """How to read the top-down image, or why there is none yet."""
+    if image is None:
+        return "No top-down image yet: " + EMPTY_MAP
+    return image.describe() + " The agent is the camera of the latest frame."
 
 
-def topdown(glmap: GLMap, max_side: int = TOPDOWN_MAX_SIDE, labels: bool = True) -> TopDown:
-    """Draw the occupancy layer, the instance cells and the trajectory from above."""
-    dense = glmap.occupancy.to_dense()
-    cells: dict[int, np.ndarray] = {}
-    for uid in glmap.instances:
-        c = np.array(sorted(glmap.grid.cells_of_unit(uid)), dtype=np.int64).reshape(-1, 2)
-        if len(c):
-            cells[uid] = c
-    have_occupancy = bool(glmap.occupancy.chunks)
-    lo_parts, hi_parts = [], []
-    if have_occupancy:
-        h, w = dense.state.shape
-        lo_parts.append(np.array(dense.origin))
-        hi_parts.append(np.array(dense.origin) + np.array([w - 1, h - 1]))
-    for c in cells.values():
-        lo_parts.append(c.min(0))
-        hi_parts.append(c.max(0))
-    if not lo_parts:
-        blank = np.full((96, 160, 3), 200, np.uint8)
-        cv2.putText(blank, "empty map", (28, 54), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (60, 60, 60), 1)
-        return TopDown(encode_png(blank), (0, 0), glmap.config.cell_size, 1, 96)
-    lo = np.min(lo_parts, 0) - 2
-    hi = np.max(hi_parts, 0) + 2
-    cols, rows = int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1)
-    scale = int(max(1, min(8, max_side // max(cols, rows))))
-    grid = np.full((rows, cols, 3), 200, np.uint8)  # unseen: light grey (BGR)
-    if have_occupancy:
-        h, w = dense.state.shape
-        r0, c0 = dense.origin[1] - lo[1], dense.origin[0] - lo[0]
-        window = grid[r0 : r0 + h, c0 : c0 + w]
-        window[dense.state == FREE] = (255, 255, 255)
-        window[dense.state == OBSTACLE] = (90, 90, 90)
-    for uid, c in cells.items():
-        grid[c[:, 1] - lo[1], c[:, 0] - lo[0]] = _palette(uid)
-    image = cv2.resize(grid[::-1], (cols * scale, rows * scale), interpolation=cv2.INTER_NEAREST)
-    image = np.ascontiguousarray(image)
+# ---------------------------------------------------------------------- warm-up
 
-    def to_px(x: float, y: float) -> tuple[int, int]:
-        s = glmap.config.cell_size
-        return (
-            int((x / s - lo[0]) * scale),
-            int((lo[1] + rows - y / s) * scale),
-        )
 
-    if len(glmap.trajectory) >= 1:
-        pts = np.array([to_px(p[0, 3], p[1, 3]) for p in glmap.trajectory], np.int32)
-        cv2.polylines(image, [pts.reshape(-1, 1, 2)], False, (200, 90, 20), 1, cv2.LINE_AA)
-        last = glmap.trajectory[-1]
-        heading = math.atan2(last[1, 2], last[0, 2])
-        tip = (last[0, 3] + 0.4 * math.cos(heading), last[1, 3] + 0.4 * math.sin(heading))
-        cv2.arrowedLine(image, to_px(last[0, 3], last[1, 3]), to_px(*tip), (200, 90, 20), 2)
-    if labels and len(cells) <= 300:
-        for uid in cells:
-            cx, cy = glmap.instances[uid].centroid[:2]
-            px = to_px(float(cx), float(cy))
-            cv2.putText(image, str(uid), px, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 2)
-            cv2.putText(image, str(uid), px, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1)
-    ok, buf = cv2.imencode(".png", image)
-    assert ok
-    return TopDown(buf.tobytes(), (int(lo[0]), int(lo[1])), glmap.config.cell_size, scale, rows)
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the splatting kernels, incl. the depth pass."""
+    from glmap_tools.gaussians.render import render
+    from glmap_tools.gaussians.render import warm_up as warm_renderer
+    from glmap_tools.gaussians.types import GaussianSet
+
+    warm_renderer()
+    g = GaussianSet(
+        np.zeros((1, 3)), np.eye(3)[None] * 1e-3, np.ones((1, 3)), np.ones(1) * 0.8, np.ones(1)
+    )
+    pose = Pose.looking_at(np.array([1.0, 0.0, 0.0]), np.zeros(3))
+    render(g, pose, view_intrinsics(16, 16), return_depth=True, return_alpha=True)

@@ -1,0 +1,117 @@
+"""export_ply: write the map, an instance or a region as a 3DGS PLY file in the maps folder.
+
+The file is `<maps folder>/<name>.ply`: a bare name, as for saved maps, so nothing outside
+the maps folder is written; it is written to a temporary file and renamed. No `from
+__future__ import annotations` here: the SDK reads these signatures at runtime.
+"""
+
+from pathlib import Path
+from typing import Annotated
+
+from mcp.server.mcpserver import Context, MCPServer
+from mcp.types import ToolAnnotations
+from pydantic import Field
+
+from glmap_tools.errors import InvalidInputError, StoreError
+from glmap_tools.server.results import Exported
+from glmap_tools.server.runtime import app_state, in_thread, session_of, tool_errors
+from glmap_tools.server.state import check_map_name, locked
+from glmap_tools.server.tools_map import SessionArg
+from glmap_tools.server.views import EMPTY_MAP
+from glmap_tools.views import export_ply as write_export
+
+PLY_SUFFIX = ".ply"
+ExportName = Annotated[
+    str,
+    Field(
+        min_length=1,
+        max_length=70,
+        description="a bare file name: letters, digits, '-' or '_' (no folders; '.ply' is added)",
+    ),
+]
+
+
+def export_path(maps_dir: Path, name: str) -> Path:
+    """`<maps_dir>/<name>.ply`, refusing any name that would leave the maps folder.
+
+    Raises:
+        InvalidInputError: a name with a path, a bad character, or that resolves elsewhere.
+    """
+    stem = check_map_name(name, PLY_SUFFIX, "export name")
+    folder = maps_dir.resolve()
+    path = (folder / f"{stem}{PLY_SUFFIX}").resolve()
+    if path.parent != folder:
+        raise InvalidInputError(
+            f"export name {name!r} resolves outside the maps folder; give a bare name."
+        )
+    return path
+
+
+def _reason(exc: StoreError) -> str:
+    """Why a write failed, without the paths an OSError message carries."""
+    cause = exc.__cause__
+    if isinstance(cause, OSError) and cause.strerror:
+        return cause.strerror
+    return "write failed"
+
+
+def register(server: MCPServer) -> None:
+    """Add export_ply to `server`."""
+
+    @server.tool(annotations=ToolAnnotations(destructive_hint=True, idempotent_hint=True))
+    @tool_errors
+    async def export_ply(
+        name: ExportName,
+        ctx: Context,
+        unit_id: Annotated[
+            int | None,
+            Field(ge=1, le=2**62, description="an instance or region id; omit for the whole map"),
+        ] = None,
+        overwrite: Annotated[
+            bool, Field(description="replace an existing export of this name")
+        ] = False,
+        session: SessionArg = None,
+    ) -> Exported:
+        """Write the map's 3D Gaussians (all, one instance, or a region) as a 3DGS PLY file.
+
+        The file goes into the server's maps folder as '<name>.ply', readable by 3D Gaussian
+        Splatting viewers; the result names the file, what it holds and how many Gaussians.
+        """
+        state = app_state(ctx)
+        target = session_of(ctx, session)
+        path = export_path(state.config.maps_dir, name)
+
+        def run() -> Exported:
+            with locked(target) as glmap:
+                if not glmap.instances:
+                    raise InvalidInputError(EMPTY_MAP)
+                if unit_id is not None:
+                    glmap.unit(unit_id)  # an unknown id raises, naming the closest
+                if path.is_dir():
+                    raise StoreError(
+                        f"{path.name!r} in the maps folder is a folder; choose another name."
+                    )
+                if path.exists() and not overwrite:
+                    raise StoreError(
+                        f"an export named {path.name!r} already exists; pass overwrite=true "
+                        "to replace it, or choose another name."
+                    )
+                path.parent.mkdir(parents=True, exist_ok=True)
+                try:
+                    result = write_export(glmap, path, unit_id)
+                except StoreError as exc:  # its message names the absolute path: show the name
+                    raise StoreError(
+                        f"could not write {path.name!r} in the maps folder ({_reason(exc)}); "
+                        "check that the folder is writable and has space."
+                    ) from exc
+                return Exported(
+                    session=target.handle,
+                    map_name=target.live.name,
+                    file=path.name,
+                    what=result.what,
+                    gaussians=result.gaussians,
+                    instance_ids=list(result.instance_ids),
+                    bytes=path.stat().st_size,
+                )
+
+        return await in_thread(run)
