@@ -33,4 +33,5 @@ async def test_the_demo_writes_images_and_a_transcript_of_every_call(tmp_path, c
         assert (out / image).stat().st_size > 500, image
         assert f"src='{image}'" in page
     assert (out / "maps" / "demo.glmap").is_file()
+    assert "export_ply" in called and (out / "maps" / "demo.ply").stat().st_size > 1000
     assert "Episode result:" in capsys.readouterr().out

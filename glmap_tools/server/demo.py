@@ -222,6 +222,11 @@ async def tour(rec: Recorder, scene: int, seed: int, max_steps: int) -> dict[str
     await rec.call("render_view", {"target": "map"}, "The whole map from above at an angle.")
     await rec.call("map_summary", {}, "Counts, bounds and the top-down map.")
     await rec.call("save_map", {"name": "demo", "overwrite": True}, "Keep the map.")
+    await rec.call(
+        "export_ply",
+        {"name": "demo", "overwrite": True},
+        "Write its Gaussians as a 3DGS PLY file (maps/demo.ply) for a splat viewer.",
+    )
     if state["status"] == "running":
         state = _status(await rec.call("sim_step", {"action": "stop"}, "Stop here."))
     return state
