@@ -26,23 +26,14 @@ import numpy as np
 from glmap_tools.gaussians.render import render, warm_up
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Intrinsics, Pose
+from glmap_tools.geometry.rotations import rotations_from_quaternions
 
 HFOV_DEG = 79.0
 
 
 def random_rotations(rng: np.random.Generator, n: int) -> np.ndarray:
     """[n, 3, 3] uniformly random rotation matrices (from unit quaternions)."""
-    q = rng.normal(size=(n, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        axis=1,
-    )
+    return rotations_from_quaternions(rng.normal(size=(n, 4)))
 
 
 def bench_scene(n: int, pose: Pose, intrinsics: Intrinsics, seed: int = 0) -> GaussianSet:

@@ -21,13 +21,14 @@ f_dc_* or, failing that, red/green/blue; quaternions are normalised.
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from glmap_tools.atomic import write_atomic
 from glmap_tools.errors import InvalidInputError, StoreError
 from glmap_tools.gaussians.types import GaussianSet
+from glmap_tools.geometry.rotations import rotations_from_quaternions
 
 SH_C0 = 0.28209479177387814
 OPACITY_CLIP = 1e-6  # opacities are clipped to [eps, 1 - eps] so their logit is finite
@@ -92,21 +93,6 @@ def quaternions_from_rotations(rot: np.ndarray) -> np.ndarray:
     return np.where(q[:, :1] < 0, -q, q)
 
 
-def rotations_from_quaternions(q: np.ndarray) -> np.ndarray:
-    """[N, 3, 3] rotation matrices of [N, 4] quaternions (w, x, y, z), normalised first."""
-    q = np.asarray(q, dtype=np.float64)
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        axis=1,
-    )
-
-
 def _vertex_records(gaussians: GaussianSet, sh_degree: int) -> np.ndarray:
     """The structured [N] vertex array of `gaussians` in the standard layout."""
     names = property_names(sh_degree)
@@ -154,31 +140,11 @@ def write_ply(path: str | os.PathLike[str], gaussians: GaussianSet, *, sh_degree
             f"sh_degree={sh_degree!r} is not one of {sorted(SH_REST_COUNT)}; use 0 (colour only) "
             "or 3 (the INRIA layout with zero f_rest_* bands)."
         )
-    path = Path(path)
-    if not path.parent.is_dir():
-        raise StoreError(f"cannot write {path}: folder {path.parent} does not exist; create it.")
     records = _vertex_records(gaussians, sh_degree)
     header = ["ply", "format binary_little_endian 1.0", f"element vertex {len(gaussians)}"]
     header += [f"property float {name}" for name in records.dtype.names or ()]
     header += ["end_header"]
-    tmp_name = None
-    try:
-        with tempfile.NamedTemporaryFile(
-            "wb", dir=path.parent, prefix=f".{path.name}.", suffix=".tmp", delete=False
-        ) as tmp:
-            tmp_name = tmp.name
-            tmp.write(("\n".join(header) + "\n").encode("ascii"))
-            tmp.write(records.tobytes())
-            tmp.flush()
-            os.fsync(tmp.fileno())
-        os.replace(tmp_name, path)
-    except BaseException as exc:  # leave no partial file behind, whatever went wrong
-        if tmp_name is not None and os.path.exists(tmp_name):
-            os.unlink(tmp_name)
-        if isinstance(exc, OSError):
-            raise StoreError(f"cannot write {path}: {exc}; check the folder is writable.") from exc
-        raise
-    return path
+    return write_atomic(path, [("\n".join(header) + "\n").encode("ascii"), records.tobytes()])
 
 
 def _parse_header(data: bytes, path: Path) -> tuple[str, list[tuple[str, int, list]], int]:

@@ -9,6 +9,7 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry.camera import Pose
+from glmap_tools.geometry.rotations import rotations_from_quaternions
 
 # OpenGL camera (x right, y up, z backward) -> OpenCV camera (x right, y down, z forward).
 OPENCV_FROM_OPENGL_CAMERA = np.diag([1.0, -1.0, -1.0])
@@ -80,18 +81,7 @@ def from_dataset(world_from_camera: np.ndarray, up: str, camera: str = "opencv")
 
 def from_habitat(position: np.ndarray, rotation_wxyz: np.ndarray) -> Pose:
     """From a Habitat sensor state: y-up world, OpenGL camera, quaternion (w, x, y, z)."""
-    q = np.asarray(rotation_wxyz, dtype=np.float64).reshape(4)
-    n = np.linalg.norm(q)
-    if not np.isfinite(n) or n < 1e-9:
-        raise InvalidInputError(f"rotation quaternion {q.tolist()} must be finite and non-zero.")
-    w, x, y, z = q / n
-    r = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    r = rotations_from_quaternions(np.asarray(rotation_wxyz, dtype=np.float64))[0]
     m = np.eye(4)
     m[:3, :3] = r
     m[:3, 3] = np.asarray(position, dtype=np.float64).reshape(3)

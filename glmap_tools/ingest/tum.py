@@ -22,6 +22,7 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Intrinsics
+from glmap_tools.geometry.rotations import rotations_from_quaternions
 from glmap_tools.ingest.source import PRIMESENSE, FrameSource, ParsedFolder
 
 MAX_TIME_DIFFERENCE = 0.02  # seconds
@@ -64,14 +65,7 @@ def quaternion_to_matrix(qx: float, qy: float, qz: float, qw: float) -> np.ndarr
         raise InvalidInputError(
             f"quaternion (qx, qy, qz, qw) = {q.tolist()} must be finite and non-zero."
         )
-    x, y, z, w = q / norm
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    return rotations_from_quaternions(np.array([qw, qx, qy, qz]))[0]
 
 
 def _read_table(path: Path, columns: int) -> list[tuple[int, list[str]]]:

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from glmap_tools.atomic import write_atomic
 from glmap_tools.errors import InvalidInputError, StoreError
 from glmap_tools.gaussians.ply import SH_REST_COUNT, write_ply
 from glmap_tools.views.common import encode_png, require_instances
@@ -99,24 +99,7 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> Path:
     Raises:
         StoreError: the path is a folder, its folder is missing, or the write fails.
     """
-    p = _check_path(path)
-    tmp_name = None
-    try:
-        with tempfile.NamedTemporaryFile(
-            "wb", dir=p.parent, prefix=f".{p.name}.", suffix=".tmp", delete=False
-        ) as tmp:
-            tmp_name = tmp.name
-            tmp.write(data)
-            tmp.flush()
-            os.fsync(tmp.fileno())
-        os.replace(tmp_name, p)
-    except BaseException as exc:  # leave no partial file behind, whatever went wrong
-        if tmp_name is not None and os.path.exists(tmp_name):
-            os.unlink(tmp_name)
-        if isinstance(exc, OSError):
-            raise StoreError(f"cannot write {p}: {exc}; check the folder is writable.") from exc
-        raise
-    return p
+    return write_atomic(_check_path(path), [data])
 
 
 def write_png(path: str | os.PathLike[str], rgb: np.ndarray) -> Path:  # rgb: [H, W, 3] uint8
