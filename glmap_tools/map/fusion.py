@@ -83,6 +83,27 @@ def geometrically_consistent(
     return bool(np.mean(np.isfinite(dist)) >= OVERLAP_FRACTION)
 
 
+def _text_candidates(
+    ids: np.ndarray, matrix: np.ndarray, embedding: np.ndarray, tau: float
+) -> list[tuple[float, int]]:
+    """(cosine, id) of the map's units whose text is similar (cos > tau), best first.
+
+    Only units that existed before the frame are candidates: two objects (or groups)
+    perception told apart in one frame stay apart, though both may merge into one unit.
+
+    Args:
+        ids: [N] unit ids.
+        matrix: [N, D] their embeddings.
+        embedding: [D] the observation's embedding.
+        tau: the text-similarity threshold tau_s.
+    """
+    if len(ids) == 0:
+        return []
+    sims = matrix @ embedding
+    keep = np.flatnonzero(sims > tau)
+    return sorted(((float(sims[i]), int(ids[i])) for i in keep), key=lambda c: (-c[0], c[1]))
+
+
 def _merged_text(glmap: GLMap, buffer: str, text: str) -> str:
     merged = append_text(buffer, text)
     if len(merged.split()) > glmap.config.max_text_words:
@@ -156,13 +177,8 @@ def plan_frame(
     staged: dict[int, InstanceUnit] = {}
     for k, (local_id, label, text, gaussians) in enumerate(observed):
         e = embeddings[k]
-        sims = matrix @ e if len(ids) else np.zeros(0, np.float32)
-        # Candidates are the map's units only: two objects perception told apart in one
-        # frame stay apart (two may still merge into the same existing unit).
-        cand = [(float(s), int(i)) for s, i in zip(sims, ids, strict=True) if s > tau]
-        cand.sort(key=lambda c: (-c[0], c[1]))
         target = None
-        for sim, uid in cand:
+        for sim, uid in _text_candidates(ids, matrix, e, tau):
             unit = staged.get(uid) or glmap.instances[uid]
             if _boxes_touch(unit.gaussians, gaussians, margin) and geometrically_consistent(
                 unit.gaussians, gaussians, glmap.estimator.config
@@ -216,11 +232,8 @@ def plan_frame(
             continue
         e = embeddings[len(observed) + k]
         text = group.description.strip()
-        sims = rmatrix @ e if len(rids) else np.zeros(0, np.float32)
-        cand = [(float(s), int(i)) for s, i in zip(sims, rids, strict=True) if s > tau]
-        cand.sort(key=lambda c: (-c[0], c[1]))
         target_region = None
-        for sim, rid in cand:
+        for sim, rid in _text_candidates(rids, rmatrix, e, tau):
             region = staged_regions.get(rid) or glmap.regions[rid]
             if members & set(region.instance_ids):
                 target_region = (sim, region)
