@@ -128,14 +128,12 @@ def run_new(args: argparse.Namespace) -> int:
 
 
 def run_from_scan(args: argparse.Namespace) -> int:
+    from glmap_tools.sim.jsonfile import read_json
     from glmap_tools.sim.layout_io import save_layout
     from glmap_tools.sim.scan import layout_from_scan
 
     _check_out(args.out, args.overwrite)
-    try:
-        data = json.loads(args.scan.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InvalidInputError(f"cannot read scan file {str(args.scan)!r}: {exc}") from exc
+    data = read_json(args.scan, "scan file", "a category + oriented-box list (see design.md)")
     layout = layout_from_scan(data, name=args.scan.stem, up=args.up_axis, use_meshes=not args.boxes)
     save_layout(layout, args.out)
     print(f"wrote {args.out}: {len(layout.objects)} objects in one room")

@@ -20,6 +20,7 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
 from glmap_tools.sim.instnav import instance_goals
+from glmap_tools.sim.jsonfile import read_json
 from glmap_tools.sim.layout import Layout, SceneObject
 from glmap_tools.sim.navigation import NavGrid, build_nav_grid
 
@@ -276,13 +277,5 @@ def load_episodes(
     path: str | os.PathLike[str], layout: Layout | None = None, grid: NavGrid | None = None
 ) -> EpisodeSet:
     """Read (and with a layout, validate) an episode set JSON file."""
-    try:
-        with open(path, encoding="utf-8") as f:
-            data = json.load(f)
-    except FileNotFoundError as exc:
-        raise InvalidInputError(
-            f"episode file {str(path)!r} does not exist; make one with `glmap sim episodes`."
-        ) from exc
-    except json.JSONDecodeError as exc:
-        raise InvalidInputError(f"episode file {str(path)!r} is not valid JSON: {exc}.") from exc
+    data = read_json(path, "episode file", "`glmap sim episodes`")
     return episodes_from_dict(data, layout, grid)

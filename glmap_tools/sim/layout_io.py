@@ -12,6 +12,7 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.sim.catalog import mesh_spec
+from glmap_tools.sim.jsonfile import read_json
 from glmap_tools.sim.layout import (
     Layout,
     Opening,
@@ -349,15 +350,7 @@ def layout_to_dict(layout: Layout) -> dict[str, Any]:
 
 def load_layout(path: str | os.PathLike[str]) -> Layout:
     """Read and validate a layout JSON file."""
-    try:
-        with open(path, encoding="utf-8") as f:
-            data = json.load(f)
-    except FileNotFoundError as exc:
-        raise InvalidInputError(
-            f"layout file {str(path)!r} does not exist; make one with `glmap sim new`."
-        ) from exc
-    except json.JSONDecodeError as exc:
-        raise InvalidInputError(f"layout file {str(path)!r} is not valid JSON: {exc}.") from exc
+    data = read_json(path, "layout file", "`glmap sim new`")
     return layout_from_dict(data)
 
 
