@@ -43,9 +43,7 @@ def test_a_gaussian_footprint_covers_exactly_its_cells_in_every_quadrant():
         cells = {tuple(c) for c in gaussian_cells(mean, cov, s).tolist()}
         lo = np.floor((mean[0, :2] - 0.03) / s).astype(int)
         hi = np.floor((mean[0, :2] + 0.03) / s).astype(int)
-        expected = {
-            (i, j) for i in range(lo[0], hi[0] + 1) for j in range(lo[1], hi[1] + 1)
-        }
+        expected = {(i, j) for i in range(lo[0], hi[0] + 1) for j in range(lo[1], hi[1] + 1)}
         assert cells == expected
 
 
@@ -103,7 +101,9 @@ def test_a_darker_re_observation_of_the_same_chair_merges_by_overlap(glmap):
     boxes = scenes.floor() + scenes.chair(0.0, 0.0)
     frame, ids = scenes.view(boxes, (0.0, -2.5, 1.3), (0.0, 0.0, 0.3))
     glmap.integrate(frame, scenes.semantics(ids, {1: CHAIR}))
-    darker = type(frame)((frame.rgb * 0.45).astype(np.uint8), frame.depth, frame.intrinsics, frame.pose)
+    darker = type(frame)(
+        (frame.rgb * 0.45).astype(np.uint8), frame.depth, frame.intrinsics, frame.pose
+    )
     report = glmap.integrate(darker, scenes.semantics(ids, {1: CHAIR}))
     assert len(glmap.instances) == 1 and len(report.instances_merged) == 1
 
