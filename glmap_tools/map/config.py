@@ -22,6 +22,9 @@ class MapConfig:
         obstacle_band: heights above the floor (m) whose points mark obstacles.
         camera_height: agent camera height above the floor (m), for rendered views.
         occupancy_stride: pixel stride for the occupancy update.
+        structure_voxel: voxel edge (m) of the structure background layer (pixels in no
+            object mask); None keeps no structure. See map/structure.py for the 5 cm.
+        structure_stride: pixel stride for the structure layer's points.
         estimator: extra keyword overrides for the Gaussian Estimator config.
     """
 
@@ -34,6 +37,8 @@ class MapConfig:
     obstacle_band: tuple[float, float] = (0.10, 1.50)
     camera_height: float = 0.88
     occupancy_stride: int = 2
+    structure_voxel: float | None = 0.05
+    structure_stride: int = 2
     estimator: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -57,6 +62,17 @@ class MapConfig:
         if not (isinstance(self.occupancy_stride, int) and self.occupancy_stride >= 1):
             raise InvalidInputError(
                 f"MapConfig.occupancy_stride={self.occupancy_stride!r} must be an integer >= 1."
+            )
+        if self.structure_voxel is not None and not (
+            isinstance(self.structure_voxel, int | float) and self.structure_voxel > 0
+        ):
+            raise InvalidInputError(
+                f"MapConfig.structure_voxel={self.structure_voxel!r} must be a positive voxel "
+                "edge in metres (e.g. 0.05) or None for no structure layer."
+            )
+        if not (isinstance(self.structure_stride, int) and self.structure_stride >= 1):
+            raise InvalidInputError(
+                f"MapConfig.structure_stride={self.structure_stride!r} must be an integer >= 1."
             )
         object.__setattr__(self, "obstacle_band", (float(low), float(high)))
 

@@ -1,9 +1,9 @@
 """Incremental update (paper §3.1): plan a frame's changes without touching the map.
 
 `plan_frame` turns one frame + its semantics into a `FramePlan`: new or replaced units,
-their grid cells, updated occupancy chunks and the report. `GLMap.integrate` commits the
-plan to the store (one transaction) and only then swaps it into memory, so a failure at
-any step leaves the map and the file as they were.
+their grid cells, updated occupancy and structure chunks and the report. `GLMap.integrate`
+commits the plan to the store (one transaction) and only then swaps it into memory, so a
+failure at any step leaves the map and the file as they were.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.language.text_merger import DELIMITER, append_text
 from glmap_tools.map.grid import Cell, unit_cells
 from glmap_tools.map.report import SkippedObservation, UnitChange, UpdateReport
+from glmap_tools.map.structure import ChunkKey, StructureChunk
 from glmap_tools.map.units import InstanceUnit, RegionUnit
 from glmap_tools.perception.semantics import FrameSemantics
 
@@ -47,6 +48,7 @@ class FramePlan:
     regions: dict[int, RegionUnit] = field(default_factory=dict)
     cells: dict[int, frozenset[Cell]] = field(default_factory=dict)
     occupancy: dict[tuple[int, int], np.ndarray] = field(default_factory=dict)
+    structure: dict[ChunkKey, StructureChunk] = field(default_factory=dict)
     next_id: int = 1
     floor_z: float | None = None
     report: UpdateReport | None = None
@@ -111,6 +113,48 @@ def _merged_text(glmap: GLMap, buffer: str, text: str) -> str:
     return merged
 
 
+def structure_mask(valid: np.ndarray, semantics: FrameSemantics) -> np.ndarray:
+    """[H, W] bool: valid depth pixels in no object mask, nor next to one.
+
+    Masks are grown by one pixel (4-neighbours): real depth mixes object and background at
+    mask borders, and those pixels would leave a fringe of structure around every object.
+    """
+    objects = np.zeros(valid.shape, dtype=bool)
+    for obj in semantics.objects:
+        objects |= obj.mask
+    grown = objects.copy()
+    grown[1:] |= objects[:-1]
+    grown[:-1] |= objects[1:]
+    grown[:, 1:] |= objects[:, :-1]
+    grown[:, :-1] |= objects[:, 1:]
+    return valid & ~grown
+
+
+def _plan_structure(
+    glmap: GLMap, frame: RGBDFrame, semantics: FrameSemantics, valid: np.ndarray
+) -> tuple[dict[ChunkKey, StructureChunk], int]:
+    """(updated structure chunks, Gaussians fitted) for the frame's structure pixels."""
+    cfg = glmap.config
+    if cfg.structure_voxel is None:
+        return {}, 0
+    cloud = backproject(
+        frame.depth,
+        frame.intrinsics,
+        frame.pose,
+        frame.rgb,
+        structure_mask(valid, semantics),
+        cfg.max_range,
+        stride=cfg.structure_stride,
+    )
+    fitted = glmap.structure_estimator.fit(cloud.points, cloud.colors)
+    return glmap.structure.compute_update(fitted), len(fitted)
+
+
+def _members_index(glmap: GLMap) -> dict[frozenset[int], int]:
+    """Member set -> region id of the map's regions (the highest id if several share one)."""
+    return {frozenset(r.instance_ids): rid for rid, r in sorted(glmap.regions.items())}
+
+
 def plan_frame(
     glmap: GLMap, frame: RGBDFrame, semantics: FrameSemantics, frame_index: int
 ) -> FramePlan:
@@ -148,6 +192,7 @@ def plan_frame(
     plan.occupancy = glmap.occupancy.compute_update(
         frame.pose.translation[:2], scene.points, floor_z, cfg.obstacle_band
     )
+    plan.structure, report.structure_gaussians = _plan_structure(glmap, frame, semantics, valid)
 
     # Instances: mask -> points -> Gaussians.
     observed: list[tuple[int, str, str, GaussianSet]] = []
@@ -216,9 +261,12 @@ def plan_frame(
     for uid, unit in staged.items():
         plan.cells[uid] = unit_cells(unit.gaussians, cfg.cell_size)
 
-    # Regions: local member ids -> global, match by text AND a shared instance.
+    # Regions: local member ids -> global. A region with the same member set is the same
+    # region; otherwise match by text AND a shared instance (paper), and never let a merge
+    # make a region's members equal another region's (issue 12: duplicated regions).
     rids, rmatrix = glmap.region_matrix()
     staged_regions: dict[int, RegionUnit] = {}
+    by_members = _members_index(glmap)
     for k, group in enumerate(semantics.groups):
         members = {report.local_to_global[m] for m in group.members if m in report.local_to_global}
         if not members:
@@ -233,9 +281,17 @@ def plan_frame(
         e = embeddings[len(observed) + k]
         text = group.description.strip()
         target_region = None
-        for sim, rid in _text_candidates(rids, rmatrix, e, tau):
+        same = by_members.get(frozenset(members))
+        if same is not None:
+            region = staged_regions.get(same) or glmap.regions[same]
+            target_region = (float(region.embedding @ e), region)
+        for sim, rid in [] if same is not None else _text_candidates(rids, rmatrix, e, tau):
             region = staged_regions.get(rid) or glmap.regions[rid]
             if members & set(region.instance_ids):
+                twin = by_members.get(frozenset(members | set(region.instance_ids)), rid)
+                if twin != rid:  # the union is another region's member set: merge there
+                    region = staged_regions.get(twin) or glmap.regions[twin]
+                    sim = float(region.embedding @ e)
                 target_region = (sim, region)
                 break
         if target_region is None:
@@ -244,6 +300,7 @@ def plan_frame(
             staged_regions[rid] = RegionUnit(
                 rid, text, _normalised(e), tuple(sorted(members)), 1, frame_index, frame_index
             )
+            by_members[frozenset(members)] = rid
             report.regions_added.append(
                 UnitChange(local_id=group.local_id, global_id=rid, text=text)
             )
@@ -251,15 +308,19 @@ def plan_frame(
             sim, region = target_region
             n = region.observations
             seen_now = region.last_frame == frame_index and region.id in staged_regions
+            union = tuple(sorted(members | set(region.instance_ids)))
             staged_regions[region.id] = RegionUnit(
                 region.id,
                 _merged_text(glmap, region.text, text),
                 _normalised(region.embedding * n + e),
-                tuple(sorted(members | set(region.instance_ids))),
+                union,
                 n if seen_now else n + 1,
                 region.first_frame,
                 frame_index,
             )
+            if by_members.get(frozenset(region.instance_ids)) == region.id:
+                del by_members[frozenset(region.instance_ids)]
+            by_members[frozenset(union)] = region.id
             report.regions_merged.append(
                 UnitChange(local_id=group.local_id, global_id=region.id, text=text, similarity=sim)
             )

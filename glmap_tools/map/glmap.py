@@ -17,6 +17,7 @@ from glmap_tools.map.fusion import FramePlan, plan_frame
 from glmap_tools.map.grid import IndexGrid
 from glmap_tools.map.occupancy import OccupancyGrid
 from glmap_tools.map.report import MapSummary, UnitInfo, UpdateReport
+from glmap_tools.map.structure import StructureLayer
 from glmap_tools.map.units import InstanceUnit, RegionUnit
 from glmap_tools.perception.semantics import FrameSemantics
 
@@ -30,6 +31,10 @@ Unit = InstanceUnit | RegionUnit
 
 class GLMap:
     """A Gaussian-Language Map, built frame by frame and queried by text or position.
+
+    Besides the semantic units it keeps `structure`, a background layer of coarse
+    Gaussians for every observed surface no object mask covers (walls, floor): rendered
+    and occluding in views, never a unit (see map/structure.py).
 
     Args:
         config: map settings (saved with the map).
@@ -63,6 +68,12 @@ class GLMap:
         self.regions: dict[int, RegionUnit] = {}
         self.grid = IndexGrid(self.config.cell_size)
         self.occupancy = OccupancyGrid(self.config.cell_size)
+        structure_voxel = self.config.structure_voxel or self.config.voxel_size
+        self.structure = StructureLayer(structure_voxel)
+        # One Gaussian per coarse voxel (merge off), so the layer merges per voxel.
+        self.structure_estimator = GaussianEstimator(
+            EstimatorConfig(voxel_size=structure_voxel, merge=False)
+        )
         self.next_id = 1
         self.floor_z: float | None = self.config.floor_z
         self.trajectory: list[np.ndarray] = []  # [4, 4] poses of integrated frames
@@ -87,8 +98,12 @@ class GLMap:
         from glmap_tools.map.store import MapStore
 
         store = MapStore.open(Path(path), create_with=config or MapConfig())
-        glmap = cls(store.config, embedder, text_merger)
-        store.load_into(glmap)
+        try:
+            glmap = cls(store.config, embedder, text_merger)
+            store.load_into(glmap)
+        except BaseException:
+            store.close()
+            raise
         glmap.store = store
         return glmap
 
@@ -138,6 +153,7 @@ class GLMap:
         for uid, cells in plan.cells.items():
             self.grid.set_unit(uid, cells)
         self.occupancy.apply(plan.occupancy)
+        self.structure.apply(plan.structure)
         self.next_id = plan.next_id
         self.floor_z = plan.floor_z
         self.trajectory.append(plan.pose)
@@ -148,6 +164,7 @@ class GLMap:
         instances: dict[int, InstanceUnit],
         regions: dict[int, RegionUnit],
         occupancy: OccupancyGrid,
+        structure: StructureLayer,
         next_id: int,
         floor_z: float | None,
         trajectory: list[np.ndarray],
@@ -157,6 +174,7 @@ class GLMap:
 
         self.instances, self.regions = dict(instances), dict(regions)
         self.occupancy, self.next_id, self.floor_z = occupancy, next_id, floor_z
+        self.structure = structure
         self.trajectory = list(trajectory)
         self.grid = IndexGrid(self.config.cell_size)
         for uid, unit in self.instances.items():
@@ -228,6 +246,7 @@ class GLMap:
             regions=len(self.regions),
             gaussians=n_gauss,
             gaussian_bytes=sum(u.gaussians.nbytes for u in self.instances.values()),
+            structure_gaussians=len(self.structure),
             frames=len(self.trajectory),
             grid_cells=len(self.grid),
             floor_z=self.floor_z,

@@ -37,6 +37,9 @@ class UpdateReport(BaseModel):
         default_factory=dict, description="instance local id -> global id (the mapping T_t)"
     )
     gaussians_added: int = 0
+    structure_gaussians: int = Field(
+        default=0, description="structure (background) Gaussians fitted from this frame"
+    )
     num_instances: int = 0
     num_regions: int = 0
 
@@ -73,6 +76,9 @@ class MapSummary(BaseModel):
     regions: int
     gaussians: int
     gaussian_bytes: int
+    structure_gaussians: int = Field(
+        default=0, description="Gaussians of the structure background layer (not units)"
+    )
     frames: int = Field(description="frames integrated")
     grid_cells: int = Field(description="occupied index-grid cells")
     floor_z: float | None = Field(description="floor height (m), estimated or configured")

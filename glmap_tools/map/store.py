@@ -2,6 +2,11 @@
 
 Every `GLMap.integrate` commits in one transaction; reopening reproduces the map exactly.
 The index grid is not stored: it is derived from the Gaussians on load, identically.
+Opening checks the whole file (store_check.py) and refuses an invalid one.
+
+Schema versions: 1 had no structure layer; 2 adds the `structure` table (one row per chunk
+of the structure background layer). A version-1 file opens as a map with an empty
+structure layer, and becomes version 2 in the transaction of its first new frame.
 """
 
 from __future__ import annotations
@@ -17,9 +22,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from glmap_tools.errors import StoreError
-from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.map.config import MapConfig
-from glmap_tools.map.occupancy import OccupancyGrid
+from glmap_tools.map.store_check import (
+    InvalidStoreError,
+    Refuser,
+    StoredState,
+    parse_config,
+    parse_version,
+    read_state,
+)
+from glmap_tools.map.structure import ChunkKey, StructureChunk
 from glmap_tools.map.units import InstanceUnit, RegionUnit
 
 if TYPE_CHECKING:
@@ -27,9 +39,17 @@ if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
 
 FORMAT = "glmap-tools map"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+__all__ = ["FORMAT", "SCHEMA_VERSION", "InvalidStoreError", "MapStore"]
 
-SCHEMA = """
+STRUCTURE_TABLE = """
+CREATE TABLE structure (ci INTEGER NOT NULL, cj INTEGER NOT NULL, keys BLOB NOT NULL,
+  means BLOB NOT NULL, covs BLOB NOT NULL, colors BLOB NOT NULL, opacities BLOB NOT NULL,
+  counts BLOB NOT NULL, PRIMARY KEY (ci, cj));
+"""
+
+SCHEMA = (
+    """
 CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE instances (
   id INTEGER PRIMARY KEY, label TEXT NOT NULL, text TEXT NOT NULL, embedding BLOB NOT NULL,
@@ -44,6 +64,8 @@ CREATE TABLE occupancy (ci INTEGER NOT NULL, cj INTEGER NOT NULL, counts BLOB NO
   PRIMARY KEY (ci, cj));
 CREATE TABLE frames (seq INTEGER PRIMARY KEY, frame_index INTEGER NOT NULL, pose BLOB NOT NULL);
 """
+    + STRUCTURE_TABLE
+)
 
 
 def to_npy(arr: np.ndarray) -> bytes:
@@ -52,17 +74,26 @@ def to_npy(arr: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
-def from_npy(blob: bytes) -> np.ndarray:
-    return np.load(io.BytesIO(blob), allow_pickle=False)
-
-
 class MapStore:
-    """An open GLMap SQLite file."""
+    """An open GLMap SQLite file.
 
-    def __init__(self, path: Path, conn: sqlite3.Connection, config: MapConfig) -> None:
+    Attributes:
+        version: the file's schema version (1 until its first commit, then SCHEMA_VERSION).
+    """
+
+    def __init__(
+        self,
+        path: Path,
+        conn: sqlite3.Connection,
+        config: MapConfig,
+        version: int = SCHEMA_VERSION,
+        state: StoredState | None = None,
+    ) -> None:
         self.path = path
         self.conn = conn
         self.config = config
+        self.version = version
+        self._state = state
 
     # ------------------------------------------------------------- open / create
     @classmethod
@@ -81,27 +112,26 @@ class MapStore:
             raise StoreError(f"{str(path)!r} is a directory; pass the path of a map file.")
         conn = _connect(path)
         try:
-            meta = dict(conn.execute("SELECT key, value FROM meta").fetchall())
-        except sqlite3.DatabaseError as exc:
+            try:
+                meta = dict(conn.execute("SELECT key, value FROM meta").fetchall())
+            except (sqlite3.Error, ValueError) as exc:
+                raise StoreError(
+                    f"{str(path)!r} is not a GLMap store ({exc}); pass a .glmap file written "
+                    "by glmap-tools, or a new path to create one."
+                ) from None
+            if meta.get("format") != FORMAT:
+                raise StoreError(
+                    f"{str(path)!r} is an SQLite file but not a GLMap store (no "
+                    f"format={FORMAT!r} in its meta table); pass a .glmap file or a new path."
+                )
+            refuse = Refuser(str(path))
+            version = parse_version(refuse, meta, SCHEMA_VERSION)
+            config = parse_config(refuse, meta)
+            state = read_state(refuse, conn, meta, config, version)
+        except BaseException:
             conn.close()
-            raise StoreError(
-                f"{str(path)!r} is not a GLMap store ({exc}); pass a .glmap file written by "
-                "glmap-tools, or a new path to create one."
-            ) from None
-        if meta.get("format") != FORMAT:
-            conn.close()
-            raise StoreError(
-                f"{str(path)!r} is an SQLite file but not a GLMap store (no "
-                f"format={FORMAT!r} in its meta table); pass a .glmap file or a new path."
-            )
-        version = int(meta.get("schema_version", "0"))
-        if version > SCHEMA_VERSION:
-            conn.close()
-            raise StoreError(
-                f"{str(path)!r} has schema version {version}; this glmap-tools reads up to "
-                f"{SCHEMA_VERSION}. Upgrade glmap-tools."
-            )
-        return cls(path, conn, MapConfig.from_dict(json.loads(meta["config"])))
+            raise
+        return cls(path, conn, config, version, state)
 
     @classmethod
     def _create(cls, path: Path, config: MapConfig, glmap: GLMap | None = None) -> MapStore:
@@ -133,7 +163,7 @@ class MapStore:
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
             raise
-        return cls(path, _connect(path), config)
+        return cls(path, _connect(path), config, SCHEMA_VERSION)
 
     @classmethod
     def create_from(cls, path: Path, glmap: GLMap, overwrite: bool = False) -> MapStore:
@@ -194,6 +224,36 @@ class MapStore:
             [(ci, cj, to_npy(c)) for (ci, cj), c in chunks.items()],
         )
 
+    def _write_structure(self, chunks: dict[ChunkKey, StructureChunk]) -> None:
+        self.conn.executemany(
+            "INSERT OR REPLACE INTO structure VALUES (?,?,?,?,?,?,?,?)",
+            [
+                (
+                    ci,
+                    cj,
+                    to_npy(c.keys),
+                    to_npy(c.gaussians.means),
+                    to_npy(c.gaussians.covs),
+                    to_npy(c.gaussians.colors),
+                    to_npy(c.gaussians.opacities),
+                    to_npy(c.gaussians.counts),
+                )
+                for (ci, cj), c in chunks.items()
+            ],
+        )
+
+    def _migrate(self, glmap: GLMap) -> None:
+        """Upgrade a version-1 file to this schema, inside the caller's transaction."""
+        if self.version == SCHEMA_VERSION:
+            return
+        self.conn.execute(STRUCTURE_TABLE)
+        self._write_meta(
+            {
+                "schema_version": str(SCHEMA_VERSION),
+                "config": json.dumps(glmap.config.to_dict(), sort_keys=True),
+            }
+        )
+
     def _write_embedder(self, glmap: GLMap) -> None:
         self._write_meta(
             {"embedder": glmap.embedder.name, "embedding_dim": str(glmap.embedder.dim)}
@@ -205,6 +265,7 @@ class MapStore:
         for r in glmap.regions.values():
             self._write_region(r)
         self._write_chunks(glmap.occupancy.chunks)
+        self._write_structure(glmap.structure.chunks)
         self.conn.executemany(
             "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
             [(i, to_npy(p)) for i, p in enumerate(glmap.trajectory)],
@@ -216,19 +277,23 @@ class MapStore:
         """Write one frame's changes in a single transaction (all or nothing)."""
         try:
             with self.conn:
+                # The INSERT opens the transaction, so a migration's DDL is part of it.
+                self.conn.execute(
+                    "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
+                    (plan.frame_index, to_npy(plan.pose)),
+                )
+                self._migrate(glmap)
                 for u in plan.instances.values():
                     self._write_instance(u)
                 for r in plan.regions.values():
                     self._write_region(r)
                 self._write_chunks(plan.occupancy)
-                self.conn.execute(
-                    "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
-                    (plan.frame_index, to_npy(plan.pose)),
-                )
+                self._write_structure(plan.structure)
                 self._write_embedder(glmap)
                 self._write_meta(
                     {"next_id": str(plan.next_id), "floor_z": json.dumps(plan.floor_z)}
                 )
+            self.version = SCHEMA_VERSION
         except sqlite3.Error as exc:
             raise StoreError(
                 f"could not write frame {plan.frame_index} to {str(self.path)!r}: {exc}; the "
@@ -237,43 +302,37 @@ class MapStore:
 
     # ------------------------------------------------------------- reads
     def load_into(self, glmap: GLMap) -> None:
-        """Install the stored state into a freshly constructed GLMap."""
-        c = self.conn
-        meta = dict(c.execute("SELECT key, value FROM meta").fetchall())
-        name = meta.get("embedder")
+        """Install the checked contents of the file into a freshly constructed GLMap.
+
+        Raises:
+            StoreError: the map was built with another embedder (name or dimension).
+        """
+        state = self._state
+        if state is None:
+            meta = dict(self.conn.execute("SELECT key, value FROM meta").fetchall())
+            state = read_state(Refuser(str(self.path)), self.conn, meta, self.config, self.version)
+        name = state.embedder
         if name is not None and name != glmap.embedder.name:
             raise StoreError(
                 f"{str(self.path)!r} was built with the embedder {name!r} but was opened with "
                 f"{glmap.embedder.name!r}; open it with the same embedder (embeddings differ)."
             )
-        instances = {}
-        for row in c.execute("SELECT * FROM instances ORDER BY id"):
-            g = GaussianSet(*(from_npy(b) for b in row[4:9]))
-            instances[row[0]] = InstanceUnit(
-                row[0], row[1], row[2], from_npy(row[3]), g, row[9], row[10], row[11]
+        dims = {len(u.embedding) for u in (*state.instances.values(), *state.regions.values())}
+        if dims - {glmap.embedder.dim}:
+            raise InvalidStoreError(
+                f"{str(self.path)!r} is not a valid GLMap store: its embeddings have "
+                f"{sorted(dims)} numbers but the embedder {glmap.embedder.name!r} makes "
+                f"{glmap.embedder.dim}. Nothing was loaded and the file was not changed."
             )
-        regions = {}
-        for row in c.execute("SELECT * FROM regions ORDER BY id"):
-            regions[row[0]] = RegionUnit(
-                row[0],
-                row[1],
-                from_npy(row[2]),
-                tuple(json.loads(row[3])),
-                row[4],
-                row[5],
-                row[6],
-            )
-        occupancy = OccupancyGrid(self.config.cell_size)
-        for ci, cj, blob in c.execute("SELECT ci, cj, counts FROM occupancy"):
-            occupancy.chunks[(ci, cj)] = from_npy(blob)
-        trajectory = [from_npy(b) for (b,) in c.execute("SELECT pose FROM frames ORDER BY seq")]
+        self._state = None  # hand the arrays over; a second load reads the file again
         glmap._restore(
-            instances,
-            regions,
-            occupancy,
-            int(meta.get("next_id", "1")),
-            json.loads(meta.get("floor_z", "null")),
-            trajectory,
+            state.instances,
+            state.regions,
+            state.occupancy,
+            state.structure,
+            state.next_id,
+            state.floor_z,
+            state.trajectory,
         )
 
 
