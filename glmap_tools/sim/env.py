@@ -44,7 +44,7 @@ from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.layout import Layout
 from glmap_tools.sim.layout_io import load_layout
 from glmap_tools.sim.motion import Action, AgentState, MotionConfig, apply_action
-from glmap_tools.sim.navigation import build_nav_grid
+from glmap_tools.sim.navigation import NavGrid, build_nav_grid
 from glmap_tools.sim.render import Z_FAR, CameraSpec, RenderedView, SceneRenderer
 
 GOAL_CHARSET = string.ascii_letters + string.digits + " -',."
@@ -69,6 +69,8 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
         success_distance: metres from a goal footprint that count as arrived.
         min_object_pixels: objects smaller in a frame are left out of the annotation.
         render_mode: None or "rgb_array".
+        grid: the layout's navigation grid when the caller already built it (shared by many
+            environments on one scene, e.g. the benchmark's); built here when None.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 5}
@@ -87,6 +89,7 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
         success_distance: float = SUCCESS_DISTANCE,
         min_object_pixels: int | None = None,
         render_mode: str | None = None,
+        grid: NavGrid | None = None,
     ) -> None:
         if render_mode not in (None, "rgb_array"):
             raise InvalidInputError(f"render_mode={render_mode!r}; use None or 'rgb_array'.")
@@ -99,7 +102,7 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
         else:
             self.layout = generate_apartment(scene_seed, n_rooms=n_rooms)
         self.camera = camera or CameraSpec()
-        self.grid = build_nav_grid(self.layout)
+        self.grid = grid if grid is not None else build_nav_grid(self.layout)
         self.motion = MotionConfig(forward_step, math.radians(turn_angle_deg))
         self.max_steps = int(max_steps)
         self.success_distance = float(success_distance)
@@ -149,9 +152,12 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
             if not isinstance(episode, Episode):
                 raise InvalidInputError("options['episode'] must be an Episode.")
             validate_episodes(
-                EpisodeSet(self.task, self.layout.name, self.layout.seed, [episode]),
+                EpisodeSet(
+                    self.task, self.layout.name, self.layout.seed, [episode], self.success_distance
+                ),
                 self.layout,
                 self.grid,
+                fields=self._fields,
             )
             return episode
         if self.episodes is not None:

@@ -229,8 +229,17 @@ def episodes_from_dict(
     return episode_set
 
 
-def validate_episodes(episode_set: EpisodeSet, layout: Layout, grid: NavGrid | None = None) -> None:
-    """Raise unless every episode starts on navigable floor with a reachable goal."""
+def validate_episodes(
+    episode_set: EpisodeSet,
+    layout: Layout,
+    grid: NavGrid | None = None,
+    fields: dict[tuple[int, ...], np.ndarray] | None = None,
+) -> None:
+    """Raise unless every episode starts on navigable floor with a reachable goal.
+
+    `fields` (goal object ids -> distance field) caches the goal fields across calls; the
+    fields computed here are added to it.
+    """
     if episode_set.scene and episode_set.scene != layout.name:
         raise InvalidInputError(
             f"the episodes are for scene {episode_set.scene!r} but the layout is {layout.name!r}; "
@@ -238,7 +247,7 @@ def validate_episodes(episode_set: EpisodeSet, layout: Layout, grid: NavGrid | N
         )
     grid = grid or build_nav_grid(layout)
     by_id = layout.objects_by_id
-    fields: dict[tuple[int, ...], np.ndarray] = {}
+    fields = {} if fields is None else fields
     for e in episode_set.episodes:
         missing = [i for i in e.goal_object_ids if i not in by_id]
         if missing or not e.goal_object_ids:

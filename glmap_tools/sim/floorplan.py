@@ -4,6 +4,12 @@ Rooms get target areas by type; the apartment rectangle is cut recursively (long
 first) so each room's area matches its target. Rooms sharing at least `MIN_SHARED` metres of
 wall are neighbours; the living room connects to all its neighbours, the rest join by a
 spanning tree, kitchens and dining rooms next to the living room get a wide opening.
+
+Larger apartments (the benchmark split): `area_scale` multiplies every room's target area,
+and `hallway=True` lays the rooms out in two rows along a long corridor (an extra room of
+type "hallway", `HALLWAY_WIDTH` wide, across the whole apartment) that opens to every room
+touching it; the others join by the spanning tree. The defaults draw exactly what they
+always drew, so existing seeds keep their apartments.
 """
 
 from __future__ import annotations
@@ -22,6 +28,8 @@ DOOR_WIDTH = 0.9
 OPENING_WIDTH = (1.4, 2.2)
 MIN_SIDE = 2.0  # metres
 MAX_ASPECT = 2.6
+HALLWAY_WIDTH = (1.3, 1.7)  # metres
+HALLWAY_ASPECT = (2.2, 3.2)  # apartment length / depth when the rooms line a hallway
 
 AREA = {  # m^2 ranges per room type
     "living room": (20.0, 30.0),
@@ -38,6 +46,7 @@ FLOORS = {
     "bathroom": ("white tiles", "grey tiles"),
     "office": ("light oak parquet", "blue-grey vinyl", "beige carpet"),
     "dining room": ("dark wood floor", "light oak parquet", "terracotta tiles"),
+    "hallway": ("light oak parquet", "grey tiles", "dark wood floor"),
 }
 
 
@@ -110,34 +119,86 @@ def _round(v: float) -> float:
     return round(v * 20) / 20  # 5 cm
 
 
+def _bad_shapes(rects: dict[int, Rect], rooms: list[int]) -> bool:
+    return any(
+        min(rects[i].w, rects[i].h) < MIN_SIDE
+        or max(rects[i].w, rects[i].h) / min(rects[i].w, rects[i].h) > MAX_ASPECT
+        for i in rooms
+    )
+
+
+def _split(order: list[int], areas: list[float]) -> int:
+    """How many of `order` go into the first of two rows of about equal area."""
+    total, best, best_diff = sum(areas), 1, math.inf
+    for k in range(1, len(order)):
+        diff = abs(sum(areas[:k]) - total / 2)
+        if diff < best_diff:
+            best, best_diff = k, diff
+    return best
+
+
+def _hallway_rects(
+    order: list[int], areas: list[float], rng: np.random.Generator
+) -> dict[int, Rect]:
+    """Two rows of rooms along a corridor (key len(order)) that runs the apartment's length."""
+    total = sum(areas)
+    aspect = float(rng.uniform(*HALLWAY_ASPECT))
+    corridor = _round(float(rng.uniform(*HALLWAY_WIDTH)))
+    length = _round(math.sqrt(total * aspect))
+    k = _split(order, areas)
+    depth_a = _round(sum(areas[:k]) / length)
+    depth_b = _round(sum(areas[k:]) / length)
+    rects: dict[int, Rect] = {}
+    _slice(Rect(0.0, 0.0, length, depth_a), areas[:k], order[:k], rects)
+    y1 = depth_a + corridor
+    _slice(Rect(0.0, y1, length, y1 + depth_b), areas[k:], order[k:], rects)
+    rects[len(order)] = Rect(0.0, depth_a, length, y1)
+    return rects
+
+
 def generate_floorplan(
-    n_rooms: int, rng: np.random.Generator, tries: int = 200
+    n_rooms: int,
+    rng: np.random.Generator,
+    tries: int = 200,
+    area_scale: float = 1.0,
+    hallway: bool = False,
 ) -> tuple[list[Room], list[Opening]]:
-    """Rooms (rectangles, counter-clockwise) and the openings that connect them all."""
+    """Rooms (rectangles, counter-clockwise) and the openings that connect them all.
+
+    Args:
+        n_rooms: 3..7 furnished rooms (a hallway comes on top).
+        rng: the generator's random stream.
+        tries: floor plans drawn before giving up.
+        area_scale: multiplies every room's target area (1.0: the usual apartment).
+        hallway: line the rooms along a corridor (the last room, type "hallway").
+    """
+    if not 0.5 <= area_scale <= 3.0:
+        raise InvalidInputError(f"area_scale={area_scale!r} must be in [0.5, 3].")
     types = room_types(n_rooms, rng)
     for _ in range(tries):
         order = list(range(n_rooms))
         rng.shuffle(order)
-        areas = [float(rng.uniform(*AREA[types[i]])) for i in order]
-        total = sum(areas)
-        aspect = float(rng.uniform(1.1, 1.7))
-        width = _round(math.sqrt(total * aspect))
-        height = _round(total / width)
-        rects: dict[int, Rect] = {}
-        _slice(Rect(0.0, 0.0, width, height), areas, order, rects)
+        areas = [float(rng.uniform(*AREA[types[i]])) * area_scale for i in order]
+        if hallway:
+            rects = _hallway_rects(order, areas, rng)
+        else:
+            total = sum(areas)
+            aspect = float(rng.uniform(1.1, 1.7))
+            width = _round(math.sqrt(total * aspect))
+            height = _round(total / width)
+            rects = {}
+            _slice(Rect(0.0, 0.0, width, height), areas, order, rects)
         rects = {
             i: Rect(_round(r.x0), _round(r.y0), _round(r.x1), _round(r.y1))
             for i, r in rects.items()
         }
-        if any(
-            min(r.w, r.h) < MIN_SIDE or max(r.w, r.h) / min(r.w, r.h) > MAX_ASPECT
-            for r in rects.values()
-        ):
+        if _bad_shapes(rects, list(range(n_rooms))):
             continue
-        openings = _connect(types, rects, rng)
+        all_types = types + ["hallway"] if hallway else types
+        openings = _connect(all_types, rects, rng)
         if openings is None:
             continue
-        return _rooms(types, rects, rng), openings
+        return _rooms(all_types, rects, rng), openings
     raise InvalidInputError(
         f"no floor plan with {n_rooms} rooms found in {tries} tries; try another seed."
     )
@@ -154,11 +215,13 @@ def _connect(
             if seg is not None and np.linalg.norm(seg[1] - seg[0]) >= MIN_SHARED:
                 shared[(i, j)] = seg
     edges: list[tuple[int, int]] = []
-    connected = {0}
+    # The hub opens to all its neighbours: the hallway if there is one, else the living room.
+    hub = types.index("hallway") if "hallway" in types else 0
+    connected = {hub}
     for i, j in shared:
-        if 0 in (i, j) and types[i] != "bathroom" and types[j] != "bathroom":
+        if hub in (i, j) and (hub != 0 or "bathroom" not in (types[i], types[j])):
             edges.append((i, j))
-            connected.add(j if i == 0 else i)
+            connected.add(j if i == hub else i)
     while len(connected) < n:
         frontier = [
             (i, j)

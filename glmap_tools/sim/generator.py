@@ -126,6 +126,8 @@ def generate_apartment(
     n_rooms: int | None = None,
     min_objects: int = MIN_OBJECTS,
     max_objects: int = MAX_OBJECTS,
+    area_scale: float = 1.0,
+    hallway: bool = False,
 ) -> Layout:
     """A furnished apartment of 3-7 rooms from `seed` (deterministic).
 
@@ -134,6 +136,9 @@ def generate_apartment(
         n_rooms: 3..7; drawn from the seed when None.
         min_objects: decorations are added until there are at least this many objects.
         max_objects: decorations are removed above this many objects.
+        area_scale: multiplies every room's target area (larger apartments; 1.0 as always).
+        hallway: line the rooms along a corridor that runs the apartment's length (an extra
+            room of type "hallway"). The defaults keep every seed's apartment unchanged.
 
     Raises:
         InvalidInputError: bad arguments, or no valid apartment for this seed (try another).
@@ -149,7 +154,7 @@ def generate_apartment(
     if n_rooms is None:
         n_rooms = int(rng.integers(3, 8))
     for plan in range(PLAN_TRIES):
-        rooms, openings = generate_floorplan(n_rooms, rng)
+        rooms, openings = generate_floorplan(n_rooms, rng, area_scale=area_scale, hallway=hallway)
         for attempt in range(FURNISH_TRIES):
             sub = np.random.default_rng([int(seed), 2, plan, attempt])
             planners, regions = _furnish(rooms, openings, sub, min_objects)

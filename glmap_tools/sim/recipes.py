@@ -255,6 +255,18 @@ def dining_room(planner: RoomPlanner, maker: SpecMaker) -> list[RegionPlan]:
     return regions
 
 
+def hallway(planner: RoomPlanner, maker: SpecMaker) -> list[RegionPlan]:
+    """A corridor: kept clear for walking, with a few things along its walls."""
+    for _ in range(2):
+        if _chance(planner, 0.7):
+            planner.on_wall(maker.make("picture"), z=float(planner.rng.uniform(1.3, 1.5)))
+    if _chance(planner, 0.6):
+        planner.corner(maker.make("plant"))
+    if _chance(planner, 0.4):
+        planner.corner(maker.make("trash can"))
+    return []
+
+
 RECIPES: dict[str, Recipe] = {
     "living room": living_room,
     "kitchen": kitchen,
@@ -262,6 +274,7 @@ RECIPES: dict[str, Recipe] = {
     "bathroom": bathroom,
     "office": office,
     "dining room": dining_room,
+    "hallway": hallway,
 }
 
 DECOR = ["small plant", "picture", "trash can", "box", "plant"]

@@ -1,0 +1,367 @@
+"""The fixed navigation benchmark: large generated apartments and checked-in episode files.
+
+Two splits that never share a scene: "tune" (scene seeds 1000-1099, for tuning thresholds)
+and "bench" (seeds 2000+, for the reported figures). Apartments are large: rooms of 1.3x the
+usual area lined up along a hallway that runs the apartment's length
+(`generate_apartment(..., area_scale, hallway=True)`). Every episode:
+
+- starts on navigable floor at least `MIN_GEODESIC` metres (geodesic) from the goal;
+- starts out of sight of every goal object (`sight.SightChecker`: walls and tall objects
+  block, the agent may look all around);
+- succeeds when the agent stops within `SUCCESS_DISTANCE` (1 m) of a goal object's
+  footprint *surface* (the planar distance from the agent's centre to the nearest point of
+  the footprint rectangle, 0 inside it), not its centre, within `MAX_STEPS` (500) steps.
+
+Files (`glmap_tools/data/benchmark/<split>/`): `split.json` (seeds, generator parameters,
+the command), and per scene `sNN/layout.json` (through `layout_io`, so later generator
+changes cannot move the benchmark) with `sNN/objectnav.json` and `sNN/instnav.json`
+(`episodes.py` episode sets). Regenerate (deterministic)::
+
+    python -m glmap_tools.sim.benchmark --out glmap_tools/data/benchmark
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
+from glmap_tools.sim.episodes import (
+    SUCCESS_DISTANCE,
+    TASKS,
+    Episode,
+    EpisodeSet,
+    episodes_from_dict,
+    episodes_to_dict,
+    goal_pool,
+)
+from glmap_tools.sim.generator import generate_apartment
+from glmap_tools.sim.layout import Layout
+from glmap_tools.sim.layout_io import layout_to_dict, load_layout
+from glmap_tools.sim.navigation import NavGrid, build_nav_grid
+from glmap_tools.sim.sight import SightChecker
+
+if TYPE_CHECKING:  # importing env pulls in the renderer
+    from glmap_tools.sim.env import NavEnv
+    from glmap_tools.sim.render import CameraSpec
+
+SPLITS = ("tune", "bench")
+DATA_ROOT = Path(__file__).resolve().parent.parent / "data" / "benchmark"
+MAX_STEPS = 500
+MIN_GEODESIC = 2.0  # metres from start to the nearest goal cell
+START_TRIES = 400  # starts drawn per episode before its goal is given up
+COMMAND = "python -m glmap_tools.sim.benchmark --out glmap_tools/data/benchmark"
+
+
+@dataclass(frozen=True)
+class SplitSpec:
+    """How one split is generated."""
+
+    name: str
+    seeds: tuple[int, ...]
+    episodes_per_scene: int  # per task
+    area_scale: float = 1.3
+    hallway: bool = True
+
+    def n_rooms(self, seed: int) -> int:
+        return 6 + seed % 2  # six or seven furnished rooms, plus the hallway
+
+
+SPLIT_SPECS = {
+    "tune": SplitSpec("tune", tuple(range(1000, 1004)), 25),
+    "bench": SplitSpec("bench", tuple(range(2000, 2012)), 20),
+}
+
+
+@dataclass(frozen=True)
+class BenchEpisode:
+    """One benchmark episode and where its scene lives.
+
+    Attributes:
+        episode_id: "<split>/<task>/<scene>-<index>", e.g. "bench/objectnav/s03-017".
+        task: "objectnav" or "instnav".
+        split: "tune" or "bench".
+        scene: the scene's folder in the split ("s03"); the layout itself is named
+            "apartment-<seed>".
+        layout_path: the scene's layout JSON.
+        episode: the episode (start, heading, goal text and object ids, geodesic metres).
+    """
+
+    episode_id: str
+    task: str
+    split: str
+    scene: str
+    layout_path: Path
+    episode: Episode
+
+
+def _check_split(split: str) -> None:
+    if split not in SPLITS:
+        raise InvalidInputError(
+            f"split {split!r} is not one of {SPLITS}.{did_you_mean(split, SPLITS)}"
+        )
+
+
+def _check_task(task: str) -> None:
+    if task not in TASKS:
+        raise InvalidInputError(f"task {task!r} is not one of {TASKS}.{did_you_mean(task, TASKS)}")
+
+
+def scene_name(index: int) -> str:
+    return f"s{index:02d}"
+
+
+def make_layout(spec: SplitSpec, seed: int) -> Layout:
+    """The split's apartment for `seed` (what `layout.json` holds)."""
+    return generate_apartment(
+        seed, n_rooms=spec.n_rooms(seed), area_scale=spec.area_scale, hallway=spec.hallway
+    )
+
+
+def hidden_episodes(
+    layout: Layout,
+    task: str,
+    count: int,
+    seed: int,
+    grid: NavGrid | None = None,
+    min_distance: float = MIN_GEODESIC,
+) -> EpisodeSet:
+    """`count` episodes whose starts are out of sight of every goal object (deterministic).
+
+    Goals are drawn uniformly from the task's reachable goals, starts uniformly from the
+    navigable cells at least `min_distance` geodesic metres away; a start with a goal in
+    sight is drawn again.
+
+    Raises:
+        InvalidInputError: a goal with no hidden start in `START_TRIES` draws twice in a row
+            for every goal, or a bad task or count.
+    """
+    _check_task(task)
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise InvalidInputError(f"count={count!r} must be a positive integer.")
+    grid = grid or build_nav_grid(layout)
+    sight = SightChecker(layout, grid)
+    pool = goal_pool(layout, task, grid, SUCCESS_DISTANCE, min_distance)
+    starts = [np.argwhere(np.isfinite(f) & (f >= min_distance)) for _, _, f in pool]
+    rng = np.random.default_rng([int(seed), TASKS.index(task), 11])
+    episodes: list[Episode] = []
+    while len(episodes) < count:
+        g = int(rng.integers(len(pool)))
+        text, ids, field = pool[g]
+        for _ in range(START_TRIES):
+            r, c = starts[g][int(rng.integers(len(starts[g])))]
+            xy = grid.to_world(np.array([[r, c]]))[0]
+            if not sight.in_sight(xy, ids):
+                break
+        else:
+            continue  # every draw saw the goal: draw another goal
+        episodes.append(
+            Episode(
+                episode_id=len(episodes),
+                task=task,
+                start_position=(round(float(xy[0]), 4), round(float(xy[1]), 4)),
+                start_heading=round(float(rng.uniform(-math.pi, math.pi)), 5),
+                goal_text=text,
+                goal_object_ids=ids,
+                geodesic_distance=round(float(field[r, c]), 4),
+            )
+        )
+    return EpisodeSet(task, layout.name, layout.seed, episodes, SUCCESS_DISTANCE)
+
+
+def scene_episodes(spec: SplitSpec, seed: int, layout: Layout, task: str) -> EpisodeSet:
+    """The split's episode set of one scene and task (what `sNN/<task>.json` holds)."""
+    return hidden_episodes(layout, task, spec.episodes_per_scene, seed)
+
+
+def _dump(data: dict[str, Any]) -> str:
+    return json.dumps(data, separators=(",", ":")) + "\n"
+
+
+def write_split(split: str, out: Path) -> tuple[dict[str, list[EpisodeSet]], dict[str, Layout]]:
+    """Generate and write one split under `out/<split>/`.
+
+    Returns:
+        (episode sets by task, layouts by layout name).
+    """
+    _check_split(split)
+    spec = SPLIT_SPECS[split]
+    folder = out / split
+    sets: dict[str, list[EpisodeSet]] = {t: [] for t in TASKS}
+    layouts: dict[str, Layout] = {}
+    scenes = []
+    for index, seed in enumerate(spec.seeds):
+        layout = layouts[f"apartment-{seed}"] = make_layout(spec, seed)
+        scene_dir = folder / scene_name(index)
+        scene_dir.mkdir(parents=True, exist_ok=True)
+        (scene_dir / "layout.json").write_text(_dump(layout_to_dict(layout)), encoding="utf-8")
+        for task in TASKS:
+            episode_set = scene_episodes(spec, seed, layout, task)
+            (scene_dir / f"{task}.json").write_text(
+                _dump(episodes_to_dict(episode_set)), encoding="utf-8"
+            )
+            sets[task].append(episode_set)
+        scenes.append({"scene": scene_name(index), "seed": seed, "layout": layout.name})
+    manifest = {
+        "format": "glmap-sim-benchmark",
+        "version": 1,
+        "split": split,
+        "command": COMMAND,
+        "generator": {"area_scale": spec.area_scale, "hallway": spec.hallway,
+                      "n_rooms": "6 + seed % 2"},
+        "episodes_per_scene": spec.episodes_per_scene,
+        "min_geodesic": MIN_GEODESIC,
+        "success_distance": SUCCESS_DISTANCE,
+        "success": "stop within success_distance of a goal footprint's surface",
+        "max_steps": MAX_STEPS,
+        "scenes": scenes,
+    }  # fmt: skip
+    (folder / "split.json").write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
+    return sets, layouts
+
+
+def split_statistics(sets: list[EpisodeSet], layouts: dict[str, Layout]) -> dict[str, Any]:
+    """Median/p90/max geodesic metres, episodes per scene and goal categories of a task."""
+    dist = np.array([e.geodesic_distance for s in sets for e in s.episodes])
+    categories: dict[str, int] = {}
+    for s in sets:
+        for e in s.episodes:
+            cat = layouts[s.scene].object(e.goal_object_ids[0]).category
+            categories[cat] = categories.get(cat, 0) + 1
+    return {
+        "episodes": int(len(dist)),
+        "scenes": len(sets),
+        "episodes_per_scene": sorted({len(s.episodes) for s in sets}),
+        "geodesic_median": round(float(np.median(dist)), 2),
+        "geodesic_p90": round(float(np.percentile(dist, 90)), 2),
+        "geodesic_max": round(float(dist.max()), 2),
+        "geodesic_min": round(float(dist.min()), 2),
+        "share_over_12m": round(float((dist >= 12.0).mean()), 3),
+        "categories": dict(sorted(categories.items(), key=lambda kv: (-kv[1], kv[0]))),
+    }
+
+
+# ---------------------------------------------------------------------- reading the files
+def split_dir(split: str, root: Path | None = None) -> Path:
+    _check_split(split)
+    return (root or DATA_ROOT) / split
+
+
+@functools.lru_cache(maxsize=8)
+def _manifest(split: str) -> dict[str, Any]:
+    path = split_dir(split) / "split.json"
+    if not path.exists():
+        raise InvalidInputError(f"{path} is missing; regenerate the benchmark with `{COMMAND}`.")
+    data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    return data
+
+
+@functools.lru_cache(maxsize=16)
+def _split_task(split: str, task: str) -> tuple[BenchEpisode, ...]:
+    out = []
+    for scene in _manifest(split)["scenes"]:
+        folder = split_dir(split) / scene["scene"]
+        data = json.loads((folder / f"{task}.json").read_text(encoding="utf-8"))
+        for e in episodes_from_dict(data).episodes:
+            out.append(
+                BenchEpisode(
+                    episode_id=f"{split}/{task}/{scene['scene']}-{e.episode_id:03d}",
+                    task=task,
+                    split=split,
+                    scene=scene["scene"],
+                    layout_path=folder / "layout.json",
+                    episode=e,
+                )
+            )
+    return tuple(out)
+
+
+def load_split(split: str, task: str) -> list[BenchEpisode]:
+    """Every episode of `task` in `split`, in scene then episode order."""
+    _check_split(split)
+    _check_task(task)
+    return list(_split_task(split, task))
+
+
+def bench_episode(episode_id: str) -> BenchEpisode:
+    """The episode with this id ("bench/objectnav/s03-017").
+
+    Raises:
+        UnknownIdError: no such episode (with the closest id).
+    """
+    parts = str(episode_id).split("/")
+    if len(parts) != 3 or parts[0] not in SPLITS or parts[1] not in TASKS:
+        raise UnknownIdError(
+            f"episode id {episode_id!r} is not '<split>/<task>/<scene>-<index>' with split in "
+            f"{SPLITS} and task in {TASKS}, e.g. 'bench/objectnav/s03-017'."
+        )
+    episodes = {be.episode_id: be for be in _split_task(parts[0], parts[1])}
+    if episode_id not in episodes:
+        raise UnknownIdError(
+            f"no benchmark episode {episode_id!r}.{did_you_mean(episode_id, episodes)} "
+            f"{parts[0]}/{parts[1]} has {len(episodes)} episodes."
+        )
+    return episodes[episode_id]
+
+
+@functools.lru_cache(maxsize=16)
+def bench_layout(layout_path: Path) -> Layout:
+    """The layout of a benchmark scene (read once per process)."""
+    return load_layout(layout_path)
+
+
+@functools.lru_cache(maxsize=16)
+def bench_grid(layout_path: Path) -> NavGrid:
+    """The navigation grid of a benchmark scene (built once per process)."""
+    return build_nav_grid(bench_layout(layout_path))
+
+
+def make_env(
+    bench: BenchEpisode, camera: CameraSpec | None = None, max_steps: int = MAX_STEPS
+) -> NavEnv:
+    """An environment on the episode's scene; start it with
+    `env.reset(seed=..., options={"episode": bench.episode})`."""
+    from glmap_tools.sim.env import InstNavEnv, ObjectNavEnv
+
+    env_cls = ObjectNavEnv if bench.task == "objectnav" else InstNavEnv
+    return env_cls(
+        layout=bench_layout(bench.layout_path),
+        camera=camera,
+        max_steps=max_steps,
+        grid=bench_grid(bench.layout_path),
+    )
+
+
+# ---------------------------------------------------------------------- command line
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m glmap_tools.sim.benchmark",
+        description="Regenerate the benchmark split files (deterministic) and print statistics.",
+    )
+    parser.add_argument("--out", type=Path, required=True, help="folder that gets <split>/")
+    parser.add_argument("--split", choices=[*SPLITS, "all"], default="all")
+    args = parser.parse_args(argv)
+    for split in SPLITS if args.split == "all" else (args.split,):
+        spec = SPLIT_SPECS[split]
+        sets, layouts = write_split(split, args.out)
+        print(
+            f"split {split}: scene seeds {spec.seeds[0]}-{spec.seeds[-1]}, {len(spec.seeds)} scenes"
+        )
+        for task in TASKS:
+            st = split_statistics(sets[task], layouts)
+            cats = ", ".join(f"{k} {v}" for k, v in st.pop("categories").items())
+            print(f"  {task}: " + ", ".join(f"{k} {v}" for k, v in st.items()))
+            print(f"    goal categories: {cats}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,128 @@
+"""The checked-in benchmark split: regenerates identically, long episodes, hidden starts."""
+
+from __future__ import annotations
+
+import json
+import os
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+import numpy as np
+import pytest
+
+from glmap_tools.errors import InvalidInputError, UnknownIdError
+from glmap_tools.sim.benchmark import (
+    SPLIT_SPECS,
+    SPLITS,
+    bench_episode,
+    bench_grid,
+    bench_layout,
+    hidden_episodes,
+    load_split,
+    make_env,
+    make_layout,
+    scene_episodes,
+    split_dir,
+)
+from glmap_tools.sim.episodes import TASKS, episodes_to_dict
+from glmap_tools.sim.generator import generate_apartment
+from glmap_tools.sim.layout_io import layout_to_dict
+from glmap_tools.sim.navigation import build_nav_grid
+from glmap_tools.sim.render import CameraSpec
+from glmap_tools.sim.sight import SightChecker
+
+
+def test_regenerating_a_scene_reproduces_its_checked_in_layout_and_episodes() -> None:
+    spec = SPLIT_SPECS["tune"]
+    seed = spec.seeds[1]
+    folder = split_dir("tune") / "s01"
+    layout = make_layout(spec, seed)
+    assert layout_to_dict(layout) == json.loads((folder / "layout.json").read_text())
+    episodes = scene_episodes(spec, seed, layout, "instnav")
+    assert episodes_to_dict(episodes) == json.loads((folder / "instnav.json").read_text())
+
+
+def test_the_splits_never_share_a_scene_and_use_their_seed_ranges() -> None:
+    tune = set(SPLIT_SPECS["tune"].seeds)
+    bench = set(SPLIT_SPECS["bench"].seeds)
+    assert not tune & bench
+    assert all(1000 <= s <= 1099 for s in tune) and all(s >= 2000 for s in bench)
+    layouts = {
+        split: {bench_layout(be.layout_path).name for be in load_split(split, "objectnav")}
+        for split in SPLITS
+    }
+    assert len(layouts["bench"]) >= 10 and not layouts["tune"] & layouts["bench"]
+
+
+@pytest.mark.parametrize("task", TASKS)
+def test_the_bench_split_has_200_long_episodes_per_task(task: str) -> None:
+    episodes = load_split("bench", task)
+    dist = np.array([be.episode.geodesic_distance for be in episodes])
+    assert len(episodes) >= 200
+    assert np.median(dist) >= 6.0 and dist.max() >= 12.0
+    assert len({be.episode_id for be in episodes}) == len(episodes)
+
+
+def test_every_checked_in_start_of_a_scene_is_out_of_sight_of_its_goal() -> None:
+    episodes = [be for be in load_split("bench", "objectnav") if be.scene == "s02"]
+    layout, grid = bench_layout(episodes[0].layout_path), bench_grid(episodes[0].layout_path)
+    sight = SightChecker(layout, grid)
+    for be in episodes:
+        start = np.array(be.episode.start_position)
+        assert not sight.in_sight_reference(start, be.episode.goal_object_ids)
+        assert grid.navigable_at(*be.episode.start_position)
+
+
+def test_sight_is_blocked_by_walls_and_tall_objects_but_not_by_low_furniture() -> None:
+    layout = generate_apartment(4)
+    sight = SightChecker(layout, build_nav_grid(layout))
+    fridge = next(o for o in layout.objects if o.top >= 1.2 and o.position[2] < 0.5)
+    assert (sight.blockers == fridge.id).any()
+    low = next(o for o in layout.objects if o.top < 0.6 and o.position[2] == 0)
+    assert not (sight.blockers == low.id).any()
+    assert (sight.blockers == -1).any()
+    rng = np.random.default_rng(0)
+    cells = np.argwhere(sight.grid.navigable)
+    goal = (low.id,)
+    seen = []
+    for r, c in cells[rng.choice(len(cells), 60, replace=False)]:
+        xy = sight.grid.to_world(np.array([[r, c]]))[0]
+        fast = sight.in_sight(xy, goal)
+        assert fast == sight.in_sight_reference(xy, goal)
+        seen.append(fast)
+    assert any(seen) and not all(seen), "some points see the object and some do not"
+
+
+def test_hidden_episodes_are_deterministic_and_start_out_of_sight() -> None:
+    layout = generate_apartment(4)
+    a = hidden_episodes(layout, "objectnav", 6, seed=3)
+    b = hidden_episodes(layout, "objectnav", 6, seed=3)
+    assert a == b
+    sight = SightChecker(layout, build_nav_grid(layout))
+    for e in a.episodes:
+        assert not sight.in_sight(np.array(e.start_position), e.goal_object_ids)
+        assert e.geodesic_distance >= 2.0
+
+
+def test_bench_episode_finds_an_id_and_suggests_the_closest_on_a_miss() -> None:
+    be = bench_episode("bench/objectnav/s03-017")
+    assert (be.split, be.task, be.scene, be.episode.episode_id) == ("bench", "objectnav", "s03", 17)
+    with pytest.raises(UnknownIdError, match="bench/objectnav/s03-017"):
+        bench_episode("bench/objectnav/s03-0017")
+    with pytest.raises(UnknownIdError, match="<split>/<task>"):
+        bench_episode("objectnav/s03-017")
+    with pytest.raises(InvalidInputError, match="Did you mean 'bench'"):
+        load_split("bencj", "objectnav")
+
+
+def test_a_benchmark_env_starts_at_the_episode_start_and_scores_it() -> None:
+    be = load_split("tune", "instnav")[3]
+    env = make_env(be, CameraSpec(160, 120), max_steps=5)
+    try:
+        obs, info = env.reset(seed=0, options={"episode": be.episode})
+        assert obs["goal"] == be.episode.goal_text
+        assert np.allclose(info["position"], be.episode.start_position)
+        assert info["distance_to_goal"] == pytest.approx(be.episode.geodesic_distance, abs=1e-4)
+        assert env.max_steps == 5
+    finally:
+        env.close()
