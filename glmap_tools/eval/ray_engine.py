@@ -1,0 +1,138 @@
+"""Episodes on a Ray cluster: one `EpisodeWorker` per Ray actor (1 CPU each).
+
+`--ray-address` takes what `ray.init` takes: 'local' (start a Ray instance on this machine
+with `workers` CPUs), 'auto' (the cluster started here with `ray start --head`),
+'HOST:PORT' (a cluster's GCS address, from a node of that cluster) or 'ray://HOST:PORT'
+(Ray Client, from anywhere). Before `ray.init`, the address is probed with a plain TCP
+connection, so one that does not answer fails within `CONNECT_TIMEOUT_S`, not after Ray's
+own long retries. Every node needs glmap-tools (with its `ray` extra) installed.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+from glmap_tools.errors import GLMapError, InvalidInputError
+from glmap_tools.eval.workers import EpisodeWorker, Job, Outcome
+
+CONNECT_TIMEOUT_S = 5.0
+
+
+def _current_cluster_file() -> Path:
+    """Where `ray start --head` records the address of the cluster it started."""
+    return Path(os.environ.get("RAY_TMPDIR", "/tmp")) / "ray" / "ray_current_cluster"
+
+
+class RayUnavailableError(GLMapError):
+    """Ray is not installed, or the Ray address given does not answer."""
+
+
+def _import_ray() -> Any:
+    try:
+        import ray
+    except ImportError as exc:
+        raise RayUnavailableError(
+            "--ray-address needs Ray; install it with `pip install 'glmap-tools[ray]'`."
+        ) from exc
+    return ray
+
+
+def resolve_address(address: str) -> tuple[str, int] | None:
+    """The (host, port) to probe for `address`, or None for 'local' (nothing to reach).
+
+    Raises:
+        RayUnavailableError: 'auto' with no cluster started on this machine.
+        InvalidInputError: an address that is not 'local', 'auto', HOST:PORT or ray://HOST:PORT.
+    """
+    if address == "local":
+        return None
+    if address == "auto":
+        found = os.environ.get("RAY_ADDRESS", "")
+        if not found and _current_cluster_file().is_file():
+            found = _current_cluster_file().read_text(encoding="utf-8").strip()
+        if not found or found in ("auto", "local"):
+            raise RayUnavailableError(
+                "--ray-address auto: no Ray cluster was started on this machine; start one "
+                "with `ray start --head`, or give HOST:PORT or ray://HOST:PORT."
+            )
+        address = found
+    rest = address.removeprefix("ray://")
+    host, sep, port = rest.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise InvalidInputError(
+            f"--ray-address {address!r} is not 'local', 'auto', HOST:PORT or ray://HOST:PORT "
+            "(e.g. ray://10.0.0.5:10001)."
+        )
+    return host.strip("[]"), int(port)
+
+
+def check_address(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """Fail fast when the Ray address does not accept a TCP connection.
+
+    Raises:
+        RayUnavailableError: connection refused, unknown host, or no answer in `timeout_s`.
+    """
+    target = resolve_address(address)
+    if target is None:
+        return
+    host, port = target
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        why = "no answer" if isinstance(exc, TimeoutError) else str(exc)
+        raise RayUnavailableError(
+            f"Ray address {address!r} does not answer ({why} within {timeout_s:.0f} s at "
+            f"{host}:{port}); start the cluster (`ray start --head`) or check host and port."
+        ) from exc
+
+
+class _RayWorker:
+    """The body of a Ray actor: an EpisodeWorker that lives as long as the actor."""
+
+    def __init__(self, embedder: str) -> None:
+        self.worker = EpisodeWorker(embedder)
+
+    def run(self, job: Job) -> Outcome:
+        return self.worker.run(job)
+
+
+def run_ray(jobs: Sequence[Job], workers: int, embedder: str, address: str) -> Iterator[Outcome]:
+    """Play `jobs` on `workers` Ray actors; yield each Outcome as it finishes.
+
+    Raises:
+        RayUnavailableError: Ray missing or the address not answering (within 10 s).
+    """
+    ray = _import_ray()
+    check_address(address)
+    started_here = not ray.is_initialized()
+    if started_here:
+        kw: dict[str, Any] = {"log_to_driver": False}
+        if address == "local":
+            kw.update(num_cpus=max(1, workers), include_dashboard=False)
+        os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+        ray.init(address=address, **kw)
+    try:
+        actor_cls = ray.remote(num_cpus=1)(_RayWorker)
+        n = max(1, min(workers, len(jobs)))
+        actors = [actor_cls.remote(embedder) for _ in range(n)]
+        todo = list(jobs)
+        running: dict[Any, Any] = {}  # object ref -> actor
+        for actor in actors:
+            if todo:
+                running[actor.run.remote(todo.pop(0))] = actor
+        while running:
+            done, _ = ray.wait(list(running), num_returns=1)
+            actor = running.pop(done[0])
+            yield ray.get(done[0])
+            if todo:
+                running[actor.run.remote(todo.pop(0))] = actor
+        for actor in actors:
+            ray.kill(actor)
+    finally:
+        if started_here:
+            ray.shutdown()

@@ -1,0 +1,179 @@
+"""Run an evaluation: select episodes, skip finished ones, play the rest, write the table."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.eval.results import ResultsDir, write_json
+from glmap_tools.eval.spec import EvalSpec, episode_seed, parse_agents, select_episodes
+from glmap_tools.eval.stats import DEFAULT_RESAMPLES
+from glmap_tools.eval.table import Summary, markdown, summarize
+from glmap_tools.eval.workers import Job, Outcome, run_inline, run_local
+
+
+@dataclass
+class EvalRun:
+    """What `run_eval` did.
+
+    Attributes:
+        spec: the evaluation.
+        out: the results folder.
+        records: agent -> episode id -> record, for the selected episodes that are finished.
+        summary: the table's numbers over `records`.
+        ran: episodes played now; skipped: episodes found finished in `out`.
+        failures: jobs whose episode raised (their error text is in each Outcome).
+        wall_s: seconds spent playing.
+        mixed: `out` holds results of more than one setting (see ResultsDir).
+    """
+
+    spec: EvalSpec
+    out: Path
+    records: dict[str, dict[str, dict[str, Any]]]
+    summary: Summary
+    ran: int
+    skipped: int
+    failures: list[Outcome] = field(default_factory=list)
+    wall_s: float = 0.0
+    mixed: bool = False
+
+    @property
+    def episodes_per_hour(self) -> float:
+        """Episodes played per hour of wall time in this run (0 when none ran)."""
+        return self.ran / self.wall_s * 3600.0 if self.ran and self.wall_s > 0 else 0.0
+
+
+def _engine(
+    jobs: list[Job], workers: int, embedder: str, ray_address: str | None
+) -> Iterator[Outcome]:
+    if ray_address:
+        from glmap_tools.eval.ray_engine import run_ray
+
+        return run_ray(jobs, max(1, workers), embedder, ray_address)
+    if workers == 0:
+        return run_inline(jobs, embedder)
+    return run_local(jobs, workers, embedder)
+
+
+def run_eval(
+    spec: EvalSpec,
+    out: Path,
+    *,
+    workers: int = 2,
+    ray_address: str | None = None,
+    mix_configs: bool = False,
+    traces: bool = False,
+    resamples: int = DEFAULT_RESAMPLES,
+    progress: bool = True,
+) -> EvalRun:
+    """Play every (episode, agent) of `spec` not yet in `out`, then summarize all of them.
+
+    Args:
+        spec: what to evaluate.
+        out: the results folder (see `glmap_tools.eval.results`).
+        workers: local worker processes (0 = play in this process), or Ray actors.
+        ray_address: run on Ray ('local', 'auto', HOST:PORT, ray://HOST:PORT) instead.
+        mix_configs: add to a folder whose results were run with other settings.
+        traces: also write each episode's tool-call trace and report under out/traces/.
+        resamples: bootstrap resamples of the table's intervals.
+        progress: show a tqdm progress bar on stderr.
+
+    Raises:
+        InvalidInputError: unknown agents, too many scenes or episodes, negative workers,
+            or a folder of other settings (nothing is written then).
+    """
+    parse_agents(spec.agents)
+    if workers < 0:
+        raise InvalidInputError(f"--workers {workers} must be 0 (in process) or more.")
+    if ray_address:
+        from glmap_tools.eval.ray_engine import check_address
+
+        check_address(ray_address)  # fail before anything is written
+    selected = select_episodes(spec.task, spec.split, spec.scenes, spec.episodes_per_scene)
+    results = ResultsDir(out, spec.result_config(), mix_configs=mix_configs)
+    records: dict[str, dict[str, dict[str, Any]]] = {a: {} for a in spec.agents}
+    jobs: list[Job] = []
+    for be in selected:  # scene order, so each worker's server reuses its env
+        seed = episode_seed(spec.seed, be.episode_id)
+        for agent in spec.agents:
+            record = results.load(agent, be.episode_id)
+            if record is not None:
+                records[agent][be.episode_id] = record
+                continue
+            trace = results.trace_dir(agent, be.episode_id) if traces else None
+            jobs.append(
+                Job(agent, be.episode_id, be.scene, seed, spec.max_steps, str(trace or "") or None)
+            )
+    skipped = len(selected) * len(spec.agents) - len(jobs)
+    failures: list[Outcome] = []
+    start = time.perf_counter()
+    if jobs:
+        from tqdm import tqdm
+
+        where = f"Ray ({ray_address})" if ray_address else f"{workers} workers"
+        with tqdm(
+            total=len(jobs) + skipped,
+            initial=skipped,
+            desc=f"{spec.task} {spec.split} on {where}",
+            unit="ep",
+            disable=not progress,
+            file=sys.stderr,
+        ) as bar:
+            for outcome in _engine(jobs, workers, spec.embedder, ray_address):
+                if outcome.record is None:
+                    failures.append(outcome)
+                    bar.set_postfix(failed=len(failures))
+                else:
+                    results.save(outcome.record)
+                    records[outcome.job.agent][outcome.job.episode_id] = outcome.record
+                bar.update(1)
+    wall = time.perf_counter() - start
+    summary = summarize(records, spec.agents, resamples=resamples)
+    run = EvalRun(
+        spec,
+        results.root,
+        records,
+        summary,
+        len(jobs) - len(failures),
+        skipped,
+        failures,
+        wall,
+        results.mixed,
+    )
+    _write_summary(run)
+    return run
+
+
+def _write_summary(run: EvalRun) -> None:
+    s = run.spec
+    head = (
+        f"# {s.task} on the {s.split} split\n\n"
+        f"Selection: the first {s.scenes or 'all'} scenes x {s.episodes_per_scene or 'all'} "
+        f"episodes of each; seed {s.seed}, max_steps {s.max_steps}, embedder {s.embedder}, "
+        f"images {s.result_config()['image_size']}.\n\n"
+    )
+    if run.mixed:
+        head += "Warning: this folder mixes results run with different settings (eval.json).\n\n"
+    (run.out / "summary.md").write_text(head + markdown(run.summary), encoding="utf-8")
+    data = {
+        "config": s.result_config(),
+        "selection": {"scenes": s.scenes, "episodes_per_scene": s.episodes_per_scene},
+        "agents": list(s.agents),
+        "ran": run.ran,
+        "skipped": run.skipped,
+        "failed": [
+            {"agent": f.job.agent, "episode_id": f.job.episode_id, "error": f.error}
+            for f in run.failures
+        ],
+        "wall_s": round(run.wall_s, 2),
+        "episodes_per_hour": round(run.episodes_per_hour, 1),
+        "mixed_configs": run.mixed,
+        **run.summary.to_json(),
+    }
+    write_json(run.out / "summary.json", json.loads(json.dumps(data)))

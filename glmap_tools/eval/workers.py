@@ -1,0 +1,202 @@
+"""Where episodes run: worker processes on this machine, or Ray actors on a cluster.
+
+Every worker holds one in-memory MCP session (`agents.runner.open_session` on
+`build_server(config)`) for its whole life, on an event loop of its own thread, and plays its
+jobs one after the other through it; the server keeps the simulator env of the last scene,
+so jobs handed out in scene order reuse it. A job's failure is returned, not raised, so one
+broken episode does not stop the others.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import tempfile
+import threading
+import traceback
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Future
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Job:
+    """One episode for one agent.
+
+    Attributes:
+        agent: an `agents.runner.AGENTS` name.
+        episode_id: benchmark episode id, e.g. 'bench/objectnav/s03-017'.
+        scene: the episode's scene name (jobs are handed out in scene order).
+        seed: the episode's seed (the same for every agent).
+        max_steps: the step limit.
+        trace_dir: where the runner writes the trace and report, or None.
+    """
+
+    agent: str
+    episode_id: str
+    scene: str
+    seed: int
+    max_steps: int
+    trace_dir: str | None = None
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What a worker returns for a job: the result record, or the error it raised."""
+
+    job: Job
+    record: dict[str, Any] | None
+    error: str | None = None
+
+
+def _prepare_process(compute_threads: int) -> None:
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    os.environ.setdefault("HF_HUB_OFFLINE", "1")
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, str(compute_threads))
+
+
+class EpisodeWorker:
+    """Plays jobs through one long-lived in-memory MCP session.
+
+    Args:
+        embedder: the server's text embedder ('minilm' or 'hashing').
+        compute_threads: BLAS/torch threads of the server (1 per worker avoids oversubscription).
+    """
+
+    def __init__(self, embedder: str = "minilm", compute_threads: int = 1) -> None:
+        _prepare_process(compute_threads)
+        self._tmp = tempfile.TemporaryDirectory(prefix="glmap-eval-")
+        self._loop = asyncio.new_event_loop()
+        self._ready: Future[Any] = Future()
+        self._stop: asyncio.Event | None = None
+        self._session: Any = None
+        self._thread = threading.Thread(
+            target=self._serve, args=(embedder, compute_threads), daemon=True
+        )
+        self._thread.start()
+        self._ready.result()  # raises what opening the session raised
+
+    def _serve(self, embedder: str, compute_threads: int) -> None:
+        asyncio.set_event_loop(self._loop)
+        try:
+            self._loop.run_until_complete(self._hold(embedder, compute_threads))
+        except BaseException as exc:  # surface a failed start in the constructor
+            if not self._ready.done():
+                self._ready.set_exception(exc)
+        finally:
+            self._loop.close()
+
+    async def _hold(self, embedder: str, compute_threads: int) -> None:
+        from agents.runner import open_session
+        from glmap_tools.server import ServerConfig
+
+        config = ServerConfig(
+            maps_dir=Path(self._tmp.name) / "maps",
+            embedder=embedder,  # type: ignore[arg-type]
+            warm_up=False,
+            compute_threads=compute_threads,
+        )
+        self._stop = asyncio.Event()
+        async with open_session(config) as session:
+            self._session = session
+            self._ready.set_result(True)
+            await self._stop.wait()
+
+    async def _play(self, job: Job) -> dict[str, Any]:
+        from agents.runner import run_episode
+
+        result = await run_episode(
+            self._session,
+            job.episode_id,
+            job.agent,
+            seed=job.seed,
+            out_dir=Path(job.trace_dir) if job.trace_dir else None,
+            max_steps=job.max_steps,
+        )
+        return {**result.model_dump(), "scene": job.scene}
+
+    def run(self, job: Job) -> Outcome:
+        """Play one job; an exception becomes the Outcome's error text."""
+        try:
+            record = asyncio.run_coroutine_threadsafe(self._play(job), self._loop).result()
+        except Exception:
+            return Outcome(job, None, traceback.format_exc(limit=8))
+        return Outcome(job, record)
+
+    def close(self) -> None:
+        if self._stop is not None and self._thread.is_alive():
+            self._loop.call_soon_threadsafe(self._stop.set)
+            self._thread.join(timeout=30)
+        self._tmp.cleanup()
+
+
+def _process_main(embedder: str, jobs: Any, outcomes: Any) -> None:
+    """A local worker process: take jobs until None, put an Outcome (as a dict) for each."""
+    try:
+        worker = EpisodeWorker(embedder)
+    except Exception:
+        outcomes.put({"fatal": traceback.format_exc(limit=8)})
+        return
+    try:
+        while (item := jobs.get()) is not None:
+            outcome = worker.run(Job(**item))
+            outcomes.put({"job": item, "record": outcome.record, "error": outcome.error})
+    finally:
+        worker.close()
+
+
+def run_local(jobs: Sequence[Job], workers: int, embedder: str) -> Iterator[Outcome]:
+    """Play `jobs` on `workers` local processes; yield each Outcome as it finishes.
+
+    Raises:
+        RuntimeError: a worker could not start or died (its error is in the message).
+    """
+    import multiprocessing as mp
+    import queue
+
+    ctx = mp.get_context("spawn")  # no inherited GL context, event loop or thread pools
+    job_q: Any = ctx.Queue()
+    out_q: Any = ctx.Queue()
+    for job in jobs:
+        job_q.put(asdict(job))
+    n = max(1, min(workers, len(jobs)))
+    for _ in range(n):
+        job_q.put(None)
+    procs = [ctx.Process(target=_process_main, args=(embedder, job_q, out_q)) for _ in range(n)]
+    for p in procs:
+        p.start()
+    try:
+        left = len(jobs)
+        while left:
+            try:
+                item = out_q.get(timeout=5.0)
+            except queue.Empty:
+                if not any(p.is_alive() for p in procs):
+                    raise RuntimeError(
+                        f"every eval worker exited with {left} episodes left "
+                        f"(exit codes {[p.exitcode for p in procs]})"
+                    ) from None
+                continue
+            if "fatal" in item:
+                raise RuntimeError(f"an eval worker could not start:\n{item['fatal']}")
+            left -= 1
+            yield Outcome(Job(**item["job"]), item["record"], item["error"])
+    finally:
+        for p in procs:
+            p.join(timeout=30)
+            if p.is_alive():
+                p.terminate()
+                p.join(timeout=5)
+
+
+def run_inline(jobs: Sequence[Job], embedder: str) -> Iterator[Outcome]:
+    """Play `jobs` in this process (workers=0), one at a time."""
+    worker = EpisodeWorker(embedder)
+    try:
+        for job in jobs:
+            yield worker.run(job)
+    finally:
+        worker.close()
