@@ -1,0 +1,63 @@
+"""Navigation with a GLMap (paper 3.2): frontiers, the Eq. 7 value map, the waypoint rule,
+an FMM planner with its discrete next action, goal scorers f_S and the per-step policies.
+
+Pure numpy/scipy/scikit-fmm: no MCP, no model library (scorers receive an embedder).
+"""
+
+from glmap_tools.nav.config import ACTIONS, POLICIES, NavConfig
+from glmap_tools.nav.egocentric import EgocentricValueMap
+from glmap_tools.nav.errors import OutsideMapError, UnreachableGoalError
+from glmap_tools.nav.frontiers import Frontier, frontiers
+from glmap_tools.nav.grid import Window, inflate, plannable, traversable
+from glmap_tools.nav.planner import (
+    DIJKSTRA8_MAX_RATIO,
+    Plan,
+    geodesic,
+    next_action,
+    plan,
+    reference_geodesic,
+)
+from glmap_tools.nav.policy import NavDecision, NavState, decide
+from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, map_units
+from glmap_tools.nav.value import (
+    ValueMap,
+    value_map,
+    value_map_from_scores,
+    value_map_reference,
+)
+from glmap_tools.nav.waypoint import GoalMatch, Waypoint, choose_waypoint
+
+__all__ = [
+    "ACTIONS",
+    "DIJKSTRA8_MAX_RATIO",
+    "POLICIES",
+    "EgocentricValueMap",
+    "EmbeddingScorer",
+    "Frontier",
+    "GoalMatch",
+    "NavConfig",
+    "NavDecision",
+    "NavState",
+    "OutsideMapError",
+    "Plan",
+    "Scorer",
+    "UnitText",
+    "UnreachableGoalError",
+    "Waypoint",
+    "ValueMap",
+    "Window",
+    "choose_waypoint",
+    "decide",
+    "frontiers",
+    "geodesic",
+    "inflate",
+    "map_units",
+    "next_action",
+    "plan",
+    "plannable",
+    "reference_geodesic",
+    "traversable",
+    "value_map",
+    "value_map_from_scores",
+    "value_map_reference",
+]

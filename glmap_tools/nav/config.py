@@ -1,0 +1,94 @@
+"""`NavConfig`: every tunable of the navigation core in one place."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from glmap_tools.errors import InvalidInputError, did_you_mean
+
+POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
+ACTIONS = ("move_forward", "turn_left", "turn_right", "stop")
+
+
+@dataclass(frozen=True)
+class NavConfig:
+    """Settings of the navigation core (see nav/design.md for how each number was chosen).
+
+    Attributes:
+        agent_radius: metres; obstacles are inflated by it.
+        success_radius: metres; an episode succeeds when the agent stops this close to the goal.
+        forward_step: metres per move_forward.
+        turn_angle_deg: degrees per turn_left / turn_right.
+        value_sigma: bandwidth sigma (m) of the Gaussian kernel K_sigma of Eq. 7.
+        stop_threshold: score s_u in [0, 1] at which an instance matches the goal.
+        min_observations: frames that must have observed a matching instance.
+        stop_distance: metres from the matched unit's cells where the agent stops (kept below
+            success_radius so footprint error in the map does not cost the episode).
+        min_frontier_size: frontier clusters with fewer cells are dropped.
+        lookahead: metres along the path to the point the agent turns toward.
+        window_margin: metres of unknown space kept around the known map for planning.
+        optimistic: whether plans may cross unknown cells (frontier exploration does).
+        stuck_steps: steps without progress after which the waypoint is given up.
+        plan_stride: the FMM planner works on cells this many map cells wide (1 = map cells).
+    """
+
+    agent_radius: float = 0.18
+    success_radius: float = 1.0
+    forward_step: float = 0.25
+    turn_angle_deg: float = 30.0
+    value_sigma: float = 0.5
+    stop_threshold: float = 0.6
+    min_observations: int = 2
+    stop_distance: float = 0.75
+    min_frontier_size: int = 5
+    lookahead: float = 0.5
+    window_margin: float = 1.0
+    optimistic: bool = True
+    stuck_steps: int = 12
+    plan_stride: int = 1
+
+    def __post_init__(self) -> None:
+        positive = (
+            "agent_radius",
+            "success_radius",
+            "forward_step",
+            "turn_angle_deg",
+            "value_sigma",
+            "stop_distance",
+            "lookahead",
+        )
+        for name in positive:
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise InvalidInputError(f"NavConfig.{name}={value!r} must be a positive number.")
+        if not 0.0 <= self.stop_threshold <= 1.0:
+            raise InvalidInputError(
+                f"NavConfig.stop_threshold={self.stop_threshold!r} must be a score in [0, 1]."
+            )
+        if self.stop_distance > self.success_radius:
+            raise InvalidInputError(
+                f"NavConfig.stop_distance={self.stop_distance} must not exceed "
+                f"success_radius={self.success_radius}; the agent would stop too far away."
+            )
+        for name in ("min_observations", "min_frontier_size", "stuck_steps", "plan_stride"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise InvalidInputError(f"NavConfig.{name}={value!r} must be an integer >= 1.")
+        if self.window_margin < 0:
+            raise InvalidInputError(f"NavConfig.window_margin={self.window_margin!r} must be >= 0.")
+
+    @property
+    def turn_angle(self) -> float:
+        """Radians per turn."""
+        return math.radians(self.turn_angle_deg)
+
+
+def check_policy(policy: str) -> str:
+    """Return `policy` or raise InvalidInputError naming the known ones."""
+    if policy not in POLICIES:
+        raise InvalidInputError(
+            f"unknown navigation policy {policy!r}.{did_you_mean(policy, POLICIES)} "
+            f"Choose from {list(POLICIES)}."
+        )
+    return policy

@@ -1,0 +1,311 @@
+"""`decide`: one step of a navigation policy over a GLMap (value map -> waypoint -> FMM plan).
+
+Policies (the rows of the paper's Table 1): 'glmap' (instance and region units in Eq. 7),
+'glmap-instance', 'glmap-region', 'egocentric' (VLFM-like: per-frame scores in the view
+cone, no unit memory), 'frontier' (nearest frontier, FBE). All share the goal detector:
+an instance whose score reaches `stop_threshold` after `min_observations` frames.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
+from glmap_tools.nav.config import NavConfig, check_policy
+from glmap_tools.nav.egocentric import EgocentricValueMap
+from glmap_tools.nav.frontiers import Frontier, frontiers
+from glmap_tools.nav.grid import (
+    agent_rc,
+    clear_footprint,
+    known_window,
+    plannable,
+    reframe,
+    traversable,
+)
+from glmap_tools.nav.planner import Plan, geodesic, plan_on_field
+from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
+from glmap_tools.nav.value import ValueMap, unit_cell_array, value_map_from_scores
+from glmap_tools.nav.waypoint import GoalMatch, Waypoint, choose_waypoint
+
+if TYPE_CHECKING:
+    from glmap_tools.geometry.frame import RGBDFrame
+    from glmap_tools.map.glmap import GLMap
+    from glmap_tools.perception.semantics import FrameSemantics
+
+POLICY_UNITS = {"glmap": "both", "glmap-instance": "instances", "glmap-region": "regions"}
+PROGRESS = 0.25  # metres of progress toward the waypoint that reset the stuck counter
+BUMP_MOVE = 0.02  # metres: a move_forward that moved less than this hit something
+
+
+@dataclass
+class NavState:
+    """Per-episode memory of a policy: the egocentric map, given-up waypoints, stuck counter.
+
+    Attributes:
+        egocentric: the VLFM-like accumulator (policy 'egocentric' only).
+        avoid: (x, y) of waypoints given up (stuck, or reached without clearing them).
+        rejected_units: matched instances given up (no way to reach them).
+        blocked: (i, j) cells where a forward move was stopped (obstacles the map missed).
+        last_waypoint: the previous step's waypoint.
+        steps: decisions taken.
+    """
+
+    egocentric: EgocentricValueMap | None = None
+    avoid: list[tuple[float, float]] = field(default_factory=list)
+    rejected_units: set[int] = field(default_factory=set)
+    blocked: set[tuple[int, int]] = field(default_factory=set)
+    last_waypoint: Waypoint | None = None
+    last_action: str | None = None
+    last_xy: tuple[float, float] | None = None
+    last_heading: float = 0.0
+    best_distance: float = math.inf
+    since_progress: int = 0
+    steps: int = 0
+    scorer: Scorer | None = None
+
+
+@dataclass(frozen=True)
+class NavDecision:
+    """What `decide` chose, with everything it looked at (for reports and tools).
+
+    Attributes:
+        action: 'move_forward' | 'turn_left' | 'turn_right' | 'stop'.
+        waypoint: the chosen waypoint.
+        plan: the FMM plan to it.
+        value: the value map used (None for 'frontier').
+        frontiers: reachable frontiers, nearest first.
+        matched_unit: the instance matching the goal, if any.
+        occupancy: the occupancy window everything is over.
+        scores: unit id -> s_u of the units scored this step.
+    """
+
+    action: str
+    waypoint: Waypoint
+    plan: Plan
+    value: ValueMap | None
+    frontiers: list[Frontier]
+    matched_unit: int | None
+    occupancy: DenseOccupancy
+    scores: dict[int, float]
+
+
+def _bump(
+    state: NavState, agent_xy: tuple[float, float], heading: float, config: NavConfig, s: float
+) -> None:
+    """After a forward move that did not move, remember the cells just ahead as blocked."""
+    if state.last_action != "move_forward" or state.last_xy is None:
+        return
+    if math.hypot(agent_xy[0] - state.last_xy[0], agent_xy[1] - state.last_xy[1]) >= BUMP_MOVE:
+        return
+    for t in (config.agent_radius + s, config.agent_radius + 2 * s):
+        for side in (-s, 0.0, s):
+            x = agent_xy[0] + t * math.cos(heading) - side * math.sin(heading)
+            y = agent_xy[1] + t * math.sin(heading) + side * math.cos(heading)
+            state.blocked.add((math.floor(x / s), math.floor(y / s)))
+
+
+def _window(
+    glmap: GLMap, agent_xy: tuple[float, float], state: NavState, config: NavConfig
+) -> DenseOccupancy:
+    dense = glmap.occupancy.to_dense()
+    margin = math.ceil(config.window_margin / dense.cell_size)
+    occ = reframe(dense, known_window(dense, margin, agent_xy))
+    if state.blocked:
+        cells = np.array(sorted(state.blocked), dtype=np.int64)
+        r, c = cells[:, 1] - occ.origin[1], cells[:, 0] - occ.origin[0]
+        h, w = occ.state.shape
+        keep = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        occ.state[r[keep], c[keep]] = OBSTACLE
+    return occ
+
+
+def find_goal_match(
+    glmap: GLMap, units: list[UnitText], scores: np.ndarray, state: NavState, config: NavConfig
+) -> GoalMatch | None:
+    """The best-scoring instance at or above the stop threshold with enough observations."""
+    best: GoalMatch | None = None
+    for u, s in zip(units, scores, strict=True):
+        if u.kind != "instance" or u.unit_id in state.rejected_units:
+            continue
+        if s < config.stop_threshold or u.observations < config.min_observations:
+            continue
+        if best is None or s > best.score:
+            best = GoalMatch(
+                u.unit_id, float(s), u.observations, unit_cell_array(glmap.grid, u.unit_id)
+            )
+    return best
+
+
+def _frame_score(
+    glmap: GLMap, goal: str, scorer: Scorer, semantics: FrameSemantics | None
+) -> float:
+    """What the current frame shows, scored against the goal: the best of its objects/groups."""
+    if semantics is not None:
+        texts = [o.description or o.label for o in semantics.objects]
+        texts += [g.description for g in semantics.groups]
+        units = [UnitText(-1, "instance", t) for t in texts if t.strip()]
+    else:
+        last = len(glmap.trajectory) - 1
+        units = [
+            u
+            for u in map_units(glmap, "instances")
+            if glmap.instances[u.unit_id].last_frame == last
+        ]
+    if not units:
+        return 0.0
+    return float(np.max(scorer.score(goal, units)))
+
+
+def decide(
+    glmap: GLMap,
+    agent_xy: tuple[float, float],
+    heading: float,
+    goal: str,
+    *,
+    policy: str = "glmap",
+    scorer: Scorer | None = None,
+    state: NavState | None = None,
+    config: NavConfig | None = None,
+    frame: RGBDFrame | None = None,
+    semantics: FrameSemantics | None = None,
+) -> NavDecision:
+    """One step of `policy`: the next discrete action for the agent at `agent_xy`, `heading`.
+
+    Args:
+        glmap: the map built so far (this step's frame already integrated).
+        agent_xy: (x, y) metres.
+        heading: radians, counter-clockwise from +x.
+        goal: goal description T_g.
+        policy: one of POLICIES.
+        scorer: f_S; default `EmbeddingScorer(glmap.embedder)` (kept in `state`).
+        state: per-episode state; pass the same object every step (a fresh one if None).
+        config: navigation settings.
+        frame: this step's frame (policy 'egocentric' projects it into its view cone).
+        semantics: this frame's semantics, scored for the egocentric frame score (default:
+            the instances the latest frame observed).
+
+    Raises:
+        InvalidInputError: empty goal, unknown policy, non-finite pose.
+    """
+    goal = check_goal(goal)
+    check_policy(policy)
+    config = config or NavConfig()
+    state = state if state is not None else NavState()
+    x, y = float(agent_xy[0]), float(agent_xy[1])
+    if not all(math.isfinite(v) for v in (x, y, heading)):
+        raise InvalidInputError(f"agent pose ({agent_xy!r}, heading {heading!r}) must be finite.")
+    xy = (x, y)
+    if scorer is None:
+        if state.scorer is None:
+            state.scorer = EmbeddingScorer(glmap.embedder)
+        scorer = state.scorer
+    s = glmap.grid.cell_size
+    _bump(state, xy, heading, config, s)
+
+    occ = _window(glmap, xy, state, config)
+    rc = agent_rc(occ, xy)
+    radius_cells = config.agent_radius / s
+    field = geodesic(
+        clear_footprint(plannable(occ, config.agent_radius, config.optimistic), rc, radius_cells),
+        rc,
+        s,
+    )
+    fronts = frontiers(occ, xy, config.agent_radius, config.min_frontier_size, distance_field=field)
+    trav = clear_footprint(traversable(occ, config.agent_radius), rc, radius_cells)
+
+    units = map_units(glmap, "instances" if policy not in ("glmap", "glmap-region") else "both")
+    scores = scorer.score(goal, units) if units else np.zeros(0)
+    match = find_goal_match(glmap, units, scores, state, config)
+    by_id = {u.unit_id: float(v) for u, v in zip(units, scores, strict=True)}
+
+    value: ValueMap | None = None
+    if policy in POLICY_UNITS:
+        kinds = {"both": ("instance", "region"), "instances": ("instance",), "regions": ("region",)}
+        keep = kinds[POLICY_UNITS[policy]]
+        used = {u.unit_id: by_id[u.unit_id] for u in units if u.kind in keep}
+        value = value_map_from_scores(used, glmap.grid, occ, config.value_sigma)
+    elif policy == "egocentric":
+        if state.egocentric is None:
+            state.egocentric = EgocentricValueMap(s, glmap.config.max_range)
+        if frame is not None:
+            state.egocentric.add_frame(frame, _frame_score(glmap, goal, scorer, semantics))
+        value = state.egocentric.as_value_map(occ)
+
+    waypoint, out = _choose_and_plan(
+        value, fronts, trav, xy, heading, match, occ, field, state, config
+    )
+    _track_progress(state, waypoint, out, config)
+    state.last_waypoint, state.last_action = waypoint, out.action
+    state.last_xy, state.last_heading = xy, heading
+    state.steps += 1
+    return NavDecision(
+        out.action,
+        waypoint,
+        out,
+        value,
+        fronts,
+        match.unit_id if match is not None and waypoint.kind == "goal" else None,
+        occ,
+        by_id,
+    )
+
+
+def _choose_and_plan(
+    value: ValueMap | None,
+    fronts: list[Frontier],
+    trav: np.ndarray,
+    xy: tuple[float, float],
+    heading: float,
+    match: GoalMatch | None,
+    occ: DenseOccupancy,
+    field: np.ndarray,
+    state: NavState,
+    config: NavConfig,
+) -> tuple[Waypoint, Plan]:
+    """Choose a waypoint and plan to it; a frontier reached without effect is given up."""
+    for _ in range(8):
+        wp = choose_waypoint(
+            value, fronts, trav, xy, match, config, occ=occ, distance=field, avoid=state.avoid
+        )
+        if wp.xy is None:
+            return wp, Plan(np.zeros((0, 2)), math.inf, "stop", False, xy)
+        if wp.kind == "goal" and wp.xy == xy:
+            return wp, Plan(np.array([xy]), 0.0, "stop", True, xy)
+        out = plan_on_field(occ, field, xy, heading, wp.xy, config)
+        if wp.kind == "goal" and not out.reachable:
+            assert match is not None
+            state.rejected_units.add(match.unit_id)
+            match = None
+            continue
+        if out.action == "stop" and wp.kind != "goal":
+            state.avoid.append(wp.xy)  # reached, yet still a frontier: look elsewhere
+            continue
+        return wp, out
+    return Waypoint(None, "none", None, 0.0, "every waypoint was given up."), Plan(
+        np.zeros((0, 2)), math.inf, "stop", False, xy
+    )
+
+
+def _track_progress(state: NavState, wp: Waypoint, out: Plan, config: NavConfig) -> None:
+    """Give up a waypoint the agent has not come `PROGRESS` m closer to in `stuck_steps` steps."""
+    last = state.last_waypoint
+    same = (
+        last is not None
+        and wp.xy is not None
+        and last.xy is not None
+        and math.hypot(wp.xy[0] - last.xy[0], wp.xy[1] - last.xy[1]) < config.stop_distance
+    )
+    if not same or out.length < state.best_distance - PROGRESS:
+        state.best_distance = out.length
+        state.since_progress = 0
+        return
+    state.since_progress += 1
+    if state.since_progress >= config.stuck_steps and wp.xy is not None and wp.kind != "goal":
+        state.avoid.append(wp.xy)
+        state.since_progress = 0
+        state.best_distance = math.inf

@@ -1,0 +1,251 @@
+"""The value map H(l) of paper Eq. 7: unit scores on their grid cells, smoothed by K_sigma.
+
+    H(l) = 1/Z sum_{v in m} ( sum_u s_u delta(v - p_u) ) K_sigma(l - v)
+
+Every unit u (instance or region) puts its score s_u on each index-grid cell it covers; the
+score image is convolved with a sampled 2D Gaussian K_sigma (separable, truncated at
+TRUNCATE sigma per axis, normalised to sum 1); Z = max_l of the sum, so H is in [0, 1] with
+its maximum at 1 (0 everywhere when no unit scores above 0). `value_map_reference` evaluates
+the double sum directly.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy import ndimage
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.map.grid import IndexGrid
+from glmap_tools.map.occupancy import DenseOccupancy
+from glmap_tools.nav.grid import Window
+
+if TYPE_CHECKING:
+    from glmap_tools.map.glmap import GLMap
+    from glmap_tools.nav.scorers import Scorer
+
+TRUNCATE = 3.0  # kernel half-width in sigmas
+
+
+@dataclass(frozen=True)
+class ValueMap:
+    """A dense value map over a window of the index grid.
+
+    Attributes:
+        values: [H, W] float in [0, 1]; row = y cell, column = x cell (as DenseOccupancy).
+        origin: (i0, j0) integer cell of values[0, 0].
+        cell_size: metres per cell.
+        peak: Z, the largest unnormalised value (0 when nothing scored).
+        sigma: kernel bandwidth (m); 0 for maps that are not smoothed (egocentric).
+    """
+
+    values: np.ndarray  # [H, W]
+    origin: tuple[int, int]
+    cell_size: float
+    peak: float = 0.0
+    sigma: float = 0.0
+
+    @property
+    def empty(self) -> bool:
+        """True when no cell has a positive value."""
+        return self.values.size == 0 or not bool((self.values > 0).any())
+
+    def xy_of(self, row: int, col: int) -> tuple[float, float]:
+        return (
+            (col + self.origin[0] + 0.5) * self.cell_size,
+            (row + self.origin[1] + 0.5) * self.cell_size,
+        )
+
+    def argmax_xy(self) -> tuple[float, float] | None:
+        """World (x, y) of the highest cell (lowest row, then column, on ties), None if empty."""
+        if self.empty:
+            return None
+        r, c = np.unravel_index(int(np.argmax(self.values)), self.values.shape)
+        return self.xy_of(int(r), int(c))
+
+    def value_at(self, x: float, y: float) -> float:
+        """H at world (x, y); 0 outside the window."""
+        r = math.floor(y / self.cell_size) - self.origin[1]
+        c = math.floor(x / self.cell_size) - self.origin[0]
+        h, w = self.values.shape
+        return float(self.values[r, c]) if 0 <= r < h and 0 <= c < w else 0.0
+
+    def top_cells(
+        self, k: int = 5, min_separation: float = 0.5
+    ) -> list[tuple[float, float, float]]:
+        """Up to k local peaks as (x, y, value), highest first, `min_separation` m apart."""
+        if self.empty or k < 1:
+            return []
+        rows, cols = np.nonzero(self.values > 0)
+        vals = self.values[rows, cols]
+        order = np.lexsort((cols, rows, -vals))
+        sep = (min_separation / self.cell_size) ** 2
+        picked: list[tuple[int, int, float]] = []
+        for idx in order:
+            r, c = int(rows[idx]), int(cols[idx])
+            if all((r - pr) ** 2 + (c - pc) ** 2 >= sep for pr, pc, _ in picked):
+                picked.append((r, c, float(vals[idx])))
+                if len(picked) == k:
+                    break
+        return [(*self.xy_of(r, c), round(v, 4)) for r, c, v in picked]
+
+
+def gaussian_kernel_1d(sigma_cells: float) -> np.ndarray:
+    """[2R+1] sampled Gaussian, R = ceil(TRUNCATE sigma), normalised to sum 1."""
+    radius = max(1, math.ceil(TRUNCATE * sigma_cells))
+    x = np.arange(-radius, radius + 1, dtype=np.float64)
+    g = np.exp(-0.5 * (x / sigma_cells) ** 2)
+    return g / g.sum()
+
+
+# Per-grid cache: unit id -> (the grid's frozenset of cells, [K, 2] int array of (i, j)).
+_CELL_CACHE: weakref.WeakKeyDictionary[IndexGrid, dict[int, tuple[frozenset, np.ndarray]]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def unit_cell_array(grid: IndexGrid, unit_id: int) -> np.ndarray:
+    """[K, 2] int (i, j) cells of a unit, cached until the grid replaces them."""
+    cache = _CELL_CACHE.setdefault(grid, {})
+    cells = grid.cells_of_unit(unit_id)
+    hit = cache.get(unit_id)
+    if hit is not None and hit[0] is cells:
+        return hit[1]
+    arr = np.array(sorted(cells), dtype=np.int64).reshape(-1, 2)
+    cache[unit_id] = (cells, arr)
+    return arr
+
+
+def as_window(window: Window | DenseOccupancy) -> Window:
+    return Window.of(window) if isinstance(window, DenseOccupancy) else window
+
+
+def score_image(scores: Mapping[int, float], grid: IndexGrid, window: Window) -> np.ndarray:
+    """[H, W] sum_u s_u delta(v - p_u): each unit's score added on each of its cells."""
+    img = np.zeros(window.shape, dtype=np.float64)
+    parts_r, parts_c, parts_v = [], [], []
+    for uid, s in scores.items():
+        if s <= 0:
+            continue
+        cells = unit_cell_array(grid, int(uid))
+        r = cells[:, 1] - window.j0
+        c = cells[:, 0] - window.i0
+        keep = (r >= 0) & (r < window.height) & (c >= 0) & (c < window.width)
+        parts_r.append(r[keep])
+        parts_c.append(c[keep])
+        parts_v.append(np.full(int(keep.sum()), float(s)))
+    if parts_r:
+        flat = np.concatenate(parts_r) * window.width + np.concatenate(parts_c)
+        img.ravel()[:] = np.bincount(flat, np.concatenate(parts_v), minlength=img.size)
+    return img
+
+
+def check_scores(scores: Mapping[int, float]) -> None:
+    for uid, s in scores.items():
+        if not (math.isfinite(s) and 0.0 <= s <= 1.0):
+            raise InvalidInputError(f"score {s!r} of unit {uid} must be in [0, 1].")
+
+
+def value_map_from_scores(
+    scores: Mapping[int, float],
+    grid: IndexGrid,
+    window: Window | DenseOccupancy,
+    sigma: float,
+) -> ValueMap:
+    """Eq. 7 over `window` for unit scores s_u (fast: separable convolution of the cells).
+
+    Args:
+        scores: unit id -> s_u in [0, 1].
+        grid: the index grid m holding each unit's cells.
+        window: the cells to evaluate (units outside it do not contribute).
+        sigma: kernel bandwidth, metres.
+    """
+    check_scores(scores)
+    win = as_window(window)
+    img = score_image(scores, grid, win)
+    g = gaussian_kernel_1d(sigma / grid.cell_size)
+    h = ndimage.correlate1d(img, g, axis=0, mode="constant")
+    h = ndimage.correlate1d(h, g, axis=1, mode="constant")
+    peak = float(h.max()) if h.size else 0.0
+    values = h / peak if peak > 0 else np.zeros_like(h)
+    return ValueMap(np.clip(values, 0.0, 1.0), win.origin, grid.cell_size, peak, sigma)
+
+
+def value_map_reference(
+    scores: Mapping[int, float],
+    grid: IndexGrid,
+    window: Window | DenseOccupancy,
+    sigma: float,
+) -> ValueMap:
+    """Slow reference of `value_map_from_scores`: the explicit double sum of Eq. 7."""
+    win = as_window(window)
+    s_cell = grid.cell_size
+    g = gaussian_kernel_1d(sigma / s_cell)
+    radius = len(g) // 2
+    sources: dict[tuple[int, int], float] = {}
+    for uid, s in scores.items():
+        for i, j in grid.cells_of_unit(int(uid)):
+            if win.i0 <= i < win.i0 + win.width and win.j0 <= j < win.j0 + win.height:
+                sources[(i, j)] = sources.get((i, j), 0.0) + float(s)
+    h = np.zeros(win.shape)
+    for r in range(win.height):
+        for c in range(win.width):
+            li, lj = win.i0 + c, win.j0 + r
+            total = 0.0
+            for (vi, vj), sv in sources.items():
+                di, dj = li - vi, lj - vj
+                if abs(di) <= radius and abs(dj) <= radius:
+                    total += sv * g[di + radius] * g[dj + radius]
+            h[r, c] = total
+    peak = float(h.max()) if h.size else 0.0
+    values = h / peak if peak > 0 else np.zeros_like(h)
+    return ValueMap(values, win.origin, s_cell, peak, sigma)
+
+
+def map_window(glmap: GLMap, margin: float) -> Window:
+    """The cells of every unit and the occupancy's known area, plus `margin` metres."""
+    from glmap_tools.nav.grid import known_window
+
+    occ = glmap.occupancy.to_dense()
+    return known_window(occ, math.ceil(margin / glmap.grid.cell_size))
+
+
+def value_map(
+    glmap: GLMap,
+    goal: str,
+    scorer: Scorer,
+    *,
+    units: str = "both",
+    sigma: float | None = None,
+    window: Window | DenseOccupancy | None = None,
+) -> ValueMap:
+    """Eq. 7 for a goal text over a GLMap: s_u = f_S(u, goal) for its instances and/or regions.
+
+    Args:
+        glmap: the map.
+        goal: goal description T_g (non-empty).
+        scorer: f_S, e.g. `EmbeddingScorer(glmap.embedder)`.
+        units: 'both' | 'instances' | 'regions'.
+        sigma: kernel bandwidth (m); default NavConfig().value_sigma.
+        window: cells to evaluate; default the known map plus TRUNCATE sigma.
+
+    Raises:
+        InvalidInputError: empty goal, unknown `units`, non-positive sigma.
+    """
+    from glmap_tools.nav.config import NavConfig
+    from glmap_tools.nav.scorers import check_goal, map_units
+
+    check_goal(goal)
+    sigma = NavConfig().value_sigma if sigma is None else float(sigma)
+    if not (math.isfinite(sigma) and sigma > 0):
+        raise InvalidInputError(f"sigma={sigma!r} must be a positive number of metres, e.g. 0.5.")
+    unit_texts = map_units(glmap, units)
+    scores = scorer.score(goal, unit_texts) if unit_texts else np.zeros(0)
+    by_id = {u.unit_id: float(s) for u, s in zip(unit_texts, scores, strict=True)}
+    win = as_window(window) if window is not None else map_window(glmap, TRUNCATE * sigma)
+    return value_map_from_scores(by_id, glmap.grid, win, sigma)

@@ -1,0 +1,224 @@
+"""The waypoint rule: the frontier closest to argmax H, or the matched goal unit.
+
+Paper 3.2: "the next waypoint is selected as the frontier closest to the location of the
+maximum value grid". Once an instance matches the goal (score >= stop_threshold, observed
+in >= min_observations frames) the waypoint becomes the nearest navigable cell within
+`stop_distance` (< success radius) of that unit's cells.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from glmap_tools.map.occupancy import DenseOccupancy
+from glmap_tools.nav.config import NavConfig
+from glmap_tools.nav.frontiers import Frontier
+from glmap_tools.nav.value import ValueMap
+
+WAYPOINT_KINDS = ("goal", "frontier", "explore", "none")
+
+
+@dataclass(frozen=True)
+class GoalMatch:
+    """An instance that matches the goal.
+
+    Attributes:
+        unit_id: the instance id.
+        score: s_u in [0, 1].
+        observations: frames that observed it.
+        cells: [K, 2] int (i, j) index-grid cells of the unit (its footprint).
+    """
+
+    unit_id: int
+    score: float
+    observations: int
+    cells: np.ndarray  # [K, 2]
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    """Where the agent heads next.
+
+    Attributes:
+        xy: (x, y) metres, or None for kind 'none'.
+        kind: 'goal' (a matched unit) | 'frontier' | 'explore' (no frontier left: the best
+            value) | 'none' (nothing left to do).
+        unit_id: the matched unit for kind 'goal'.
+        score: the unit score (goal) or the value H at the waypoint.
+        reason: one sentence saying why this waypoint was chosen.
+    """
+
+    xy: tuple[float, float] | None
+    kind: str
+    unit_id: int | None
+    score: float
+    reason: str
+
+
+def _cells_to_window(cells: np.ndarray, occ: DenseOccupancy) -> np.ndarray:
+    """[K, 2] (i, j) -> [K, 2] (row, col) in the occupancy window."""
+    return np.stack([cells[:, 1] - occ.origin[1], cells[:, 0] - occ.origin[0]], axis=1)
+
+
+def distance_to_cells(cells: np.ndarray, xy: tuple[float, float], cell_size: float) -> float:
+    """Metres from (x, y) to the nearest point of any of the [K, 2] (i, j) cells."""
+    if len(cells) == 0:
+        return math.inf
+    lo = cells * cell_size
+    dx = np.maximum(np.maximum(lo[:, 0] - xy[0], xy[0] - (lo[:, 0] + cell_size)), 0.0)
+    dy = np.maximum(np.maximum(lo[:, 1] - xy[1], xy[1] - (lo[:, 1] + cell_size)), 0.0)
+    return float(np.hypot(dx, dy).min())
+
+
+def goal_cells_near(
+    match: GoalMatch, occ: DenseOccupancy, ok: np.ndarray, radius: float
+) -> np.ndarray:
+    """[K, 2] (row, col) of `ok` cells whose centre is within `radius` m of the unit's cells."""
+    rc = _cells_to_window(match.cells, occ)
+    pad = int(math.ceil(radius / occ.cell_size)) + 1
+    h, w = ok.shape
+    r0, c0 = max(0, int(rc[:, 0].min()) - pad), max(0, int(rc[:, 1].min()) - pad)
+    r1, c1 = min(h, int(rc[:, 0].max()) + pad + 1), min(w, int(rc[:, 1].max()) + pad + 1)
+    if r1 <= r0 or c1 <= c0:
+        return np.zeros((0, 2), np.int64)
+    unit = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    inside = (rc[:, 0] >= r0) & (rc[:, 0] < r1) & (rc[:, 1] >= c0) & (rc[:, 1] < c1)
+    unit[rc[inside, 0] - r0, rc[inside, 1] - c0] = True
+    # Centre-to-centre distance minus half a cell: to the unit cell's near side.
+    dist = (ndimage.distance_transform_edt(~unit) - 0.5) * occ.cell_size
+    near = ok[r0:r1, c0:c1] & (dist <= radius)
+    rows, cols = np.nonzero(near)
+    return np.stack([rows + r0, cols + c0], axis=1)
+
+
+def choose_waypoint(
+    value: ValueMap | None,
+    fronts: Sequence[Frontier],
+    traversable: np.ndarray,
+    agent_xy: tuple[float, float],
+    goal_match: GoalMatch | None,
+    config: NavConfig,
+    *,
+    occ: DenseOccupancy,
+    distance: np.ndarray | None = None,
+    avoid: Sequence[tuple[float, float]] = (),
+) -> Waypoint:
+    """Pick the next waypoint (see the module docstring).
+
+    Args:
+        value: the value map H, or None (frontier-only exploration: the nearest frontier).
+        fronts: reachable frontiers (from `frontiers`).
+        traversable: [H, W] bool cells the agent may stand on, over `occ`'s window.
+        agent_xy: (x, y) metres.
+        goal_match: the matched instance, if any.
+        config: stop distance and radii.
+        occ: the occupancy window `traversable` and `distance` are over.
+        distance: [H, W] geodesic metres from the agent; frontiers or goal cells it cannot
+            reach are skipped (next best is taken); None = straight-line distances.
+        avoid: (x, y) of waypoints given up earlier (stuck, or reached without effect);
+            frontiers within `config.stop_distance` of one are skipped.
+    """
+    s = occ.cell_size
+
+    def dist_of(rc: np.ndarray) -> np.ndarray:
+        if distance is not None:
+            return distance[rc[:, 0], rc[:, 1]]
+        xy = occ_xy(rc)
+        return np.hypot(xy[:, 0] - agent_xy[0], xy[:, 1] - agent_xy[1])
+
+    def occ_xy(rc: np.ndarray) -> np.ndarray:
+        return np.stack(
+            [(rc[:, 1] + occ.origin[0] + 0.5) * s, (rc[:, 0] + occ.origin[1] + 0.5) * s], axis=1
+        )
+
+    if goal_match is not None:
+        here = distance_to_cells(goal_match.cells, agent_xy, s)
+        if here <= config.stop_distance:
+            return Waypoint(
+                (float(agent_xy[0]), float(agent_xy[1])),
+                "goal",
+                goal_match.unit_id,
+                goal_match.score,
+                f"instance {goal_match.unit_id} matches the goal (score {goal_match.score:.2f}) "
+                f"and is {here:.2f} m away: within the stop distance.",
+            )
+        cand = goal_cells_near(goal_match, occ, traversable, config.stop_distance - s)
+        if len(cand):
+            d = dist_of(cand)
+            k = int(np.argmin(d))
+            if math.isfinite(float(d[k])):
+                xy = occ_xy(cand[k : k + 1])[0]
+                return Waypoint(
+                    (float(xy[0]), float(xy[1])),
+                    "goal",
+                    goal_match.unit_id,
+                    goal_match.score,
+                    f"instance {goal_match.unit_id} matches the goal (score "
+                    f"{goal_match.score:.2f}); heading to the nearest navigable cell within "
+                    f"{config.stop_distance:.2f} m of it.",
+                )
+        # The match has no reachable cell near it yet: keep exploring (next best).
+
+    usable = [
+        f
+        for f in fronts
+        if math.isfinite(f.distance)
+        and all(
+            math.hypot(f.target[0] - a[0], f.target[1] - a[1]) > config.stop_distance for a in avoid
+        )
+    ]
+    peak = value.argmax_xy() if value is not None else None
+    if usable and peak is not None:
+        best = None
+        for f in usable:
+            xy = occ_xy(f.cells)
+            d = np.hypot(xy[:, 0] - peak[0], xy[:, 1] - peak[1])
+            k = int(np.argmin(d))
+            key = (float(d[k]), f.distance)
+            if best is None or key < best[0]:
+                best = (key, (float(xy[k, 0]), float(xy[k, 1])))
+        assert best is not None
+        (gap, _), xy_best = best
+        return Waypoint(
+            xy_best,
+            "frontier",
+            None,
+            value.value_at(*xy_best) if value is not None else 0.0,
+            f"frontier closest ({gap:.2f} m) to the value-map maximum at "
+            f"({peak[0]:.2f}, {peak[1]:.2f}).",
+        )
+    if usable:
+        f = min(usable, key=lambda f: (f.distance, -f.size))
+        return Waypoint(
+            f.target,
+            "frontier",
+            None,
+            0.0,
+            f"nearest frontier ({f.distance:.2f} m, {f.size} cells)"
+            + ("; the value map is empty." if value is not None else "."),
+        )
+    if peak is not None and value is not None:
+        cells = np.argwhere(traversable)
+        if len(cells):
+            xy = occ_xy(cells)
+            d = np.hypot(xy[:, 0] - peak[0], xy[:, 1] - peak[1])
+            reach = dist_of(cells)
+            d = np.where(np.isfinite(reach), d, np.inf)
+            k = int(np.argmin(d))
+            if math.isfinite(float(d[k])) and all(
+                math.hypot(xy[k, 0] - a[0], xy[k, 1] - a[1]) > config.stop_distance for a in avoid
+            ):
+                return Waypoint(
+                    (float(xy[k, 0]), float(xy[k, 1])),
+                    "explore",
+                    None,
+                    value.value_at(float(xy[k, 0]), float(xy[k, 1])),
+                    "no frontier left and no match: the navigable cell nearest the value-map "
+                    "maximum.",
+                )
+    return Waypoint(None, "none", None, 0.0, "no frontier left, no match and no value to follow.")
