@@ -40,7 +40,10 @@ from glmap_tools.views.targets import (
     instance_ids_of,
     map_gaussians,
     render_gaussians,
+    scene_gaussians,
+    structure_gaussians,
     unit_label,
+    with_structure,
 )
 from glmap_tools.views.visibility import Scorer
 
@@ -192,16 +195,21 @@ def _scoring_camera(intrinsics: Intrinsics, width: int) -> Intrinsics:
 def _occluders(
     glmap: GLMap, target: TargetExtent, candidates: list[Candidate], config: SelectionConfig
 ) -> GaussianSet:
-    """The rest of the map's Gaussians that can stand between a candidate and the target.
+    """The rest of the map's Gaussians that can stand between a candidate and the target:
+    the other instances and the structure background layer (walls, floor).
 
     Only Gaussians within the farthest candidate's distance (plus the target's radius) of
     the target's centre, horizontally, can; the others are dropped to keep scoring cheap.
     """
-    cached = map_gaussians(glmap)
-    keep = ~cached.mask_of(target.instance_ids)
     reach = max(c.distance for c in candidates) + target.radius + 0.1
-    d = np.hypot(*(cached.gaussians.means[:, :2].astype(np.float64) - target.center[:2]).T)
-    return cached.gaussians.subset(keep & (d <= reach))
+
+    def near(g: GaussianSet) -> np.ndarray:
+        return np.hypot(*(g.means[:, :2].astype(np.float64) - target.center[:2]).T) <= reach
+
+    cached = map_gaussians(glmap)
+    keep = ~cached.mask_of(target.instance_ids) & near(cached.gaussians)
+    background = structure_gaussians(glmap)
+    return GaussianSet.concat([cached.gaussians.subset(keep), background.subset(near(background))])
 
 
 def _best(scored: list[Candidate], framing: float, near_tie: float) -> Candidate:
@@ -244,15 +252,22 @@ def render_selected_view(
     context: bool = False,
     config: SelectionConfig | None = None,
     require_free: bool = False,
+    structure: bool | None = None,
 ) -> tuple[RenderedView, ViewChoice]:
     """Select a view of a unit (see `select_view`) and render it.
 
     Args:
         context: False draws only the unit's Gaussians; True the whole map from that camera.
+        structure: also draw the structure background layer (walls, floor); None = as
+            `context`.
     """
     choice = select_view(glmap, unit_id, intrinsics, config=config, require_free=require_free)
     ids = instance_ids_of(glmap, unit_id)
     cached = map_gaussians(glmap)
-    g = cached.gaussians if context else cached.gaussians.subset(cached.mask_of(ids))
+    structure = context if structure is None else structure
+    if context:
+        g = scene_gaussians(glmap, structure)
+    else:
+        g = with_structure(glmap, cached.gaussians.subset(cached.mask_of(ids)), structure)
     view = render_gaussians(g, choice.pose, choice.intrinsics, label=choice.label)
     return view, choice

@@ -11,14 +11,8 @@ from typing import TYPE_CHECKING
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Intrinsics, Pose
 from glmap_tools.map.occupancy import FREE, OBSTACLE
-from glmap_tools.views.common import (
-    WHITE,
-    RenderedView,
-    check_intrinsics,
-    require_instances,
-    view_intrinsics,
-)
-from glmap_tools.views.targets import map_gaussians, render_gaussians
+from glmap_tools.views.common import WHITE, RenderedView, check_intrinsics, view_intrinsics
+from glmap_tools.views.targets import render_gaussians, require_drawable, scene_gaussians
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
@@ -85,6 +79,7 @@ def situated_views(
     intrinsics: Intrinsics | None = None,
     *,
     background: Sequence[float] = WHITE,
+    structure: bool = True,
 ) -> SituatedViews:
     """Render the map front, back, left and right of (x, y) at the agent's camera height.
 
@@ -96,14 +91,16 @@ def situated_views(
             theta + pi/2.
         intrinsics: the camera of each view; default `view_intrinsics()` (320x240, 79 deg).
         background: RGB in [0, 1] where nothing is mapped.
+        structure: also draw the structure background layer, so walls hide what is
+            behind them as they would for the agent.
 
     Raises:
         InvalidInputError: an empty map, a bad position or heading, or bad intrinsics.
     """
     intrinsics = check_intrinsics(intrinsics) if intrinsics is not None else view_intrinsics()
     poses = situated_poses(glmap, x, y, heading)
-    require_instances(glmap)
-    g = map_gaussians(glmap).gaussians
+    require_drawable(glmap, structure)
+    g = scene_gaussians(glmap, structure)
     views = tuple(
         render_gaussians(g, pose, intrinsics, label=label, background=background)
         for label, pose in poses

@@ -2,6 +2,10 @@
 
 Every function validates its inputs once (unit ids, pose, image size) and raises a
 `GLMapError` naming the bad value and the fix before any work is done.
+
+Whenever the map is drawn (the whole map, a unit in context) its structure background
+layer (walls, floor) is drawn with it, so a wall hides what stands behind it; a unit or a
+subset drawn alone leaves it out, as the paper shows a unit. `structure=` overrides both.
 """
 
 from __future__ import annotations
@@ -36,6 +40,9 @@ if TYPE_CHECKING:
 
 _cache_lock = threading.Lock()
 _cache: weakref.WeakKeyDictionary[GLMap, MapGaussians] = weakref.WeakKeyDictionary()
+_scene_cache: weakref.WeakKeyDictionary[GLMap, tuple[GaussianSet, GaussianSet, GaussianSet]] = (
+    weakref.WeakKeyDictionary()
+)
 
 
 # ---------------------------------------------------------------------- Gaussians of targets
@@ -89,6 +96,40 @@ def map_gaussians(glmap: GLMap) -> MapGaussians:
     with _cache_lock:
         _cache[glmap] = result
     return result
+
+
+def structure_gaussians(glmap: GLMap) -> GaussianSet:
+    """The map's structure background layer (walls, floor): never a unit, always occluding."""
+    return glmap.structure.gaussians()
+
+
+def scene_gaussians(glmap: GLMap, structure: bool = True) -> GaussianSet:
+    """Every instance's Gaussians, then (with `structure`) the structure layer's; cached."""
+    units = map_gaussians(glmap).gaussians
+    if not structure or len(glmap.structure) == 0:
+        return units
+    background = structure_gaussians(glmap)
+    with _cache_lock:
+        cached = _scene_cache.get(glmap)
+    if cached is not None and cached[0] is units and cached[1] is background:
+        return cached[2]
+    both = GaussianSet.concat([units, background])
+    with _cache_lock:
+        _scene_cache[glmap] = (units, background, both)
+    return both
+
+
+def with_structure(glmap: GLMap, gaussians: GaussianSet, structure: bool) -> GaussianSet:
+    """`gaussians` plus the structure layer when `structure` is True."""
+    if not structure or len(glmap.structure) == 0:
+        return gaussians
+    return GaussianSet.concat([gaussians, structure_gaussians(glmap)])
+
+
+def require_drawable(glmap: GLMap, structure: bool) -> None:
+    """Raise InvalidInputError unless the map has instances, or structure to draw."""
+    if not (structure and len(glmap.structure)):
+        require_instances(glmap)
 
 
 def instance_ids_of(glmap: GLMap, unit_id: int) -> tuple[int, ...]:
@@ -175,17 +216,21 @@ def render_map(
     *,
     background: Sequence[float] = WHITE,
     return_depth: bool = False,
+    structure: bool = True,
 ) -> RenderedView:
-    """Render every instance of the map from `pose`.
+    """Render every instance of the map, and its structure layer, from `pose`.
+
+    Args:
+        structure: also draw the structure background layer (walls, floor).
 
     Raises:
         InvalidInputError: an empty map, a non-rigid pose or an image over the caps.
     """
     pose = as_pose(pose)
     check_intrinsics(intrinsics)
-    require_instances(glmap)
+    require_drawable(glmap, structure)
     return render_gaussians(
-        map_gaussians(glmap).gaussians,
+        scene_gaussians(glmap, structure),
         pose,
         intrinsics,
         label="whole map",
@@ -241,6 +286,7 @@ def render_unit(
     context: bool = False,
     background: Sequence[float] = WHITE,
     return_depth: bool = False,
+    structure: bool | None = None,
 ) -> RenderedView:
     """Render one instance, or a region (the union of its instances' Gaussians), from `pose`.
 
@@ -253,6 +299,8 @@ def render_unit(
             draws the whole map from the same camera.
         background: RGB in [0, 1] behind the Gaussians.
         return_depth: also return the expected-depth image.
+        structure: also draw the structure background layer (walls, floor), which hides
+            the unit where a wall stands between it and the camera; None = as `context`.
 
     Raises:
         UnknownIdError: no such unit (with the closest id).
@@ -262,7 +310,11 @@ def render_unit(
     check_intrinsics(intrinsics)
     ids = instance_ids_of(glmap, unit_id)
     label = unit_label(glmap, unit_id)
-    g = map_gaussians(glmap).gaussians if context else gaussians_of(glmap, ids)
+    structure = context if structure is None else structure
+    if context:
+        g = scene_gaussians(glmap, structure)
+    else:
+        g = with_structure(glmap, gaussians_of(glmap, ids), structure)
     return render_gaussians(
         g, pose, intrinsics, label=label, background=background, return_depth=return_depth
     )
@@ -276,13 +328,15 @@ def render_subset(
     *,
     background: Sequence[float] = WHITE,
     return_depth: bool = False,
+    structure: bool = False,
 ) -> RenderedView:
-    """Render the union of several units' Gaussians (regions expand to their instances)."""
+    """Render the union of several units' Gaussians (regions expand to their instances);
+    `structure=True` adds the structure background layer (walls, floor)."""
     pose = as_pose(pose)
     check_intrinsics(intrinsics)
     ids = subset_instance_ids(glmap, unit_ids)
     return render_gaussians(
-        gaussians_of(glmap, ids),
+        with_structure(glmap, gaussians_of(glmap, ids), structure),
         pose,
         intrinsics,
         label="units " + ", ".join(str(i) for i in ids),

@@ -1,0 +1,107 @@
+"""The structure background layer: walls and floor render and occlude, but are never units."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from glmap_tools import synthetic as scenes
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.views import render_map, select_view, situated_views, view_intrinsics
+
+CHAIR_XY = (0.0, 0.7)
+TEXTS = {1: ("chair", "a red chair with wooden legs")}
+OPEN_SIDE = [(0.0, 2.6), (1.6, 2.2), (-1.6, 2.2)]
+WALL_SIDE = [(0.0, -2.4), (1.5, -2.2), (-1.5, -2.2)]
+
+
+def room() -> list[scenes.Box]:
+    """A floor, an unannotated wall at y = 0 (object id 0) and a red chair behind it."""
+    wall = scenes.Box((-2.0, -0.05, 0.0), (2.0, 0.05, 1.6), (0.85, 0.85, 0.8), 0)
+    return scenes.floor(4.0) + [wall] + scenes.chair(*CHAIR_XY)
+
+
+def build(config: MapConfig | None = None) -> GLMap:
+    glmap = GLMap(config or MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    for x, y in OPEN_SIDE:
+        frame, ids = scenes.view(room(), (x, y, 1.2), (*CHAIR_XY, 0.3), 160, 120)
+        glmap.integrate(frame, scenes.semantics(ids, TEXTS))
+    for x, y in WALL_SIDE:
+        frame, ids = scenes.view(room(), (x, y, 1.2), (0.0, 0.0, 0.5), 160, 120)
+        glmap.integrate(frame, scenes.semantics(ids, TEXTS))
+    return glmap
+
+
+@pytest.fixture(scope="module")
+def glmap() -> GLMap:
+    return build()
+
+
+def red(rgb: np.ndarray) -> int:
+    """Pixels of the chair's red."""
+    return int(((rgb[..., 0] > 150) & (rgb[..., 1] < 100) & (rgb[..., 2] < 100)).sum())
+
+
+def test_an_object_behind_a_wall_is_hidden_from_the_far_side_in_situated_views(glmap):
+    intr = view_intrinsics(64, 48)
+    facing_wall = situated_views(glmap, 0.0, -1.5, np.pi / 2, intr).by_direction()["front"]
+    see_through = situated_views(glmap, 0.0, -1.5, np.pi / 2, intr, structure=False)
+    assert red(see_through.by_direction()["front"].rgb) > 20  # without the layer: seen
+    assert red(facing_wall.rgb) == 0
+    # The wall itself is drawn: most of the front view is covered.
+    assert facing_wall.alpha.mean() > 0.5
+    # From the open side the chair is in plain view, walls or not.
+    open_side = situated_views(glmap, 0.0, 2.0, -np.pi / 2, intr).by_direction()["front"]
+    assert red(open_side.rgb) > 20
+
+
+def test_view_selection_counts_the_wall_as_an_occluder(glmap):
+    choice = select_view(glmap, 1, view_intrinsics(64, 48))
+    assert choice.pose.translation[1] > 0.2  # on the chair's open side of the wall
+    behind = [c for c in choice.candidates if c.score is not None and c.y < -0.3]
+    assert behind, "some scored candidates stand behind the wall"
+    assert max(c.visible or 0.0 for c in behind) < 0.05
+
+
+def test_structure_is_never_a_unit(glmap):
+    assert len(glmap.structure) > 0
+    assert set(glmap.instances) == {1} and not glmap.regions
+    grid_ids = set().union(*glmap.grid.snapshot().values())
+    assert grid_ids <= set(glmap.instances) | set(glmap.regions)
+    hits = glmap.find_instances("a long white wall", k=10)
+    assert [h.id for h in hits] == [1]
+    assert glmap.units_at(1.5, 0.0, radius=0.3) == []  # on the wall, far from the chair
+    assert glmap.summary().structure_gaussians == len(glmap.structure)
+
+
+def test_frames_without_any_object_build_only_structure():
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    frame, ids = scenes.view(room(), (0.0, -2.4, 1.2), (0.0, 0.0, 0.5), 160, 120)
+    report = glmap.integrate(frame, scenes.semantics(ids, {}))
+    assert report.structure_gaussians > 0 and len(glmap.structure) > 0
+    assert not glmap.instances and len(glmap.grid) == 0
+    assert glmap.find_instances("wall") == [] and glmap.units_at(0.0, 0.0, 1.0) == []
+    view = render_map(glmap, frame.pose, view_intrinsics(48, 36))
+    assert view.alpha.mean() > 0.5  # the wall and floor are drawn
+
+
+def test_seeing_the_same_wall_again_does_not_grow_the_layer():
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    frame, ids = scenes.view(room(), (0.3, -2.4, 1.2), (0.0, 0.0, 0.5), 96, 72)
+    sizes, points = [], []
+    for _ in range(4):
+        glmap.integrate(frame, scenes.semantics(ids, TEXTS))
+        sizes.append(len(glmap.structure))
+        points.append(int(glmap.structure.gaussians().counts.sum()))
+    assert sizes == [sizes[0]] * 4  # one Gaussian per coarse voxel, merged
+    assert points[1] == 2 * points[0]  # the re-observations are counted in
+    keys = np.concatenate([c.keys for c in glmap.structure.chunks.values()])
+    assert len(np.unique(keys, axis=0)) == len(keys)
+
+
+def test_the_layer_can_be_switched_off():
+    glmap = GLMap(MapConfig(floor_z=0.0, structure_voxel=None), embedder=HashingEmbedder())
+    frame, ids = scenes.view(room(), (0.0, 2.6, 1.2), (*CHAIR_XY, 0.3), 96, 72)
+    assert glmap.integrate(frame, scenes.semantics(ids, TEXTS)).structure_gaussians == 0
+    assert len(glmap.structure) == 0 and len(glmap.instances) == 1
