@@ -1,10 +1,18 @@
-"""Pydantic results of the MCP tools (their output schemas); each field is described."""
+"""Pydantic results of the MCP tools (their structured content), and the compact forms of
+results, descriptions and schemas that a model reads."""
 
 from __future__ import annotations
+
+import inspect
+import json
+import re
+from typing import Any
 
 from pydantic import BaseModel, Field
 
 from glmap_tools.map.report import MapSummary, UnitInfo, UpdateReport
+
+_BARE = re.compile(r"[A-Za-z0-9_./:+-]+")
 
 
 class SessionInfo(BaseModel):
@@ -84,3 +92,110 @@ class Exported(SessionInfo):
     gaussians: int = Field(description="number of 3D Gaussians in the file")
     instance_ids: list[int] = Field(description="the instances whose Gaussians it holds")
     bytes: int = Field(description="size of the file")
+
+
+# ---------------------------------------------------------------------- what a model reads
+
+DECIMALS = 3  # millimetres; scores to 0.001
+
+
+def _scalar(value: object) -> str:
+    if isinstance(value, bool) or value is None:
+        return json.dumps(value)
+    if isinstance(value, float):
+        text = f"{value:.{DECIMALS}f}".rstrip("0").rstrip(".")
+        return "0" if text in ("-0", "") else text
+    if isinstance(value, int):
+        return str(value)
+    text = str(value)
+    return text if _BARE.fullmatch(text) else json.dumps(text, ensure_ascii=False)
+
+
+def _empty(value: object) -> bool:
+    return value is None or value == "" or value == [] or value == {}
+
+
+def _inline(value: object) -> str:
+    """One value on one line: dicts as {k=v ...}, lists as [a,b], floats rounded."""
+    if isinstance(value, dict):
+        return "{" + " ".join(f"{k}={_inline(v)}" for k, v in value.items() if not _empty(v)) + "}"
+    if isinstance(value, list):
+        return "[" + ",".join(_inline(v) for v in value) + "]"
+    return _scalar(value)
+
+
+def compact_text(data: dict[str, Any]) -> str:
+    """The text block of a structured result: one `key: value` line per field.
+
+    A list of objects (hits, units, maps) gets one `- k=v ...` line per object. Floats are
+    rounded to 3 decimals and empty or null fields left out; the structured content beside
+    it keeps the exact values. About half the bytes of the same data as JSON.
+    """
+    lines = []
+    for key, value in data.items():
+        if value == []:
+            lines.append(f"{key}: none")
+            continue
+        if _empty(value):
+            continue
+        if isinstance(value, list) and all(isinstance(v, dict) for v in value):
+            lines.append(f"{key}:")
+            lines.extend("- " + _inline(v)[1:-1] for v in value)
+        elif isinstance(value, dict):
+            lines.append(f"{key}: " + _inline(value)[1:-1])
+        else:
+            lines.append(f"{key}: {_inline(value)}")
+    return "\n".join(lines)
+
+
+def compact_description(text: str) -> str:
+    """A docstring as one paragraph per line: indentation and wrapped line breaks removed."""
+    paragraphs = inspect.cleandoc(text).split("\n\n")
+    return "\n".join(" ".join(p.split()) for p in paragraphs if p.strip())
+
+
+def compact_schema(schema: Any, in_properties: bool = False) -> Any:
+    """A JSON schema without pydantic's titles and `additionalProperties: false` (the server
+    still refuses unknown fields, naming them), and with optional-or-null as just optional.
+
+    `{"anyOf": [X, {"type": "null"}], "default": null}` becomes X: leaving the argument out
+    means the same, and weaker adapters handle a plain type better than a nullable union.
+    Property names are kept even when one is called "title".
+    """
+    if isinstance(schema, list):
+        return [compact_schema(s) for s in schema]
+    if not isinstance(schema, dict):
+        return schema
+    if in_properties:
+        return {k: compact_schema(v) for k, v in schema.items()}
+    out: dict[str, Any] = {}
+    for key, value in schema.items():
+        if (key == "title" and isinstance(value, str)) or (
+            key == "additionalProperties" and value is False
+        ):
+            continue
+        out[key] = compact_schema(value, in_properties=key in ("properties", "$defs"))
+    options = out.get("anyOf")
+    if (
+        isinstance(options, list)
+        and len(options) == 2
+        and {"type": "null"} in options
+        and out.get("default", 0) is None
+    ):
+        (kept,) = [o for o in options if o != {"type": "null"}]
+        del out["anyOf"], out["default"]
+        out = {**kept, **out}
+    return out
+
+
+def strip_descriptions(schema: Any, in_properties: bool = False) -> Any:
+    """`schema` without its "description" keywords (property names kept)."""
+    if isinstance(schema, list):
+        return [strip_descriptions(s) for s in schema]
+    if not isinstance(schema, dict):
+        return schema
+    return {
+        k: strip_descriptions(v, k in ("properties", "$defs") and not in_properties)
+        for k, v in schema.items()
+        if in_properties or k != "description"
+    }

@@ -107,6 +107,5 @@ def tool_errors(fn: Callable[P, Awaitable[T]]) -> Callable[P, Awaitable[T]]:
 
 
 def compact_json(data: Mapping[str, Any]) -> str:
-    """JSON with one top-level key per line and each value on its line (matrices stay short)."""
-    lines = [f"  {json.dumps(str(k))}: {json.dumps(v)}" for k, v in data.items()]
-    return "{\n" + ",\n".join(lines) + "\n}"
+    """JSON without whitespace (a model pays for every byte)."""
+    return json.dumps(data, separators=(",", ":"), ensure_ascii=False)

@@ -36,8 +36,7 @@ SessionArg = Annotated[
     str | None,
     Field(
         max_length=64,
-        description="session handle from new_map/load_map; only needed when several "
-        "clients share one stateless HTTP server. Omit it otherwise.",
+        description="see new_map (shared stateless HTTP servers only)",
     ),
 ]
 Query = Annotated[

@@ -1,0 +1,158 @@
+"""`python -m glmap_tools.bench startup`: how soon a fresh `glmap-mcp` answers over stdio.
+
+Spawns the console entry as an MCP client would (default settings: the MiniLM embedder,
+the renderer warm-up), writes the JSON-RPC `initialize` request at launch and
+`tools/list` right after the answer, and prints the time from launch to each answer with
+the target (issue 13: both within 1 s on 2 cores; pydantic-ai's MCP toolset waits 5 s) and
+MET or MISSED. Then it times the first find_instance, which waits for the embedder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from queue import Empty, Queue
+from typing import Any
+
+INITIALIZE_TARGET_S = 1.0
+TOOLS_LIST_TARGET_S = 1.0
+PROTOCOL = "2025-11-25"  # the dated protocol clients of mcp 1.x (and 2.x in legacy mode) send
+
+
+def server_command() -> list[str]:
+    """`glmap-mcp` beside this Python (the installed console script), else the module."""
+    script = shutil.which("glmap-mcp", path=str(Path(sys.executable).parent))
+    return [script] if script else [sys.executable, "-m", "glmap_tools.server"]
+
+
+class StdioPeer:
+    """A spawned server spoken to in newline-delimited JSON-RPC over its stdin/stdout."""
+
+    def __init__(self, command: list[str], env: dict[str, str]) -> None:
+        self.started = time.perf_counter()
+        self.proc = subprocess.Popen(
+            command,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            env=env,
+            text=True,
+        )
+        self.lines: Queue[str] = Queue()
+        self.stderr: list[str] = []
+        threading.Thread(target=self._pump, daemon=True).start()
+        threading.Thread(target=self._pump_err, daemon=True).start()
+
+    def _pump(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self.lines.put(line)
+        self.lines.put("")
+
+    def _pump_err(self) -> None:
+        assert self.proc.stderr is not None
+        for line in self.proc.stderr:
+            self.stderr.append(line)
+
+    def send(self, message: dict[str, Any]) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(json.dumps(message) + "\n")
+        self.proc.stdin.flush()
+
+    def answer(self, request_id: int, timeout: float) -> tuple[dict[str, Any], float]:
+        """(the response to `request_id`, seconds since launch); notifications are skipped."""
+        deadline = time.perf_counter() + timeout
+        while True:
+            try:
+                line = self.lines.get(timeout=max(deadline - time.perf_counter(), 0.01))
+            except Empty:
+                raise TimeoutError(f"no answer to request {request_id} in {timeout} s") from None
+            if not line:
+                raise RuntimeError("the server exited:\n" + "".join(self.stderr[-20:]))
+            message = json.loads(line)
+            if message.get("id") == request_id:
+                return message, time.perf_counter() - self.started
+
+    def close(self) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.close()
+        try:
+            self.proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait(timeout=20)
+
+
+def measure(extra_args: list[str], timeout: float) -> dict[str, float]:
+    """Seconds from launch to initialize, to tools/list and to the first find_instance."""
+    env = dict(os.environ, HF_HUB_OFFLINE="1", TRANSFORMERS_OFFLINE="1")
+    with tempfile.TemporaryDirectory() as maps:
+        peer = StdioPeer([*server_command(), "--maps-dir", maps, *extra_args], env)
+        try:
+            peer.send(
+                {
+                    "jsonrpc": "2.0",
+                    "id": 1,
+                    "method": "initialize",
+                    "params": {
+                        "protocolVersion": PROTOCOL,
+                        "capabilities": {},
+                        "clientInfo": {"name": "bench-startup", "version": "1"},
+                    },
+                }
+            )
+            _, t_init = peer.answer(1, timeout)
+            peer.send({"jsonrpc": "2.0", "method": "notifications/initialized"})
+            peer.send({"jsonrpc": "2.0", "id": 2, "method": "tools/list", "params": {}})
+            listed, t_list = peer.answer(2, timeout)
+            tools = len(listed["result"]["tools"])
+            call = {"name": "find_instance", "arguments": {"query": "a chair"}}
+            peer.send({"jsonrpc": "2.0", "id": 3, "method": "tools/call", "params": call})
+            _, t_find = peer.answer(3, timeout)
+        finally:
+            peer.close()
+    return {"initialize": t_init, "tools/list": t_list, "find_instance": t_find, "tools": tools}
+
+
+def main(argv: list[str] | None = None) -> int:
+    from glmap_tools.bench.report import Report
+
+    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench startup")
+    parser.add_argument("--runs", type=int, default=3, help="fresh launches to time")
+    parser.add_argument("--timeout", type=float, default=300.0, help="seconds per answer")
+    parser.add_argument(
+        "server_args", nargs="*", help="extra glmap-mcp arguments (after --), e.g. -- --no-warm-up"
+    )
+    args = parser.parse_args(argv)
+    report = Report("bench startup")
+    report.info(f"glmap-mcp over stdio: {' '.join([*server_command(), *args.server_args])}")
+    runs = [measure(args.server_args, args.timeout) for _ in range(args.runs)]
+    for i, r in enumerate(runs):
+        report.info(
+            f"run {i + 1}: initialize {r['initialize']:.2f} s, tools/list {r['tools/list']:.2f} s "
+            f"({r['tools']:.0f} tools), first find_instance {r['find_instance']:.2f} s"
+        )
+    worst = f"worst of {len(runs)} launches"
+    report.check(
+        f"initialize after launch, {worst}",
+        max(r["initialize"] for r in runs),
+        "<=",
+        INITIALIZE_TARGET_S,
+        "s",
+    )
+    report.check(
+        f"tools/list after launch, {worst}",
+        max(r["tools/list"] for r in runs),
+        "<=",
+        TOOLS_LIST_TARGET_S,
+        "s",
+    )
+    return report.finish()

@@ -1,0 +1,165 @@
+"""Slow start-up work done in the background, so `glmap-mcp` answers its handshake at once.
+
+Loading the MiniLM embedder (torch, ~10 s) and compiling or loading the numba kernels
+(estimator, fusion, splatting) used to run before the server answered `initialize`; MCP
+clients that wait 5 s (pydantic-ai) or 15 s (the Inspector) gave up. Now the lifespan starts
+them on daemon threads and returns; a tool call that arrives before they finish waits for
+them, and says so (a progress notification, a log message to the client and a line on
+stderr). `python -m glmap_tools.server.background` runs the same work once in the
+foreground, so `.ci/setup` fills numba's on-disk cache (every kernel uses cache=True).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from glmap_tools.language.embed import Embedder
+
+logger = logging.getLogger(__name__)
+
+EMBEDDER = "embedder"
+KERNELS = "kernels"
+WHAT = {
+    EMBEDDER: "loading the text embedder",
+    KERNELS: "loading the compiled map and render kernels",
+}
+
+
+class Task:
+    """One piece of start-up work on a daemon thread; `wait()` re-raises its error."""
+
+    def __init__(self, name: str, fn: Callable[[], Any]) -> None:
+        self.name = name
+        self.started = time.perf_counter()
+        self.seconds: float | None = None
+        self._done = threading.Event()
+        self._value: Any = None
+        self._error: BaseException | None = None
+        self._fn = fn
+        threading.Thread(target=self._run, name=f"glmap-{name}", daemon=True).start()
+
+    def _run(self) -> None:
+        try:
+            self._value = self._fn()
+        except BaseException as exc:  # re-raised in every waiting call
+            self._error = exc
+            logger.error("glmap-mcp: %s failed: %s", WHAT.get(self.name, self.name), exc)
+        finally:
+            self.seconds = time.perf_counter() - self.started
+            self._done.set()
+
+    @property
+    def done(self) -> bool:
+        return self._done.is_set()
+
+    def wait(self) -> Any:
+        """Block until the work is done; return its value or raise its error."""
+        self._done.wait()
+        if self._error is not None:
+            raise self._error
+        return self._value
+
+
+class Background:
+    """The named start-up tasks of one server process."""
+
+    def __init__(self) -> None:
+        self.tasks: dict[str, Task] = {}
+
+    def start(self, name: str, fn: Callable[[], Any]) -> Task:
+        task = Task(name, fn)
+        self.tasks[name] = task
+        return task
+
+    def pending(self, names: Sequence[str]) -> list[Task]:
+        """The tasks among `names` still running."""
+        return [t for n in names if (t := self.tasks.get(n)) is not None and not t.done]
+
+    def wait(self, names: Sequence[str]) -> None:
+        for name in names:
+            task = self.tasks.get(name)
+            if task is not None:
+                task.wait()
+
+
+class BackgroundEmbedder:
+    """An `Embedder` whose model loads on a background thread; `embed` waits for it.
+
+    `name`, `dim` and `default_tau_s` are known before the model loads (they are the
+    bundled model's), so maps can be created and opened at once.
+
+    Args:
+        task: the background task returning the real embedder.
+        name: the real embedder's name.
+        dim: its embedding width.
+        default_tau_s: its calibrated similarity threshold.
+    """
+
+    def __init__(self, task: Task, name: str, dim: int, default_tau_s: float) -> None:
+        self.task = task
+        self.name = name
+        self.dim = dim
+        self.default_tau_s = default_tau_s
+
+    def embed(self, texts: Sequence[str]) -> np.ndarray:  # -> [N, dim]
+        """Embed with the real model (waiting for it to load the first time)."""
+        real: Embedder = self.task.wait()
+        return real.embed(texts)
+
+
+def load_embedder(kind: str, threads: int | None) -> Embedder:
+    """The embedder `kind` ('minilm' or 'hashing'), with torch limited to `threads`."""
+    from glmap_tools.language import embed
+
+    if kind == "hashing":
+        return embed.HashingEmbedder()
+    model = embed.default_embedder()
+    if threads is not None:
+        import torch
+
+        torch.set_num_threads(threads)
+    return model
+
+
+def warm_kernels() -> float:
+    """Run every numba kernel once (integrate a small frame, render with depth); seconds.
+
+    Each kernel is compiled, or loaded from numba's cache when `.ci/setup` filled it.
+    """
+    from glmap_tools import synthetic
+    from glmap_tools.language.embed import HashingEmbedder
+    from glmap_tools.map import GLMap, MapConfig
+    from glmap_tools.server.views import warm_up
+
+    start = time.perf_counter()
+    boxes = synthetic.floor(2.0) + synthetic.chair(0.0, 0.0, object_id=1)
+    frame, ids = synthetic.view(boxes, (0.0, -2.0, 1.3), (0.0, 0.0, 0.4), 64, 48)
+    texts = {1: ("chair", "a red chair")}
+    glmap = GLMap(MapConfig(), embedder=HashingEmbedder())
+    for shift in (0.0, 0.05):  # the second frame merges: the fusion kernels run too
+        moved = synthetic.view(boxes, (shift, -2.0, 1.3), (0.0, 0.0, 0.4), 64, 48)
+        glmap.integrate(moved[0], synthetic.semantics(moved[1], texts))
+    glmap.integrate(frame, synthetic.semantics(ids, texts))
+    warm_up()
+    return time.perf_counter() - start
+
+
+def main() -> int:
+    """Fill numba's cache and check the embedder loads (run by .ci/setup)."""
+    seconds = warm_kernels()
+    print(f"glmap-mcp kernels ready in {seconds:.1f} s (numba cache filled)")
+    start = time.perf_counter()
+    load_embedder("minilm", None).embed(["a chair"])
+    print(f"text embedder loaded in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
