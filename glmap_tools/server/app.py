@@ -13,6 +13,7 @@ from glmap_tools.server import (
     resources,
     tools_export,
     tools_map,
+    tools_nav,
     tools_sim,
     tools_store,
     tools_view,
@@ -88,5 +89,6 @@ def build_server(
     tools_view.register(server)
     tools_export.register(server)
     tools_sim.register(server)
+    tools_nav.register(server)
     resources.register(server, config)
     return server

@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 
 T = TypeVar("T")
 ACTIONS = ("stop", "move_forward", "turn_left", "turn_right")  # the env's action numbers
+SIM_KEY = "sim"  # where a session keeps its SimEpisode (Session.extras)
 TASKS = ("objectnav", "instnav")
 MAX_GOALS_LISTED = 25
 
@@ -72,20 +73,26 @@ class SimEpisode:
 
     Attributes:
         task: 'objectnav' or 'instnav'.
-        scene: seed of the generated apartment.
+        scene: seed of the generated apartment (-1 for a benchmark scene).
         env: the gymnasium env (used on the simulator thread only).
+        key: what the env was built for; a reset with the same key reuses it.
+        bench: the `glmap_tools.sim.benchmark.BenchEpisode` being played, or None.
         obs, info: the latest observation and info.
         over: whether the episode ended (stop or step limit).
         truncated: whether it ended by the step limit.
+        collisions: steps of this episode that bumped into something.
     """
 
     task: str
     scene: int
     env: NavEnv
+    key: tuple[Any, ...] = ()
+    bench: Any = None  # the BenchEpisode this env plays, if any
     obs: dict[str, Any] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
     over: bool = False
     truncated: bool = False
+    collisions: int = 0
     pool: list[tuple[str, tuple[int, ...], np.ndarray]] | None = None
 
     def run(self, fn: Any, *args: Any) -> Any:
@@ -115,7 +122,32 @@ def open_episode(task: str, scene: int, size: tuple[int, int], max_steps: int) -
             scene_seed=scene, camera=CameraSpec(width=size[0], height=size[1]), max_steps=max_steps
         )
 
-    return SimEpisode(task, scene, on_sim_thread(make))
+    return SimEpisode(task, scene, on_sim_thread(make), key=(task, scene, size, max_steps))
+
+
+def bench_episode(episode_id: str) -> Any:
+    """The benchmark episode `episode_id` (e.g. 'bench/objectnav/s03-017').
+
+    Raises:
+        UnknownIdError: no such episode (the message suggests the closest id).
+    """
+    from glmap_tools.sim.benchmark import bench_episode as lookup
+
+    return lookup(episode_id)
+
+
+def open_bench(bench: Any, size: tuple[int, int], max_steps: int) -> SimEpisode:
+    """Create the env of a benchmark episode's scene on the simulator thread."""
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+    def make() -> NavEnv:
+        from glmap_tools.sim.benchmark import make_env
+        from glmap_tools.sim.render import CameraSpec
+
+        return make_env(bench, CameraSpec(width=size[0], height=size[1]), max_steps=max_steps)
+
+    key = ("bench", str(bench.layout_path), bench.task, size, max_steps)
+    return SimEpisode(bench.task, -1, on_sim_thread(make), key=key, bench=bench)
 
 
 def _goals(sim: SimEpisode) -> list[tuple[str, tuple[int, ...], np.ndarray]]:
@@ -135,7 +167,7 @@ def goal_names(sim: SimEpisode) -> list[str]:
 
 
 def reset(sim: SimEpisode, seed: int, goal: str | None) -> None:
-    """Start an episode: a random one from `seed`, or one whose goal text is `goal`.
+    """Start an episode: the benchmark one, a random one from `seed`, or one for `goal`.
 
     Raises:
         InvalidInputError: `goal` is not a goal of this scene (the message lists them).
@@ -144,7 +176,9 @@ def reset(sim: SimEpisode, seed: int, goal: str | None) -> None:
     def run() -> None:
         env = sim.env
         options: dict[str, Any] = {}
-        if goal is not None:
+        if sim.bench is not None:
+            options["episode"] = sim.bench.episode
+        elif goal is not None:
             from glmap_tools.sim.episodes import sample_episode
 
             pool = _goals(sim)
@@ -164,6 +198,7 @@ def reset(sim: SimEpisode, seed: int, goal: str | None) -> None:
             options["episode"] = sample_episode(rng, env.grid, match, sim.task, seed)
         sim.obs, sim.info = env.reset(seed=seed, options=options)
         sim.over = sim.truncated = False
+        sim.collisions = 0
 
     sim.run(run)
 
@@ -185,8 +220,15 @@ def step(sim: SimEpisode, action: str) -> None:
         sim.obs, _, terminated, truncated, sim.info = sim.env.step(ACTIONS.index(action))
         sim.over = bool(terminated or truncated)
         sim.truncated = bool(truncated)
+        sim.collisions += int(bool(sim.info["collided"]))
 
     sim.run(run)
+
+
+def agent_pose(sim: SimEpisode) -> tuple[float, float, float]:
+    """(x, y, heading) of the agent: metres, radians CCW from +x."""
+    x, y = (float(v) for v in sim.info["position"])
+    return x, y, float(sim.info["heading"])
 
 
 def frame(sim: SimEpisode) -> tuple[RGBDFrame, FrameSemantics]:
@@ -208,7 +250,7 @@ def status(sim: SimEpisode) -> dict[str, Any]:
     x, y = (float(v) for v in info["position"])
     out: dict[str, Any] = {
         "task": sim.task,
-        "scene": sim.scene,
+        "scene": sim.bench.scene if sim.bench is not None else sim.scene,
         "goal": sim.obs["goal"],
         "steps": int(info["steps"]),
         "max_steps": sim.env.max_steps,
@@ -216,8 +258,11 @@ def status(sim: SimEpisode) -> dict[str, Any]:
         "heading_deg": round(math.degrees(float(info["heading"])), 1),
         "camera_pose": np.round(np.asarray(sim.obs["pose"], np.float64), 4).tolist(),
         "collided": bool(info["collided"]),
+        "collisions": sim.collisions,
         "status": "running",
     }
+    if sim.bench is not None:
+        out["episode"] = sim.bench.episode_id
     if sim.over:
         if info["success"]:
             out["status"] = "success"
@@ -226,4 +271,5 @@ def status(sim: SimEpisode) -> dict[str, Any]:
         out["success"] = bool(info["success"])
         out["spl"] = round(float(info["spl"]), 4)
         out["distance_to_goal"] = round(float(info["distance_to_goal"]), 3)
+        out["path_length"] = round(float(info["path_length"]), 3)
     return out

@@ -11,7 +11,7 @@ from mcp.types import TextContent, ToolAnnotations
 from pydantic import Field
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.server import simulator
+from glmap_tools.server import navsession, simulator
 from glmap_tools.server.runtime import (
     app_state,
     compact_json,
@@ -23,7 +23,8 @@ from glmap_tools.server.state import Session, locked
 from glmap_tools.server.tools_map import SessionArg
 
 Action = Literal["move_forward", "turn_left", "turn_right", "stop"]
-SIM_KEY = "sim"
+Size = Literal["160x120", "320x240", "640x480"]
+SIM_KEY = simulator.SIM_KEY
 
 
 def _jpeg(rgb: Any) -> bytes:
@@ -35,9 +36,7 @@ def _jpeg(rgb: Any) -> bytes:
 
 
 def _integrate(session: Session, sim: simulator.SimEpisode) -> str:
-    frame, semantics = simulator.frame(sim)
-    with locked(session) as glmap:
-        return glmap.integrate(frame, semantics).summary()
+    return navsession.integrate(session, sim)
 
 
 def _reply(
@@ -74,6 +73,12 @@ def register(server: MCPServer) -> None:
                 description="pick the goal (a category or description) instead of a random one",
             ),
         ] = None,
+        episode: Annotated[
+            str,
+            Field(max_length=64, description="a benchmark episode id (bench/objectnav/s03-017)"),
+        ] = "",
+        size: Annotated[Size | None, Field(description="camera image size")] = None,
+        max_steps: Annotated[int | None, Field(ge=1, le=5000, description="step limit")] = None,
         keep_map: Annotated[
             bool, Field(description="add to the current map instead of starting a new one")
         ] = False,
@@ -81,25 +86,39 @@ def register(server: MCPServer) -> None:
     ) -> list[TextContent | Image]:
         """Start a navigation episode in a simulated apartment and show what the agent sees.
 
-        Returns the goal, the camera pose and the egocentric image; the frame is added to
-        this session's map (a fresh one unless keep_map). Then move with sim_step, query the
-        map (find_instance, what_is_at, render_view), and sim_step('stop') at the goal.
+        A generated apartment (scene, seed, goal) or a benchmark episode. Returns the goal,
+        the camera pose and the egocentric image; the frame is added to this session's map
+        (a fresh one unless keep_map). Then look_around, value_map, navigate_to or sim_step,
+        and sim_step('stop') at the goal.
         """
         state = app_state(ctx)
         target = session_of(ctx, session)
-        size, max_steps = state.config.sim_size, state.config.sim_max_steps
+        wh = tuple(int(v) for v in size.split("x")) if size else state.config.sim_size
+        steps = max_steps or state.config.sim_max_steps
+        bench = simulator.bench_episode(episode) if episode else None
+        if bench is not None and goal is not None:
+            raise InvalidInputError("give episode or goal, not both: an episode has its goal.")
 
         def run() -> list[TextContent | Image]:
             sim = target.extras.get(SIM_KEY)
-            if sim is None or (sim.task, sim.scene) != (task, scene):
-                fresh = simulator.open_episode(task, scene, size, max_steps)
+            if bench is not None:
+                key: tuple[object, ...] = ("bench", str(bench.layout_path), bench.task, wh, steps)
+            else:
+                key = (task, scene, wh, steps)
+            if sim is None or sim.key != key:
+                if bench is not None:
+                    fresh = simulator.open_bench(bench, wh, steps)  # type: ignore[arg-type]
+                else:
+                    fresh = simulator.open_episode(task, scene, wh, steps)  # type: ignore[arg-type]
                 if sim is not None:
                     sim.close()
                 sim = target.extras[SIM_KEY] = fresh
                 target.extras["close"] = fresh.close
+            sim.bench = bench
             simulator.reset(sim, seed, goal)
             if not keep_map:
                 state.registry.new_map(target, None)
+            navsession.start(target, sim, state.embedder)
             return _reply(target, sim, [_integrate(target, sim)])
 
         await ctx.report_progress(0, 1, "building the apartment")

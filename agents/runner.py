@@ -1,0 +1,228 @@
+"""Run one navigation episode with a named agent through an MCP client session.
+
+    python -m agents.runner bench/objectnav/s03-017 --agent glmap --seed 0 --out out/episode
+    python -m agents.runner bench/objectnav/s03-017 --agent frontier --server-command glmap-mcp
+    python -m agents.runner bench/objectnav/s03-017 --server-url http://127.0.0.1:8765/mcp
+
+`open_session` gives an in-memory client session on `build_server(config)` by default (no
+process, no port), or a session on a stdio server command or a streamable-HTTP URL.
+`run_episode` resets the simulator on the episode (320x240 images), lets the agent play it,
+and writes `trace.jsonl` (every tool call) and `report.md` / `report.html` into `out_dir`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+import time
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+from agents.instnav import agent_for
+from agents.report import write_report
+from agents.trace import TracedClient
+from glmap_tools.errors import InvalidInputError, did_you_mean
+
+AGENTS = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier", "random")
+AGENT_SIZE = "320x240"
+
+
+class EpisodeResult(BaseModel):
+    """The outcome of one episode played by one agent."""
+
+    episode_id: str
+    agent: str
+    success: bool
+    spl: float = Field(description="success weighted by path length")
+    distance_to_goal: float = Field(description="geodesic metres from the end pose")
+    steps: int
+    path_length: float = Field(description="metres walked")
+    collisions: int
+    tool_calls: int = Field(description="MCP tool calls the episode took, sim_reset included")
+    wall_s: float
+    seed: int
+
+
+def check_agent(agent: str) -> str:
+    """`agent` if it is one of AGENTS.
+
+    Raises:
+        InvalidInputError: an unknown name (with the closest one suggested).
+    """
+    if agent not in AGENTS:
+        raise InvalidInputError(
+            f"agent {agent!r} is not one of {list(AGENTS)}.{did_you_mean(agent, AGENTS)}"
+        )
+    return agent
+
+
+@asynccontextmanager
+async def open_session(
+    config: Any = None, *, server_command: str | None = None, server_url: str | None = None
+) -> AsyncIterator[Any]:
+    """An open MCP client session: in memory on `build_server(config)` by default.
+
+    Args:
+        config: a `glmap_tools.server.ServerConfig` for the in-memory server.
+        server_command: a stdio server command line (e.g. 'glmap-mcp --embedder hashing').
+        server_url: a streamable-HTTP URL (e.g. 'http://127.0.0.1:8765/mcp').
+    """
+    from mcp import Client
+
+    if server_command and server_url:
+        raise InvalidInputError("give server_command or server_url, not both.")
+    target: Any
+    if server_command:
+        from mcp.client.stdio import StdioServerParameters
+
+        argv = shlex.split(server_command)
+        target = StdioServerParameters(command=argv[0], args=argv[1:])
+    elif server_url:
+        target = server_url
+    else:
+        from glmap_tools.server import build_server
+
+        target = build_server(config)
+    async with Client(target) as client:
+        yield client
+
+
+async def play_episode(
+    client_session: Any,
+    reset_args: dict[str, Any],
+    agent: str,
+    *,
+    seed: int,
+    out_dir: Path | None = None,
+    actions_per_call: int = 1,
+    image_every: int = 10,
+    title: str = "",
+) -> tuple[dict[str, Any], TracedClient]:
+    """Reset with `reset_args`, let `agent` play, write the trace and report; return the result."""
+    check_agent(agent)
+    start_time = time.perf_counter()
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    client = TracedClient(client_session, out_dir)
+    try:
+        reset = await client.call("sim_reset", {"seed": seed, "size": AGENT_SIZE, **reset_args})
+        start = reset.data()
+        player = agent_for(
+            start["task"], agent, seed, actions_per_call=actions_per_call, image_every=image_every
+        )
+        play = await player.play(client, start)
+    finally:
+        client.close()
+    final = play.final
+    result = {
+        "agent": agent,
+        "success": bool(final.get("success", False)),
+        "spl": float(final.get("spl", 0.0)),
+        "distance_to_goal": float(final.get("distance_to_goal", float("inf"))),
+        "steps": int(final["steps"]),
+        "path_length": float(final.get("path_length", 0.0)),
+        "collisions": int(final.get("collisions", 0)),
+        "tool_calls": len(client.records),
+        "wall_s": round(time.perf_counter() - start_time, 3),
+        "seed": seed,
+    }
+    if out_dir is not None:
+        write_report(out_dir, title or f"{agent}: {start['goal']}", result, play, reset.images)
+        (out_dir / "result.json").write_text(json.dumps(result, indent=1) + "\n")
+    return result, client
+
+
+async def run_episode(
+    client_session: Any,
+    episode_id: str,
+    agent: str,
+    *,
+    seed: int,
+    out_dir: Path | None = None,
+    max_steps: int = 500,
+    actions_per_call: int = 1,
+    image_every: int = 10,
+) -> EpisodeResult:
+    """Play the benchmark episode `episode_id` with `agent` through `client_session`.
+
+    Args:
+        client_session: an open MCP client (see `open_session`).
+        episode_id: a benchmark episode id, e.g. 'bench/objectnav/s03-017'.
+        agent: one of AGENTS.
+        seed: seeds the env reset and the agent (a seeded episode replays identically).
+        out_dir: where trace.jsonl, report.md/html, result.json and images/ go; None = none.
+        max_steps: the step limit.
+        actions_per_call: env steps per nav_step call (map agents).
+        image_every: fetch the view and the value map every this many calls (report).
+
+    Raises:
+        InvalidInputError: an unknown agent name (with the closest one suggested).
+        ToolCallError: the server refused the episode (e.g. an unknown episode id).
+    """
+    check_agent(agent)
+    result, _ = await play_episode(
+        client_session,
+        {"episode": episode_id, "max_steps": max_steps},
+        agent,
+        seed=seed,
+        out_dir=out_dir,
+        actions_per_call=actions_per_call,
+        image_every=image_every,
+        title=f"{agent} on {episode_id}",
+    )
+    return EpisodeResult(episode_id=episode_id, **result)
+
+
+async def _main(args: argparse.Namespace) -> int:
+    from glmap_tools.server import ServerConfig
+
+    config = ServerConfig(embedder=args.embedder, warm_up=False)
+    async with open_session(
+        config, server_command=args.server_command, server_url=args.server_url
+    ) as session:
+        result = await run_episode(
+            session,
+            args.episode,
+            args.agent,
+            seed=args.seed,
+            out_dir=args.out,
+            max_steps=args.max_steps,
+            actions_per_call=args.actions_per_call,
+            image_every=args.image_every,
+        )
+    print(result.model_dump_json(indent=1))
+    print(f"wrote {args.out / 'report.html'} and {args.out / 'trace.jsonl'}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    import anyio
+
+    p = argparse.ArgumentParser(prog="python -m agents.runner", description=__doc__.split("\n")[0])
+    p.add_argument("episode", help="benchmark episode id, e.g. bench/objectnav/s03-017")
+    p.add_argument("--agent", default="glmap", help=f"one of {', '.join(AGENTS)}")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=Path, default=Path("out/episode"))
+    p.add_argument("--max-steps", type=int, default=500)
+    p.add_argument("--actions-per-call", type=int, default=1)
+    p.add_argument("--image-every", type=int, default=10, help="report images every N calls")
+    p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
+    p.add_argument("--server-command", help="stdio server command line instead of in-memory")
+    p.add_argument("--server-url", help="streamable-HTTP server URL instead of in-memory")
+    args = p.parse_args(argv)
+    try:
+        check_agent(args.agent)
+    except InvalidInputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return int(anyio.run(_main, args) or 0)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

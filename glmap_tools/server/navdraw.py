@@ -1,0 +1,98 @@
+"""Pictures of navigation for the MCP tools: the value map with frontiers, waypoint and path,
+and a labelled contact sheet of the frames of a turn."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import cv2
+import numpy as np
+
+from glmap_tools.views.topdown import HeatMap, TopDownImage, draw_topdown
+
+if TYPE_CHECKING:
+    from glmap_tools.map import GLMap
+
+NAV_SIDE = 512  # pixels: longer side of the value-map image
+FRONTIER_RGB, WAYPOINT_RGB, PLAN_RGB = (0, 200, 200), (230, 0, 230), (0, 170, 0)
+TILE_WIDTH = 213  # pixels per contact-sheet frame (3 across = 640 wide)
+
+
+def jpeg(rgb: np.ndarray, quality: int = 85) -> bytes:  # rgb: [H, W, 3] uint8
+    """JPEG bytes of an RGB image."""
+    ok, buf = cv2.imencode(
+        ".jpg", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, quality]
+    )
+    assert ok
+    return buf.tobytes()
+
+
+def nav_image(
+    glmap: GLMap,
+    agent: tuple[float, float, float] | None,
+    value: Any = None,
+    frontiers: Sequence[Any] = (),
+    waypoint: tuple[float, float] | None = None,
+    plan_path: np.ndarray | None = None,
+    max_side: int = NAV_SIDE,
+) -> TopDownImage:
+    """The top-down map with a value heat map, frontiers, the waypoint and the planned path.
+
+    Args:
+        glmap: the map.
+        agent: (x, y, heading) of the agent, drawn as a red arrow.
+        value: a `glmap_tools.nav.ValueMap` (values [H, W], origin (i0, j0), cell_size) or None.
+        frontiers: `glmap_tools.nav.Frontier`s, drawn as cyan circles sized by their cells.
+        waypoint: (x, y) the policy chose, drawn as a magenta cross.
+        plan_path: [K, 2] world (x, y) of the planned path, drawn green.
+        max_side: the image's longer side in pixels.
+    """
+    heat = None
+    if value is not None and np.size(value.values):
+        heat = HeatMap(np.asarray(value.values, np.float64), tuple(value.origin), value.cell_size)
+    image = draw_topdown(glmap, agent=agent, heatmap=heat, max_side=max_side, regions=False)
+    rgb = image.rgb.copy()
+    legend = list(image.legend)
+
+    def px(x: float, y: float) -> tuple[int, int]:
+        c, r = image.world_to_pixel(x, y)
+        return int(round(c)), int(round(r))
+
+    if plan_path is not None and len(plan_path) > 1:
+        pts = np.array([px(float(x), float(y)) for x, y in plan_path], np.int32)
+        cv2.polylines(rgb, [pts.reshape(-1, 1, 2)], False, PLAN_RGB, 2, cv2.LINE_AA)
+        legend.append("Green line = planned path.")
+    for f in frontiers:
+        radius = int(np.clip(np.sqrt(f.size), 3, 12))
+        cv2.circle(rgb, px(*f.centroid), radius, FRONTIER_RGB, 2, cv2.LINE_AA)
+    if frontiers:
+        legend.append("Cyan circles = frontiers (sized by their cells).")
+    if waypoint is not None:
+        cv2.drawMarker(rgb, px(*waypoint), WAYPOINT_RGB, cv2.MARKER_TILTED_CROSS, 16, 3)
+        legend.append(f"Magenta cross = waypoint ({waypoint[0]:.2f}, {waypoint[1]:.2f}).")
+    return TopDownImage(rgb, image.x0, image.y1, image.metres_per_pixel, tuple(legend))
+
+
+def contact_sheet(frames: Sequence[np.ndarray], labels: Sequence[str], cols: int = 3) -> np.ndarray:
+    """Frames tiled `cols` across, each labelled in its top-left corner.
+
+    Args:
+        frames: [H, W, 3] uint8 RGB images of one size.
+        labels: one short text per frame.
+        cols: frames per row.
+
+    Returns:
+        [rows * h, cols * TILE_WIDTH, 3] uint8, h the tile height keeping the aspect.
+    """
+    h0, w0 = frames[0].shape[:2]
+    th = max(1, round(TILE_WIDTH * h0 / w0))
+    rows = -(-len(frames) // cols)
+    sheet = np.full((rows * th, cols * TILE_WIDTH, 3), 255, np.uint8)
+    for k, (rgb, label) in enumerate(zip(frames, labels, strict=True)):
+        tile = cv2.resize(rgb, (TILE_WIDTH, th), interpolation=cv2.INTER_AREA)
+        cv2.putText(tile, label, (4, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 3)
+        cv2.putText(tile, label, (4, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1)
+        r, c = divmod(k, cols)
+        sheet[r * th : (r + 1) * th, c * TILE_WIDTH : (c + 1) * TILE_WIDTH] = tile
+    return sheet

@@ -1,0 +1,318 @@
+"""Navigation tools: value_map, frontiers, navigate_to, look_around, nav_step.
+
+The policy and the planner are `glmap_tools.nav` (value map of Eq. 7, frontiers, waypoint,
+FMM plan); these tools run them on the session's map and, in the simulator, act on them.
+No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+"""
+
+import math
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from mcp.server.mcpserver import Context, Image, MCPServer
+from mcp.types import TextContent, ToolAnnotations
+from pydantic import Field
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.server import navsession, simulator
+from glmap_tools.server.navdraw import contact_sheet, jpeg, nav_image
+from glmap_tools.server.runtime import compact_json, in_thread, session_of, tool_errors
+from glmap_tools.server.state import Session, locked
+from glmap_tools.server.tools_map import READ_ONLY, SessionArg
+
+Units = Literal["both", "instances", "regions"]
+Policy = Literal["glmap", "glmap-instance", "glmap-region", "egocentric", "frontier"]
+POLICY_OF_UNITS = {"both": "glmap", "instances": "glmap-instance", "regions": "glmap-region"}
+ACTING = ToolAnnotations(destructive_hint=False, open_world_hint=False)
+Goal = Annotated[str, Field(max_length=256, description="what to find; default: the episode goal")]
+
+
+def _goal(session: Session, goal: str) -> str:
+    if goal.strip():
+        return goal.strip()
+    nav = navsession.of(session)
+    if nav is None:
+        raise InvalidInputError(
+            "no goal: pass goal='a sofa' (or start a simulator episode with sim_reset, whose "
+            "goal is used by default)."
+        )
+    return str(nav.goal)
+
+
+def _agent(session: Session) -> tuple[float, float, float]:
+    with locked(session) as glmap:
+        agent = navsession.agent_pose(session, glmap)
+    if agent is None:
+        raise InvalidInputError(
+            "the map is empty: observe a frame (observe_frame) or start sim_reset first."
+        )
+    return agent
+
+
+def _decide(session: Session, goal: str, policy: str) -> tuple[Any, tuple[float, float, float]]:
+    """Run the policy on the session's map (the episode's NavState, or a fresh one)."""
+    from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState, decide
+
+    agent = _agent(session)
+    nav = navsession.of(session)
+    with locked(session) as glmap:
+        if nav is not None:
+            state, scorer, config = nav.state, nav.scorer, nav.config
+        else:
+            state, scorer, config = NavState(), EmbeddingScorer(glmap.embedder), NavConfig()
+        decision = decide(
+            glmap,
+            agent[:2],
+            agent[2],
+            goal,
+            policy=policy,
+            scorer=scorer,
+            state=state,
+            config=config,
+        )
+    if nav is not None:
+        nav.decision = decision
+    return decision, agent
+
+
+def _waypoint(decision: Any, agent: tuple[float, float, float]) -> dict[str, Any]:
+    w = decision.waypoint
+    out: dict[str, Any] = {"kind": w.kind, "xy": [round(float(v), 2) for v in w.xy]}
+    if w.unit_id is not None:
+        out["unit_id"] = int(w.unit_id)
+    out["score"] = round(float(w.score), 3)
+    out.update(navsession.relative(agent, (float(w.xy[0]), float(w.xy[1]))))
+    out["reason"] = w.reason
+    return out
+
+
+def _nav_png(session: Session, decision: Any, agent: tuple[float, float, float]) -> bytes:
+    with locked(session) as glmap:
+        image = nav_image(
+            glmap,
+            agent,
+            decision.value,
+            decision.frontiers,
+            tuple(decision.waypoint.xy) if decision.waypoint.kind != "none" else None,
+            decision.plan.path if decision.plan is not None else None,
+        )
+    return image.to_png()
+
+
+def register(server: MCPServer) -> None:
+    """Add the navigation tools to `server`."""
+
+    @server.tool(annotations=READ_ONLY)
+    @tool_errors
+    async def value_map(
+        ctx: Context, goal: Goal = "", units: Units = "both", session: SessionArg = None
+    ) -> list[TextContent | Image]:
+        """Where the goal likely is: the value map (paper Eq. 7) over the top-down map.
+
+        The image shows the heat map, frontiers, the chosen waypoint and its planned path;
+        the text gives the waypoint (distance, bearing from the agent, + = left) and the
+        top cells. Go there with navigate_to.
+        """
+        target = session_of(ctx, session)
+
+        def run() -> list[TextContent | Image]:
+            wanted = _goal(target, goal)
+            decision, agent = _decide(target, wanted, POLICY_OF_UNITS[units])
+            top = decision.value.top_cells(5) if decision.value is not None else []
+            info = {
+                "goal": wanted,
+                "units": units,
+                "agent": [round(agent[0], 2), round(agent[1], 2), round(math.degrees(agent[2]))],
+                "waypoint": _waypoint(decision, agent),
+                "matched_unit": decision.matched_unit,
+                "top_cells": [[round(x, 2), round(y, 2), round(v, 3)] for x, y, v in top],
+                "frontiers": len(decision.frontiers),
+            }
+            return [
+                TextContent(type="text", text=compact_json(info)),
+                Image(data=_nav_png(target, decision, agent), format="png"),
+            ]
+
+        return await in_thread(run)
+
+    @server.tool(annotations=READ_ONLY)
+    @tool_errors
+    async def frontiers(
+        ctx: Context,
+        top_k: Annotated[int, Field(ge=1, le=50, description="nearest first")] = 8,
+        session: SessionArg = None,
+    ) -> list[TextContent]:
+        """Frontiers: edges between seen-free and unexplored space that the agent can reach.
+
+        Each: a point to go to, size (cells), path and straight distance (m) and bearing
+        from the agent (degrees, + = left).
+        """
+        from glmap_tools.nav import NavConfig
+        from glmap_tools.nav import frontiers as find_frontiers
+        from glmap_tools.nav.planner import agent_field
+
+        target = session_of(ctx, session)
+
+        def run() -> list[TextContent]:
+            agent = _agent(target)
+            nav = navsession.of(target)
+            config = nav.config if nav is not None else NavConfig()
+            with locked(target) as glmap:
+                occ = navsession.window(glmap, config)
+            field = agent_field(occ, agent[:2], config)
+            found = find_frontiers(
+                occ, agent[:2], config.agent_radius, config.min_frontier_size, field
+            )
+            rows = []
+            for f in found[:top_k]:
+                row = {"xy": [round(float(v), 2) for v in f.target], "cells": int(f.size)}
+                row["path_m"] = round(float(f.distance), 2) if math.isfinite(f.distance) else None
+                row.update(navsession.relative(agent, f.target))
+                rows.append(row)
+            info = {"agent": [round(agent[0], 2), round(agent[1], 2)], "frontiers": rows}
+            info["total"] = len(found)
+            return [TextContent(type="text", text=compact_json(info))]
+
+        return await in_thread(run)
+
+    @server.tool(annotations=ACTING)
+    @tool_errors
+    async def navigate_to(
+        ctx: Context,
+        x: Annotated[float | None, Field(ge=-1e4, le=1e4, description="world x (m)")] = None,
+        y: Annotated[float | None, Field(ge=-1e4, le=1e4, description="world y (m)")] = None,
+        unit_id: Annotated[
+            int | None, Field(ge=1, le=2**62, description="or go next to this unit")
+        ] = None,
+        max_steps: Annotated[int, Field(ge=1, le=500, description="action budget")] = 100,
+        session: SessionArg = None,
+    ) -> list[TextContent | Image]:
+        """Walk (simulator) to (x, y) or next to a unit along the planner's shortest path.
+
+        Replans on every new frame (each goes into the map) until reached, blocked or out
+        of steps. Returns the outcome, steps, metres walked, collisions, the status and the
+        final view. It does not stop the episode: call sim_step('stop') at the goal.
+        """
+        target = session_of(ctx, session)
+        if (unit_id is None) == (x is None or y is None) or (x is None) != (y is None):
+            raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
+
+        def run() -> list[TextContent | Image]:
+            sim = navsession.active_sim(target)
+            nav = navsession.of(target)
+            assert nav is not None
+            if sim.over:
+                raise InvalidInputError("the episode is over; call sim_reset to start another.")
+            if unit_id is not None:
+                with locked(target) as glmap:
+                    unit = glmap.unit(unit_id)  # raises UnknownIdError with a suggestion
+                    ids = list(getattr(unit, "instance_ids", None) or [unit_id])
+                    cells = sorted(set().union(*(glmap.grid.cells_of_unit(i) for i in ids)))
+                    centroid = glmap.unit_details(unit_id).centroid
+                goal = navsession.Target(
+                    (float(centroid[0]), float(centroid[1])),
+                    np.array(cells, np.int64).reshape(-1, 2),
+                    nav.config.stop_distance,
+                )
+            else:
+                point = (float(x), float(y))  # type: ignore[arg-type]
+                goal = navsession.Target(point, None, nav.config.forward_step)
+            with locked(target):
+                walk = navsession.walk_to(target, sim, goal, max_steps, nav.config)
+            info = {"outcome": walk.pop("outcome"), **walk, **simulator.status(sim)}
+            info.pop("camera_pose", None)
+            return [
+                TextContent(type="text", text=compact_json(info)),
+                Image(data=jpeg(sim.obs["rgb"]), format="jpeg"),
+            ]
+
+        return await in_thread(run)
+
+    @server.tool(annotations=ACTING)
+    @tool_errors
+    async def look_around(ctx: Context, session: SessionArg = None) -> list[TextContent | Image]:
+        """Turn a full circle in place (simulator), adding every frame to the map.
+
+        Returns the status and one contact sheet of all the frames, each labelled with its
+        step and heading.
+        """
+        target = session_of(ctx, session)
+
+        def run() -> list[TextContent | Image]:
+            sim = navsession.active_sim(target)
+            if sim.over:
+                raise InvalidInputError("the episode is over; call sim_reset to start another.")
+            turns = round(2 * math.pi / sim.env.motion.turn_angle)
+            frames, labels = [], []
+            with locked(target):
+                for _ in range(turns):
+                    simulator.step(sim, "turn_left")
+                    navsession.integrate(target, sim)
+                    frames.append(sim.obs["rgb"])
+                    heading = math.degrees(simulator.agent_pose(sim)[2])
+                    labels.append(f"step {sim.info['steps']}  {heading:.0f} deg")
+                    if sim.over:
+                        break
+            info = simulator.status(sim)
+            info.pop("camera_pose", None)
+            with locked(target) as glmap:
+                info["map"] = glmap.summary().model_dump(include={"instances", "regions"})
+            sheet = contact_sheet(frames, labels, cols=4)
+            return [
+                TextContent(type="text", text=compact_json(info)),
+                Image(data=jpeg(sheet), format="jpeg"),
+            ]
+
+        return await in_thread(run)
+
+    @server.tool(annotations=ACTING)
+    @tool_errors
+    async def nav_step(
+        ctx: Context,
+        policy: Policy = "glmap",
+        actions: Annotated[int, Field(ge=1, le=50, description="steps, replanning each")] = 1,
+        images: Annotated[bool, Field(description="attach the view and the value map")] = False,
+        session: SessionArg = None,
+    ) -> list[TextContent | Image]:
+        """Let a navigation policy act (simulator): decide, take the action, integrate.
+
+        glmap* = value map over both/instance/region units; egocentric = VLFM-like; frontier
+        = nearest frontier. Text: each decision (action, waypoint, reason) and the status.
+        """
+        target = session_of(ctx, session)
+
+        def run() -> list[TextContent | Image]:
+            sim = navsession.active_sim(target)
+            nav = navsession.of(target)
+            assert nav is not None
+            if sim.over:
+                raise InvalidInputError("the episode is over; call sim_reset to start another.")
+            decisions = []
+            decision: Any = None
+            agent = simulator.agent_pose(sim)
+            with locked(target):
+                for _ in range(actions):
+                    decision, agent = _decide(target, nav.goal, policy)
+                    simulator.step(sim, decision.action)
+                    navsession.integrate(target, sim)
+                    after = simulator.agent_pose(sim)
+                    decisions.append(
+                        {
+                            "step": int(sim.info["steps"]),
+                            "action": decision.action,
+                            "position": [round(after[0], 3), round(after[1], 3)],
+                            "heading_deg": round(math.degrees(after[2]), 1),
+                            "waypoint": _waypoint(decision, agent),
+                        }
+                    )
+                    if sim.over:
+                        break
+            info = {"decisions": decisions, **simulator.status(sim)}
+            info.pop("camera_pose", None)
+            content: list[TextContent | Image] = [TextContent(type="text", text=compact_json(info))]
+            if images:
+                content.append(Image(data=jpeg(sim.obs["rgb"]), format="jpeg"))
+                content.append(Image(data=_nav_png(target, decision, agent), format="png"))
+            return content
+
+        return await in_thread(run)
