@@ -198,3 +198,58 @@ def test_two_identical_chairs_side_by_side_stay_two(glmap):
         frame, ids = scenes.view(boxes, eye, (0.0, 0.0, 0.3), 640, 480)
         glmap.integrate(frame, scenes.semantics(ids, {1: CHAIR, 2: CHAIR}))
     assert len(glmap.instances) == 2
+
+
+def _three_objects():
+    boxes = (
+        scenes.floor()
+        + scenes.table(0.0, 0.0, 1)
+        + scenes.chair(0.0, -0.8, object_id=2)
+        + scenes.chair(1.3, -0.2, object_id=3)
+    )
+    texts = {1: ("table", "a brown wooden dining table"), 2: CHAIR, 3: ("chair", "a blue stool")}
+    frame, ids = scenes.view(boxes, (0.3, -3.2, 1.6), (0.3, 0.0, 0.4))
+    return frame, ids, texts
+
+
+def _member_sets(glmap):
+    return [r.instance_ids for r in glmap.regions.values()]
+
+
+def test_two_groups_with_the_same_members_in_one_frame_become_one_region(glmap):
+    frame, ids, texts = _three_objects()
+    groups = [(1, "a dining area", (1, 2)), (2, "a dining area", (1, 2))]
+    report = glmap.integrate(frame, scenes.semantics(ids, texts, groups))
+    assert len(glmap.regions) == 1 and len(report.regions_merged) == 1
+    (region,) = glmap.regions.values()
+    assert region.text == "a dining area" and region.observations == 1
+
+
+def test_a_region_seen_again_in_other_words_with_the_same_members_merges(glmap):
+    frame, ids, texts = _three_objects()
+    glmap.integrate(frame, scenes.semantics(ids, texts, [(1, "a dining area", (1, 2))]))
+    sem = scenes.semantics(ids, texts, [(1, "zebra crossing outside", (1, 2))])
+    assert (
+        float(
+            glmap.embedder.embed(["zebra crossing outside"])[0]
+            @ glmap.embedder.embed(["a dining area"])[0]
+        )
+        < glmap.tau_s
+    )  # by text alone it would be a new region
+    glmap.integrate(frame, sem)
+    assert _member_sets(glmap) == [(1, 2)]
+    assert glmap.regions[next(iter(glmap.regions))].observations == 2
+
+
+def test_a_merge_that_would_copy_another_regions_members_joins_that_region(glmap):
+    frame, ids, texts = _three_objects()
+    groups = [(1, "a dining area by the window", (1, 2)), (2, "the whole room", (1, 2, 3))]
+    glmap.integrate(frame, scenes.semantics(ids, texts, groups))
+    assert sorted(_member_sets(glmap)) == [(1, 2), (1, 2, 3)]
+    # Similar to the first region's text and sharing table 1 with it: the paper's rule
+    # would grow it to (1, 2, 3), the second region's member set.
+    sem = scenes.semantics(ids, texts, [(1, "a dining area by the window", (1, 3))])
+    report = glmap.integrate(frame, sem)
+    assert sorted(_member_sets(glmap)) == [(1, 2), (1, 2, 3)]
+    (merged,) = report.regions_merged
+    assert glmap.regions[merged.global_id].instance_ids == (1, 2, 3)
