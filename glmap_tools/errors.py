@@ -29,3 +29,19 @@ def did_you_mean(bad: str, choices: Iterable[str]) -> str:
     """Return ' Did you mean X?' for the closest choice, or '' when none is close."""
     close = difflib.get_close_matches(str(bad), [str(c) for c in choices], n=1, cutoff=0.5)
     return f" Did you mean {close[0]!r}?" if close else ""
+
+
+class LLMError(GLMapError):
+    """A language-model backend failed (unreachable, missing model, timeout, bad output)."""
+
+
+class LLMUnavailableError(LLMError):
+    """The model server cannot be reached or the model is not installed there."""
+
+
+class LLMOutputError(LLMError):
+    """The model's reply does not fit what was asked for, even after a retry."""
+
+
+class ReplayMissError(LLMError):
+    """A recorded transcript holds no response for this request."""

@@ -1,0 +1,179 @@
+"""The LLM-backed scenarios the replay tests run, and the script that writes their cassettes.
+
+Each scenario runs real code (OllamaClient, LLMScorer, LLMTextMerger, GLMap) against an
+Ollama at `host`. The tests point `host` at a replay server over tests/cassettes/*.jsonl.
+
+    python -m tests.llm_scenarios            # rewrite the hand-written cassettes
+    GLMAP_OLLAMA_RECORD=http://127.0.0.1:11434 .venv/bin/python -m pytest tests/test_llm_replay.py
+                                             # record the re-recordable ones from a live Ollama
+
+The hand-written cassettes come from `ScriptedOllama`: a Python function plays the model
+(keyword rules, no language model), and each file's header says so. Fault cassettes
+(malformed replies, a missing model) can only be written by hand.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from glmap_tools import synthetic as scenes
+from glmap_tools.errors import LLMError
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.language.llm import OllamaClient
+from glmap_tools.language.llm_merger import LLMTextMerger
+from glmap_tools.language.llm_scorer import LLMScorer
+from glmap_tools.language.ollama_replay import (
+    OllamaReplayServer,
+    ScriptedOllama,
+    chat_reply,
+)
+from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.nav.scorers import UnitText
+
+CASSETTES = Path(__file__).parent / "cassettes"
+MODEL = "qwen3:8b"
+HAND_WRITTEN = (
+    "written by hand: replies from a scripted stand-in (tests/llm_scenarios.py, keyword "
+    "rules, no language model); replace with a real recording"
+)
+
+
+def record_command(cassette: str) -> str:
+    """The command that re-records `cassette` from a live Ollama."""
+    return (
+        "GLMAP_OLLAMA_RECORD=http://127.0.0.1:11434 .venv/bin/python -m pytest "
+        f"tests/test_llm_replay.py -k {Path(cassette).stem}"
+    )
+
+
+def client(host: str, **kw: Any) -> OllamaClient:
+    return OllamaClient(MODEL, host=host, retries=0, backoff=0.01, **kw)
+
+
+# ------------------------------------------------------------------- scenarios
+
+NAV_UNITS = [
+    UnitText(1, "instance", "a black flat-screen television on a low cabinet"),
+    UnitText(2, "instance", "a white bathtub with a chrome tap"),
+    UnitText(3, "instance", "a grey fabric sofa facing the tv"),
+    UnitText(11, "region", "living room with a sofa, a coffee table and a tv"),
+    UnitText(12, "region", "bathroom with a bathtub and a sink"),
+]
+
+
+def nav_scores(host: str) -> np.ndarray:
+    """f_S of five units for the goal 'tv' (two calls: instances, regions)."""
+    return LLMScorer(client(host)).score("tv", NAV_UNITS)
+
+
+CHAIR_BASE = "a wooden chair with a red cushion and four legs standing near the table"
+
+
+def chair_descriptions(n: int) -> list[str]:
+    return [f"{CHAIR_BASE} " + " ".join(f"detail{k}x{w}" for w in range(16)) for k in range(n)]
+
+
+def map_text_merge(host: str) -> GLMap:
+    """A chair seen 12 times with 30-word descriptions: the LLM merger runs past 300 words."""
+    glmap = GLMap(
+        MapConfig(floor_z=0.0),
+        embedder=HashingEmbedder(),
+        text_merger=LLMTextMerger(client(host)),
+    )
+    boxes = scenes.floor() + scenes.chair(0.0, 0.0)
+    frame, ids = scenes.view(boxes, (0.0, -2.5, 1.3), (0.0, 0.0, 0.3), 160, 120)
+    for text in chair_descriptions(12):
+        glmap.integrate(frame, scenes.semantics(ids, {1: ("chair", text)}))
+    return glmap
+
+
+# ------------------------------------------------------------ scripted stand-in
+
+
+def _prompt_units(body: dict) -> list[tuple[int, str]]:
+    text = body["messages"][0]["content"]
+    return [(int(m[1]), m[2]) for m in re.finditer(r"^(\d+): (.*)$", text, re.MULTILINE)]
+
+
+def keyword_scores(method: str, path: str, body: Any) -> tuple[int, Any]:
+    """Plays a scorer: 0.92 when a unit mentions the goal's words, 0.3 for a living room."""
+    goal = re.search(r'for: "(.*?)"', body["messages"][0]["content"]).group(1)  # type: ignore[union-attr]
+    words = {goal.lower(), "television"} if goal.lower() == "tv" else {goal.lower()}
+    scores = []
+    for uid, text in _prompt_units(body):
+        low = text.lower()
+        p = 0.92 if any(w in low for w in words) else 0.3 if "living" in low else 0.05
+        if "sofa" in low and p < 0.5:
+            p = 0.4
+        scores.append({"id": uid, "probability": p})
+    return 200, chat_reply(body["model"], json.dumps({"scores": scores}))
+
+
+def merge_first_sentence(method: str, path: str, body: Any) -> tuple[int, Any]:
+    """Plays the merger: keeps the shared opening words and the first detail of each line."""
+    lines = [ln[2:] for ln in body["messages"][0]["content"].splitlines() if ln.startswith("- ")]
+    details = [ln.split()[-16] for ln in lines if ln.split()[-16].startswith("detail")]
+    merged = CHAIR_BASE + "; details " + ", ".join(dict.fromkeys(details))
+    return 200, chat_reply(body["model"], json.dumps({"description": merged}))
+
+
+def write(name: str, scenario: Callable[[str], Any], responder: Any, source: str) -> None:
+    """Run `scenario` against the scripted stand-in, recording into tests/cassettes/name."""
+    with (
+        ScriptedOllama(responder) as model,
+        OllamaReplayServer(
+            CASSETTES / name, upstream=model.host, record_command=record_command(name)
+        ) as proxy,
+    ):
+        scenario(proxy.host)
+        proxy.cassette.header["source"] = source
+    print(f"wrote {CASSETTES / name}: {len(proxy.cassette.exchanges)} exchanges")
+
+
+FAULT_REPLIES = [
+    'Sure! Here are the scores:\n{"scores": [{"id": 1, "probability": 0.9}]}\nHope it helps.',
+    '```json\n{"scores": [{"id": 1, "probability": 0.9}, {"id": 2, "probability": 0.02}]}\n```',
+    '{"scores": [{"id": 1, "probability": 1.5}, {"id": 2, "probability": 0.8}]}',
+    '{"scores": [{"id": 1, "probability": 1.5}, {"id": 2, "probability": 0.8}]}',
+]
+
+
+def faults(host: str) -> None:
+    """Score two units for 'tv' then 'bathtub'; the replies are malformed on purpose."""
+    for goal in ("tv", "bathtub"):
+        with contextlib.suppress(LLMError):
+            LLMScorer(client(host)).score(goal, NAV_UNITS[:2])
+
+
+def scripted_faults(method: str, path: str, body: Any) -> tuple[int, Any]:
+    """Plays a sloppy model: prose around JSON, a missing id, a probability of 1.5."""
+    n = sum(1 for _ in scripted_faults.calls)  # type: ignore[attr-defined]
+    scripted_faults.calls.append(body)  # type: ignore[attr-defined]
+    return 200, chat_reply(body["model"], FAULT_REPLIES[n])
+
+
+scripted_faults.calls = []  # type: ignore[attr-defined]
+FAULTS_SOURCE = (
+    "written by hand: malformed model replies (prose around JSON, a missing id, a "
+    "probability of 1.5) for the fault tests; not re-recordable"
+)
+
+
+def main() -> int:
+    CASSETTES.mkdir(exist_ok=True)
+    write("nav_scores.jsonl", nav_scores, keyword_scores, HAND_WRITTEN)
+    write("map_text_merge.jsonl", map_text_merge, merge_first_sentence, HAND_WRITTEN)
+    write("faults.jsonl", faults, scripted_faults, FAULTS_SOURCE)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

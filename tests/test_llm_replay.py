@@ -1,0 +1,197 @@
+"""LLM-backed parts replayed from recordings through the real `ollama` client code.
+
+Set GLMAP_OLLAMA_RECORD=<live Ollama URL> to record the re-recordable cassettes instead of
+replaying them (exact-value checks are skipped then: a real model answers differently).
+"""
+
+import json
+import os
+import socket
+
+import numpy as np
+import pytest
+
+from glmap_tools.errors import LLMError, LLMOutputError, LLMUnavailableError, ReplayMissError
+from glmap_tools.language.llm import OllamaClient, chat_structured, extract_json
+from glmap_tools.language.llm_scorer import LLMScorer, UnitScores
+from glmap_tools.language.ollama_replay import (
+    RECORD_ENV,
+    Cassette,
+    OllamaReplayServer,
+    ScriptedOllama,
+    chat_reply,
+)
+from glmap_tools.language.transcript import Transcript
+from tests import llm_scenarios as sc
+
+RECORDING = bool(os.environ.get(RECORD_ENV))
+
+
+def replay(name: str, **kw) -> OllamaReplayServer:
+    return OllamaReplayServer(
+        sc.CASSETTES / name, record_from_env=True, record_command=sc.record_command(name), **kw
+    )
+
+
+def test_every_cassette_says_where_its_replies_came_from():
+    for path in sorted(sc.CASSETTES.glob("*.jsonl")):
+        header = Cassette.load(path).header
+        assert header["source"].startswith(("recorded from", "written by hand")), path
+        assert header["record"], path
+
+
+def test_llm_scorer_replays_its_recorded_probabilities_and_caches_them():
+    with replay("nav_scores.jsonl") as server:
+        scorer = LLMScorer(sc.client(server.host))
+        scores = scorer.score("tv", sc.NAV_UNITS)
+        assert scorer.calls == 2  # one batch of instances, one of regions
+        again = scorer.score("tv", sc.NAV_UNITS)
+        assert scorer.calls == 2 and np.array_equal(scores, again)
+    assert scores.shape == (5,) and np.all((scores >= 0) & (scores <= 1))
+    # The television beats the bathtub, the living room beats the bathroom.
+    assert scores[0] > scores[1] and scores[3] > scores[4]
+    if not RECORDING:
+        np.testing.assert_allclose(scores, [0.92, 0.05, 0.92, 0.92, 0.05])
+
+
+def test_the_llm_text_merger_rewrites_a_map_buffer_past_300_words():
+    with replay("map_text_merge.jsonl") as server:
+        glmap = sc.map_text_merge(server.host)
+    (unit,) = glmap.instances.values()
+    assert len(unit.text.split()) <= glmap.config.max_text_words
+    assert glmap.text_merger.calls >= 1
+    if not RECORDING:
+        assert unit.text.startswith(sc.CHAIR_BASE + "; details detail0x0")
+
+
+@pytest.mark.skipif(RECORDING, reason="hand-written fault replies cannot be recorded")
+def test_json_in_prose_missing_an_id_is_retried_and_the_fenced_answer_accepted():
+    with Transcript() as transcript, replay("faults.jsonl") as server:
+        scorer = LLMScorer(sc.client(server.host, transcript=transcript))
+        scores = scorer.score("tv", sc.NAV_UNITS[:2])
+    np.testing.assert_allclose(scores, [0.9, 0.02])
+    requests = [e for e in transcript.events if e["kind"] == "llm_request"]
+    assert len(requests) == 2
+    assert "missing [2]" in requests[1]["messages"][-1]["content"]
+    assert requests[0]["prompt"].startswith("unit_value_instance@")
+
+
+@pytest.mark.skipif(RECORDING, reason="hand-written fault replies cannot be recorded")
+def test_a_probability_outside_0_1_after_a_retry_is_a_clear_error():
+    with replay("faults.jsonl") as server:
+        scorer = LLMScorer(sc.client(server.host))
+        with pytest.raises(LLMOutputError, match=r"less than or equal to 1.*--prompts"):
+            scorer.score("bathtub", sc.NAV_UNITS[:2])
+    assert scorer.cache == {}
+
+
+@pytest.mark.skipif(RECORDING, reason="replay only")
+def test_a_request_missing_from_the_recording_names_the_closest_and_how_to_re_record():
+    with replay("nav_scores.jsonl") as server:
+        scorer = LLMScorer(sc.client(server.host))
+        with pytest.raises(ReplayMissError) as err:
+            scorer.score("a television set", sc.NAV_UNITS)
+    message = str(err.value)
+    assert "closest recorded request: #1" in message
+    assert "a television set" in message and "similarity" in message
+    assert "GLMAP_OLLAMA_RECORD=http://127.0.0.1:11434" in message
+    assert "tests/test_llm_replay.py -k nav_scores" in message
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_an_unreachable_ollama_says_how_to_start_it_after_retrying():
+    client = OllamaClient(
+        sc.MODEL, host=f"http://127.0.0.1:{_free_port()}", retries=1, backoff=0.01
+    )
+    with Transcript() as transcript:
+        client.transcript = transcript
+        with pytest.raises(LLMUnavailableError, match="ollama serve"):
+            client.chat([{"role": "user", "content": "hi"}])
+    assert transcript.events[-1]["kind"] == "error"
+
+
+def test_a_model_that_is_not_pulled_says_run_ollama_pull():
+    def not_found(method, path, body):
+        return 404, {"error": f'model "{body["model"]}" not found, try pulling it first'}
+
+    with ScriptedOllama(not_found) as server:
+        client = OllamaClient("gemma3:27b", host=server.host, retries=2, backoff=0.01)
+        with pytest.raises(LLMUnavailableError, match="run `ollama pull gemma3:27b`"):
+            client.chat([{"role": "user", "content": "hi"}])
+        assert len(server.requests) == 1  # no retry can help
+
+
+def test_a_slow_model_times_out_with_a_clear_error_after_the_retries():
+    with ScriptedOllama(lambda m, p, b: (200, chat_reply(sc.MODEL, "late")), delay=0.5) as server:
+        client = OllamaClient(sc.MODEL, host=server.host, timeout=0.1, retries=1, backoff=0.01)
+        with pytest.raises(LLMError, match="no answer within 0.1 s"):
+            client.chat([{"role": "user", "content": "hi"}])
+        assert len(server.requests) == 2
+
+
+def test_a_5xx_is_retried_and_then_succeeds():
+    answers = iter([(503, {"error": "loading model"}), (200, chat_reply(sc.MODEL, "ok"))])
+    with ScriptedOllama(lambda m, p, b: next(answers)) as server:
+        client = OllamaClient(sc.MODEL, host=server.host, retries=2, backoff=0.01)
+        assert client.chat([{"role": "user", "content": "hi"}]).content == "ok"
+
+
+def test_tool_calls_come_back_as_names_and_arguments():
+    reply = chat_reply(sc.MODEL, "", [("find_instance", {"text": "sofa", "k": 3})])
+    with ScriptedOllama(lambda m, p, b: (200, reply)) as server:
+        client = OllamaClient(sc.MODEL, host=server.host)
+        tools = [{"type": "function", "function": {"name": "find_instance", "parameters": {}}}]
+        out = client.chat([{"role": "user", "content": "find the sofa"}], tools=tools)
+    assert [(c.name, c.arguments) for c in out.tool_calls] == [
+        ("find_instance", {"text": "sofa", "k": 3})
+    ]
+    body = server.requests[0][2]
+    assert body["tools"][0]["function"]["name"] == "find_instance"
+
+
+def test_images_reach_a_vision_model_and_are_dropped_for_a_text_model():
+    seen = []
+
+    def record(method, path, body):
+        seen.append(body["messages"][0].get("images"))
+        return 200, chat_reply(sc.MODEL, "a chair")
+
+    png = b"\x89PNG\r\n\x1a\n" + bytes(32)
+    with ScriptedOllama(record) as server:
+        for vision in (True, False):
+            client = OllamaClient(sc.MODEL, host=server.host, vision=vision)
+            client.chat([{"role": "user", "content": "what is this?", "images": [png]}])
+    assert seen[0] and len(seen[0]) == 1 and seen[1] is None
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        '{"scores": []}',
+        '```json\n{"scores": []}\n```',
+        'Here you go: {"scores": []} -- done',
+        '<think>{ not json }</think>\n{"scores": []}',
+    ],
+)
+def test_json_is_found_bare_in_fences_and_in_prose(text):
+    assert extract_json(text) == {"scores": []}
+
+
+def test_a_reply_without_json_is_an_output_error_quoting_it():
+    with pytest.raises(LLMOutputError, match="no JSON"):
+        extract_json("I cannot help with that.")
+
+
+def test_structured_output_sends_the_json_schema_as_format():
+    with ScriptedOllama(lambda m, p, b: (200, chat_reply(sc.MODEL, '{"scores": []}'))) as server:
+        value, _ = chat_structured(
+            sc.client(server.host), [{"role": "user", "content": "x"}], UnitScores
+        )
+    assert value.scores == []
+    assert server.requests[0][2]["format"]["required"] == ["scores"]
+    assert json.dumps(server.requests[0][2]["format"])  # plain JSON schema

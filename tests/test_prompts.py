@@ -1,0 +1,95 @@
+"""Prompt files: one source for the repository folder and the installed package."""
+
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from glmap_tools.errors import InvalidInputError, UnknownIdError
+from glmap_tools.language.prompts import PromptSet, package_prompts_dir
+
+ROOT = Path(__file__).resolve().parents[1]
+# Each prompt's placeholders, as the code that fills it passes them.
+FIELDS = {
+    "frame_description": {"max_objects"},
+    "unit_value_instance": {"goal", "units"},
+    "unit_value_region": {"goal", "units"},
+    "text_merge": {"kind", "max_words", "descriptions"},
+    "sqa_situation": {"situation", "kind_plural", "question", "units"},
+    "sqa_answer": {"situation", "views", "context", "question"},
+    "tool_agent_system": {"task", "max_turns"},
+}
+
+
+def test_the_package_prompts_are_the_repository_prompts_folder():
+    assert package_prompts_dir().resolve() == (ROOT / "prompts").resolve()
+    assert sorted(PromptSet().names()) == sorted(p.stem for p in (ROOT / "prompts").glob("*.txt"))
+
+
+def test_every_prompt_has_the_placeholders_its_caller_fills():
+    prompts = PromptSet()
+    assert set(prompts.names()) == set(FIELDS)
+    for name, fields in FIELDS.items():
+        prompt = prompts.get(name)
+        assert prompt.fields == fields, name
+        text = prompt.format(**{f: f"<{f}>" for f in fields})
+        assert "{" not in text.replace("{{", "") or '"' in text  # JSON examples keep braces
+        assert len(prompt.sha256) == 64 and prompt.ref == f"{name}@{prompt.sha256[:12]}"
+
+
+def test_a_built_wheel_carries_the_same_prompt_bytes(tmp_path):
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            str(ROOT),
+            "--no-deps",
+            "--no-build-isolation",
+            "-q",
+            "-w",
+            str(tmp_path),
+        ],
+        check=True,
+        capture_output=True,
+    )
+    (wheel,) = tmp_path.glob("*.whl")
+    with zipfile.ZipFile(wheel) as z:
+        for path in (ROOT / "prompts").glob("*.txt"):
+            assert z.read(f"glmap_tools/prompts/{path.name}") == path.read_bytes()
+
+
+def test_an_override_folder_replaces_prompts_by_name_and_changes_their_hash(tmp_path):
+    default = PromptSet().get("text_merge")
+    (tmp_path / "text_merge.txt").write_text(
+        "Merge these {kind} notes into {max_words} words:\n{descriptions}\n"
+    )
+    prompts = PromptSet(tmp_path)
+    custom = prompts.get("text_merge")
+    assert custom.source == str(tmp_path / "text_merge.txt")
+    assert custom.sha256 != default.sha256
+    assert (
+        prompts.get("unit_value_instance").sha256 == PromptSet().get("unit_value_instance").sha256
+    )
+    assert set(prompts.refs()) == {"text_merge", "unit_value_instance"}
+
+
+def test_a_prompt_out_of_step_with_its_caller_names_the_placeholders(tmp_path):
+    (tmp_path / "text_merge.txt").write_text("Merge {descriptions} for {room}.")
+    with pytest.raises(
+        InvalidInputError, match=r"without a value \['room'\].*\['kind', 'max_words'\]"
+    ):
+        PromptSet(tmp_path).get("text_merge").format(kind="object", max_words=300, descriptions="x")
+
+
+def test_an_unknown_prompt_suggests_the_closest_name():
+    with pytest.raises(UnknownIdError, match="Did you mean 'text_merge'"):
+        PromptSet().get("text_merg")
+
+
+def test_an_override_that_is_not_a_folder_is_refused(tmp_path):
+    with pytest.raises(InvalidInputError, match="is not a folder"):
+        PromptSet(tmp_path / "missing")
