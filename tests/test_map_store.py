@@ -1,6 +1,9 @@
 """The SQLite map store: exact round trips, refusal of foreign files, no partial writes."""
 
 import hashlib
+import io
+import json
+import shutil
 import sqlite3
 
 import numpy as np
@@ -10,6 +13,7 @@ from glmap_tools import synthetic as scenes
 from glmap_tools.errors import InvalidInputError, StoreError
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.map.store import SCHEMA_VERSION, InvalidStoreError
 from glmap_tools.perception import FrameSemantics, ObjectObservation
 
 TEXTS = {
@@ -64,6 +68,7 @@ def test_reopening_a_map_reproduces_it_exactly(tmp_path):
         np.array_equal(a, b) for a, b in zip(again.trajectory, glmap.trajectory, strict=True)
     )
     assert again.config == glmap.config
+    assert len(glmap.structure) > 0 and again.structure.equals(glmap.structure)
 
 
 def test_each_integrate_is_committed_before_it_returns(tmp_path):
@@ -135,3 +140,148 @@ def test_save_as_writes_a_copy_and_refuses_to_overwrite(tmp_path):
 def test_a_missing_folder_is_named_in_the_error(tmp_path):
     with pytest.raises(StoreError, match="does not exist"):
         GLMap.open(tmp_path / "nope" / "m.glmap", embedder=HashingEmbedder())
+
+
+def _execute(path, *statements):
+    conn = sqlite3.connect(path)
+    with conn:
+        for sql, *params in statements:
+            conn.execute(sql, *params)
+    conn.close()
+
+
+def _as_version_1(path):
+    """Rewrite a store as schema version 1 wrote it: no structure table or settings."""
+    conn = sqlite3.connect(path)
+    config = json.loads(conn.execute("SELECT value FROM meta WHERE key = 'config'").fetchone()[0])
+    for key in ("structure_voxel", "structure_stride"):
+        del config[key]
+    conn.close()
+    _execute(
+        path,
+        ("DROP TABLE structure",),
+        ("UPDATE meta SET value = '1' WHERE key = 'schema_version'",),
+        ("UPDATE meta SET value = ? WHERE key = 'config'", (json.dumps(config),)),
+    )
+
+
+def _meta(path, key):
+    conn = sqlite3.connect(path)
+    row = conn.execute("SELECT value FROM meta WHERE key = ?", (key,)).fetchone()
+    conn.close()
+    return None if row is None else row[0]
+
+
+def test_a_version_1_map_opens_and_becomes_version_2_with_its_next_frame(tmp_path):
+    path = tmp_path / "old.glmap"
+    glmap, boxes = _build(path, frames=1)
+    glmap.close()
+    _as_version_1(path)
+    before = _digest(path)
+    old = GLMap.open(path, embedder=HashingEmbedder())
+    assert len(old.structure) == 0 and sorted(old.instances) == sorted(glmap.instances)
+    assert _digest(path) == before  # opening migrates in memory only
+    frame, ids = scenes.view(boxes, (-2.5, -1.5, 1.4), (0.0, 0.0, 0.4))
+    old.integrate(frame, scenes.semantics(ids, TEXTS, REGION))
+    old.close()
+    assert _meta(path, "schema_version") == str(SCHEMA_VERSION) == "2"
+    again = GLMap.open(path, embedder=HashingEmbedder())
+    assert len(again.structure) > 0 and again.structure.equals(old.structure)
+
+
+def _fail_inserts_into(path, table):
+    _execute(
+        path,
+        (
+            f"CREATE TRIGGER fail BEFORE INSERT ON {table} "
+            "BEGIN SELECT RAISE(ABORT, 'simulated disk failure'); END",
+        ),
+    )
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_a_frame_whose_commit_fails_changes_neither_the_file_nor_the_map(tmp_path, version):
+    path = tmp_path / "room.glmap"
+    glmap, boxes = _build(path, frames=1)
+    glmap.close()
+    if version == 1:
+        _as_version_1(path)
+    _fail_inserts_into(path, "structure" if version == 2 else "occupancy")
+    before = _digest(path)
+    glmap = GLMap.open(path, embedder=HashingEmbedder())
+    state = (dict(glmap.instances), dict(glmap.structure.chunks), len(glmap.trajectory))
+    frame, ids = scenes.view(boxes, (-2.5, -1.5, 1.4), (0.0, 0.0, 0.4))
+    with pytest.raises(StoreError, match="simulated disk failure"):
+        glmap.integrate(frame, scenes.semantics(ids, TEXTS, REGION))
+    assert (dict(glmap.instances), dict(glmap.structure.chunks), len(glmap.trajectory)) == state
+    glmap.close()
+    assert _digest(path) == before
+    assert _meta(path, "schema_version") == str(version)
+
+
+def _npy(arr, allow_pickle=False):
+    buf = io.BytesIO()
+    np.save(buf, arr, allow_pickle=allow_pickle)
+    return buf.getvalue()
+
+
+def _huge_header():
+    buf = io.BytesIO()
+    header = {"descr": "<f4", "fortran_order": False, "shape": (10**12, 3)}
+    np.lib.format.write_array_header_1_0(buf, header)
+    return buf.getvalue() + b"\0" * 24
+
+
+CRAFTED = {
+    "garbage-blob": ("UPDATE instances SET means = ?", (b"\x93NUMPY garbage",)),
+    "text-instead-of-blob": ("UPDATE instances SET covs = 'abc'",),
+    "object-array-blob": (
+        "UPDATE instances SET colors = ?",
+        (_npy(np.array([1, "a"], dtype=object), allow_pickle=True),),
+    ),
+    "huge-array-header": ("UPDATE instances SET means = ?", (_huge_header(),)),
+    "short-array": ("UPDATE instances SET opacities = ?", (_npy(np.ones(1, np.float32)),)),
+    "nan-means": (
+        "UPDATE instances SET means = ?",
+        (_npy(np.full((1, 3), np.nan, np.float32)),),
+    ),
+    "schema-version-abc": ("UPDATE meta SET value = 'abc' WHERE key = 'schema_version'",),
+    "config-not-json": ("UPDATE meta SET value = '{voxel' WHERE key = 'config'",),
+    "config-missing": ("DELETE FROM meta WHERE key = 'config'",),
+    "config-wrong-type": (
+        "UPDATE meta SET value = json_set(value, '$.cell_size', 'big') WHERE key = 'config'",
+    ),
+    "tiny-cell-size": (
+        "UPDATE meta SET value = json_set(value, '$.cell_size', 1e-9) WHERE key = 'config'",
+    ),
+    "next-id-abc": ("UPDATE meta SET value = 'abc' WHERE key = 'next_id'",),
+    "next-id-reused": ("UPDATE meta SET value = '2' WHERE key = 'next_id'",),
+    "missing-table": ("DROP TABLE regions",),
+    "dangling-region-members": ("UPDATE regions SET instance_ids = '[1, 2, 99]'",),
+    "wrong-embedding-size": (
+        "UPDATE instances SET embedding = ? WHERE id = 1",
+        (_npy(np.ones(7, np.float32)),),
+    ),
+    "label-is-a-blob": ("UPDATE instances SET label = x'00ff'",),
+    "bad-pose": ("UPDATE frames SET pose = ?", (_npy(np.full((4, 4), 2.0)),)),
+    "bad-floor": ("UPDATE meta SET value = 'NaN' WHERE key = 'floor_z'",),
+    "structure-keys-elsewhere": ("UPDATE structure SET ci = ci + 5",),
+}
+
+
+@pytest.fixture(scope="module")
+def one_frame_store(tmp_path_factory):
+    path = tmp_path_factory.mktemp("store") / "room.glmap"
+    _build(path, frames=1)[0].close()
+    return path
+
+
+@pytest.mark.parametrize("sql", list(CRAFTED.values()), ids=list(CRAFTED))
+def test_a_crafted_map_file_is_refused_and_left_unchanged(tmp_path, one_frame_store, sql):
+    path = tmp_path / "room.glmap"
+    shutil.copy(one_frame_store, path)
+    _execute(path, sql)
+    before = _digest(path)
+    with pytest.raises(InvalidStoreError, match="is not a valid GLMap store: .+"):
+        GLMap.open(path, embedder=HashingEmbedder())
+    assert _digest(path) == before
