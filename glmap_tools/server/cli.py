@@ -1,7 +1,8 @@
 """`glmap-mcp` / `python -m glmap_tools.server`: serve GLMap over stdio or streamable HTTP.
 
 HTTP binds 127.0.0.1 unless --host is given, and a non-loopback --host needs a bearer
-token (--token or $GLMAP_MCP_TOKEN) that every request must carry.
+token that every request must carry: from $GLMAP_MCP_TOKEN or --token-file (--token still
+works but shows the token in the process list, and warns).
 """
 
 from __future__ import annotations
@@ -9,14 +10,14 @@ from __future__ import annotations
 import argparse
 import hmac
 import os
-import socket
 import sys
 from pathlib import Path
 from typing import Any
 
-from glmap_tools.errors import GLMapError
+from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.map import MapConfig
 from glmap_tools.server.config import MIB, ServerConfig, default_maps_dir
+from glmap_tools.server.http import MAX_CONNECTIONS, REQUEST_TIMEOUT_S
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 TOKEN_ENV = "GLMAP_MCP_TOKEN"
@@ -31,9 +32,30 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--transport", choices=["stdio", "streamable-http"], default="stdio", help="default stdio"
     )
-    p.add_argument("--host", help="HTTP bind address (default 127.0.0.1; others need --token)")
-    p.add_argument("--port", type=int, default=8765, help="HTTP port (0 = any free port)")
-    p.add_argument("--token", help=f"bearer token required on HTTP (or ${TOKEN_ENV})")
+    p.add_argument("--host", help="HTTP bind address (default 127.0.0.1; others need a token)")
+    p.add_argument(
+        "--port", type=int, default=8765, help="HTTP port (0 = any free port; default 8765)"
+    )
+    p.add_argument(
+        "--token-file",
+        type=Path,
+        help=f"file holding the bearer token required on HTTP (default: ${TOKEN_ENV})",
+    )
+    p.add_argument(
+        "--token", help=f"the bearer token itself: visible to other users; prefer ${TOKEN_ENV}"
+    )
+    p.add_argument(
+        "--max-connections",
+        type=int,
+        default=MAX_CONNECTIONS,
+        help="open HTTP connections at once; over it the oldest half-sent request is closed",
+    )
+    p.add_argument(
+        "--request-timeout",
+        type=float,
+        default=REQUEST_TIMEOUT_S,
+        help="seconds an HTTP request (headers and body) may take to arrive",
+    )
     p.add_argument(
         "--maps-dir",
         type=Path,
@@ -106,25 +128,72 @@ class BearerAuth:
         await self.app(scope, receive, send)
 
 
-def serve_http(server: Any, config: ServerConfig, host: str, port: int, token: str | None) -> None:
-    """Serve streamable HTTP on host:port; prints the URL on stderr once it accepts."""
+def serve_http(
+    server: Any,
+    config: ServerConfig,
+    host: str,
+    port: int,
+    token: str | None,
+    max_connections: int = MAX_CONNECTIONS,
+    request_timeout: float = REQUEST_TIMEOUT_S,
+) -> None:
+    """Serve streamable HTTP on host:port; prints the URL on stderr once it accepts.
+
+    Connections are capped and each request must arrive within `request_timeout` seconds
+    (see glmap_tools.server.http); repeated uvicorn log lines are rate-limited.
+    """
     import anyio
     import uvicorn
+
+    from glmap_tools.server.http import guarded_protocol, listening_socket, quiet_repeats
 
     app = server.streamable_http_app(
         streamable_http_path=MCP_PATH, max_request_body_size=config.http_body_limit, host=host
     )
     asgi: Any = BearerAuth(app, token) if token else app
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    sock.bind((host, port))
-    sock.listen(128)
+    sock = listening_socket(host, port)
     bound = sock.getsockname()[1]
     shown = f"[{host}]" if ":" in host else host
-    uv = uvicorn.Server(uvicorn.Config(asgi, log_level="warning", lifespan="on"))
+    quiet_repeats()
+    uv = uvicorn.Server(
+        uvicorn.Config(
+            asgi,
+            log_level="warning",
+            lifespan="on",
+            http=guarded_protocol(request_timeout, max_connections),
+        )
+    )
     print(f"glmap-mcp: serving http://{shown}:{bound}{MCP_PATH}", file=sys.stderr, flush=True)
     anyio.run(lambda: uv.serve(sockets=[sock]))
+
+
+def read_token(args: argparse.Namespace, environ: Any = os.environ) -> str | None:
+    """The bearer token: --token-file, else --token (with a warning), else $GLMAP_MCP_TOKEN.
+
+    Raises:
+        InvalidInputError: an unreadable or empty token file.
+    """
+    if args.token_file is not None:
+        try:
+            token = args.token_file.read_text().strip()
+        except OSError as exc:
+            raise InvalidInputError(
+                f"--token-file {args.token_file.name!r} cannot be read ({exc.strerror}); give a "
+                "readable file holding the token."
+            ) from None
+        if not token:
+            raise InvalidInputError(
+                f"--token-file {args.token_file.name!r} is empty; write the token into it."
+            )
+        return token
+    if args.token:
+        print(
+            f"glmap-mcp: warning: --token shows the token in the process list; set "
+            f"${TOKEN_ENV} or use --token-file instead.",
+            file=sys.stderr,
+        )
+        return str(args.token)
+    return environ.get(TOKEN_ENV) or None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -132,15 +201,18 @@ def main(argv: list[str] | None = None) -> int:
     import logging
 
     logging.basicConfig(level=args.log_level, stream=sys.stderr)
-    token = args.token or os.environ.get(TOKEN_ENV) or None
     try:
+        token = read_token(args)
         config = config_from_args(args)
     except GLMapError as exc:
         print(f"glmap-mcp: error: {exc}", file=sys.stderr)
         return 2
     if args.transport == "stdio":
-        if args.host or args.token:
-            print("glmap-mcp: error: --host/--token are for streamable-http.", file=sys.stderr)
+        if args.host or args.token or args.token_file:
+            print(
+                "glmap-mcp: error: --host/--token/--token-file are for streamable-http.",
+                file=sys.stderr,
+            )
             return 2
         from glmap_tools.server.app import build_server
 
@@ -150,14 +222,22 @@ def main(argv: list[str] | None = None) -> int:
     if host not in LOOPBACK and not token:
         print(
             f"glmap-mcp: error: --host {host} exposes the server beyond this machine; give a "
-            f"bearer token with --token or ${TOKEN_ENV} (clients send 'Authorization: Bearer "
-            "<token>').",
+            f"bearer token in ${TOKEN_ENV} or --token-file (clients send 'Authorization: "
+            "Bearer <token>').",
             file=sys.stderr,
         )
         return 2
     from glmap_tools.server.app import build_server
 
-    serve_http(build_server(config), config, host, args.port, token)
+    serve_http(
+        build_server(config),
+        config,
+        host,
+        args.port,
+        token,
+        max_connections=args.max_connections,
+        request_timeout=args.request_timeout,
+    )
     return 0
 
 

@@ -1,0 +1,155 @@
+"""The HTTP listener's defences: a connection cap, request deadlines, no Nagle, quiet logs.
+
+uvicorn alone accepts any number of connections and waits forever for a request's headers
+and body, so half-sent requests (even without a token) used to exhaust the process's file
+descriptors while authorised calls timed out, and its per-request warnings filled the log.
+Here each connection is an `h11` protocol that
+
+- sets TCP_NODELAY (the listening socket is also created as IPPROTO_TCP, so asyncio sets
+  it too): replies on a reused connection no longer wait ~40 ms for Nagle's algorithm;
+- must deliver a whole request (headers and body) within `request_timeout` seconds of its
+  first byte, or is closed;
+- counts against `max_connections`: a new connection over the cap closes the oldest one
+  still sending its request (never one whose request is complete and being answered), so
+  an attacker's half-sent requests cannot lock out a client that sends whole requests.
+
+`RepeatFilter` lets the same log message through a few times a minute and then counts it.
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+import time
+from typing import Any
+
+import h11
+from uvicorn.protocols.http.h11_impl import H11Protocol
+
+REQUEST_TIMEOUT_S = 10.0
+MAX_CONNECTIONS = 64
+LISTEN_BACKLOG = 128
+
+
+def listening_socket(host: str, port: int) -> socket.socket:
+    """A bound, listening TCP socket (IPPROTO_TCP, so asyncio sets TCP_NODELAY on accepts)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind((host, port))
+    sock.listen(LISTEN_BACKLOG)
+    return sock
+
+
+class GuardedH11Protocol(H11Protocol):
+    """uvicorn's h11 protocol with TCP_NODELAY, a request deadline and a connection cap."""
+
+    request_timeout: float = REQUEST_TIMEOUT_S
+    max_connections: int = MAX_CONNECTIONS
+    closed_slow = 0  # connections closed for a late request, process-wide (for tests and logs)
+    closed_over_cap = 0
+
+    def connection_made(self, transport: Any) -> None:  # type: ignore[override]
+        sock = transport.get_extra_info("socket")
+        if sock is not None and sock.family in (socket.AF_INET, socket.AF_INET6):
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        super().connection_made(transport)
+        self.opened = time.monotonic()
+        self._deadline: Any = None
+        self._arm()
+        if len(self.connections) > self.max_connections:
+            self._close_one_receiving()
+
+    def _receiving(self) -> bool:
+        """Still sending its request (headers or body), with no reply under way."""
+        return self.conn.their_state in (h11.IDLE, h11.SEND_BODY) and (
+            self.cycle is None or self.cycle.response_complete
+        )
+
+    def _close_one_receiving(self) -> None:
+        """Make room: close the oldest connection that has not delivered its request."""
+        waiting = [c for c in self.connections if isinstance(c, GuardedH11Protocol)]
+        waiting = [c for c in waiting if c._receiving() and not c.transport.is_closing()]
+        if waiting:
+            oldest = min(waiting, key=lambda c: c.opened)
+            type(self).closed_over_cap += 1
+            oldest.logger.warning("HTTP connection cap reached: closed a half-sent request.")
+            oldest.transport.close()
+
+    def _arm(self) -> None:
+        if self._deadline is None:
+            self._deadline = self.loop.call_later(self.request_timeout, self._too_slow)
+
+    def _disarm(self) -> None:
+        if self._deadline is not None:
+            self._deadline.cancel()
+            self._deadline = None
+
+    def _too_slow(self) -> None:
+        self._deadline = None
+        if self._receiving() and not self.transport.is_closing():
+            type(self).closed_slow += 1
+            self.logger.warning(
+                "HTTP request not received within %.0f s: connection closed.", self.request_timeout
+            )
+            self.transport.close()
+
+    def data_received(self, data: bytes) -> None:
+        self._arm()  # a request starts (or goes on): it has request_timeout to finish
+        super().data_received(data)
+        if not self._receiving():
+            self._disarm()
+
+    def on_response_complete(self) -> None:
+        super().on_response_complete()
+        if self._receiving() and self.conn.their_state is h11.SEND_BODY:
+            self._arm()
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self._disarm()
+        super().connection_lost(exc)
+
+
+def guarded_protocol(request_timeout: float, max_connections: int) -> type[GuardedH11Protocol]:
+    """The protocol class with these limits (uvicorn's `http=` takes a class)."""
+    return type(
+        "GuardedH11Protocol",
+        (GuardedH11Protocol,),
+        {"request_timeout": float(request_timeout), "max_connections": int(max_connections)},
+    )
+
+
+class RepeatFilter(logging.Filter):
+    """Let a message through `burst` times per `window` seconds, then count the repeats.
+
+    The first message after a quiet window says how many were left out.
+    """
+
+    def __init__(self, burst: int = 5, window: float = 60.0) -> None:
+        super().__init__()
+        self.burst = burst
+        self.window = window
+        self._seen: dict[str, list[float]] = {}  # message -> [window start, count]
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        key = f"{record.name}:{record.msg}"
+        now = time.monotonic()
+        entry = self._seen.get(key)
+        if entry is None or now - entry[0] > self.window:
+            dropped = int(entry[1]) - self.burst if entry is not None else 0
+            self._seen[key] = [now, 1]
+            if dropped > 0:
+                record.msg = f"{record.msg} (and {dropped} more like it in the last minute)"
+            if len(self._seen) > 1024:  # many distinct messages: forget the old windows
+                self._seen = {k: v for k, v in self._seen.items() if now - v[0] <= self.window}
+            return True
+        entry[1] += 1
+        return entry[1] <= self.burst
+
+
+def quiet_repeats(names: tuple[str, ...] = ("uvicorn.error", "uvicorn.access")) -> RepeatFilter:
+    """Install one RepeatFilter on uvicorn's loggers (and their handlers' records)."""
+    repeat = RepeatFilter()
+    for name in names:
+        logging.getLogger(name).addFilter(repeat)
+    return repeat

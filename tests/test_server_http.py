@@ -1,0 +1,193 @@
+"""The HTTP listener under abuse, on 127.0.0.1: half-sent requests, Nagle, log floods, tokens.
+
+Bounded: at most 24 sockets, a 2 s request deadline, every wait under a timeout.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import queue
+import socket
+import subprocess
+import threading
+import time
+from argparse import Namespace
+from collections.abc import Iterator
+from pathlib import Path
+from urllib.parse import urlparse
+
+import anyio
+import httpx2
+import pytest
+from mcp import Client
+from mcp.client.streamable_http import streamable_http_client
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.server import cli
+from glmap_tools.server.http import RepeatFilter, listening_socket
+from tests.test_server_transports import FAST, REPO, STARTUP_TIMEOUT, server_command
+
+TOKEN = "file-token-7d2a"
+SLOW_SOCKETS = 24
+CAP = 8
+DEADLINE_S = 2.0
+
+
+@pytest.fixture
+def guarded_server(tmp_path: Path) -> Iterator[tuple[str, list[str]]]:
+    """glmap-mcp on 127.0.0.1 with a token file, a cap of 8 connections, a 2 s deadline."""
+    token_file = tmp_path / "token"
+    token_file.write_text(TOKEN + "\n")
+    command = [
+        *server_command(),
+        "--transport",
+        "streamable-http",
+        "--port",
+        "0",
+        "--token-file",
+        str(token_file),
+        "--max-connections",
+        str(CAP),
+        "--request-timeout",
+        str(DEADLINE_S),
+        "--maps-dir",
+        str(tmp_path / "maps"),
+        *FAST,
+    ]
+    proc = subprocess.Popen(command, cwd=REPO, stderr=subprocess.PIPE, text=True)
+    lines: queue.Queue[str] = queue.Queue()
+    log: list[str] = []
+
+    def pump() -> None:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            log.append(line)
+            lines.put(line)
+        lines.put("")
+
+    threading.Thread(target=pump, daemon=True).start()
+    try:
+        while True:
+            line = lines.get(timeout=STARTUP_TIMEOUT)
+            if not line:
+                raise AssertionError("glmap-mcp exited before serving:\n" + "".join(log))
+            if line.startswith("glmap-mcp: serving "):
+                break
+        yield line.split()[-1], log
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=20)
+
+
+def half_sent(url: str) -> socket.socket:
+    """A connection that sends the start of a request (no token, no end) and stalls."""
+    parsed = urlparse(url)
+    sock = socket.create_connection((parsed.hostname, parsed.port), timeout=10)
+    sock.sendall(b"POST /mcp HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 100\r\n")
+    return sock
+
+
+def closed_by_server(sock: socket.socket, timeout: float) -> bool:
+    sock.settimeout(timeout)
+    try:
+        return sock.recv(1024) == b""
+    except (TimeoutError, socket.timeout):
+        return False
+    except ConnectionResetError:
+        return True
+
+
+async def tools_via(url: str) -> set[str]:
+    http = httpx2.AsyncClient(
+        headers={"Authorization": f"Bearer {TOKEN}"}, timeout=httpx2.Timeout(30.0)
+    )
+    async with Client(streamable_http_client(url, http_client=http), mode="legacy") as client:
+        return {t.name for t in (await client.list_tools()).tools}
+
+
+@pytest.mark.anyio
+async def test_half_sent_requests_neither_pile_up_nor_lock_out_an_authorised_client(
+    guarded_server,
+):
+    url, log = guarded_server
+    stalled = [half_sent(url) for _ in range(SLOW_SOCKETS)]
+    try:
+        # Three times the cap stalled: the oldest were closed to stay within the cap ...
+        over_cap = sum(closed_by_server(s, 0.2) for s in stalled[:CAP])
+        assert over_cap == CAP
+        # ... and a client sending whole requests still gets in and is answered.
+        with anyio.fail_after(60):
+            assert "find_instance" in await tools_via(url)
+        # Whatever was still stalled is closed once the request deadline passes.
+        deadline = time.monotonic() + DEADLINE_S + 5
+        for s in stalled:
+            assert closed_by_server(s, max(deadline - time.monotonic(), 0.1))
+    finally:
+        for s in stalled:
+            s.close()
+    warnings = [line for line in log if "half-sent" in line or "not received within" in line]
+    assert 0 < len(warnings) <= 2 * 6  # two messages, each at most 5 times + one summary
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+def test_accepted_connections_of_the_listening_socket_disable_nagle():
+    listener = listening_socket("127.0.0.1", 0)
+    port = listener.getsockname()[1]
+    seen: list[int] = []
+
+    async def main() -> None:
+        async def accepted(_: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+            sock = writer.get_extra_info("socket")
+            seen.append(sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY))
+            writer.close()
+
+        server = await asyncio.start_server(accepted, sock=listener)
+        async with server:
+            _, writer = await asyncio.open_connection("127.0.0.1", port)
+            for _ in range(100):
+                if seen:
+                    break
+                await asyncio.sleep(0.02)
+            writer.close()
+
+    asyncio.run(main())
+    assert seen and seen[0] != 0
+
+
+def test_a_repeated_log_line_is_let_through_a_few_times_then_counted():
+    repeat = RepeatFilter(burst=5, window=0.3)
+    record = lambda: logging.LogRecord("uvicorn.error", 30, "", 0, "flood", None, None)  # noqa: E731
+    passed = sum(repeat.filter(record()) for _ in range(1000))
+    assert passed == 5
+    time.sleep(0.35)
+    later = record()
+    assert repeat.filter(later) and "995 more" in later.getMessage()
+
+
+def test_the_token_comes_from_a_file_or_the_environment_and_on_the_command_line_warns(
+    tmp_path, capsys
+):
+    def args(**kw: object) -> Namespace:
+        return Namespace(**{"token": None, "token_file": None, **kw})
+
+    (tmp_path / "t").write_text("  secret-1 \n")
+    assert cli.read_token(args(token_file=tmp_path / "t"), {}) == "secret-1"
+    assert cli.read_token(args(), {cli.TOKEN_ENV: "secret-2"}) == "secret-2"
+    assert capsys.readouterr().err == ""
+    assert cli.read_token(args(token="secret-3"), {}) == "secret-3"
+    assert "process list" in capsys.readouterr().err
+    (tmp_path / "empty").write_text("\n")
+    with pytest.raises(InvalidInputError, match="empty"):
+        cli.read_token(args(token_file=tmp_path / "empty"), {})
+    with pytest.raises(InvalidInputError, match="cannot be read") as err:
+        cli.read_token(args(token_file=tmp_path / "missing"), {})
+    assert str(tmp_path) not in str(err.value)
