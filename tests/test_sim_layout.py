@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.sim.layout import LayoutWarning
 from glmap_tools.sim.layout_io import layout_from_dict, layout_to_dict, load_layout, save_layout
 from glmap_tools.sim.scan import layout_from_scan
 
@@ -121,7 +122,8 @@ def test_a_y_up_scan_object_list_with_rotations_becomes_a_one_room_layout() -> N
              "rotation": np.eye(3).tolist()},
         ],
     }  # fmt: skip
-    layout = layout_from_scan(scan)
+    with pytest.warns(LayoutWarning, match="'widget' .* no mesh"):
+        layout = layout_from_scan(scan)
     chair, couch, widget = layout.objects
     assert [o.id for o in layout.objects] == [4, 7, 9]
     assert chair.mesh == "kenney/chairCushion" and couch.mesh == "kenney/loungeSofa"

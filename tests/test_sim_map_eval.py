@@ -6,6 +6,7 @@ import os
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
+import numpy as np
 import pytest
 
 from glmap_tools.sim.generator import generate_apartment
@@ -32,3 +33,30 @@ def test_an_empty_map_has_zero_precision_and_recall() -> None:
     glmap = map_module.GLMap(embedder=embed.HashingEmbedder())
     result = evaluate_instances(glmap, layout, {o.id for o in layout.objects[:3]})
     assert (result.precision, result.recall, result.missed) == (0.0, 0.0, [1, 2, 3])
+
+
+def test_map_eval_reports_duplicate_instances_and_duplicate_regions() -> None:
+    import dataclasses
+
+    from glmap_tools.sim.map_eval import duplicate_regions
+
+    layout = generate_apartment(5, n_rooms=3)
+    glmap = map_module.GLMap(embedder=embed.HashingEmbedder())
+    seen = build_map_from_tour(layout, glmap, CameraSpec(160, 120), max_frames=6)
+    clean = evaluate_instances(glmap, layout, seen)
+    assert clean.duplicate_instances == {} and clean.matched
+    inst_id, obj_id = next(iter(clean.matched.items()))
+    # A second copy of a matched instance (as a map that failed to merge would hold).
+    copy_id = max([*glmap.instances, *glmap.regions]) + 1
+    glmap.instances[copy_id] = dataclasses.replace(glmap.instances[inst_id], id=copy_id)
+    result = evaluate_instances(glmap, layout, seen)
+    assert result.duplicate_instances == {obj_id: [copy_id]}
+    assert copy_id in result.spurious and result.precision < clean.precision
+    region = map_module.RegionUnit(
+        id=copy_id + 1, text="dining area: a table and chairs", embedding=np.zeros(4, np.float32),
+        instance_ids=(inst_id,), observations=1, first_frame=0, last_frame=0,
+    )  # fmt: skip
+    glmap.regions[copy_id + 1] = region
+    glmap.regions[copy_id + 2] = dataclasses.replace(region, id=copy_id + 2)
+    glmap.regions[copy_id + 3] = dataclasses.replace(region, id=copy_id + 3, text="another text")
+    assert duplicate_regions(glmap) == [[copy_id + 1, copy_id + 2]]

@@ -166,6 +166,84 @@ def mesh_spec(name: str, where: str = "mesh") -> MeshSpec:
     return spec
 
 
+# Scan labels that name a category above in other words; `resolve_category` also tries the
+# label with "-"/"_" as spaces, without a plural "s", and its last word (the head noun:
+# "area rug" -> rug). Documented in sim/design.md.
+CATEGORY_ALIASES: dict[str, str] = {
+    "book": "books",
+    "indoor plant": "plant",
+    "house plant": "plant",
+    "houseplant": "plant",
+    "plant pot": "plant",
+    "flower pot": "plant",
+    "bin": "trash can",
+    "trash bin": "trash can",
+    "garbage bin": "trash can",
+    "garbage can": "trash can",
+    "waste bin": "trash can",
+    "wastebasket": "trash can",
+    "recycling bin": "trash can",
+    "tv screen": "tv",
+    "tv monitor": "tv",
+    "screen": "tv",
+    "computer monitor": "monitor",
+    "display": "monitor",
+    "sofa chair": "armchair",
+    "couch chair": "armchair",
+    "stool": "chair",
+    "chair desk": "office chair",
+    "night stand": "nightstand",
+    "bedside table": "nightstand",
+    "bedside cabinet": "nightstand",
+    "tv cabinet": "tv stand",
+    "tv table": "tv stand",
+    "media console": "tv stand",
+    "shelf": "shelves",
+    "cupboard": "cabinet",
+    "kitchen counter": "counter",
+    "countertop": "counter",
+    "chest of drawers": "dresser",
+    "drawers": "dresser",
+    "bath": "bathtub",
+    "tub": "bathtub",
+    "washer": "washing machine",
+    "fridge freezer": "refrigerator",
+    "painting": "picture",
+    "poster": "picture",
+    "picture frame": "picture",
+    "desk lamp": "table lamp",
+    "standing lamp": "floor lamp",
+    "mat": "doormat",
+    "bath mat": "doormat",
+    "floor mat": "doormat",
+    "cushion": "pillow",
+    "throw pillow": "pillow",
+}
+
+
+def _normalise(label: str) -> str:
+    return " ".join(label.strip().lower().replace("-", " ").replace("_", " ").split())
+
+
+def resolve_category(category: str) -> str | None:
+    """The catalog category (a key of `CATEGORY_MESH`) a scan label means, or None.
+
+    Tries the label, then its last word (the head noun: "area rug" -> rug), each as it is and
+    without a plural "es"/"s", in `CATEGORY_MESH` and then in `CATEGORY_ALIASES`.
+    """
+    name = _normalise(category)
+    words = name.split()
+    for label in (name, words[-1] if len(words) > 1 else ""):
+        singulars = [label] + [label[: -len(end)] for end in ("es", "s") if label.endswith(end)]
+        for candidate in singulars if label else []:
+            if candidate in CATEGORY_MESH:
+                return candidate
+            if candidate in CATEGORY_ALIASES:
+                return CATEGORY_ALIASES[candidate]
+    return None
+
+
 def mesh_for_category(category: str) -> str:
     """The mesh a scanned object of `category` is drawn with (a box when none fits)."""
-    return CATEGORY_MESH.get(category.strip().lower(), "primitive/box")
+    resolved = resolve_category(category)
+    return CATEGORY_MESH[resolved] if resolved is not None else "primitive/box"

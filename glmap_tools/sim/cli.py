@@ -128,13 +128,22 @@ def run_new(args: argparse.Namespace) -> int:
 
 
 def run_from_scan(args: argparse.Namespace) -> int:
+    import warnings
+
     from glmap_tools.sim.jsonfile import read_json
+    from glmap_tools.sim.layout import LayoutWarning
     from glmap_tools.sim.layout_io import save_layout
     from glmap_tools.sim.scan import layout_from_scan
 
     _check_out(args.out, args.overwrite)
     data = read_json(args.scan, "scan file", "a category + oriented-box list (see design.md)")
-    layout = layout_from_scan(data, name=args.scan.stem, up=args.up_axis, use_meshes=not args.boxes)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LayoutWarning)
+        layout = layout_from_scan(
+            data, name=args.scan.stem, up=args.up_axis, use_meshes=not args.boxes
+        )
+    for w in caught:
+        print(f"warning: {w.message}")
     save_layout(layout, args.out)
     print(f"wrote {args.out}: {len(layout.objects)} objects in one room")
     return 0
@@ -205,11 +214,15 @@ def run_map_eval(args: argparse.Namespace) -> int:
     from glmap_tools.sim.layout_io import load_layout
     from glmap_tools.sim.map_eval import build_map_from_tour, evaluate_instances
 
+    if args.min_pixels is not None and args.min_pixels < 1:
+        raise InvalidInputError(f"--min-pixels {args.min_pixels} must be at least 1 pixel.")
     layout = load_layout(args.layout)
     embedder = embed.HashingEmbedder() if args.embedder == "hashing" else embed.default_embedder()
     glmap = GLMap(embedder=embedder)
     start = time.perf_counter()
-    seen = build_map_from_tour(layout, glmap, _camera(args), args.step, args.spin, args.max_frames)
+    seen = build_map_from_tour(
+        layout, glmap, _camera(args), args.step, args.spin, args.max_frames, args.min_pixels
+    )
     result = evaluate_instances(glmap, layout, seen)
     print(
         f"{layout.name}: {len(glmap.trajectory)} frames in {time.perf_counter() - start:.0f} s; "
@@ -226,6 +239,20 @@ def run_map_eval(args: argparse.Namespace) -> int:
             "  unmatched instances: "
             + ", ".join(f"{i} {glmap.instances[i].label}" for i in result.spurious)
         )
+    n_dup = sum(len(v) for v in result.duplicate_instances.values())
+    print(
+        f"  duplicates: {n_dup} duplicate instances of {len(result.duplicate_instances)} "
+        f"objects, {sum(len(g) - 1 for g in result.duplicate_regions)} duplicate regions "
+        f"in {len(result.duplicate_regions)} groups (of {len(glmap.regions)} regions)"
+    )
+    for obj_id, extra in result.duplicate_instances.items():
+        print(
+            f"    object {obj_id} {layout.object(obj_id).category}: instances "
+            + ", ".join(str(i) for i in extra)
+            + " besides the matched one"
+        )
+    for group in result.duplicate_regions:
+        print(f"    regions {', '.join(str(i) for i in group)}: same members and text")
     return 0
 
 

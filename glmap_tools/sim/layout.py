@@ -14,6 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
+class LayoutWarning(UserWarning):
+    """A layout was accepted after a repair (an object moved off a wall, a mesh replaced)."""
+
+
 @dataclass(frozen=True)
 class Room:
     """A room: a floor polygon (counter-clockwise) with walls of `wall_height` around it."""

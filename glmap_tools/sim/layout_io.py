@@ -22,6 +22,7 @@ from glmap_tools.sim.layout import (
     point_segment_distance,
     polygon_signed_area,
 )
+from glmap_tools.sim.wallfit import fit_inside_room
 
 FORMAT = "glmap-sim-layout"
 VERSION = 1
@@ -238,7 +239,10 @@ def layout_from_dict(data: Mapping[str, Any]) -> Layout:
 
     Raises:
         InvalidInputError: unknown mesh (with a suggestion), object outside every room,
-            duplicate ids, openings off the shared wall, malformed fields.
+            duplicate ids, openings off the shared wall, malformed fields, an object that
+            crosses a wall by more than `wallfit.MAX_WALL_SHIFT`.
+
+    An object crossing a wall by less is moved inside its room with a `LayoutWarning`.
     """
     if not isinstance(data, Mapping):
         raise InvalidInputError(f"a layout is a JSON object, got {type(data).__name__}.")
@@ -262,6 +266,7 @@ def layout_from_dict(data: Mapping[str, Any]) -> Layout:
         for i, e in enumerate(_list(data, "objects", required=False))
     ]
     _unique([o.id for o in objects], "object")
+    objects = [fit_inside_room(o, by_id[o.room], f"objects[{i}]") for i, o in enumerate(objects)]
     object_ids = {o.id for o in objects}
     for obj in objects:
         if obj.supported_by is not None and obj.supported_by not in object_ids:

@@ -4,12 +4,16 @@ A tour's frames and their ground-truth annotations are integrated into a `GLMap`
 instance is then matched to the layout object whose (slightly grown) box holds most of its
 Gaussian mass, one to one, greedily by that share. Precision: matched instances / instances.
 Recall: matched objects / objects listed in at least one frame's annotation.
+
+Duplicates are reported per map: duplicate instances are map instances that hold most of
+their mass in an object another instance was matched to (several instances for one object);
+duplicate regions are regions with the same member set and the same text.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -41,6 +45,10 @@ class MapEvaluation:
     matched: dict[int, int]  # map instance id -> layout object id
     missed: list[int]  # visible layout objects with no instance
     spurious: list[int]  # map instances matched to no object (or a duplicate)
+    # layout object id -> the other map instances that fit it (beyond the matched one)
+    duplicate_instances: dict[int, list[int]] = field(default_factory=dict)
+    # groups of region ids with the same member set and text
+    duplicate_regions: list[list[int]] = field(default_factory=list)
 
 
 def tour_frames(
@@ -88,11 +96,19 @@ def evaluate_instances(glmap: GLMap, layout: Layout, visible: set[int]) -> MapEv
                 pairs.append((share, inst_id, obj.id))
     matched: dict[int, int] = {}
     taken: set[int] = set()
-    for _, inst_id, obj_id in sorted(pairs, key=lambda p: (-p[0], p[1], p[2])):
+    ranked = sorted(pairs, key=lambda p: (-p[0], p[1], p[2]))
+    for _, inst_id, obj_id in ranked:
         if inst_id in matched or obj_id in taken:
             continue
         matched[inst_id] = obj_id
         taken.add(obj_id)
+    duplicates: dict[int, list[int]] = {}
+    best_object: dict[int, int] = {}
+    for _, inst_id, obj_id in ranked:  # each unmatched instance's best-fitting object
+        best_object.setdefault(inst_id, obj_id)
+    for inst_id, obj_id in sorted(best_object.items()):
+        if inst_id not in matched and obj_id in taken:
+            duplicates.setdefault(obj_id, []).append(inst_id)
     n_inst = len(glmap.instances)
     return MapEvaluation(
         precision=len(matched) / n_inst if n_inst else 0.0,
@@ -102,7 +118,18 @@ def evaluate_instances(glmap: GLMap, layout: Layout, visible: set[int]) -> MapEv
         matched=matched,
         missed=sorted(visible - taken),
         spurious=sorted(set(glmap.instances) - set(matched)),
+        duplicate_instances=dict(sorted(duplicates.items())),
+        duplicate_regions=duplicate_regions(glmap),
     )
+
+
+def duplicate_regions(glmap: GLMap) -> list[list[int]]:
+    """Groups (ids ascending) of map regions with the same member set and the same text."""
+    groups: dict[tuple[tuple[int, ...], str], list[int]] = {}
+    for rid, region in sorted(glmap.regions.items()):
+        key = (tuple(sorted(region.instance_ids)), region.text.strip())
+        groups.setdefault(key, []).append(rid)
+    return [ids for ids in groups.values() if len(ids) > 1]
 
 
 def build_map_from_tour(

@@ -2,13 +2,17 @@
 
 A cell is navigable when its centre is on a floor (or in an opening) and farther than the
 agent radius from every wall and obstacle. Obstacles are object footprints (oriented boxes)
-of objects that stand below `OBSTACLE_MAX_BASE` and rise above `OBSTACLE_MIN_TOP` (a rug is
-walked over, a picture on the wall is not in the way).
+of objects that stand below `OBSTACLE_MAX_BASE` and rise above `OBSTACLE_MIN_TOP` (a picture
+on the wall is not in the way), except flat floor coverings: an object whose category names
+one (`FLAT_WORDS`: rug, carpet, mat, doormat, ...), that lies on the floor and is lower than
+`FLAT_MAX_HEIGHT` is walked over. Scanned rugs come out 7-15 cm high (their boxes take in
+the floor's noise), so a height rule alone would block them or let low boxes through.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,12 +26,27 @@ from glmap_tools.sim.layout import Layout, Room, SceneObject, point_segment_dist
 DEFAULT_CELL = 0.05  # metres
 AGENT_RADIUS = 0.18  # metres
 OBSTACLE_MAX_BASE = 1.5  # metres: objects starting higher do not block the agent
-OBSTACLE_MIN_TOP = 0.05  # metres: flatter objects (rugs) do not block the agent
+OBSTACLE_MIN_TOP = 0.05  # metres: flatter objects of any kind do not block the agent
+FLAT_MAX_HEIGHT = 0.2  # metres: floor coverings lower than this are walked over
+FLAT_BASE = 0.05  # metres: a floor covering's base is at most this high
+FLAT_WORDS = frozenset(
+    {"rug", "rugs", "carpet", "carpets", "mat", "mats", "doormat", "doormats", "bathmat", "runner"}
+)
+
+
+def is_flat(obj: SceneObject) -> bool:
+    """Whether the object is a floor covering the agent walks over (see the module doc)."""
+    words = set(re.split(r"[\s_\-/]+", obj.category.lower()))
+    return (
+        bool(words & FLAT_WORDS)
+        and obj.position[2] <= FLAT_BASE
+        and obj.top - obj.position[2] < FLAT_MAX_HEIGHT
+    )
 
 
 def is_obstacle(obj: SceneObject) -> bool:
     """Whether the object blocks an agent walking on the floor."""
-    return obj.position[2] < OBSTACLE_MAX_BASE and obj.top > OBSTACLE_MIN_TOP
+    return obj.position[2] < OBSTACLE_MAX_BASE and obj.top > OBSTACLE_MIN_TOP and not is_flat(obj)
 
 
 @dataclass

@@ -11,7 +11,10 @@ Input (a JSON object, or just its "objects" list)::
 `size` is the box extent along its own axes (the scan world's axes before rotation); `yaw`
 turns the box about the scan's up axis (counter-clockwise, radians), or `rotation` gives the
 box axes as matrix columns. Boxes must be upright (rotation about the up axis only); the
-box axis nearest to up becomes the height, the first other axis the width. The
+box axis nearest to up becomes the height, the first other axis the width. Categories are
+drawn with the catalog's mesh for them, found through `catalog.resolve_category` (plural
+and "-"/"_" spellings, and the alias table `CATEGORY_ALIASES`: book -> books, bin -> trash
+can, ...); a category none of these knows is drawn as a box with a `LayoutWarning`. The
 floor is put at z = 0 (the lowest box bottom, or `floor_z`). Without a room polygon, the room
 is the bounding rectangle of all footprints grown by `margin`.
 """
@@ -19,15 +22,21 @@ is the bounding rectangle of all footprints grown by `margin`.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from glmap_tools.errors import InvalidInputError
+from glmap_tools.errors import InvalidInputError, did_you_mean
 from glmap_tools.geometry.adapters import world_zup_from_up_axis
-from glmap_tools.sim.catalog import mesh_for_category
-from glmap_tools.sim.layout import Layout, yaw_matrix
+from glmap_tools.sim.catalog import (
+    CATEGORY_ALIASES,
+    CATEGORY_MESH,
+    mesh_for_category,
+    resolve_category,
+)
+from glmap_tools.sim.layout import Layout, LayoutWarning, yaw_matrix
 from glmap_tools.sim.layout_io import layout_from_dict
 
 UPRIGHT_TOLERANCE = 0.05  # |cos| of the box's z axis against world up must exceed 1 - this
@@ -56,6 +65,20 @@ def _box_pose(
         raise InvalidInputError(f"{where}.yaw must be a finite number of radians, got {yaw!r}.")
     # A yaw about the scan's up axis is the same yaw about z; the extents follow the axes.
     return float(yaw), np.abs(up_rotation) @ size
+
+
+def _warn_unknown_categories(categories: list[str]) -> None:
+    """One `LayoutWarning` per category that neither the catalog nor an alias knows."""
+    known = [*CATEGORY_MESH, *CATEGORY_ALIASES]
+    for category in sorted({c for c in categories if resolve_category(c) is None}):
+        count = categories.count(category)
+        warnings.warn(
+            f"category {category!r} ({count} object{'s' * (count > 1)}) has no mesh and no "
+            f"alias; drawn as a box.{did_you_mean(category.lower(), known)} Add it to "
+            "CATEGORY_ALIASES in glmap_tools/sim/catalog.py, or rename it in the scan.",
+            LayoutWarning,
+            stacklevel=3,
+        )
 
 
 def layout_from_scan(
@@ -104,6 +127,8 @@ def layout_from_scan(
             raise InvalidInputError(f"{where} has a non-finite centre or a non-positive size.")
         yaw, size = _box_pose(entry, size, up_rotation, where)
         boxes.append((entry, category, center, size, yaw))
+    if use_meshes:
+        _warn_unknown_categories([category for _, category, _, _, _ in boxes])
     bottom = min(c[2] - s[2] / 2 for _, _, c, s, _ in boxes) if floor_z is None else floor_z
     objects, corners = [], []
     for i, (entry, category, center, size, yaw) in enumerate(boxes):

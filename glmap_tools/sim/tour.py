@@ -2,7 +2,10 @@
 
 The tour visits rooms in breadth-first order through their openings: it walks the geodesic
 path to a central spot of each room (a pose every `step` metres, looking along the path) and
-looks around there (`spin` headings). The folder holds::
+looks around there (`spin` headings). It starts in the first room at the point farthest (by
+walking) from that room's spot, so the first room is walked through too; a one-room tour
+then walks on to the point farthest from where it started, instead of spinning on one spot.
+The folder holds::
 
     color/NNNNN.png, depth/NNNNN.png (uint16 mm), annotations/NNNNN.png + .json,
     trajectory.log (camera-to-world, OpenCV camera, z-up world; the camera JSON says
@@ -43,6 +46,10 @@ class TourStop:
     heading: float
     room: int
 
+    @property
+    def xy(self) -> np.ndarray:  # [2]
+        return np.array([self.x, self.y])
+
 
 def _room_spot(layout: Layout, grid: NavGrid, room_id: int) -> np.ndarray | None:
     """The navigable point of a room farthest from obstacles (ties: nearest the centroid)."""
@@ -57,6 +64,31 @@ def _room_spot(layout: Layout, grid: NavGrid, room_id: int) -> np.ndarray | None
     score = np.where(inside, clearance, -1.0) - 1e-3 * np.hypot(xs - centroid[0], ys - centroid[1])
     r, c = np.unravel_index(int(np.argmax(score)), score.shape)
     return grid.to_world(np.array([[r, c]]))[0]
+
+
+def _farthest(layout: Layout, grid: NavGrid, room_id: int, origin: np.ndarray) -> np.ndarray:
+    """The room's navigable point with the longest walk from `origin` [2]."""
+    sources = np.zeros(grid.shape, dtype=bool)
+    r, c = grid.to_cell(origin[None])[0]
+    sources[r, c] = True
+    field = grid.distance_field(sources)
+    xs, ys = grid.cell_centers()
+    inside = layout.room(room_id).contains(np.column_stack([xs.ravel(), ys.ravel()]))
+    score = np.where(inside.reshape(grid.shape) & np.isfinite(field), field, -1.0)
+    best = np.unravel_index(int(np.argmax(score)), score.shape)
+    return grid.to_world(np.array([best]))[0]
+
+
+def _walk(
+    layout: Layout, grid: NavGrid, start: np.ndarray, goal: np.ndarray, step: float
+) -> list[TourStop]:
+    """Poses every `step` metres along the shortest path, looking along it."""
+    points = _resample(geodesic_path(grid, start, goal), step)
+    stops = []
+    for a, b in zip(points[:-1], points[1:], strict=True):
+        heading = math.atan2(b[1] - a[1], b[0] - a[0])
+        stops.append(TourStop(float(a[0]), float(a[1]), heading, layout.room_at(a)))
+    return stops
 
 
 def _room_order(layout: Layout) -> list[int]:
@@ -125,17 +157,19 @@ def plan_tour(
     if not spots:
         raise InvalidInputError(f"layout {layout.name!r} has no navigable floor to walk on.")
     stops: list[TourStop] = []
-    here = spots[0][1]
+    first_room, first_spot = spots[0]
+    here = _farthest(layout, grid, first_room, first_spot)
     heading = 0.0
     for _, spot in spots:
-        points = _resample(geodesic_path(grid, here, spot), step)
-        for a, b in zip(points[:-1], points[1:], strict=True):
-            heading = math.atan2(b[1] - a[1], b[0] - a[0])
-            stops.append(TourStop(float(a[0]), float(a[1]), heading, layout.room_at(a)))
+        walk = _walk(layout, grid, here, spot, step)
+        stops += walk
+        heading = walk[-1].heading if walk else heading
         for k in range(spin):
             h = heading + 2 * math.pi * k / spin
             stops.append(TourStop(float(spot[0]), float(spot[1]), h, layout.room_at(spot)))
         here = spot
+    if len(spots) == 1:  # one room: walk on through it
+        stops += _walk(layout, grid, here, _farthest(layout, grid, first_room, stops[0].xy), step)
     return stops
 
 
