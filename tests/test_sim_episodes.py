@@ -122,3 +122,15 @@ def test_every_instnav_goal_matches_only_its_target(layout) -> None:
     episodes = generate_episodes(layout, "instnav", 5, seed=0)
     for e in episodes.episodes:
         assert len(e.goal_object_ids) == 1 and goals[e.goal_object_ids[0]] == e.goal_text
+
+
+def test_windowed_goal_cells_equal_the_whole_grid_reference(layout) -> None:
+    from glmap_tools.sim.episodes import goal_cells, goal_cells_reference
+
+    grid = build_nav_grid(layout)
+    for obj in layout.objects:
+        for reach in (0.5, 1.0):
+            fast = goal_cells(grid, [obj], reach)
+            assert np.array_equal(fast, goal_cells_reference(grid, [obj], reach)), obj.id
+    pair = layout.objects[:2]
+    assert np.array_equal(goal_cells(grid, pair, 1.0), goal_cells_reference(grid, pair, 1.0))
