@@ -4,7 +4,9 @@ Measures p50/p99 of find_instance and what_is_at on synthetic maps of 1k and 10k
 (saved to a map file, opened with load_map), and of observe_frame on 640x480 frames with 10
 annotated objects. The client talks JSON-RPC over in-memory streams (`--mode legacy`, the
 default: every request and result is serialised as on a real transport) or the direct
-in-process path of the 2026-07-28 protocol (`--mode auto`).
+in-process path of the 2026-07-28 protocol (`--mode auto`). `--transport http` runs a
+`glmap-mcp` process on 127.0.0.1 and times find_instance over streamable HTTP on one
+reused connection (where Nagle's algorithm used to add ~40 ms per call).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import numpy as np
 from glmap_tools.gaussians.types import COVARIANCE_EPSILON, DEFAULT_OPACITY, GaussianSet
 from glmap_tools.language.embed import Embedder
 
-FIND_TARGET_MS = 20.0  # find_instance p50 at 10k instances
+FIND_TARGET_MS = 20.0  # find_instance p50 at 10k instances (also over HTTP)
 OBSERVE_TARGET_MS = 250.0  # observe_frame p50, 640x480, 10 objects
 GAUSSIANS_PER_INSTANCE = 8
 COLORS = [
@@ -140,7 +142,15 @@ def synthetic_map_file(path: Path, n: int, embedder: Embedder, seed: int = 0) ->
         next_id += 1
     config = MapConfig()
     glmap = GLMap(config, embedder=embedder)
-    glmap._restore(instances, regions, OccupancyGrid(config.cell_size), next_id, 0.0, [])
+    glmap._restore(
+        instances=instances,
+        regions=regions,
+        occupancy=OccupancyGrid(config.cell_size),
+        structure=glmap.structure,
+        next_id=next_id,
+        floor_z=0.0,
+        trajectory=[],
+    )
     MapStore.create_from(path, glmap).close()
     return embed_s
 
@@ -237,6 +247,75 @@ async def run(args: argparse.Namespace) -> int:
     return 0
 
 
+async def run_http(args: argparse.Namespace) -> int:
+    """find_instance p50 over streamable HTTP against a spawned glmap-mcp."""
+    import os
+    import shlex
+    import subprocess
+    import sys
+
+    import httpx2
+    from mcp import Client
+    from mcp.client.streamable_http import streamable_http_client
+
+    from glmap_tools.bench.report import Report
+    from glmap_tools.language.embed import HashingEmbedder, default_embedder
+
+    report = Report("bench mcp --transport http")
+    embedder: Embedder = default_embedder() if args.embedder == "minilm" else HashingEmbedder()
+    rng = np.random.default_rng(1)
+    token = "bench-token"
+    with tempfile.TemporaryDirectory() as tmp:
+        n = max(args.sizes)
+        synthetic_map_file(Path(tmp) / f"synthetic-{n}.glmap", n, embedder)
+        command = (
+            shlex.split(args.server_command)
+            if args.server_command
+            else [sys.executable, "-m", "glmap_tools.server"]
+        )
+        command += ["--transport", "streamable-http", "--port", "0", "--no-warm-up"]
+        command += ["--embedder", args.embedder, "--maps-dir", tmp]
+        env = dict(os.environ, GLMAP_MCP_TOKEN=token)
+        proc = subprocess.Popen(command, env=env, stderr=subprocess.PIPE, text=True)
+        try:
+            assert proc.stderr is not None
+            url = ""
+            for line in proc.stderr:
+                if line.startswith("glmap-mcp: serving "):
+                    url = line.split()[-1]
+                    break
+            if not url:
+                raise RuntimeError("glmap-mcp did not start")
+            report.info(f"server: {' '.join(command[:3])} on {url}")
+            http = httpx2.AsyncClient(
+                headers={"Authorization": f"Bearer {token}"}, timeout=httpx2.Timeout(120.0)
+            )
+            async with Client(
+                streamable_http_client(url, http_client=http), mode="legacy"
+            ) as client:
+                await timed(client, "load_map", {"name": f"synthetic-{n}"})
+                queries = synthetic_texts(args.calls + 5, rng)
+                queries = [f"{q} in the {ROOMS[i % len(ROOMS)]} {i}" for i, q in enumerate(queries)]
+                for q in queries[:5]:
+                    await timed(client, "find_instance", {"query": q, "top_k": 5})
+                find = [
+                    await timed(client, "find_instance", {"query": q, "top_k": 5})
+                    for q in queries[5:]
+                ]
+            report.info(f"find_instance over HTTP, {n} instances: {percentiles(find)}")
+            report.check(
+                f"find_instance p50 over HTTP, {n} instances",
+                float(np.percentile(find, 50)),
+                "<=",
+                FIND_TARGET_MS,
+                "ms",
+            )
+        finally:
+            proc.terminate()
+            proc.wait(timeout=30)
+    return report.finish()
+
+
 def main(argv: list[str] | None = None) -> int:
     import anyio
 
@@ -246,5 +325,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--calls", type=int, default=200, help="queries per measurement")
     parser.add_argument("--frames", type=int, default=12, help="observed frames")
     parser.add_argument("--mode", choices=["legacy", "auto"], default="legacy")
+    parser.add_argument(
+        "--transport",
+        choices=["memory", "http"],
+        default="memory",
+        help="memory: in-process client; http: a glmap-mcp process on 127.0.0.1 "
+        "(find_instance only, the largest size)",
+    )
+    parser.add_argument(
+        "--server-command", default="", help="http: the server command (default: this Python)"
+    )
     args = parser.parse_args(argv)
+    if args.transport == "http":
+        return int(anyio.run(run_http, args) or 0)
     return int(anyio.run(run, args) or 0)
