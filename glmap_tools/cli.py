@@ -13,6 +13,7 @@ COMMAND_MODULES = [
     "glmap_tools.ingest.cli",
     "glmap_tools.sim.cli",
     "glmap_tools.server.demo",
+    "glmap_tools.language.cli",
     "glmap_tools.eval.cli",
 ]
 

@@ -138,6 +138,65 @@ def write(name: str, scenario: Callable[[str], Any], responder: Any, source: str
     print(f"wrote {CASSETTES / name}: {len(proxy.cassette.exchanges)} exchanges")
 
 
+AGENT_EPISODE = "tune/objectnav/s00-000"
+AGENT_SEED = 0
+
+
+def agent_episode(host: str, out_dir: Path | None = None) -> dict[str, Any]:
+    """One ObjectNav episode of the tool-calling agent on a tune-split episode."""
+    import asyncio
+    import tempfile
+
+    from agents.llm_agent import Budget, run_llm_episode
+    from agents.runner import open_session
+    from glmap_tools.map import MapConfig as _MapConfig
+    from glmap_tools.server import ServerConfig
+
+    async def play(folder: Path) -> dict[str, Any]:
+        config = ServerConfig(
+            maps_dir=folder / "maps",
+            embedder="hashing",
+            map_config=_MapConfig(voxel_size=0.04),
+            warm_up=False,
+        )
+        async with open_session(config) as session:
+            return await run_llm_episode(
+                session,
+                AGENT_EPISODE,
+                client(host),
+                seed=AGENT_SEED,
+                out_dir=folder / "episode",
+                budget=Budget(max_turns=30),
+                max_steps=200,
+            )
+
+    if out_dir is not None:
+        return asyncio.run(play(out_dir))
+    with tempfile.TemporaryDirectory() as tmp:
+        return asyncio.run(play(Path(tmp)))
+
+
+def scripted_navigator(method: str, path: str, body: Any) -> tuple[int, Any]:
+    """Plays the tool agent by fixed rules (no model): look around, then alternate value_map
+    and navigate_to towards its waypoint; stop when the waypoint is the goal and reached."""
+    msgs = body["messages"]
+    tools = [m for m in msgs if m["role"] == "tool"]
+    model = body["model"]
+    if not tools:
+        return 200, chat_reply(model, "", [("look_around", {})])
+    last = tools[-1]
+    data = json.loads(last["content"]) if last["content"].startswith("{") else {}
+    if last.get("tool_name") == "value_map":
+        w = data.get("waypoint") or {}
+        if w.get("kind") == "goal" and float(w.get("distance_m", 9.0)) < 0.3:
+            return 200, chat_reply(model, "", [("sim_step", {"action": "stop"})])
+        if w.get("kind") in (None, "none"):
+            return 200, chat_reply(model, "", [("sim_step", {"action": "turn_left"})])
+        x, y = w["xy"]
+        return 200, chat_reply(model, "", [("navigate_to", {"x": x, "y": y, "max_steps": 25})])
+    return 200, chat_reply(model, "", [("value_map", {})])
+
+
 FAULT_REPLIES = [
     'Sure! Here are the scores:\n{"scores": [{"id": 1, "probability": 0.9}]}\nHope it helps.',
     '```json\n{"scores": [{"id": 1, "probability": 0.9}, {"id": 2, "probability": 0.02}]}\n```',
@@ -172,6 +231,7 @@ def main() -> int:
     write("nav_scores.jsonl", nav_scores, keyword_scores, HAND_WRITTEN)
     write("map_text_merge.jsonl", map_text_merge, merge_first_sentence, HAND_WRITTEN)
     write("faults.jsonl", faults, scripted_faults, FAULTS_SOURCE)
+    write("agent_episode.jsonl", agent_episode, scripted_navigator, HAND_WRITTEN)
     return 0
 
 

@@ -268,6 +268,29 @@ class OllamaClient:
             return LLMError(f"HTTP error talking to Ollama at {self.host}: {exc}"), True
         raise exc
 
+    def check(self) -> dict[str, Any]:
+        """Whether the server answers and has the model: its details, or a clear error.
+
+        Raises:
+            LLMUnavailableError: the server is down or the model is not pulled.
+        """
+        try:
+            shown = self._client.show(self.model)
+        except Exception as exc:
+            error, _ = self._error(exc)
+            raise error from None
+        details = getattr(shown, "details", None)
+        capabilities = list(getattr(shown, "capabilities", None) or [])
+        return {
+            "host": self.host,
+            "model": self.model,
+            "family": getattr(details, "family", None),
+            "parameters": getattr(details, "parameter_size", None),
+            "capabilities": capabilities,
+            "vision": "vision" in capabilities,
+            "tools": "tools" in capabilities,
+        }
+
     def chat(
         self,
         messages: Sequence[Mapping[str, Any]],

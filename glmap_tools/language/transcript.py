@@ -22,7 +22,13 @@ MAX_STRING = 20_000  # characters of one string field kept in a transcript line
 
 def image_ref(data: bytes | str) -> str:
     """`sha256:<hex16>:<bytes>` for an image given as bytes or base64 text."""
-    raw = data if isinstance(data, bytes) else base64.b64decode(data, validate=False)
+    if isinstance(data, bytes):
+        raw = data
+    else:
+        try:
+            raw = base64.b64decode(data, validate=True)
+        except ValueError:  # not base64: hash the text itself
+            raw = data.encode("utf-8")
     return f"sha256:{hashlib.sha256(raw).hexdigest()[:16]}:{len(raw)}"
 
 
