@@ -93,3 +93,26 @@ def test_an_unknown_prompt_suggests_the_closest_name():
 def test_an_override_that_is_not_a_folder_is_refused(tmp_path):
     with pytest.raises(InvalidInputError, match="is not a folder"):
         PromptSet(tmp_path / "missing")
+
+
+def test_backends_default_offline_and_select_the_llm_parts_by_name(tmp_path):
+    from glmap_tools.language.backends import LLMSettings, make_scorer, make_text_merger
+    from glmap_tools.language.embed import HashingEmbedder
+    from glmap_tools.language.llm_merger import LLMTextMerger
+    from glmap_tools.language.llm_scorer import LLMScorer
+    from glmap_tools.language.text_merger import ExtractiveTextMerger
+    from glmap_tools.nav import EmbeddingScorer
+
+    embedder = HashingEmbedder()
+    offline = LLMSettings()
+    assert not offline.uses_llm
+    assert isinstance(make_text_merger(offline, embedder), ExtractiveTextMerger)
+    assert isinstance(make_scorer(offline, embedder), EmbeddingScorer)
+    (tmp_path / "text_merge.txt").write_text("{kind} {max_words} {descriptions}")
+    llm = LLMSettings("llm", "llm", model="gemma3:4b", host="http://127.0.0.1:9", prompts=tmp_path)
+    merger, scorer = make_text_merger(llm, embedder), make_scorer(llm, embedder)
+    assert isinstance(merger, LLMTextMerger) and isinstance(scorer, LLMScorer)
+    assert merger.client.model == "gemma3:4b" and merger.client.host == "http://127.0.0.1:9"
+    assert merger.prompts.get("text_merge").source == str(tmp_path / "text_merge.txt")
+    with pytest.raises(InvalidInputError, match="Did you mean 'llm'"):
+        LLMSettings(scorer="lm")

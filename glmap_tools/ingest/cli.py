@@ -10,6 +10,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from glmap_tools.errors import StoreError
+from glmap_tools.language.backends import (
+    add_llm_arguments,
+    make_text_merger,
+    settings_from_args,
+)
 
 if TYPE_CHECKING:
     from glmap_tools.ingest.datasets import RGBDSequence
@@ -50,6 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="text embedder (hashing: fast, dependency-free, less accurate)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_llm_arguments(p, scorer=False)
     p.set_defaults(func=run_build)
 
 
@@ -80,8 +86,10 @@ def run_build(args: argparse.Namespace) -> int:
     tmp = out.with_name(f".{out.name}.building")
     tmp.unlink(missing_ok=True)
     start = time.perf_counter()
+    embedder = _embedder(args.embedder)
+    merger = make_text_merger(settings_from_args(args), embedder)
     glmap = GLMap.open(
-        tmp, MapConfig(voxel_size=args.voxel_size), embedder=_embedder(args.embedder)
+        tmp, MapConfig(voxel_size=args.voxel_size), embedder=embedder, text_merger=merger
     )
     unannotated = 0
     try:
