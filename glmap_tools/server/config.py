@@ -40,7 +40,10 @@ class ServerConfig:
         file_roots: folders whose files observe_frame may read by path; None = any local
             file, () = no file paths at all (base64 only).
         max_sessions: client sessions kept at once; the least recently used one is
-            dropped (its unsaved map with it) when a new one would exceed this.
+            dropped (its unsaved map with it) when a new one would exceed this, if it has
+            been idle for `session_protect_s`; otherwise the new session is refused.
+        session_protect_s: a session used within this many seconds is never dropped to
+            make room, so one client starting sessions cannot drop others' maps.
         render_size: default (width, height) of render_view images.
         warm_up: render once in the lifespan so the first render_view is not slowed by
             JIT compilation.
@@ -57,6 +60,7 @@ class ServerConfig:
     max_frame_pixels: int = 2048 * 2048
     file_roots: tuple[Path, ...] | None = None
     max_sessions: int = 32
+    session_protect_s: float = 600.0
     render_size: tuple[int, int] = (320, 240)
     warm_up: bool = True
     sim_size: tuple[int, int] = (320, 240)
@@ -80,6 +84,12 @@ class ServerConfig:
             )
         if not (isinstance(self.max_sessions, int) and self.max_sessions >= 1):
             raise InvalidInputError(f"max_sessions={self.max_sessions!r} must be an integer >= 1.")
+        if not (
+            isinstance(self.session_protect_s, int | float) and 0 <= self.session_protect_s < 1e9
+        ):
+            raise InvalidInputError(
+                f"session_protect_s={self.session_protect_s!r} must be a number of seconds >= 0."
+            )
         w, h = self.render_size
         if not (16 <= w <= 2048 and 16 <= h <= 2048):
             raise InvalidInputError(

@@ -15,7 +15,8 @@ from glmap_tools.map import GLMap
 from glmap_tools.map.queries import details
 from glmap_tools.server.config import ServerConfig
 from glmap_tools.server.runtime import app_state, transport_session_id
-from glmap_tools.server.state import MAP_SUFFIX, Session, locked
+from glmap_tools.server.state import Session, locked
+from glmap_tools.server.state import saved_maps as saved_map_files
 from glmap_tools.server.views import EMPTY_MAP
 from glmap_tools.server.views import topdown as draw
 
@@ -50,7 +51,7 @@ def _unit_json(glmap: GLMap, uid: int, kind: str) -> str:
         except UnknownIdError as exc:
             raise ResourceNotFoundError(str(exc)) from exc
         raise ResourceNotFoundError(f"unit {uid} is not an {kind}; it is the other kind.")
-    return details(glmap, unit).model_dump_json(indent=2)
+    return details(glmap, unit).model_dump_json()
 
 
 def _index(glmap: GLMap, kind: str) -> str:
@@ -64,7 +65,7 @@ def _index(glmap: GLMap, kind: str) -> str:
             {"id": r.id, "description": r.text[:200], "instance_ids": list(r.instance_ids)}
             for r in glmap.regions.values()
         ]
-    return json.dumps(items, indent=1)
+    return json.dumps(items, separators=(",", ":"))
 
 
 def register(server: MCPServer, config: ServerConfig) -> None:
@@ -73,24 +74,14 @@ def register(server: MCPServer, config: ServerConfig) -> None:
     @server.resource("glmap://maps", mime_type="application/json", name="saved maps")
     def saved_maps() -> str:
         """Names of the maps saved in the server's maps folder."""
-        folder = config.maps_dir
-        names = (
-            sorted(
-                p.name[: -len(MAP_SUFFIX)]
-                for p in folder.iterdir()
-                if p.name.endswith(MAP_SUFFIX) and not p.name.startswith(".")
-            )
-            if folder.is_dir()
-            else []
-        )
-        return json.dumps(names)
+        return json.dumps(sorted(saved_map_files(config.maps_dir)))
 
     @server.resource("glmap://{session}/summary", mime_type="application/json", name="map summary")
     def summary(session: str, ctx: Context) -> str:
         """Counts and bounds of a session's map (`current` = your session)."""
         target = _session(ctx, session)
         with locked(target) as glmap:
-            return glmap.summary().model_dump_json(indent=2)
+            return glmap.summary().model_dump_json()
 
     @server.resource(
         "glmap://{session}/instances", mime_type="application/json", name="instance index"

@@ -82,7 +82,7 @@ def session_for_new_map(ctx: Context, handle: str | None) -> Session:
     registry = app_state(ctx).registry
     if handle is None and is_http and transport_id is None:
         return registry.start_session()
-    return registry.resolve(handle, transport_id)
+    return registry.resolve(handle, transport_id, restart=True)
 
 
 async def in_thread(fn: Callable[[], T]) -> T:

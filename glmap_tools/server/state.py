@@ -14,17 +14,26 @@ consistent: there is one map in memory and one store file, never two diverging c
 
 from __future__ import annotations
 
+import os
 import re
 import secrets
+import stat
 import threading
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from glmap_tools.errors import InvalidInputError, StoreError, UnknownIdError, did_you_mean
+from glmap_tools.errors import (
+    GLMapError,
+    InvalidInputError,
+    StoreError,
+    UnknownIdError,
+    did_you_mean,
+)
 from glmap_tools.map import GLMap
 from glmap_tools.server.config import ServerConfig
 
@@ -32,6 +41,7 @@ if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
 
 MAP_SUFFIX = ".glmap"
+DROPPED_KEPT = 4096  # dropped session keys remembered, to tell their clients
 MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 DEFAULT_HANDLE = "default"
 
@@ -90,6 +100,45 @@ def check_map_name(name: str, suffix: str = MAP_SUFFIX, what: str = "map name") 
     return stem
 
 
+def saved_maps(folder: Path) -> dict[str, os.stat_result]:
+    """{name: lstat} of the regular `.glmap` files directly in `folder`.
+
+    Symlinks are left out (they could point anywhere, and stat would report the target's
+    size and time), as are folders and hidden files.
+    """
+    out: dict[str, os.stat_result] = {}
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return out
+    for entry in entries:
+        name = entry.name
+        if not name.endswith(MAP_SUFFIX) or name.startswith(".") or entry.is_symlink():
+            continue
+        try:
+            info = entry.stat(follow_symlinks=False)
+        except OSError:
+            continue  # removed since listed
+        if stat.S_ISREG(info.st_mode) and MAP_NAME.fullmatch(name[: -len(MAP_SUFFIX)]):
+            out[name[: -len(MAP_SUFFIX)]] = info
+    return out
+
+
+@contextmanager
+def paths_hidden(folder: Path) -> Iterator[None]:
+    """Re-raise a GLMapError with the maps folder's absolute path cut from its message."""
+    try:
+        yield
+    except GLMapError as exc:
+        text = str(exc)
+        shown = text.replace(str(folder) + os.sep, "").replace(str(folder), "<maps folder>")
+        if shown == text:
+            raise
+        hidden = type(exc).__new__(type(exc))
+        hidden.args = (shown,)
+        raise hidden from None
+
+
 class SessionRegistry:
     """All sessions and open maps of one server process (thread-safe).
 
@@ -106,6 +155,7 @@ class SessionRegistry:
         self._sessions: dict[str, Session] = {}
         self._by_transport: dict[str, str] = {}
         self._named: dict[str, LiveMap] = {}
+        self._dropped: OrderedDict[str, float] = OrderedDict()  # handles and transport ids
         self._sessions[DEFAULT_HANDLE] = Session(DEFAULT_HANDLE, self._scratch())
 
     # ------------------------------------------------------------------ maps
@@ -125,14 +175,8 @@ class SessionRegistry:
         return path
 
     def saved_names(self) -> list[str]:
-        """Names of the map files in the maps folder, sorted."""
-        if not self.maps_dir.is_dir():
-            return []
-        return sorted(
-            p.name[: -len(MAP_SUFFIX)]
-            for p in self.maps_dir.iterdir()
-            if p.name.endswith(MAP_SUFFIX) and not p.name.startswith(".") and p.is_file()
-        )
+        """Names of the map files in the maps folder, sorted (no symlinks, no folders)."""
+        return sorted(saved_maps(self.maps_dir))
 
     def open_names(self) -> set[str]:
         with self._lock:
@@ -173,7 +217,8 @@ class SessionRegistry:
                     "another name."
                 )
             self.maps_dir.mkdir(parents=True, exist_ok=True)
-            glmap = GLMap.open(path, self.config.map_config, embedder=self.embedder)
+            with paths_hidden(self.maps_dir):
+                glmap = GLMap.open(path, self.config.map_config, embedder=self.embedder)
             live = LiveMap(glmap, stem, users=1)
             self._named[stem] = live
             self._switch(session, live)
@@ -198,7 +243,8 @@ class SessionRegistry:
                     raise UnknownIdError(
                         f"no saved map named {stem!r}.{did_you_mean(stem, names)}{listing}"
                     )
-                glmap = GLMap.open(path, embedder=self.embedder)
+                with paths_hidden(self.maps_dir):
+                    glmap = GLMap.open(path, embedder=self.embedder)
                 live = LiveMap(glmap, stem)
                 self._named[stem] = live
             if session.live is not live:
@@ -235,7 +281,7 @@ class SessionRegistry:
                     "or choose another name."
                 )
             self.maps_dir.mkdir(parents=True, exist_ok=True)
-            with live.lock:
+            with live.lock, paths_hidden(self.maps_dir):
                 old_store = live.glmap.store
                 live.glmap.store = MapStore.create_from(path, live.glmap, overwrite=overwrite)
                 if old_store is not None:
@@ -247,25 +293,49 @@ class SessionRegistry:
             return live, True
 
     # ------------------------------------------------------------------ sessions
-    def resolve(self, handle: str | None, transport_id: str | None) -> Session:
+    def resolve(
+        self, handle: str | None, transport_id: str | None, restart: bool = False
+    ) -> Session:
         """The session a call belongs to (see the module docstring).
 
+        Args:
+            handle: the `session` argument of the call, if any.
+            transport_id: the Mcp-Session-Id of a stateful HTTP connection, if any.
+            restart: the call starts a map anew (new_map, load_map): a connection whose
+                session was dropped gets a fresh one instead of an error.
+
         Raises:
-            UnknownIdError: `handle` names no session; the message lists what to do.
+            UnknownIdError: `handle` names no session, or the connection's session was
+                dropped (its unsaved map with it); the message says what to do.
+            StoreError: a new session is needed but every slot is in recent use.
         """
         with self._lock:
             if handle is not None:
                 session = self._sessions.get(handle)
                 if session is None:
+                    why = (
+                        f"was dropped: it had been idle longest when the server needed room "
+                        f"for new sessions (at most {self.config.max_sessions}); its unsaved "
+                        "map is gone"
+                        if handle in self._dropped
+                        else "does not exist"
+                    )
                     raise UnknownIdError(
-                        f"session {handle!r} does not exist (it may have been dropped after "
-                        f"{self.config.max_sessions} newer sessions). Call new_map or load_map "
-                        "without a session to start a new one, or omit session."
+                        f"session {handle!r} {why}. Call new_map or load_map without a "
+                        "session to start a new one, or omit session."
                     )
             elif transport_id is not None:
                 key = self._by_transport.get(transport_id)
                 session = self._sessions.get(key) if key else None
                 if session is None:
+                    if transport_id in self._dropped and not restart:
+                        raise UnknownIdError(
+                            "this connection's session was dropped: it had been idle longest "
+                            "when the server needed room for new sessions (at most "
+                            f"{self.config.max_sessions}), and its unsaved map is gone. Call "
+                            "new_map or load_map to start again (save_map keeps a map)."
+                        )
+                    self._dropped.pop(transport_id, None)
                     session = self._create_session()
                     self._by_transport[transport_id] = session.handle
             else:
@@ -286,15 +356,39 @@ class SessionRegistry:
         return session
 
     def _evict(self, keep: int) -> None:
-        """Drop least recently used sessions (never the default) until `keep` others remain."""
+        """Drop least recently used sessions (never the default) until `keep` others remain.
+
+        Only sessions idle for `session_protect_s` may go: one client starting many
+        sessions cannot drop the maps of clients at work.
+
+        Raises:
+            StoreError: room is needed but every session was used too recently.
+        """
         others = [s for h, s in self._sessions.items() if h != DEFAULT_HANDLE]
         others.sort(key=lambda s: s.last_used)
+        now = time.monotonic()
         while len(others) > keep:
-            victim = others.pop(0)
+            victim = others[0]
+            idle = now - victim.last_used
+            if idle < self.config.session_protect_s:
+                raise StoreError(
+                    f"the server holds {len(others)} client sessions (its limit is "
+                    f"{self.config.max_sessions}), all used in the last "
+                    f"{self.config.session_protect_s:.0f} s; reuse your session handle "
+                    "(pass session=...) instead of starting new ones, or try again later."
+                )
+            others.pop(0)
             del self._sessions[victim.handle]
+            self._remember_dropped(victim.handle)
             for tid in [t for t, h in self._by_transport.items() if h == victim.handle]:
                 del self._by_transport[tid]
+                self._remember_dropped(tid)
             self._close_session(victim)
+
+    def _remember_dropped(self, key: str) -> None:
+        self._dropped[key] = time.monotonic()
+        while len(self._dropped) > DROPPED_KEPT:
+            self._dropped.popitem(last=False)
 
     def _close_session(self, session: Session) -> None:
         closer: Callable[[], None] | None = session.extras.pop("close", None)

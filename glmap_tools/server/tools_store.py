@@ -18,7 +18,7 @@ from glmap_tools.server.runtime import (
     session_of,
     tool_errors,
 )
-from glmap_tools.server.state import MAP_SUFFIX, Session, locked
+from glmap_tools.server.state import Session, locked, saved_maps
 from glmap_tools.server.tools_map import READ_ONLY, SessionArg, resource_uris
 
 MapName = Annotated[
@@ -121,17 +121,16 @@ def register(server: MCPServer) -> None:
     @server.tool(annotations=READ_ONLY)
     @tool_errors
     async def list_maps(ctx: Context) -> MapList:
-        """List the saved maps by name (open one with load_map)."""
+        """List the saved maps by name (open one with load_map).
+
+        Only regular map files directly in the maps folder are listed (no symlinks).
+        """
         registry = app_state(ctx).registry
 
         def run() -> MapList:
             open_names = registry.open_names()
             entries = []
-            for name in registry.saved_names():
-                try:
-                    stat = (registry.maps_dir / f"{name}{MAP_SUFFIX}").stat()
-                except OSError:
-                    continue  # removed since listed
+            for name, stat in sorted(saved_maps(registry.maps_dir).items()):
                 modified = dt.datetime.fromtimestamp(stat.st_mtime, dt.UTC)
                 entries.append(
                     MapEntry(
