@@ -111,6 +111,12 @@ class GLMapServer(MCPServer[AppState]):
         pending = self.background.pending(needs)
         if pending:
             await self._wait_for(name, pending, context)
+        failed = self.background.failure(EMBEDDER)  # kernels that failed compile on use
+        if failed is not None:
+            return CallToolResult(
+                content=[TextContent(type="text", text=f"{failed}; restart the server.")],
+                is_error=True,
+            )
         result = await super().call_tool(name, arguments, context)
         if isinstance(result, CallToolResult) and result.structured_content is not None:
             text = compact_text(result.structured_content)

@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from glmap_tools.errors import GLMapError
+
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
 
@@ -83,10 +85,18 @@ class Background:
         return [t for n in names if (t := self.tasks.get(n)) is not None and not t.done]
 
     def wait(self, names: Sequence[str]) -> None:
+        """Block until the tasks among `names` are done (failed ones included)."""
         for name in names:
             task = self.tasks.get(name)
             if task is not None:
-                task.wait()
+                task._done.wait()
+
+    def failure(self, name: str) -> str | None:
+        """Why task `name` failed, or None (not started, running or done well)."""
+        task = self.tasks.get(name)
+        if task is None or not task.done or task._error is None:
+            return None
+        return f"{WHAT.get(name, name)} failed: {task._error}"
 
 
 class BackgroundEmbedder:
@@ -109,8 +119,17 @@ class BackgroundEmbedder:
         self.default_tau_s = default_tau_s
 
     def embed(self, texts: Sequence[str]) -> np.ndarray:  # -> [N, dim]
-        """Embed with the real model (waiting for it to load the first time)."""
-        real: Embedder = self.task.wait()
+        """Embed with the real model (waiting for it to load the first time).
+
+        Raises:
+            GLMapError: the model failed to load (the message says why).
+        """
+        try:
+            real: Embedder = self.task.wait()
+        except GLMapError:
+            raise
+        except Exception as exc:
+            raise GLMapError(f"the text embedder failed to load: {exc}") from exc
         return real.embed(texts)
 
 

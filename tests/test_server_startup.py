@@ -1,0 +1,89 @@
+"""Start-up work in the background: the handshake does not wait, the first calls do and say so.
+
+The timing itself (initialize and tools/list within 1 s of launch) is measured by
+`python -m glmap_tools.bench startup`, not here.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import anyio
+import pytest
+from mcp import Client
+
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.server import build_server
+from glmap_tools.server.background import EMBEDDER, KERNELS, Background, BackgroundEmbedder
+from tests.test_server_fixtures import config, frame_args
+
+pytestmark = pytest.mark.anyio
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+async def test_tools_list_answers_while_loading_and_the_first_call_waits_saying_so(tmp_path):
+    server = build_server(config(tmp_path))
+    release = threading.Event()
+    server.background.start(EMBEDDER, lambda: release.wait(30))  # an embedder still loading
+    messages: list[str] = []
+
+    async def progress(_: float, __: float | None, message: str | None) -> None:
+        messages.append(message or "")
+
+    async with Client(server) as client:
+        with anyio.fail_after(10):
+            assert "find_instance" in {t.name for t in (await client.list_tools()).tools}
+        result: list = []
+
+        async def call() -> None:
+            result.append(
+                await client.call_tool("find_instance", {"query": "a chair"}, None, progress)
+            )
+
+        with anyio.fail_after(30):
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(call)
+                while not messages:
+                    await anyio.sleep(0.02)
+                assert not result  # still waiting for the "embedder"
+                release.set()
+    assert "find_instance waits: the server is still loading the text embedder" in messages[0]
+    assert not result[0].is_error
+
+
+async def test_a_failed_embedder_load_is_reported_by_calls_and_failed_kernels_are_not_fatal(
+    tmp_path,
+):
+    server = build_server(config(tmp_path))
+
+    def broken(what: str) -> None:
+        raise RuntimeError(f"{what} unreadable")
+
+    server.background.start(KERNELS, lambda: broken("kernel cache"))
+    async with Client(server) as client:
+        observed = await client.call_tool("observe_frame", frame_args())  # compiles on use
+        server.background.start(EMBEDDER, lambda: broken("model file"))
+        found = await client.call_tool("find_instance", {"query": "a chair"})
+    assert not observed.is_error
+    assert found.is_error and "loading the text embedder failed: model file unreadable" in (
+        found.content[0].text
+    )
+
+
+def test_the_background_embedder_has_its_models_name_and_size_before_it_loads():
+    background = Background()
+    gate = threading.Event()
+
+    def load() -> HashingEmbedder:
+        gate.wait(10)
+        return HashingEmbedder(64)
+
+    task = background.start(EMBEDDER, load)
+    embedder = BackgroundEmbedder(task, "hashing-64", 64, 0.44)
+    assert (embedder.name, embedder.dim) == ("hashing-64", 64) and not task.done
+    gate.set()
+    assert embedder.embed(["a chair"]).shape == (1, 64)
