@@ -78,6 +78,9 @@ def run(args: argparse.Namespace) -> int:
         last = (f.error or "").strip().splitlines()[-1:]
         print(f"FAILED {f.job.agent} on {f.job.episode_id}: {' '.join(last)}")
     if result.failures:
-        print(f"{len(result.failures)} episodes failed; rerun the same command to retry them.")
+        print(
+            f"{len(result.failures)} episodes failed (server logs: {result.out / 'logs'}); "
+            "rerun the same command to retry them."
+        )
         return 1
     return 0

@@ -3,15 +3,15 @@
 `--ray-address` takes what `ray.init` takes: 'local' (start a Ray instance on this machine
 with `workers` CPUs), 'auto' (the cluster started here with `ray start --head`),
 'HOST:PORT' (a cluster's GCS address, from a node of that cluster) or 'ray://HOST:PORT'
-(Ray Client, from anywhere). Before `ray.init`, the address is probed with a plain TCP
-connection, so one that does not answer fails within `CONNECT_TIMEOUT_S`, not after Ray's
-own long retries. Every node needs glmap-tools (with its `ray` extra) installed.
+(Ray Client, from anywhere). Before `ray.init`, the address is probed with the first call Ray
+itself makes, so one that does not answer fails within `CONNECT_TIMEOUT_S`, not after
+Ray's own retries (20 s and more). Every node needs glmap-tools (with
+its `ray` extra) installed.
 """
 
 from __future__ import annotations
 
 import os
-import socket
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -70,25 +70,52 @@ def resolve_address(address: str) -> tuple[str, int] | None:
     return host.strip("[]"), int(port)
 
 
+# What `ray.init` asks first: the GCS for its cluster id, a Ray Client server for its info.
+GCS_METHOD = "/ray.rpc.NodeInfoGcsService/GetClusterId"
+CLIENT_METHOD = "/ray.rpc.RayletDriver/ClusterInfo"
+
+
+def _unavailable(address: str, host: str, port: int, why: str, timeout_s: float) -> Exception:
+    return RayUnavailableError(
+        f"Ray address {address!r} does not answer ({why}; waited at most {timeout_s:.0f} s "
+        f"for {host}:{port}); start the cluster (`ray start --head`) or check host and port "
+        "(the GCS is usually HOST:6379, Ray Client ray://HOST:10001)."
+    )
+
+
 def check_address(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
-    """Fail fast when the Ray address does not accept a TCP connection.
+    """Fail fast unless a Ray server answers at `address` within `timeout_s`.
+
+    An open TCP port proves little (a proxy or another service may hold it), so the probe
+    makes the first call `ray.init` makes, with an empty request: a Ray GCS or Ray Client
+    server answers it (OK, or UNAUTHENTICATED when the cluster wants its token, which
+    `ray.init` then supplies); refusal, silence or a non-Ray answer fail.
 
     Raises:
-        RayUnavailableError: connection refused, unknown host, or no answer in `timeout_s`.
+        RayUnavailableError: no Ray server answered in time.
     """
     target = resolve_address(address)
     if target is None:
         return
     host, port = target
+    import grpc  # with Ray's client extra
+
+    method = CLIENT_METHOD if address.startswith("ray://") else GCS_METHOD
+    answered = {grpc.StatusCode.UNAUTHENTICATED, grpc.StatusCode.PERMISSION_DENIED}
+    channel = grpc.insecure_channel(f"{host}:{port}")
     try:
-        with socket.create_connection((host, port), timeout=timeout_s):
-            pass
-    except OSError as exc:
-        why = "no answer" if isinstance(exc, TimeoutError) else str(exc)
-        raise RayUnavailableError(
-            f"Ray address {address!r} does not answer ({why} within {timeout_s:.0f} s at "
-            f"{host}:{port}); start the cluster (`ray start --head`) or check host and port."
-        ) from exc
+        channel.unary_unary(method)(b"", timeout=timeout_s)
+    except grpc.RpcError as exc:
+        code = exc.code()  # type: ignore[attr-defined]
+        if code not in answered:
+            why = {
+                grpc.StatusCode.DEADLINE_EXCEEDED: "no answer",
+                grpc.StatusCode.UNAVAILABLE: "connection failed",
+                grpc.StatusCode.UNIMPLEMENTED: "something answered, but not a Ray server",
+            }.get(code, str(code))
+            raise _unavailable(address, host, port, why, timeout_s) from None
+    finally:
+        channel.close()
 
 
 class _RayWorker:

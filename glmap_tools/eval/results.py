@@ -6,6 +6,7 @@ Layout of DIR::
     episodes/<agent>/<episode>.json    one finished episode (EpisodeResult fields + scene, config)
     summary.md, summary.json           the table of the last run
     traces/<agent>/<episode>/          tool-call traces and reports (only with --traces)
+    logs/worker-K.log                  what each local worker process wrote to stderr
 
 A rerun skips every (agent, episode) whose file exists. Settings that change a result
 (`RESULT_KEYS`) must match the folder's, or the run is refused unless `mix_configs` is set;

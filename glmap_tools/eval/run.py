@@ -50,7 +50,7 @@ class EvalRun:
 
 
 def _engine(
-    jobs: list[Job], workers: int, embedder: str, ray_address: str | None
+    jobs: list[Job], workers: int, embedder: str, ray_address: str | None, log_dir: Path
 ) -> Iterator[Outcome]:
     if ray_address:
         from glmap_tools.eval.ray_engine import run_ray
@@ -58,7 +58,7 @@ def _engine(
         return run_ray(jobs, max(1, workers), embedder, ray_address)
     if workers == 0:
         return run_inline(jobs, embedder)
-    return run_local(jobs, workers, embedder)
+    return run_local(jobs, workers, embedder, log_dir)
 
 
 def run_eval(
@@ -125,7 +125,9 @@ def run_eval(
             disable=not progress,
             file=sys.stderr,
         ) as bar:
-            for outcome in _engine(jobs, workers, spec.embedder, ray_address):
+            for outcome in _engine(
+                jobs, workers, spec.embedder, ray_address, results.root / "logs"
+            ):
                 if outcome.record is None:
                     failures.append(outcome)
                     bar.set_postfix(failed=len(failures))

@@ -133,8 +133,20 @@ class EpisodeWorker:
         self._tmp.cleanup()
 
 
-def _process_main(embedder: str, jobs: Any, outcomes: Any) -> None:
+def _log_to(path: Path) -> None:
+    """Send this process's stderr (server logs, tracebacks, EGL warnings) to `path`."""
+    import sys
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    log = path.open("a", encoding="utf-8", buffering=1)
+    os.dup2(log.fileno(), 2)
+    sys.stderr = log
+
+
+def _process_main(embedder: str, jobs: Any, outcomes: Any, log_path: str | None) -> None:
     """A local worker process: take jobs until None, put an Outcome (as a dict) for each."""
+    if log_path:
+        _log_to(Path(log_path))
     try:
         worker = EpisodeWorker(embedder)
     except Exception:
@@ -148,8 +160,12 @@ def _process_main(embedder: str, jobs: Any, outcomes: Any) -> None:
         worker.close()
 
 
-def run_local(jobs: Sequence[Job], workers: int, embedder: str) -> Iterator[Outcome]:
+def run_local(
+    jobs: Sequence[Job], workers: int, embedder: str, log_dir: Path | None = None
+) -> Iterator[Outcome]:
     """Play `jobs` on `workers` local processes; yield each Outcome as it finishes.
+
+    Each worker's stderr (the server's log) goes to `log_dir`/worker-K.log when given.
 
     Raises:
         RuntimeError: a worker could not start or died (its error is in the message).
@@ -165,7 +181,10 @@ def run_local(jobs: Sequence[Job], workers: int, embedder: str) -> Iterator[Outc
     n = max(1, min(workers, len(jobs)))
     for _ in range(n):
         job_q.put(None)
-    procs = [ctx.Process(target=_process_main, args=(embedder, job_q, out_q)) for _ in range(n)]
+    logs = [str(log_dir / f"worker-{k}.log") if log_dir else None for k in range(n)]
+    procs = [
+        ctx.Process(target=_process_main, args=(embedder, job_q, out_q, logs[k])) for k in range(n)
+    ]
     for p in procs:
         p.start()
     try:

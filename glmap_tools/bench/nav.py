@@ -1,0 +1,235 @@
+"""Navigation speed and the SR/SPL table against the issue's targets, each MET or MISSED.
+
+    python -m glmap_tools.bench nav                       # speed figures (tune split)
+    python -m glmap_tools.bench nav --table --scenes 12 --episodes-per-scene 20
+
+Figures (all at 320x240, MCP calls in memory):
+- agent step p50: one `nav_step` call of the GLMap agent = render + integrate + value map +
+  plan (target <= 150 ms);
+- episodes per hour of `glmap eval` with 2 workers, full 500-step episodes of every agent
+  (target >= 100);
+- `navigate_to` over 5 m: a straight, free 5 m walk after `look_around` (target <= 2 s).
+With --table, `glmap eval` on the split (resumable in --out) and the targets of the table:
+GLMap SR >= egocentric + 6 points and >= frontier-only + 10 points with the 95% intervals
+apart (GLMap's lower bound >= the other's upper bound), SPL in the same order, and both unit
+kinds >= either alone. Speed figures use the tune split; the table is for the bench split.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import tempfile
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+
+import numpy as np  # noqa: E402
+
+from glmap_tools.bench.report import Report  # noqa: E402
+
+STEP_P50_MS = 150.0
+EPISODES_PER_HOUR = 100.0
+NAVIGATE_5M_S = 2.0
+ALL_AGENTS = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier", "random")
+
+
+def _server_config(tmp: str, embedder: str) -> Any:
+    from glmap_tools.server import ServerConfig
+
+    return ServerConfig(
+        maps_dir=Path(tmp) / "maps",
+        embedder=embedder,  # type: ignore[arg-type]
+        warm_up=False,
+        compute_threads=1,
+    )
+
+
+async def _step_times(session: Any, episode_ids: list[str], steps: int) -> list[float]:
+    """Milliseconds of every nav_step call of the GLMap agent on `episode_ids`."""
+    from agents.runner import play_episode
+
+    ms: list[float] = []
+    for k, eid in enumerate(episode_ids):
+        reset = {"episode": eid, "max_steps": steps}
+        _, client = await play_episode(session, reset, "glmap", seed=k, image_every=0)
+        ms += [r.ms for r in client.records if r.tool == "nav_step"]
+    return ms
+
+
+def _straight_target(be: Any, metres: float) -> tuple[float, float] | None:
+    """A navigable point `metres` from the start along a free straight line, if any."""
+    from glmap_tools.sim.layout_io import load_layout
+    from glmap_tools.sim.navigation import build_nav_grid
+
+    grid = build_nav_grid(load_layout(be.layout_path))
+    start = np.asarray(be.episode.start_position, np.float64)
+    xs, ys = grid.cell_centers()
+    pts = np.column_stack([xs.ravel(), ys.ravel()])[grid.navigable.ravel()]
+    d = np.linalg.norm(pts - start, axis=1)
+    for p in pts[np.argsort(np.abs(d - metres))][:400]:
+        if abs(float(np.linalg.norm(p - start)) - metres) > 0.25:
+            break
+        if grid.segment_is_free(start, p):
+            return float(p[0]), float(p[1])
+    return None
+
+
+async def _navigate_times(session: Any, split: str, metres: float, tries: int) -> list[dict]:
+    """Time navigate_to over `metres` on the first episodes that offer a straight target."""
+    import json
+    import time
+
+    from glmap_tools.sim.benchmark import load_split
+
+    out: list[dict] = []
+    for be in load_split(split, "objectnav"):
+        if len(out) >= tries:
+            break
+        target = _straight_target(be, metres)
+        if target is None:
+            continue
+        await session.call_tool("sim_reset", {"episode": be.episode_id, "size": "320x240"})
+        await session.call_tool("look_around", {})
+        t0 = time.perf_counter()
+        result = await session.call_tool(
+            "navigate_to", {"x": target[0], "y": target[1], "max_steps": 100}
+        )
+        seconds = time.perf_counter() - t0
+        text = result.content[0].text
+        info = json.loads(text) if not result.is_error else {"outcome": f"error: {text}"}
+        out.append({"episode": be.episode_id, "s": seconds, **info})
+    return out
+
+
+async def _speed(report: Report, args: argparse.Namespace) -> None:
+    from agents.runner import open_session
+    from glmap_tools.eval.spec import select_episodes
+
+    episodes = [be.episode_id for be in select_episodes("objectnav", args.split, 2, 1)]
+    with tempfile.TemporaryDirectory() as tmp:
+        async with open_session(_server_config(tmp, args.embedder)) as session:
+            ms = await _step_times(session, episodes, args.steps)
+            report.check(
+                f"agent step p50 (nav_step, 320x240, {len(ms)} steps)",
+                statistics.median(ms),
+                "<=",
+                STEP_P50_MS,
+                "ms",
+            )
+            report.info(f"  agent step p90: {np.percentile(ms, 90):.0f} ms")
+            walks = await _navigate_times(session, args.split, 5.0, 3)
+    if not walks:
+        report.info("navigate_to over 5 m: no straight 5 m target found in the split")
+        return
+    for w in walks:
+        report.info(
+            f"  navigate_to on {w['episode']}: {w['s']:.2f} s, {w.get('outcome')}, "
+            f"{w.get('walk_steps', '?')} steps, walked {w.get('walked_m', '?')} m"
+        )
+    reached = [w for w in walks if w.get("outcome") == "reached"]
+    worst = max((w["s"] for w in reached), default=math.inf)
+    report.check(
+        f"navigate_to over 5 m, slowest of {len(reached)}/{len(walks)} reached",
+        worst,
+        "<=",
+        NAVIGATE_5M_S,
+        "s",
+    )
+
+
+def _throughput(report: Report, args: argparse.Namespace) -> None:
+    from glmap_tools.eval.run import run_eval
+    from glmap_tools.eval.spec import EvalSpec
+
+    spec = EvalSpec(
+        "objectnav", args.split, 1, args.throughput_episodes, ALL_AGENTS, embedder=args.embedder
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        run = run_eval(spec, Path(tmp) / "eval", workers=2, progress=False)
+    report.check(
+        f"glmap eval episodes per hour, 2 workers ({run.ran} episodes x 500 steps max)",
+        run.episodes_per_hour,
+        ">=",
+        EPISODES_PER_HOUR,
+    )
+    if run.failures:
+        report.info(f"  {len(run.failures)} episodes failed")
+
+
+def _table(report: Report, args: argparse.Namespace) -> None:
+    from glmap_tools.eval.run import run_eval
+    from glmap_tools.eval.spec import EvalSpec
+    from glmap_tools.eval.table import markdown
+
+    spec = EvalSpec(
+        args.task,
+        args.table_split,
+        args.scenes,
+        args.episodes_per_scene,
+        ALL_AGENTS,
+        embedder=args.embedder,
+    )
+    run = run_eval(spec, args.out, workers=args.workers, progress=True)
+    report.info(markdown(run.summary))
+    report.info(
+        f"played {run.ran} now ({run.episodes_per_hour:.0f} per hour), {run.skipped} from "
+        f"{args.out}; failed {len(run.failures)}"
+    )
+    check_table_targets(report, run.summary.rows)
+
+
+def check_table_targets(report: Report, rows: dict[str, dict[str, Any]]) -> None:
+    """The issue's SR/SPL targets on a summary's rows (agent -> metric -> Interval, %)."""
+    need = ("glmap", "egocentric", "frontier", "glmap-instance", "glmap-region")
+    if any("success" not in rows.get(a, {}) for a in need):
+        report.info(f"table targets need results of {', '.join(need)}")
+        return
+    sr = {a: rows[a]["success"] for a in need}
+    spl = {a: rows[a]["spl"] for a in need}
+    for other, margin in (("egocentric", 6.0), ("frontier", 10.0)):
+        report.check(
+            f"SR glmap - {other} (points)", sr["glmap"].mean - sr[other].mean, ">=", margin
+        )
+        report.check(
+            f"SR glmap 95% low vs {other} 95% high (intervals apart)",
+            sr["glmap"].low,
+            ">=",
+            sr[other].high,
+            "%",
+        )
+        report.check(f"SPL glmap vs {other} (same order)", spl["glmap"].mean, ">=", spl[other].mean)
+    for one in ("glmap-instance", "glmap-region"):
+        report.check(f"SR glmap (both units) vs {one}", sr["glmap"].mean, ">=", sr[one].mean, "%")
+
+
+def main(argv: list[str] | None = None) -> int:
+    import anyio
+
+    p = argparse.ArgumentParser(prog="python -m glmap_tools.bench nav", description=__doc__)
+    p.add_argument("--split", default="tune", help="split of the speed figures")
+    p.add_argument("--steps", type=int, default=60, help="agent steps per timed episode")
+    p.add_argument("--throughput-episodes", type=int, default=1, help="episodes per agent")
+    p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
+    p.add_argument("--skip-speed", action="store_true", help="only the table")
+    p.add_argument("--table", action="store_true", help="also run the SR/SPL table")
+    p.add_argument("--task", default="objectnav", choices=["objectnav", "instnav"])
+    p.add_argument("--table-split", default="bench", choices=["tune", "bench"])
+    p.add_argument("--scenes", type=int, help="table: first N scenes (default all)")
+    p.add_argument("--episodes-per-scene", type=int, help="table: first K (default all)")
+    p.add_argument("--workers", type=int, default=2, help="table: worker processes")
+    p.add_argument("--out", type=Path, help="table results (default out/eval/SPLIT-TASK)")
+    args = p.parse_args(argv)
+    args.out = args.out or Path("out/eval") / f"{args.table_split}-{args.task}"
+
+    report = Report("bench nav")
+    if not args.skip_speed:
+        anyio.run(_speed, report, args)
+        _throughput(report, args)
+    if args.table:
+        _table(report, args)
+    return report.finish()
