@@ -317,7 +317,8 @@ class MapStore:
                 f"{str(self.path)!r} was built with the embedder {name!r} but was opened with "
                 f"{glmap.embedder.name!r}; open it with the same embedder (embeddings differ)."
             )
-        dims = {len(u.embedding) for u in (*state.instances.values(), *state.regions.values())}
+        dims = {len(u.embedding) for u in state.instances.values()}
+        dims |= {len(r.embedding) for r in state.regions.values()}
         if dims - {glmap.embedder.dim}:
             raise InvalidStoreError(
                 f"{str(self.path)!r} is not a valid GLMap store: its embeddings have "

@@ -372,9 +372,9 @@ def _read_layers(
         check_int(refuse, seq, "a frame seq")
         check_int(refuse, index, f"frame {seq} index")
         pose = read_array(refuse, blob, f"frame {seq} pose", "<f8", (4, 4))
+        ok = bool(np.isfinite(pose).all() and np.abs(pose).max() <= MAX_COORDINATE)
         try:
-            Pose(pose)  # raises unless finite and rigid
-            ok = np.abs(pose[:3, 3]).max() <= MAX_COORDINATE
+            ok = ok and bool(Pose(pose).matrix is not None)  # Pose raises unless rigid
         except GLMapError:
             ok = False
         if not ok:
