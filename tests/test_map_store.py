@@ -132,6 +132,7 @@ def test_save_as_writes_a_copy_and_refuses_to_overwrite(tmp_path):
     glmap.save_as(tmp_path / "b.glmap")
     copy = GLMap.open(tmp_path / "b.glmap", embedder=HashingEmbedder())
     assert copy.grid.snapshot() == glmap.grid.snapshot()
+    assert len(copy.structure) > 0 and copy.structure.equals(glmap.structure)
     with pytest.raises(StoreError, match="already exists"):
         glmap.save_as(tmp_path / "b.glmap")
     assert not list(tmp_path.glob(".*.tmp"))
