@@ -45,3 +45,7 @@ class LLMOutputError(LLMError):
 
 class ReplayMissError(LLMError):
     """A recorded transcript holds no response for this request."""
+
+
+class NoMatchError(GLMapError):
+    """A text matches nothing in the map well enough to act on (the best candidates are listed)."""

@@ -1,0 +1,91 @@
+"""Situating a text on hand-built scenes with known answers (paper §3.2, SQA)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from glmap_tools import synthetic as scenes
+from glmap_tools.errors import InvalidInputError, NoMatchError
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.sqa import situate, split_situation
+
+TEXTS = {
+    1: ("bed", "a double bed with white sheets"),
+    2: ("sofa", "a green sofa"),
+    3: ("television", "a television on a low cabinet"),
+}
+GROUPS = [
+    (1, "bedroom area with the bed", (1,)),
+    (2, "living area with a sofa and a television", (2, 3)),
+]
+
+
+@pytest.fixture(scope="module")
+def glmap():
+    boxes = (
+        scenes.floor()
+        + scenes.table(0.0, 0.0, 1)
+        + scenes.chair(3.0, 0.0, color=(0.2, 0.6, 0.2), object_id=2)
+        + scenes.table(0.0, 3.2, 3)
+    )
+    g = GLMap(MapConfig(floor_z=0.0, voxel_size=0.04), embedder=HashingEmbedder())
+    for eye in ((1.5, -2.5, 1.5), (4.5, 1.5, 1.5), (-2.0, 1.6, 1.5), (1.5, 5.0, 1.5)):
+        frame, ids = scenes.view(boxes, eye, (1.2, 1.2, 0.3), 320, 240)
+        g.integrate(frame, scenes.semantics(ids, TEXTS, GROUPS))
+    return g
+
+
+def _ids(glmap, label):
+    """The instance labelled `label` and the regions holding it."""
+    (iid,) = [u.id for u in glmap.instances.values() if u.label == label]
+    return {iid} | {r.id for r in glmap.regions.values() if iid in r.instance_ids}
+
+
+def _bearing(s, xy):
+    return math.degrees(math.remainder(math.atan2(xy[1] - s.y, xy[0] - s.x) - s.heading, math.tau))
+
+
+def test_the_location_and_facing_phrases_are_split_at_the_facing_clause():
+    assert split_situation("I am sitting on the bed, facing the couch.") == (
+        "I am sitting on the bed",
+        "the couch",
+    )
+    assert split_situation("I am at the desk with the window in front of me.") == (
+        "I am at the desk",
+        "the window",
+    )
+    assert split_situation("I stand next to the sofa.") == ("I stand next to the sofa", "")
+
+
+def test_sitting_on_the_bed_facing_the_sofa_stands_by_the_bed_and_faces_the_sofa(glmap):
+    s = situate(glmap, "I am sitting on the bed, facing the sofa.")
+    bed = glmap.unit_details(min(_ids(glmap, "bed")))
+    lo, hi = np.array(bed.bounds)[:, :2]
+    gap = np.maximum(np.maximum(lo - [s.x, s.y], [s.x, s.y] - hi), 0.0)
+    assert np.hypot(*gap) <= 1.0
+    assert abs(_bearing(s, (3.0, 0.0))) <= 45.0
+    assert s.anchors[0].unit_id in _ids(glmap, "bed")
+    assert s.facing[0].unit_id in _ids(glmap, "sofa")
+    assert glmap.occupancy.state_at(s.x, s.y) == 1  # seen-free
+    assert not s.h_r.empty and s.h_o is not None
+
+
+def test_standing_by_the_television_facing_the_bed_faces_south(glmap):
+    s = situate(glmap, "I am standing by the television, looking at the bed")
+    assert math.hypot(s.x - 0.0, s.y - 3.2) <= 1.6
+    assert abs(_bearing(s, (0.0, 0.0))) <= 45.0
+
+
+def test_a_situation_that_matches_nothing_lists_the_best_candidates(glmap):
+    with pytest.raises(NoMatchError, match="nothing in the map matches.*garage"):
+        situate(glmap, "I am in the garage facing the car")
+
+
+def test_an_empty_map_and_an_empty_text_are_refused():
+    with pytest.raises(InvalidInputError, match="the map is empty"):
+        situate(GLMap(MapConfig(), embedder=HashingEmbedder()), "by the bed")
+    g = GLMap(MapConfig(), embedder=HashingEmbedder())
+    with pytest.raises(InvalidInputError, match="situation text is empty"):
+        situate(g, "  ")
