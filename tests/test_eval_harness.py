@@ -79,7 +79,7 @@ def test_the_summary_has_a_row_per_agent_and_paired_rows_against_the_first(
     assert data["agents"]["random"]["steps"]["mean"] == MAX_STEPS  # random never stops
 
 
-def test_a_rerun_skips_every_finished_episode_and_plays_only_a_missing_one(
+def test_a_rerun_skips_finished_episodes_and_plays_only_a_missing_one(
     finished: EvalRun,
 ) -> None:
     again = run_eval(spec(), finished.out, workers=2, progress=False)
@@ -88,6 +88,9 @@ def test_a_rerun_skips_every_finished_episode_and_plays_only_a_missing_one(
     gone = finished.out / "episodes" / "frontier" / "tune__objectnav__s01-002.json"
     before = json.loads(gone.read_text())
     gone.unlink()
+    table_only = run_eval(spec(), finished.out, play=False, progress=False)
+    assert (table_only.ran, len(table_only.records["frontier"])) == (0, 5)
+    assert "Finished: 35 of 36 (agent, episode) pairs." in (finished.out / "summary.md").read_text()
     third = run_eval(spec(), finished.out, workers=0, progress=False)
     assert (third.ran, third.skipped) == (1, 35)
     replay = json.loads(gone.read_text())

@@ -40,6 +40,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--mix-configs", action="store_true", help="add to a folder run with other settings"
     )
+    p.add_argument(
+        "--summarize-only",
+        action="store_true",
+        help="play nothing: write the table from the episodes already finished in --out",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -67,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
         traces=args.traces,
         resamples=args.resamples,
         progress=not args.no_progress,
+        play=not args.summarize_only,
     )
     print((result.out / "summary.md").read_text(encoding="utf-8"))
     print(

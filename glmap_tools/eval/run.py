@@ -42,6 +42,7 @@ class EvalRun:
     failures: list[Outcome] = field(default_factory=list)
     wall_s: float = 0.0
     mixed: bool = False
+    total: int = 0
 
     @property
     def episodes_per_hour(self) -> float:
@@ -71,6 +72,7 @@ def run_eval(
     traces: bool = False,
     resamples: int = DEFAULT_RESAMPLES,
     progress: bool = True,
+    play: bool = True,
 ) -> EvalRun:
     """Play every (episode, agent) of `spec` not yet in `out`, then summarize all of them.
 
@@ -83,6 +85,7 @@ def run_eval(
         traces: also write each episode's tool-call trace and report under out/traces/.
         resamples: bootstrap resamples of the table's intervals.
         progress: show a tqdm progress bar on stderr.
+        play: False only rewrites the table from the episodes already finished in `out`.
 
     Raises:
         InvalidInputError: unknown agents, too many scenes or episodes, negative workers,
@@ -111,6 +114,8 @@ def run_eval(
                 Job(agent, be.episode_id, be.scene, seed, spec.max_steps, str(trace or "") or None)
             )
     skipped = len(selected) * len(spec.agents) - len(jobs)
+    if not play:
+        jobs = []
     failures: list[Outcome] = []
     start = time.perf_counter()
     if jobs:
@@ -147,6 +152,7 @@ def run_eval(
         failures,
         wall,
         results.mixed,
+        len(selected) * len(spec.agents),
     )
     _write_summary(run)
     return run
@@ -158,7 +164,8 @@ def _write_summary(run: EvalRun) -> None:
         f"# {s.task} on the {s.split} split\n\n"
         f"Selection: the first {s.scenes or 'all'} scenes x {s.episodes_per_scene or 'all'} "
         f"episodes of each; seed {s.seed}, max_steps {s.max_steps}, embedder {s.embedder}, "
-        f"images {s.result_config()['image_size']}.\n\n"
+        f"images {s.result_config()['image_size']}. Finished: "
+        f"{sum(len(r) for r in run.records.values())} of {run.total} (agent, episode) pairs.\n\n"
     )
     if run.mixed:
         head += "Warning: this folder mixes results run with different settings (eval.json).\n\n"

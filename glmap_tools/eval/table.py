@@ -150,7 +150,11 @@ def markdown(summary: Summary) -> str:
         cells = [_cell(row.get(m.key), m.digits) for m in METRICS]
         lines.append(f"| {agent} | {summary.episodes[agent]} | " + " | ".join(cells) + " |")
     if summary.paired:
-        heads = ["Paired difference", "Episodes", *(f"Δ {m.heading}" for m in PAIRED)]
+        heads = [
+            "Paired difference",
+            "Episodes",
+            *(f"Δ {m.heading.replace('(%)', '(points)')}" for m in PAIRED),
+        ]
         lines += ["", "| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
         for (ref, other), diffs in summary.paired.items():
             n = max((i.n for i in diffs.values()), default=0)
