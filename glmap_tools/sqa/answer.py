@@ -1,0 +1,323 @@
+"""The offline answerer: situated questions answered from the map alone, and EM scoring.
+
+No model: the question's type is read from its wording, the object it names is matched to
+unit labels, and the answer comes from `Surroundings` (bearings, distances, heights,
+region members, descriptions). It is honest about what it cannot do: a question type it
+has no rule for, or one the map cannot answer (room names are not in the map), comes back
+with `supported=False` and the reason, never a guess dressed as an answer.
+
+Exact match (EM) after normalisation — the rules, applied to prediction and answers alike:
+1. lower case; strip punctuation except inner hyphens; collapse spaces;
+2. drop articles (a, an, the) and a leading "it is"/"there is"/"its";
+3. number words zero..twenty become digits;
+4. British and American spellings fold (grey/gray, colour/color);
+5. a trailing plural "s"/"es" is dropped (chairs -> chair) for words longer than three letters.
+EM-1 scores the first answer against every reference answer. EM-R1 (relaxed) also accepts
+a prediction whose words contain a reference answer as a whole phrase, or that equals a
+listed synonym (sofa/couch, tv/television, fridge/refrigerator, bin/trash can).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from glmap_tools.sqa.surroundings import Nearby, Surroundings
+
+NUMBER_WORDS = [
+    "zero",
+    "one",
+    "two",
+    "three",
+    "four",
+    "five",
+    "six",
+    "seven",
+    "eight",
+    "nine",
+    "ten",
+    "eleven",
+    "twelve",
+    "thirteen",
+    "fourteen",
+    "fifteen",
+    "sixteen",
+    "seventeen",
+    "eighteen",
+    "nineteen",
+    "twenty",
+]
+SPELLING = {"gray": "grey", "color": "colour", "colored": "coloured"}
+SYNONYMS = [
+    {"sofa", "couch"},
+    {"tv", "television", "tv screen"},
+    {"fridge", "refrigerator"},
+    {"bin", "trash can", "trashcan", "garbage can"},
+    {"plant", "potted plant", "houseplant"},
+]
+COLOURS = [
+    "red",
+    "orange",
+    "yellow",
+    "green",
+    "teal",
+    "blue",
+    "navy",
+    "purple",
+    "pink",
+    "brown",
+    "beige",
+    "white",
+    "grey",
+    "gray",
+    "black",
+    "silver",
+    "gold",
+    "cream",
+    "tan",
+]
+REACH_CONE = 20.0  # degrees either side of straight ahead
+SIDE_SECTORS = {"left": (45.0, 135.0), "right": (-135.0, -45.0)}
+BEHIND = 150.0  # |bearing| at least this is behind
+
+
+def _singular(word: str) -> str:
+    if len(word) > 4 and word.endswith("ies"):
+        return word[:-3] + "y"
+    if len(word) > 4 and word.endswith(("ches", "shes", "sses", "xes")):
+        return word[:-2]
+    if len(word) > 3 and word.endswith("s") and not word.endswith(("ss", "us", "is")):
+        return word[:-1]
+    return word
+
+
+def normalise(text: str) -> str:
+    """An answer in canonical form (the module docstring lists the rules)."""
+    t = text.lower().strip()
+    t = re.sub(r"[^\w\s-]", " ", t)
+    t = re.sub(r"(?<!\w)-|-(?!\w)", " ", t)
+    words = t.split()
+    while words and words[0] in ("it", "is", "its", "there", "a", "an", "the"):
+        words = words[1:]
+    out = []
+    for w in words:
+        if w in ("a", "an", "the"):
+            continue
+        w = SPELLING.get(w, w)
+        if w in NUMBER_WORDS:
+            w = str(NUMBER_WORDS.index(w))
+        out.append(_singular(w))
+    return " ".join(out)
+
+
+def em1(prediction: str, answers: Sequence[str]) -> bool:
+    """Exact match of the normalised prediction with any normalised reference answer."""
+    p = normalise(prediction)
+    return bool(p) and any(p == normalise(a) for a in answers)
+
+
+def em_r1(prediction: str, answers: Sequence[str]) -> bool:
+    """Relaxed exact match: EM-1, or a whole-phrase containment, or a listed synonym."""
+    if em1(prediction, answers):
+        return True
+    p = normalise(prediction)
+    if not p:
+        return False
+    for a in answers:
+        n = normalise(a)
+        if n and re.search(rf"(?<!\w){re.escape(n)}(?!\w)", p):
+            return True
+        if any(
+            p in {normalise(s) for s in group} and n in {normalise(s) for s in group}
+            for group in SYNONYMS
+        ):
+            return True
+    return False
+
+
+@dataclass(frozen=True)
+class MapAnswer:
+    """An answer from the map, or why there is none."""
+
+    answer: str
+    question_type: str
+    supported: bool
+    evidence: str
+
+
+QUESTION_TYPES: list[tuple[str, re.Pattern[str]]] = [
+    ("left", re.compile(r"\bwhat(?:'s| is) (?:to|on) my left\b")),
+    ("right", re.compile(r"\bwhat(?:'s| is) (?:to|on) my right\b")),
+    ("behind", re.compile(r"\bwhat(?:'s| is) behind me\b")),
+    ("front", re.compile(r"\bwhat(?:'s| is) in front of me\b")),
+    ("room", re.compile(r"\bwhich room\b")),
+    (
+        "color",
+        re.compile(r"\bwhat colou?r is (?:the )?(?P<object>.+?)(?: in the (?P<room>.+?))?\?"),
+    ),
+    (
+        "count",
+        re.compile(
+            r"\bhow many (?P<object>.+?) are (?:there )?(?:in|on|at) (?:the )?(?P<where>.+?)\?"
+        ),
+    ),
+    ("on", re.compile(r"\bwhat is on (?:the )?(?P<object>.+?)\?")),
+    (
+        "reach",
+        re.compile(
+            r"\bcan i (?:reach|get to|walk to) (?:the )?(?P<object>.+?)"
+            r"(?: by walking straight ahead| straight ahead|$)"
+        ),
+    ),
+]
+
+
+def question_type(question: str) -> tuple[str, dict[str, str]]:
+    """(type, named parts) of a question; ("unknown", {}) when no rule reads it."""
+    q = " ".join(question.lower().split())
+    for name, pattern in QUESTION_TYPES:
+        m = pattern.search(q)
+        if m:
+            return name, {k: v for k, v in m.groupdict().items() if v}
+    return "unknown", {}
+
+
+def _match_label(phrase: str, labels: Sequence[str]) -> str | None:
+    """The longest label that occurs in `phrase` as whole words (plurals folded)."""
+    words = " ".join(_singular(w) for w in phrase.lower().split())
+    best = None
+    for label in set(labels):
+        lab = " ".join(_singular(w) for w in label.lower().split())
+        if (
+            lab
+            and re.search(rf"(?<!\w){re.escape(lab)}(?!\w)", words)
+            and (best is None or len(lab) > len(best))
+        ):
+            best = label
+    return best
+
+
+def _nearest_in(nearby: Sequence[Nearby], lo: float, hi: float, exclude: set[int]) -> Nearby | None:
+    for n in nearby:
+        if n.unit_id not in exclude and lo <= n.bearing <= hi:
+            return n
+    return None
+
+
+class OfflineAnswerer:
+    """Answers situated questions from `Surroundings` (see the module docstring)."""
+
+    def answer(self, question: str, where: Surroundings, exclude: Sequence[int] = ()) -> MapAnswer:
+        """Answer `question` at the situated pose.
+
+        Args:
+            question: the question text T_q.
+            where: the map around the situated pose.
+            exclude: unit ids not to answer with (the anchor one stands at).
+        """
+        kind, parts = question_type(question)
+        skip = set(exclude)
+        labels = list(where.labels.values())
+        if kind in ("left", "right"):
+            lo, hi = SIDE_SECTORS[kind]
+            n = _nearest_in(where.nearby, lo, hi, skip)
+            return self._object(kind, n, f"nearest unit {lo:.0f}..{hi:.0f} deg")
+        if kind == "front":
+            n = _nearest_in(where.nearby, -45.0, 45.0, skip)
+            return self._object(kind, n, "nearest unit within 45 deg of straight ahead")
+        if kind == "behind":
+            n = next(
+                (x for x in where.nearby if x.unit_id not in skip and abs(x.bearing) >= BEHIND),
+                None,
+            )
+            return self._object(kind, n, f"nearest unit at |bearing| >= {BEHIND:.0f} deg")
+        if kind == "room":
+            return MapAnswer("", kind, False, "the map holds no room names")
+        if kind == "color":
+            label = _match_label(parts.get("object", ""), labels)
+            if label is None:
+                return MapAnswer("", kind, False, f"no unit is a {parts.get('object')!r}")
+            cands = [n for n in where.nearby if n.label == label] or [
+                Nearby(uid, lab, "", math.inf, 0.0, "", 0.0, 0.0, (0, 0, 0, 0))
+                for uid, lab in where.labels.items()
+                if lab == label
+            ]
+            for n in cands:
+                text = n.text or where_text(where, n.unit_id)
+                colour = next(
+                    (c for c in re.findall(r"[a-z]+", text.lower()) if c in COLOURS), None
+                )
+                if colour:
+                    return MapAnswer(colour, kind, True, f"unit {n.unit_id}: {text[:80]!r}")
+            return MapAnswer("", kind, False, f"no colour in the description of the {label}")
+        if kind == "count":
+            label = _match_label(parts.get("object", ""), labels)
+            region = _best_region(parts.get("where", ""), where)
+            if label is None or region is None:
+                return MapAnswer("", kind, False, "no matching unit label or region")
+            rid, text, members = region
+            count = sum(where.labels.get(m) == label for m in members)
+            return MapAnswer(
+                str(count), kind, True, f"region {rid} {text[:60]!r}: {count} x {label}"
+            )
+        if kind == "on":
+            label = _match_label(parts.get("object", ""), labels)
+            base = next((n for n in where.nearby if n.label == label), None)
+            if base is None:
+                return MapAnswer("", kind, False, f"no {parts.get('object')!r} nearby")
+            on = [
+                n
+                for n in where.nearby
+                if n.unit_id != base.unit_id
+                and n.z_min >= base.z_max - 0.1
+                and _overlap(n.footprint, base.footprint)
+            ]
+            if not on:
+                return MapAnswer("nothing", kind, True, f"nothing above unit {base.unit_id}")
+            return MapAnswer(on[0].label, kind, True, f"unit {on[0].unit_id} on {base.unit_id}")
+        if kind == "reach":
+            label = _match_label(parts.get("object", ""), labels)
+            target = next((n for n in where.nearby if n.label == label), None)
+            if target is None:
+                return MapAnswer("no", kind, True, f"no {parts.get('object')!r} within reach")
+            ok = abs(target.bearing) <= REACH_CONE
+            return MapAnswer(
+                "yes" if ok else "no",
+                kind,
+                True,
+                f"unit {target.unit_id}: {target.bearing:.0f} deg, {target.distance:.1f} m",
+            )
+        return MapAnswer("", kind, False, "no rule for this kind of question")
+
+    @staticmethod
+    def _object(kind: str, n: Nearby | None, rule: str) -> MapAnswer:
+        if n is None:
+            return MapAnswer("nothing", kind, True, f"{rule}: none within reach")
+        return MapAnswer(
+            n.label,
+            kind,
+            True,
+            f"{rule}: unit {n.unit_id} at {n.distance:.1f} m, {n.bearing:.0f} deg",
+        )
+
+
+def where_text(where: Surroundings, unit_id: int) -> str:
+    return next((n.text for n in where.nearby if n.unit_id == unit_id), "")
+
+
+def _overlap(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def _best_region(phrase: str, where: Surroundings) -> tuple[int, str, tuple[int, ...]] | None:
+    """The region whose text shares most words with `phrase` (ties: the lowest id)."""
+    want = {_singular(w) for w in re.findall(r"[a-z]+", phrase.lower())} - {"the", "of", "a"}
+    best, best_score = None, 0.0
+    for region in where.regions:
+        have = {_singular(w) for w in re.findall(r"[a-z]+", region[1].lower())}
+        score = len(want & have) / max(len(want), 1)
+        if score > best_score:
+            best, best_score = region, score
+    return best if best_score >= 0.5 else None

@@ -1,0 +1,113 @@
+"""What surrounds a situated pose, from the map alone: units with distance and bearing.
+
+The text half of the SQA interface: every instance near the pose with its label,
+description, distance (to its nearest grid cell), bearing (degrees, + = left) and the
+direction it lies in (front, left, back, right), plus the regions with their members.
+`locate_situation` returns it beside the four rendered views, and the offline answerer
+reasons over it, so both see the same evidence.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from glmap_tools.map.glmap import GLMap
+
+AROUND = 4.0  # m: units farther away are not "around me"
+# Direction sectors (bearing ranges in degrees, + = left), as the views are labelled.
+SECTORS = (("front", -45.0, 45.0), ("left", 45.0, 135.0), ("right", -135.0, -45.0))
+
+
+def direction_of(bearing_deg: float) -> str:
+    """front / left / right / back for a bearing in degrees (+ = left)."""
+    for name, lo, hi in SECTORS:
+        if lo <= bearing_deg < hi:
+            return name
+    return "back"
+
+
+@dataclass(frozen=True)
+class Nearby:
+    """One instance as seen from the pose."""
+
+    unit_id: int
+    label: str
+    text: str
+    distance: float  # m, to the unit's nearest grid cell
+    bearing: float  # degrees, + = left, to the unit's centroid
+    direction: str
+    z_min: float
+    z_max: float
+    footprint: tuple[float, float, float, float]  # x0, y0, x1, y1 (m)
+
+    def as_row(self) -> list[Any]:
+        return [
+            self.unit_id,
+            self.label,
+            round(self.distance, 2),
+            round(self.bearing),
+            self.direction,
+        ]
+
+
+@dataclass(frozen=True)
+class Surroundings:
+    """The map around (x, y, heading)."""
+
+    x: float
+    y: float
+    heading: float
+    nearby: tuple[Nearby, ...]  # nearest first
+    regions: tuple[tuple[int, str, tuple[int, ...]], ...]  # (id, text, member ids)
+    labels: dict[int, str]  # every instance's label, for region member counts
+
+    def as_dict(self, max_units: int = 20) -> dict[str, Any]:
+        """Compact JSON: [id, label, metres, bearing, direction] rows and regions."""
+        return {
+            "pose": [round(self.x, 2), round(self.y, 2), round(math.degrees(self.heading))],
+            "nearby": [n.as_row() for n in self.nearby[:max_units]],
+            "regions": [[rid, text[:100], list(members)] for rid, text, members in self.regions],
+        }
+
+
+def surroundings(
+    glmap: GLMap, x: float, y: float, heading: float, radius: float = AROUND
+) -> Surroundings:
+    """The instances within `radius` of (x, y) with bearings relative to `heading`."""
+    s = glmap.grid.cell_size
+    rows = []
+    for uid, dist in glmap.grid.units_near(x, y, radius):
+        unit = glmap.instances.get(uid)
+        if unit is None:
+            continue
+        means = unit.gaussians.means
+        c = means.mean(axis=0)
+        b = math.degrees(math.remainder(math.atan2(c[1] - y, c[0] - x) - heading, math.tau))
+        cells = np.array(sorted(glmap.grid.cells_of_unit(uid)), dtype=np.float64)
+        lo = cells.min(axis=0) * s if len(cells) else c[:2]
+        hi = (cells.max(axis=0) + 1) * s if len(cells) else c[:2]
+        rows.append(
+            Nearby(
+                uid,
+                unit.label or unit.text.split(",")[0],
+                unit.text,
+                float(dist),
+                b,
+                direction_of(b),
+                float(means[:, 2].min()),
+                float(means[:, 2].max()),
+                (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])),
+            )
+        )
+    rows.sort(key=lambda n: (n.distance, n.unit_id))
+    regions = tuple(
+        (r.id, r.text, tuple(r.instance_ids))
+        for r in sorted(glmap.regions.values(), key=lambda r: r.id)
+    )
+    labels = {uid: u.label for uid, u in glmap.instances.items()}
+    return Surroundings(x, y, heading, tuple(rows), regions, labels)

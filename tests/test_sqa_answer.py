@@ -1,0 +1,77 @@
+"""The offline situated answerer and the EM normalisation rules."""
+
+import math
+
+import pytest
+
+from glmap_tools.sim.generator import generate_apartment
+from glmap_tools.sim.qa import generate_qa
+from glmap_tools.sqa.answer import OfflineAnswerer, em1, em_r1, normalise, question_type
+from glmap_tools.sqa.surroundings import direction_of, surroundings
+from tests.test_sqa_situate import glmap  # noqa: F401  (the hand-built scene fixture)
+
+
+@pytest.mark.parametrize(
+    ("raw", "canonical"),
+    [
+        ("The Sofa.", "sofa"),
+        ("two", "2"),
+        ("Gray", "grey"),
+        ("It is a chair!", "chair"),
+        ("chairs", "chair"),
+        ("glass", "glass"),
+        ("trash-can", "trash-can"),
+        ("  an   armchair ", "armchair"),
+    ],
+)
+def test_normalisation_rules(raw, canonical):
+    assert normalise(raw) == canonical
+
+
+def test_em1_is_exact_after_normalisation_and_em_r1_relaxes_it():
+    assert em1("Two", ["two", "2"]) and em1("the grey one", ["grey one"])
+    assert not em1("a red chair", ["chair"])
+    assert em_r1("a red chair", ["chair"]) and em_r1("couch", ["sofa"])
+    assert not em_r1("table", ["chair"]) and not em1("", ["nothing"])
+
+
+def test_every_generated_question_has_a_type_the_answerer_reads():
+    qa = generate_qa(generate_apartment(3), situations=12, seed=0)
+    for q in qa["questions"]:
+        kind, _ = question_type(q["question"])
+        assert kind == q["question_type"], q["question"]
+
+
+def test_directions_follow_the_view_labels():
+    assert [direction_of(b) for b in (0, 60, -60, 170, -170)] == [
+        "front",
+        "left",
+        "right",
+        "back",
+        "back",
+    ]
+
+
+def _at_bed_facing_sofa(m):
+    bed = next(u for u in m.instances.values() if u.label == "bed")
+    return surroundings(m, 1.0, 0.0, 0.0), bed.id
+
+
+def test_offline_answers_from_the_map_at_a_known_pose(glmap):  # noqa: F811
+    where, bed = _at_bed_facing_sofa(glmap)
+    ask = OfflineAnswerer().answer
+    assert ask("What is to my left?", where, [bed]).answer == "television"
+    assert ask("Can I reach the sofa by walking straight ahead?", where).answer == "yes"
+    assert ask("Can I reach the television by walking straight ahead?", where).answer == "no"
+    assert ask("What colour is the sofa?", where).answer == "green"
+    assert ask("How many sofas are in the living area?", where).answer == "1"
+    tv = next(n for n in where.nearby if n.label == "television")
+    assert math.isclose(tv.bearing, 90.0, abs_tol=25.0)
+
+
+def test_the_offline_answerer_says_what_it_cannot_answer(glmap):  # noqa: F811
+    where, _ = _at_bed_facing_sofa(glmap)
+    room = OfflineAnswerer().answer("Which room am I in?", where)
+    assert not room.supported and "room names" in room.evidence and room.answer == ""
+    odd = OfflineAnswerer().answer("Why is the sky blue?", where)
+    assert not odd.supported and odd.question_type == "unknown"
