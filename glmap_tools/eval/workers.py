@@ -143,19 +143,33 @@ def _log_to(path: Path) -> None:
     sys.stderr = log
 
 
-def _process_main(embedder: str, jobs: Any, outcomes: Any, log_path: str | None) -> None:
-    """A local worker process: take jobs until None, put an Outcome (as a dict) for each."""
-    if log_path:
-        _log_to(Path(log_path))
+def _claim(claimed: Any, i: int) -> bool:
+    """Mark job `i` taken; False when another worker took it first."""
+    with claimed.get_lock():
+        if claimed[i]:
+            return False
+        claimed[i] = 1
+        return True
+
+
+def _process_main(
+    embedder: str, jobs: list[dict], start: int, claimed: Any, outcomes: Any, log: str | None
+) -> None:
+    """A local worker process: walk the job list from `start` (wrapping around), play each
+    job no other worker has claimed, and put an Outcome (as a dict) for each."""
+    if log:
+        _log_to(Path(log))
     try:
         worker = EpisodeWorker(embedder)
     except Exception:
         outcomes.put({"fatal": traceback.format_exc(limit=8)})
         return
     try:
-        while (item := jobs.get()) is not None:
-            outcome = worker.run(Job(**item))
-            outcomes.put({"job": item, "record": outcome.record, "error": outcome.error})
+        for k in range(len(jobs)):
+            i = (start + k) % len(jobs)
+            if _claim(claimed, i):
+                outcome = worker.run(Job(**jobs[i]))
+                outcomes.put({"job": jobs[i], "record": outcome.record, "error": outcome.error})
     finally:
         worker.close()
 
@@ -165,7 +179,10 @@ def run_local(
 ) -> Iterator[Outcome]:
     """Play `jobs` on `workers` local processes; yield each Outcome as it finishes.
 
-    Each worker's stderr (the server's log) goes to `log_dir`/worker-K.log when given.
+    Jobs come in scene order; worker k starts at the k-th of `workers` equal blocks and
+    walks on, claiming jobs, so each worker stays on few scenes (its server keeps one scene's
+    env) and a worker that finishes its block helps with the others'. Each worker's stderr
+    (the server's log) goes to `log_dir`/worker-K.log when given.
 
     Raises:
         RuntimeError: a worker could not start or died (its error is in the message).
@@ -174,21 +191,22 @@ def run_local(
     import queue
 
     ctx = mp.get_context("spawn")  # no inherited GL context, event loop or thread pools
-    job_q: Any = ctx.Queue()
     out_q: Any = ctx.Queue()
-    for job in jobs:
-        job_q.put(asdict(job))
+    items = [asdict(job) for job in jobs]
+    claimed = ctx.Array("b", len(items))
     n = max(1, min(workers, len(jobs)))
-    for _ in range(n):
-        job_q.put(None)
     logs = [str(log_dir / f"worker-{k}.log") if log_dir else None for k in range(n)]
     procs = [
-        ctx.Process(target=_process_main, args=(embedder, job_q, out_q, logs[k])) for k in range(n)
+        ctx.Process(
+            target=_process_main,
+            args=(embedder, items, k * len(items) // n, claimed, out_q, logs[k]),
+        )
+        for k in range(n)
     ]
     for p in procs:
         p.start()
+    left = len(jobs)
     try:
-        left = len(jobs)
         while left:
             try:
                 item = out_q.get(timeout=5.0)
@@ -203,9 +221,9 @@ def run_local(
                 raise RuntimeError(f"an eval worker could not start:\n{item['fatal']}")
             left -= 1
             yield Outcome(Job(**item["job"]), item["record"], item["error"])
-    finally:
+    finally:  # after the last outcome workers exit by themselves; otherwise stop them now
         for p in procs:
-            p.join(timeout=30)
+            p.join(timeout=30 if not left else 0)
             if p.is_alive():
                 p.terminate()
                 p.join(timeout=5)
