@@ -75,3 +75,23 @@ def test_the_offline_answerer_says_what_it_cannot_answer(glmap):  # noqa: F811
     assert not room.supported and "room names" in room.evidence and room.answer == ""
     odd = OfflineAnswerer().answer("Why is the sky blue?", where)
     assert not odd.supported and odd.question_type == "unknown"
+
+
+def test_the_four_views_carry_their_direction_and_the_heat_image_fits_its_size(glmap):  # noqa: F811
+    from glmap_tools.sqa import situate
+    from glmap_tools.sqa.views import CAPTION, heat_image, labelled_views, views_sheet
+
+    s = situate(glmap, "I am sitting on the bed, facing the sofa.")
+    views = labelled_views(glmap, s.x, s.y, s.heading)
+    assert [v.direction for v in views] == ["front", "left", "back", "right"]
+    headings = [v.heading_deg for v in views]
+    assert math.isclose(headings[1] - headings[0], 90.0, abs_tol=1e-6) or headings[0] > 90
+    for v in views:
+        band = v.rgb[:CAPTION]
+        assert (band > 200).any() and band.mean() < 80  # white text on a dark band
+    sheet = views_sheet(views)
+    assert sheet.shape[0] == 2 * views[0].rgb.shape[0]
+    heat = heat_image(glmap, s, size=256)
+    assert max(heat.shape[:2]) == 256 and heat.dtype.name == "uint8"
+    # The location heat (red) is drawn somewhere on the map.
+    assert ((heat[..., 0] > 150) & (heat[..., 1] < 120)).any()
