@@ -17,6 +17,7 @@ from glmap_tools.server import (
     tools_map,
     tools_nav,
     tools_sim,
+    tools_sqa,
     tools_store,
     tools_view,
 )
@@ -126,7 +127,9 @@ class GLMapServer(MCPServer[AppState]):
             )
         return result
 
-    async def _wait_for(self, name: str, pending: list[Any], context: Context | None) -> None:
+    async def _wait_for(
+        self, name: str, pending: list[Any], context: Context[AppState, Any] | None
+    ) -> None:
         import anyio.to_thread
 
         what = " and ".join(WHAT[t.name] for t in pending)
@@ -200,5 +203,6 @@ def build_server(
     tools_export.register(server)
     tools_sim.register(server)
     tools_nav.register(server)
+    tools_sqa.register(server)
     resources.register(server, config)
     return server

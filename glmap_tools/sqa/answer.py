@@ -199,6 +199,21 @@ def _match_label(phrase: str, labels: Sequence[str]) -> str | None:
     return best
 
 
+def _pick(nearby: Sequence[Nearby], label: str | None, phrase: str) -> Nearby | None:
+    """The unit labelled `label` whose description shares most words with `phrase`
+    ("blue chair" picks the blue one), nearest first on ties."""
+    cands = [n for n in nearby if n.label == label]
+    if not cands:
+        return None
+    extra = {w for w in re.findall(r"[a-z]+", phrase.lower())} - set((label or "").split())
+
+    def shared(n: Nearby) -> int:
+        return len(extra & set(re.findall(r"[a-z]+", n.text.lower())))
+
+    best = max(shared(n) for n in cands)
+    return next(n for n in cands if shared(n) == best)
+
+
 def _nearest_in(nearby: Sequence[Nearby], lo: float, hi: float, exclude: set[int]) -> Nearby | None:
     for n in nearby:
         if n.unit_id not in exclude and lo <= n.bearing <= hi:
@@ -264,7 +279,7 @@ class OfflineAnswerer:
             )
         if kind == "on":
             label = _match_label(parts.get("object", ""), labels)
-            base = next((n for n in where.nearby if n.label == label), None)
+            base = _pick(where.nearby, label, parts.get("object", ""))
             if base is None:
                 return MapAnswer("", kind, False, f"no {parts.get('object')!r} nearby")
             on = [
@@ -279,7 +294,7 @@ class OfflineAnswerer:
             return MapAnswer(on[0].label, kind, True, f"unit {on[0].unit_id} on {base.unit_id}")
         if kind == "reach":
             label = _match_label(parts.get("object", ""), labels)
-            target = next((n for n in where.nearby if n.label == label), None)
+            target = _pick(where.nearby, label, parts.get("object", ""))
             if target is None:
                 return MapAnswer("no", kind, True, f"no {parts.get('object')!r} within reach")
             ok = abs(target.bearing) <= REACH_CONE

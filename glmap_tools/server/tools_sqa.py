@@ -1,0 +1,96 @@
+"""locate_situation: where a situation text puts the agent, with the views an MLLM answers from.
+
+No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+"""
+
+from typing import Annotated, Any
+
+from mcp.server.mcpserver import Context, Image, MCPServer
+from mcp.types import TextContent
+from pydantic import Field
+
+from glmap_tools.server.runtime import compact_json, in_thread, session_of, tool_errors
+from glmap_tools.server.state import locked
+from glmap_tools.server.tools_map import READ_ONLY, SessionArg
+from glmap_tools.views.common import encode_png
+
+MAX_SITUATION = 512
+
+
+def locate(glmap: Any, situation: str, question: str = "") -> tuple[dict[str, Any], list[bytes]]:
+    """The situated pose and evidence as JSON, and PNGs: the heat map then the four views.
+
+    Args:
+        glmap: the map.
+        situation: the situation text T_l.
+        question: optional T_q; when given, the offline map answer is included (with
+            `supported=false` and the reason for questions the map alone cannot answer).
+    """
+    from glmap_tools.sqa import situate
+    from glmap_tools.sqa.answer import OfflineAnswerer
+    from glmap_tools.sqa.surroundings import surroundings
+    from glmap_tools.sqa.views import heat_image, labelled_views, views_sheet
+
+    s = situate(glmap, situation)
+    views = labelled_views(glmap, s.x, s.y, s.heading)
+    where = surroundings(glmap, s.x, s.y, s.heading)
+    info: dict[str, Any] = {"situation": s.as_dict(), "around": where.as_dict(max_units=12)}
+    info["views"] = [[v.direction, round(v.heading_deg)] for v in views]
+    if question.strip():
+        anchor = [s.anchors[0].unit_id] if s.anchors else []
+        a = OfflineAnswerer().answer(question, where, anchor)
+        info["map_answer"] = {
+            "answer": a.answer,
+            "type": a.question_type,
+            "supported": a.supported,
+            "evidence": a.evidence,
+        }
+    images = [encode_png(heat_image(glmap, s, 384)), encode_png(views_sheet(views))]
+    return info, images
+
+
+def register(server: MCPServer) -> None:
+    """Add locate_situation to `server`."""
+
+    @server.tool(annotations=READ_ONLY)
+    @tool_errors
+    async def locate_situation(
+        ctx: Context,
+        situation: Annotated[
+            str,
+            Field(
+                min_length=1,
+                max_length=MAX_SITUATION,
+                description="where you are, e.g. 'sitting on the bed, facing the window'",
+            ),
+        ],
+        question: Annotated[
+            str, Field(max_length=MAX_SITUATION, description="optional: answer it from the map")
+        ] = "",
+        session: SessionArg = None,
+    ) -> list[TextContent | Image]:
+        """Situated QA: locate a situation text in the map (paper 3.2) and show it.
+
+        Returns the pose (x, y, heading), its confidence and the units that decided it, the
+        units around with distance and bearing (+ = left), a heat map (red: where, blue:
+        what is faced), and front/left/back/right views, each captioned. Answer the
+        question from them; `map_answer` is the map-only answer when a question is given.
+        """
+        target = session_of(ctx, session)
+
+        def run() -> list[TextContent | Image]:
+            with locked(target) as glmap:
+                info, images = locate(glmap, situation, question)
+            sit = info["situation"]
+            note = (
+                f"At ({sit['x']}, {sit['y']}) facing {sit['heading_deg']} deg"
+                f"{' (low confidence)' if sit['low_confidence'] else ''}. "
+                "Images: heat map, then views front|left / back|right."
+            )
+            return [
+                TextContent(type="text", text=compact_json(info)),
+                TextContent(type="text", text=note),
+                *(Image(data=png, format="png") for png in images),
+            ]
+
+        return await in_thread(run)

@@ -1,0 +1,54 @@
+"""locate_situation through a real in-memory MCP client session."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from mcp import Client
+
+from glmap_tools.server import build_server
+from tests.test_server_fixtures import config, counts, frame_args
+
+pytestmark = pytest.mark.anyio
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+async def test_a_situation_comes_back_as_a_pose_a_heat_map_and_four_captioned_views(tmp_path):
+    async with Client(build_server(config(tmp_path))) as client:
+        for eye in ((0.0, -2.6, 1.4), (-2.5, 1.5, 1.4)):
+            assert not (await client.call_tool("observe_frame", frame_args(eye))).is_error
+        before = await counts(client)
+        result = await client.call_tool(
+            "locate_situation",
+            {
+                "situation": "I am standing next to the dining table, facing the blue chair",
+                "question": "Can I reach the blue chair by walking straight ahead?",
+            },
+        )
+        assert not result.is_error, result.content[0].text
+        info = json.loads(result.content[0].text)
+        assert await counts(client) == before  # read-only
+    sit = info["situation"]
+    assert {"x", "y", "heading_deg", "confidence", "anchors", "facing"} <= set(sit)
+    assert sit["facing_text"] == "the blue chair"
+    # The blue chair stands at (-1.6, 0.4): the pose faces it.
+    assert [v[0] for v in info["views"]] == ["front", "left", "back", "right"]
+    assert info["map_answer"]["type"] == "reach" and info["map_answer"]["answer"] == "yes"
+    images = [c for c in result.content if c.type == "image"]
+    assert len(images) == 2 and all(c.mime_type == "image/png" for c in images)
+
+
+async def test_a_situation_on_an_empty_map_or_matching_nothing_is_a_clear_error(tmp_path):
+    async with Client(build_server(config(tmp_path))) as client:
+        empty = await client.call_tool("locate_situation", {"situation": "by the bed"})
+        assert empty.is_error and "the map is empty" in empty.content[0].text
+        await client.call_tool("observe_frame", frame_args())
+        none = await client.call_tool(
+            "locate_situation", {"situation": "in the garage facing the car"}
+        )
+        assert none.is_error and "nothing in the map matches" in none.content[0].text
