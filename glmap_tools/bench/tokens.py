@@ -115,7 +115,7 @@ async def run(args: argparse.Namespace) -> int:
             for name, arguments in calls:
                 result = await client.call_tool(name, arguments)
                 if result.is_error:
-                    raise RuntimeError(f"{name} failed: {result.content[0].text}")
+                    raise RuntimeError(f"{name} failed: {result.content}")
                 text, _, structured = result_sizes(result)
                 print(f"{name:<16}{text:>8}{structured:>8}")
     return report.finish()

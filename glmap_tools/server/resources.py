@@ -6,12 +6,12 @@ annotations` here: the SDK reads these signatures at runtime.
 """
 
 import json
+from typing import TYPE_CHECKING
 
 from mcp.server.mcpserver import Context, MCPServer
 from mcp.server.mcpserver.exceptions import ResourceError, ResourceNotFoundError
 
 from glmap_tools.errors import GLMapError, UnknownIdError
-from glmap_tools.map import GLMap
 from glmap_tools.map.queries import details
 from glmap_tools.server.config import ServerConfig
 from glmap_tools.server.runtime import app_state, transport_session_id
@@ -19,6 +19,9 @@ from glmap_tools.server.state import Session, locked
 from glmap_tools.server.state import saved_maps as saved_map_files
 from glmap_tools.server.views import EMPTY_MAP
 from glmap_tools.server.views import topdown as draw
+
+if TYPE_CHECKING:
+    from glmap_tools.map import GLMap
 
 CURRENT = "current"
 
@@ -42,7 +45,7 @@ def _unit_id(raw: str) -> int:
     return uid
 
 
-def _unit_json(glmap: GLMap, uid: int, kind: str) -> str:
+def _unit_json(glmap: "GLMap", uid: int, kind: str) -> str:
     units = glmap.instances if kind == "instance" else glmap.regions
     unit = units.get(uid)
     if unit is None:
@@ -54,7 +57,7 @@ def _unit_json(glmap: GLMap, uid: int, kind: str) -> str:
     return details(glmap, unit).model_dump_json()
 
 
-def _index(glmap: GLMap, kind: str) -> str:
+def _index(glmap: "GLMap", kind: str) -> str:
     if kind == "instance":
         items = [
             {"id": u.id, "label": u.label, "centroid": [round(float(c), 3) for c in u.centroid]}

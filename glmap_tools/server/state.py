@@ -34,11 +34,11 @@ from glmap_tools.errors import (
     UnknownIdError,
     did_you_mean,
 )
-from glmap_tools.map import GLMap
 from glmap_tools.server.config import ServerConfig
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
+    from glmap_tools.map import GLMap
 
 MAP_SUFFIX = ".glmap"
 DROPPED_KEPT = 4096  # dropped session keys remembered, to tell their clients
@@ -156,10 +156,13 @@ class SessionRegistry:
         self._by_transport: dict[str, str] = {}
         self._named: dict[str, LiveMap] = {}
         self._dropped: OrderedDict[str, float] = OrderedDict()  # handles and transport ids
-        self._sessions[DEFAULT_HANDLE] = Session(DEFAULT_HANDLE, self._scratch())
+        # The default session's map is made on first use: building a GLMap imports the
+        # fusion code (scipy, numba), which the server's handshake must not wait for.
 
     # ------------------------------------------------------------------ maps
     def _scratch(self) -> LiveMap:
+        from glmap_tools.map import GLMap  # loads fusion (scipy, numba): not at import
+
         live = LiveMap(GLMap(self.config.map_config, embedder=self.embedder))
         live.users = 1
         return live
@@ -217,6 +220,8 @@ class SessionRegistry:
                     "another name."
                 )
             self.maps_dir.mkdir(parents=True, exist_ok=True)
+            from glmap_tools.map import GLMap
+
             with paths_hidden(self.maps_dir):
                 glmap = GLMap.open(path, self.config.map_config, embedder=self.embedder)
             live = LiveMap(glmap, stem, users=1)
@@ -243,6 +248,8 @@ class SessionRegistry:
                     raise UnknownIdError(
                         f"no saved map named {stem!r}.{did_you_mean(stem, names)}{listing}"
                     )
+                from glmap_tools.map import GLMap
+
                 with paths_hidden(self.maps_dir):
                     glmap = GLMap.open(path, embedder=self.embedder)
                 live = LiveMap(glmap, stem)
@@ -339,7 +346,9 @@ class SessionRegistry:
                     session = self._create_session()
                     self._by_transport[transport_id] = session.handle
             else:
-                session = self._sessions[DEFAULT_HANDLE]
+                session = self._sessions.get(DEFAULT_HANDLE) or self._sessions.setdefault(
+                    DEFAULT_HANDLE, Session(DEFAULT_HANDLE, self._scratch())
+                )
             session.last_used = time.monotonic()
             return session
 

@@ -18,7 +18,6 @@ from glmap_tools.server.runtime import app_state, in_thread, session_of, tool_er
 from glmap_tools.server.state import check_map_name, locked
 from glmap_tools.server.tools_map import SessionArg
 from glmap_tools.server.views import EMPTY_MAP
-from glmap_tools.views import export_ply as write_export
 
 PLY_SUFFIX = ".ply"
 ExportName = Annotated[
@@ -97,6 +96,8 @@ def register(server: MCPServer) -> None:
                         "to replace it, or choose another name."
                     )
                 path.parent.mkdir(parents=True, exist_ok=True)
+                from glmap_tools.views import export_ply as write_export
+
                 try:
                     result = write_export(glmap, path, unit_id)
                 except StoreError as exc:  # its message names the absolute path: show the name

@@ -10,23 +10,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+import glmap_tools.views as gviews  # renders load on first use (the handshake does not wait)
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
-from glmap_tools.map import GLMap
 from glmap_tools.map.units import InstanceUnit, RegionUnit
-from glmap_tools.views import (
-    RenderedView,
-    TopDownImage,
-    draw_topdown,
-    overview_pose,
-    render_map,
-    render_selected_view,
-    situated_views,
-    view_intrinsics,
-)
+from glmap_tools.views.common import view_intrinsics
+from glmap_tools.views.topdown import TopDownImage, draw_topdown
+
+if TYPE_CHECKING:
+    from glmap_tools.map import GLMap
+    from glmap_tools.views import RenderedView
 
 EMPTY_MAP = (
     "the map is empty; observe frames (observe_frame or sim_step) before rendering or exporting it."
@@ -106,8 +103,8 @@ def render_request(glmap: GLMap, request: ViewRequest) -> Rendered:
     if request.target in ("instance", "region"):
         return _selected(glmap, request)
     if request.target == "map":
-        pose = overview_pose(glmap, intrinsics, MAP_ELEVATION_DEG)
-        view = render_map(glmap, pose, intrinsics)
+        pose = gviews.overview_pose(glmap, intrinsics, MAP_ELEVATION_DEG)
+        view = gviews.render_map(glmap, pose, intrinsics)
         note = (
             f"The camera looks down from {MAP_ELEVATION_DEG:.0f} deg above the horizon, from "
             "the side the map was observed from, and frames all of it."
@@ -115,10 +112,10 @@ def render_request(glmap: GLMap, request: ViewRequest) -> Rendered:
         return Rendered((view,), (note,))
     if request.target == "pose":
         assert request.pose is not None
-        view = replace(render_map(glmap, request.pose, intrinsics), label="pose")
+        view = replace(gviews.render_map(glmap, request.pose, intrinsics), label="pose")
         return Rendered((view,), ())
     assert request.x is not None and request.y is not None
-    around = situated_views(
+    around = gviews.situated_views(
         glmap, request.x, request.y, math.radians(request.heading_deg), intrinsics
     )
     by_direction = around.by_direction()
@@ -137,7 +134,7 @@ def _selected(glmap: GLMap, request: ViewRequest) -> Rendered:
         raise InvalidInputError(f"unit {request.unit_id} is a region; use target='region'.")
     if request.target == "region" and not isinstance(unit, RegionUnit):
         raise InvalidInputError(f"unit {request.unit_id} is an instance; use target='instance'.")
-    view, choice = render_selected_view(
+    view, choice = gviews.render_selected_view(
         glmap, unit.id, view_intrinsics(*request.size), context=request.context
     )
     drawn = (
