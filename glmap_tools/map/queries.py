@@ -1,7 +1,22 @@
-"""Queries over a GLMap: by text (instances, regions), by position, by id."""
+"""Queries over a GLMap: by text (instances, regions), by position, by id.
+
+Text search (`find`) scores each unit against the query in a few phrasings:
+
+- phrasings: the query itself and, when it asks for a use ("somewhere to sleep", "something
+  to sit on", "where can I wash my hands"), the bare activity ("sleep"), which the
+  embedder places nearer the things used for it than the filler words do;
+- an instance is scored against its label (the short category) and its description
+  separately, and the two cosines are averaged (`LABEL_WEIGHT`); a region, which has no
+  label, against its description;
+- the score is the mean over phrasings, so it stays a cosine-like number in [-1, 1].
+
+A hit is a `match` when its score reaches the embedder's `default_tau_match`, calibrated
+on a labelled query set (docs/search_quality.md); embedders without one leave it None.
+"""
 
 from __future__ import annotations
 
+import re
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -15,6 +30,19 @@ if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
 
 MAX_K = 1000
+LABEL_WEIGHT = 0.5  # share of the label cosine in an instance's score (tuned on the tuning half)
+
+# "somewhere to X", "a place where I can X", "where do I X", "something to X", "a device for X"
+_ASKS_FOR_A_PLACE = re.compile(
+    r"^(?:somewhere|some ?place|a place|a spot|an area|a room|where)\s+"
+    r"(?:(?:can|could|do|should|would|might|may) (?:i|we|you|one)\s+|i can\s+|to\s+|for\s+)?"
+    r"(?P<activity>.+)$"
+)
+_ASKS_FOR_A_THING = re.compile(
+    r"^(?:something|a thing|an object|a device|an appliance|anything|a piece of furniture|what)"
+    r"\s+(?:(?:can|could|do|should) (?:i|we|you) (?:use )?)?(?:to|for|that|used to|used for)"
+    r"\s+(?P<activity>.+)$"
+)
 
 
 def region_gaussians(glmap: GLMap, region: RegionUnit) -> GaussianSet:
@@ -56,17 +84,99 @@ def _round(v: np.ndarray) -> list[float]:
     return [round(float(x), 4) for x in v]
 
 
+def phrasings(text: str) -> list[str]:
+    """The query and, when it asks for a place or thing to do something, that activity.
+
+    >>> phrasings("Somewhere to sleep?")
+    ['Somewhere to sleep?', 'sleep']
+    >>> phrasings("the red chair")
+    ['the red chair']
+    """
+    plain = " ".join(text.lower().split()).rstrip("?!. ")
+    found = _ASKS_FOR_A_PLACE.match(plain) or _ASKS_FOR_A_THING.match(plain)
+    return [text, found.group("activity")] if found else [text]
+
+
+def label_matrix(glmap: GLMap) -> tuple[np.ndarray, np.ndarray]:
+    """(embeddings [N, D] of the instances' labels, [N] bool has a label), rows as instance_matrix.
+
+    Cached with the map's other matrices (cleared on every update); distinct labels are
+    embedded once.
+    """
+    cache = glmap._matrix_cache
+    cached = cache.get("instance-label")
+    if cached is None:
+        ids, _ = glmap.instance_matrix()
+        labels = [glmap.instances[int(i)].label.strip() for i in ids]
+        distinct = sorted(set(labels) - {""})
+        matrix = np.zeros((len(labels), glmap.embedder.dim), np.float32)
+        if distinct:
+            vectors = glmap.embedder.embed(distinct)  # [L, D]
+            row_of = {lab: j for j, lab in enumerate(distinct)}
+            has = np.array([lab != "" for lab in labels], dtype=bool)
+            matrix[has] = vectors[[row_of[lab] for lab in labels if lab]]
+        has_label: np.ndarray = np.asarray(matrix.any(axis=1))  # [N] bool
+        cached = cache["instance-label"] = (matrix, has_label)
+    return cached
+
+
+def text_scores(glmap: GLMap, kind: str, text: str) -> tuple[np.ndarray, np.ndarray]:
+    """(unit ids [N], scores [N]) of every unit of `kind` for the query `text`."""
+    ids, matrix = glmap.instance_matrix() if kind == "instance" else glmap.region_matrix()
+    if len(ids) == 0:
+        return ids, np.zeros(0, np.float32)
+    # Cosines are linear in the query vector, so the mean over phrasings is one product.
+    q = glmap.embedder.embed(phrasings(text)).mean(axis=0)  # [D]
+    scores = matrix @ q  # [N]
+    if kind == "instance":
+        labels, has_label = label_matrix(glmap)
+        mixed = LABEL_WEIGHT * (labels @ q) + (1.0 - LABEL_WEIGHT) * scores
+        scores = np.where(has_label, mixed, scores)
+    return ids, scores
+
+
+def reference_text_scores(glmap: GLMap, kind: str, text: str) -> tuple[np.ndarray, np.ndarray]:
+    """Slow reference of `text_scores`: every phrasing against every unit's fields, one by one."""
+    units = glmap.instances if kind == "instance" else glmap.regions
+    ids = np.array(sorted(units), dtype=np.int64)
+    variants = glmap.embedder.embed(phrasings(text))  # [P, D]
+    scores = np.zeros(len(ids), np.float64)
+    for row, uid in enumerate(ids):
+        unit = units[int(uid)]
+        label = getattr(unit, "label", "").strip()
+        label_vec = glmap.embedder.embed([label])[0] if label else None
+        per_phrasing = []
+        for v in variants:
+            s_desc = float(np.dot(v, unit.embedding))
+            if label_vec is not None and np.any(label_vec):
+                s_label = float(np.dot(v, label_vec))
+                per_phrasing.append(LABEL_WEIGHT * s_label + (1 - LABEL_WEIGHT) * s_desc)
+            else:
+                per_phrasing.append(s_desc)
+        scores[row] = np.mean(per_phrasing)
+    return ids, scores
+
+
+def match_threshold(glmap: GLMap) -> float | None:
+    """The embedder's calibrated match threshold (None: it declares none)."""
+    tau = getattr(glmap.embedder, "default_tau_match", None)
+    return float(tau) if tau is not None else None
+
+
 def find(glmap: GLMap, kind: str, text: str, k: int) -> list[UnitInfo]:
-    """Top-k units of `kind` by cosine between `text` and their embedding."""
+    """Top-k units of `kind` for the query `text`, best first (scoring: module docstring).
+
+    Raises:
+        InvalidInputError: empty text, or k outside 1..MAX_K.
+    """
     if not isinstance(text, str) or not text.strip():
         raise InvalidInputError("query text is empty; describe what to find, e.g. 'a red chair'.")
     if not (1 <= int(k) <= MAX_K):
         raise InvalidInputError(f"k={k!r} must be in 1..{MAX_K}.")
-    ids, matrix = glmap.instance_matrix() if kind == "instance" else glmap.region_matrix()
+    ids, scores = text_scores(glmap, kind, text)
     if len(ids) == 0:
         return []
-    q = glmap.embedder.embed([text])[0]
-    scores = matrix @ q
+    tau = match_threshold(glmap)
     k = min(int(k), len(ids))
     top = np.argpartition(-scores, k - 1)[:k]
     top = top[np.lexsort((ids[top], -scores[top]))]
@@ -75,6 +185,7 @@ def find(glmap: GLMap, kind: str, text: str, k: int) -> list[UnitInfo]:
     for i in top:
         info = details(glmap, units[int(ids[i])])
         info.score = round(float(scores[i]), 4)
+        info.match = None if tau is None else bool(scores[i] >= tau)
         out.append(info)
     return out
 

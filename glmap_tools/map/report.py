@@ -59,7 +59,14 @@ class UnitInfo(BaseModel):
     kind: str = Field(description="'instance' or 'region'")
     label: str = Field(default="", description="short category (instances)")
     description: str = Field(description="the unit's text buffer T")
-    score: float | None = Field(default=None, description="text cosine to the query, if any")
+    score: float | None = Field(
+        default=None, description="similarity to the query in [-1, 1], if any (higher is closer)"
+    )
+    match: bool | None = Field(
+        default=None,
+        description="the score reaches the calibrated match threshold: false means the map "
+        "has nothing that fits the query well (text queries only)",
+    )
     distance: float | None = Field(default=None, description="metres from the query point")
     centroid: list[float] = Field(description="[x, y, z] metres, world z-up")
     bounds: list[list[float]] = Field(description="[[xmin, ymin, zmin], [xmax, ymax, zmax]]")
