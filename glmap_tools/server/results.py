@@ -40,8 +40,9 @@ class Hits(BaseModel):
 
     query: str
     hits: list[UnitInfo] = Field(
-        description="id, description, score (text cosine), centroid, bounds; regions list "
-        "their member instance_ids"
+        description="id, description, score (similarity, higher is closer), match (false: "
+        "nothing in the map fits the query well), centroid, bounds; regions list their "
+        "member instance_ids"
     )
 
 

@@ -140,8 +140,9 @@ def register(server: MCPServer) -> None:
     ) -> Hits:
         """Find objects in the map by description, e.g. 'the sofa' or 'something to sit on'.
 
-        Returns the best-matching instances with id, description, score (text cosine;
-        higher is closer), centroid and bounds in metres (world z up).
+        Returns the best-matching instances with id, description, score (higher is
+        closer), match (false when even the best hit does not fit the query: the map has no
+        such object yet), centroid and bounds in metres (world z up).
         """
         target = session_of(ctx, session)
 
@@ -158,8 +159,8 @@ def register(server: MCPServer) -> None:
     ) -> Hits:
         """Find regions (groups of objects such as 'the dining area') by description.
 
-        Returns the best-matching regions with id, description, score, centroid, bounds and
-        their member instance ids.
+        Returns the best-matching regions with id, description, score, match (false: no
+        region fits the query), centroid, bounds and their member instance ids.
         """
         target = session_of(ctx, session)
 
