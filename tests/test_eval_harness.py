@@ -79,23 +79,30 @@ def test_the_summary_has_a_row_per_agent_and_paired_rows_against_the_first(
     assert data["agents"]["random"]["steps"]["mean"] == MAX_STEPS  # random never stops
 
 
-def test_a_rerun_skips_finished_episodes_and_plays_only_a_missing_one(
+def test_a_rerun_skips_finished_episodes_and_plays_only_missing_or_stale_ones(
     finished: EvalRun,
 ) -> None:
     again = run_eval(spec(), finished.out, workers=2, progress=False)
     assert (again.ran, again.skipped) == (0, 36)
     assert again.records == finished.records
-    gone = finished.out / "episodes" / "frontier" / "tune__objectnav__s01-002.json"
-    before = json.loads(gone.read_text())
+    episodes = finished.out / "episodes"
+    gone = episodes / "frontier" / "tune__objectnav__s01-002.json"
+    stale = episodes / "glmap" / "tune__objectnav__s00-001.json"
+    before = {p: json.loads(p.read_text()) for p in (gone, stale)}
     gone.unlink()
     table_only = run_eval(spec(), finished.out, play=False, progress=False)
     assert (table_only.ran, len(table_only.records["frontier"])) == (0, 5)
     assert "Finished: 35 of 36 (agent, episode) pairs." in (finished.out / "summary.md").read_text()
-    third = run_eval(spec(), finished.out, workers=0, progress=False)
-    assert (third.ran, third.skipped) == (1, 35)
-    replay = json.loads(gone.read_text())
-    for key in ("success", "spl", "distance_to_goal", "steps", "path_length", "tool_calls"):
-        assert replay[key] == before[key]  # a seeded episode replays identically
+    # A result of an episode whose benchmark files changed since is not silently reused.
+    stale.write_text(json.dumps({**before[stale], "episode_key": "0" * 16}))
+    with pytest.raises(InvalidInputError, match="played on other benchmark files"):
+        run_eval(spec(), finished.out, workers=0, progress=False)
+    third = run_eval(spec(), finished.out, workers=0, mix_configs=True, progress=False)
+    assert (third.ran, third.skipped) == (2, 34)
+    for path, old in before.items():
+        replay = json.loads(path.read_text())
+        for key in ("success", "spl", "distance_to_goal", "steps", "path_length", "episode_key"):
+            assert replay[key] == old[key]  # a seeded episode replays identically
 
 
 def test_a_changed_setting_is_refused_unless_mixing_is_asked_for(finished: EvalRun) -> None:

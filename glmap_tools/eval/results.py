@@ -116,8 +116,12 @@ class ResultsDir:
         ok = isinstance(record, dict) and record.get("episode_id") == episode_id
         return record if ok and record.get("agent") == agent else None
 
-    def save(self, record: dict[str, Any]) -> Path:
-        """Write one finished episode atomically (a crash leaves the old file or none)."""
+    def save(self, record: dict[str, Any]) -> dict[str, Any]:
+        """Write one finished episode atomically (a crash leaves the old file or none).
+
+        Returns:
+            the record as stored (non-finite floats as None, settings and time added).
+        """
         for key in ("agent", "episode_id"):
             if not isinstance(record.get(key), str):
                 raise StoreError(f"episode record lacks {key!r}: {record!r}")
@@ -126,4 +130,4 @@ class ResultsDir:
         clean.setdefault("finished_at", datetime.now(UTC).isoformat(timespec="seconds"))
         path = self.episode_path(record["agent"], record["episode_id"])
         write_json(path, clean)
-        return path
+        return clean

@@ -12,7 +12,13 @@ from typing import Any
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.eval.results import ResultsDir, write_json
-from glmap_tools.eval.spec import EvalSpec, episode_seed, parse_agents, select_episodes
+from glmap_tools.eval.spec import (
+    EvalSpec,
+    episode_key,
+    episode_seed,
+    parse_agents,
+    select_episodes,
+)
 from glmap_tools.eval.stats import DEFAULT_RESAMPLES
 from glmap_tools.eval.table import Summary, markdown, summarize
 from glmap_tools.eval.workers import Job, Outcome, run_inline, run_local
@@ -102,17 +108,27 @@ def run_eval(
     results = ResultsDir(out, spec.result_config(), mix_configs=mix_configs)
     records: dict[str, dict[str, dict[str, Any]]] = {a: {} for a in spec.agents}
     jobs: list[Job] = []
+    keys = {be.episode_id: episode_key(be) for be in selected}
+    stale: list[str] = []
     for be in selected:  # scene order, so each worker's server reuses its env
         seed = episode_seed(spec.seed, be.episode_id)
         for agent in spec.agents:
             record = results.load(agent, be.episode_id)
-            if record is not None:
+            if record is not None and record.get("episode_key") not in (None, keys[be.episode_id]):
+                stale.append(f"{agent} on {be.episode_id}")
+            elif record is not None:
                 records[agent][be.episode_id] = record
                 continue
             trace = results.trace_dir(agent, be.episode_id) if traces else None
             jobs.append(
                 Job(agent, be.episode_id, be.scene, seed, spec.max_steps, str(trace or "") or None)
             )
+    if stale and not mix_configs:
+        raise InvalidInputError(
+            f"{len(stale)} finished episodes in {results.root} were played on other benchmark "
+            f"files (e.g. {stale[0]}: the split was regenerated since); choose another --out, "
+            "or pass --mix-configs to replay them."
+        )
     skipped = len(selected) * len(spec.agents) - len(jobs)
     if not play:
         jobs = []
@@ -137,8 +153,9 @@ def run_eval(
                     failures.append(outcome)
                     bar.set_postfix(failed=len(failures))
                 else:
-                    results.save(outcome.record)
-                    records[outcome.job.agent][outcome.job.episode_id] = outcome.record
+                    job = outcome.job
+                    stored = results.save({**outcome.record, "episode_key": keys[job.episode_id]})
+                    records[job.agent][job.episode_id] = stored
                 bar.update(1)
     wall = time.perf_counter() - start
     summary = summarize(records, spec.agents, resamples=resamples)

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import json
 import zlib
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 
 from glmap_tools.errors import InvalidInputError, did_you_mean
@@ -56,6 +60,20 @@ def parse_agents(
 def episode_seed(seed: int, episode_id: str) -> int:
     """The seed of one episode: the same for every agent, so runs are paired."""
     return (seed * 1_000_003 + zlib.crc32(episode_id.encode("utf-8"))) % (2**31 - 1)
+
+
+@functools.lru_cache(maxsize=64)
+def _file_digest(path: str) -> str:
+    return hashlib.sha1(Path(path).read_bytes()).hexdigest()
+
+
+def episode_key(be: Any) -> str:
+    """A digest of what a BenchEpisode is (start, goal, geodesic, scene layout file), so a
+    resumed run notices results of benchmark files that were regenerated since."""
+    e = be.episode
+    what = [list(e.start_position), e.start_heading, e.goal_text, list(e.goal_object_ids)]
+    text = json.dumps([*what, e.geodesic_distance, _file_digest(str(be.layout_path))])
+    return hashlib.sha1(text.encode("utf-8")).hexdigest()[:16]
 
 
 @dataclass(frozen=True)

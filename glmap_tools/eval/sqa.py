@@ -1,0 +1,356 @@
+"""`glmap eval sqa`: situated QA on the benchmark scenes — EM-1, EM-R1, localisation error.
+
+Per scene (resumable: one JSON per scene in --out): build a GLMap from a tour with the
+simulator's annotations (cached as `maps/<scene>.glmap`), generate the scene's situated QA
+(`glmap_tools.sim.qa`, seeded), and answer every question with each agent:
+
+- glmap:       situate the text on the map (paper §3.2), answer at that pose;
+- gt-pose:     answer at the ground-truth pose (the upper bound of the answerer);
+- random-pose: answer at a random seen-free cell and heading (seeded);
+- text-only:   no pose: unit descriptions only; directional questions get the map's most
+               common label (a prior), the rest the same rules.
+
+All four use the offline answerer (`glmap_tools.sqa.answer`), so the rows differ only in
+where the agent thinks it stands. Means come with percentile-bootstrap 95% intervals over
+questions, and paired differences against glmap.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import math
+import os
+import time
+from collections import Counter
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from glmap_tools.errors import GLMapError, InvalidInputError, did_you_mean
+
+SQA_AGENTS = ("glmap", "gt-pose", "random-pose", "text-only")
+LOCALISED_M, LOCALISED_DEG = 1.0, 45.0  # the issue's localisation target
+
+
+@dataclass(frozen=True)
+class SqaSpec:
+    """What one SQA evaluation runs (hashed: a rerun only mixes with the same spec)."""
+
+    split: str = "tune"
+    scenes: int | None = None
+    situations: int = 8
+    agents: tuple[str, ...] = SQA_AGENTS
+    seed: int = 0
+    embedder: str = "minilm"
+    image: tuple[int, int] = (320, 240)
+    tour_step: float = 0.5
+    tour_spin: int = 8
+
+    def key(self) -> str:
+        data = asdict(self)
+        data.pop("scenes")
+        return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:12]
+
+
+def check_agents(names: Sequence[str]) -> tuple[str, ...]:
+    for name in names:
+        if name not in SQA_AGENTS:
+            raise InvalidInputError(
+                f"SQA agent {name!r} is not one of {list(SQA_AGENTS)}."
+                f"{did_you_mean(name, SQA_AGENTS)}"
+            )
+    return tuple(names)
+
+
+def _embedder(name: str) -> Any:
+    from glmap_tools.language import embed
+
+    return embed.HashingEmbedder() if name == "hashing" else embed.default_embedder()
+
+
+def scene_map(spec: SqaSpec, layout: Any, path: Path, embedder: Any) -> Any:
+    """The scene's GLMap, built from a tour once and reopened from `path` afterwards."""
+    from glmap_tools.map import GLMap, MapConfig
+    from glmap_tools.sim.map_eval import build_map_from_tour
+    from glmap_tools.sim.render import CameraSpec
+
+    if path.exists():
+        return GLMap.open(path, embedder=embedder)
+    tmp = path.with_name(path.name + ".building")
+    tmp.unlink(missing_ok=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    glmap = GLMap.open(tmp, MapConfig(), embedder=embedder)
+    try:
+        camera = CameraSpec(width=spec.image[0], height=spec.image[1])
+        build_map_from_tour(layout, glmap, camera, step=spec.tour_step, spin=spec.tour_spin)
+    except BaseException:
+        glmap.close()
+        tmp.unlink(missing_ok=True)
+        raise
+    glmap.close()
+    os.replace(tmp, path)
+    return GLMap.open(path, embedder=embedder)
+
+
+def _free_cells(glmap: Any) -> np.ndarray:
+    from glmap_tools.map.occupancy import FREE
+
+    occ = glmap.occupancy.to_dense()
+    rows, cols = np.nonzero(occ.state == FREE)
+    s = occ.cell_size
+    return np.stack([(cols + occ.origin[0] + 0.5) * s, (rows + occ.origin[1] + 0.5) * s], 1)
+
+
+def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[str, Any]:
+    """Build (or reopen) the scene's map and answer its questions with every agent."""
+    from glmap_tools.sim.benchmark import bench_layout
+    from glmap_tools.sim.qa import generate_qa
+    from glmap_tools.sqa import situate
+    from glmap_tools.sqa.answer import OfflineAnswerer, em1, em_r1
+    from glmap_tools.sqa.surroundings import surroundings
+
+    t0 = time.perf_counter()
+    layout = bench_layout(Path(layout_path))
+    embedder = _embedder(spec.embedder)
+    glmap = scene_map(spec, layout, Path(out) / "maps" / f"{scene}.glmap", embedder)
+    build_s = time.perf_counter() - t0
+    qa = generate_qa(layout, situations=spec.situations, seed=spec.seed)
+    rng = np.random.default_rng([spec.seed, int(hashlib.sha1(scene.encode()).hexdigest()[:8], 16)])
+    free = _free_cells(glmap)
+    prior = Counter(u.label for u in glmap.instances.values()).most_common(1)
+    prior_label = prior[0][0] if prior else ""
+    answerer = OfflineAnswerer()
+    situated: dict[str, Any] = {}
+    records = []
+    for q in qa["questions"]:
+        gt_xy = (q["position"]["_x"], q["position"]["_y"])
+        gt_heading = float(q["heading"])
+        answers = [a["answer"] for a in q["answers"]]
+        for agent in spec.agents:
+            t = time.perf_counter()
+            loc: dict[str, Any] = {}
+            exclude: list[int] = []
+            if agent == "glmap":
+                text = q["situation"]
+                if text not in situated:
+                    try:
+                        situated[text] = situate(glmap, text)
+                    except GLMapError as exc:
+                        situated[text] = exc
+                s = situated[text]
+                if isinstance(s, GLMapError):
+                    pose = None
+                    loc = {"error": str(s)[:200]}
+                else:
+                    pose = (s.x, s.y, s.heading)
+                    exclude = [s.anchors[0].unit_id] if s.anchors else []
+                    err_m = math.hypot(s.x - gt_xy[0], s.y - gt_xy[1])
+                    err_deg = abs(math.degrees(math.remainder(s.heading - gt_heading, math.tau)))
+                    loc = {"err_m": round(err_m, 3), "err_deg": round(err_deg, 1)}
+            elif agent == "gt-pose":
+                pose = (gt_xy[0], gt_xy[1], gt_heading)
+            elif agent == "random-pose":
+                k = int(rng.integers(len(free))) if len(free) else 0
+                xy = free[k] if len(free) else (0.0, 0.0)
+                pose = (float(xy[0]), float(xy[1]), float(rng.uniform(-math.pi, math.pi)))
+            else:
+                pose = None
+            if pose is None and agent != "text-only":
+                pred, supported, qtype = "", False, "unlocated"
+            else:
+                if agent == "text-only":
+                    where = surroundings(glmap, 0.0, 0.0, 0.0, radius=1e4)
+                else:
+                    assert pose is not None
+                    where = surroundings(glmap, pose[0], pose[1], pose[2])
+                a = answerer.answer(q["question"], where, exclude)
+                pred, supported, qtype = a.answer, a.supported, a.question_type
+                if agent == "text-only" and qtype in ("left", "right", "front", "behind"):
+                    pred = prior_label  # no pose: the map's most common label
+            records.append(
+                {
+                    "scene": scene,
+                    "question_id": q["question_id"],
+                    "type": q["question_type"],
+                    "agent": agent,
+                    "prediction": pred,
+                    "answers": answers,
+                    "em1": em1(pred, answers),
+                    "em_r1": em_r1(pred, answers),
+                    "supported": supported,
+                    "seconds": round(time.perf_counter() - t, 4),
+                    **loc,
+                }
+            )
+    glmap.close()
+    return {
+        "scene": scene,
+        "spec": spec.key(),
+        "build_s": round(build_s, 2),
+        "instances": None,
+        "records": records,
+    }
+
+
+def summarize(records: list[dict[str, Any]], agents: Sequence[str], resamples: int = 2000) -> str:
+    """Markdown: EM-1, EM-R1 per agent with intervals, paired differences, per-type EM-1,
+    and the localisation of the glmap agent."""
+    from glmap_tools.eval.stats import bootstrap_mean, paired_difference
+
+    def values(agent: str, key: str) -> np.ndarray:
+        rows = sorted(
+            (r for r in records if r["agent"] == agent),
+            key=lambda r: (r["scene"], r["question_id"]),
+        )
+        return np.array([float(r[key]) for r in rows])
+
+    def cell(i: Any) -> str:
+        return f"{i.mean:.3f} [{i.low:.3f}, {i.high:.3f}]"
+
+    lines = [
+        "| agent | EM-1 | EM-R1 | questions |",
+        "|---|---|---|---|",
+    ]
+    for agent in agents:
+        e1, er = values(agent, "em1"), values(agent, "em_r1")
+        if len(e1) == 0:
+            continue
+        lines.append(
+            f"| {agent} | {cell(bootstrap_mean(e1, resamples=resamples))} | "
+            f"{cell(bootstrap_mean(er, resamples=resamples))} | {len(e1)} |"
+        )
+    if "glmap" in agents:
+        lines += ["", "| glmap minus | EM-1 difference [95%] |", "|---|---|"]
+        base = values("glmap", "em1")
+        for agent in agents:
+            if agent == "glmap" or len(values(agent, "em1")) != len(base):
+                continue
+            d = paired_difference(base, values(agent, "em1"), resamples=resamples)
+            lines.append(f"| {agent} | {cell(d)} |")
+    types = sorted({r["type"] for r in records})
+    lines += ["", "| type | n | " + " | ".join(agents) + " |", "|---|---|" + "---|" * len(agents)]
+    for t in types:
+        row = [t, str(sum(1 for r in records if r["type"] == t and r["agent"] == agents[0]))]
+        for agent in agents:
+            rs = [r for r in records if r["type"] == t and r["agent"] == agent]
+            row.append(f"{np.mean([r['em1'] for r in rs]):.2f}" if rs else "-")
+        lines.append("| " + " | ".join(row) + " |")
+    loc = {}
+    for r in records:
+        if r["agent"] == "glmap":
+            loc[(r["scene"], r["question_id"])] = r
+    if loc:
+        ok = np.array(
+            [
+                float("err_m" in r and r["err_m"] <= LOCALISED_M and r["err_deg"] <= LOCALISED_DEG)
+                for r in loc.values()
+            ]
+        )
+        errs = [r["err_m"] for r in loc.values() if "err_m" in r]
+        degs = [r["err_deg"] for r in loc.values() if "err_deg" in r]
+        lines += [
+            "",
+            f"Localisation (glmap): within {LOCALISED_M:.0f} m and {LOCALISED_DEG:.0f} deg on "
+            f"{cell(bootstrap_mean(ok, resamples=resamples))} of questions; median error "
+            f"{np.median(errs) if errs else float('nan'):.2f} m, "
+            f"{np.median(degs) if degs else float('nan'):.0f} deg; "
+            f"{sum('error' in r for r in loc.values())} not located.",
+        ]
+    return "\n".join(lines) + "\n"
+
+
+def run_sqa_eval(
+    spec: SqaSpec, out: Path, *, workers: int = 2, progress: bool = True
+) -> tuple[str, list[dict[str, Any]]]:
+    """Run (or resume) the evaluation; write `scenes/*.json` and `summary.md`."""
+    from tqdm import tqdm
+
+    from glmap_tools.sim.benchmark import split_dir
+
+    check_agents(spec.agents)
+    manifest = json.loads((split_dir(spec.split) / "split.json").read_text(encoding="utf-8"))
+    scenes = [s["scene"] for s in manifest["scenes"]][: spec.scenes or None]
+    (out / "scenes").mkdir(parents=True, exist_ok=True)
+    todo, results = [], []
+    for scene in scenes:
+        path = out / "scenes" / f"{scene}.json"
+        if path.exists():
+            data = json.loads(path.read_text(encoding="utf-8"))
+            if data["spec"] != spec.key():
+                raise InvalidInputError(
+                    f"{path} was written with other settings (spec {data['spec']} vs "
+                    f"{spec.key()}); use another --out."
+                )
+            results.append(data)
+        else:
+            todo.append(scene)
+    layouts = {s: str(split_dir(spec.split) / s / "layout.json") for s in todo}
+    bar = tqdm(total=len(todo), unit="scene", disable=not progress)
+
+    def keep(data: dict[str, Any]) -> None:
+        (out / "scenes" / f"{data['scene']}.json").write_text(json.dumps(data) + "\n")
+        results.append(data)
+        bar.update(1)
+
+    if workers <= 1 or len(todo) <= 1:
+        for s in todo:
+            keep(answer_scene(spec, s, layouts[s], str(out)))
+    else:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = [pool.submit(answer_scene, spec, s, layouts[s], str(out)) for s in todo]
+            for f in futures:
+                keep(f.result())
+    bar.close()
+    records = [r for data in sorted(results, key=lambda d: d["scene"]) for r in data["records"]]
+    table = summarize(records, spec.agents)
+    head = (
+        f"# SQA on {spec.split}: {len(scenes)} scenes, {spec.situations} situations each, "
+        f"seed {spec.seed}, embedder {spec.embedder}\n\n"
+    )
+    (out / "summary.md").write_text(head + table, encoding="utf-8")
+    return head + table, records
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--split", choices=["tune", "bench"], default="tune")
+    p.add_argument("--scenes", type=int, default=None, help="the first N scenes")
+    p.add_argument("--situations", type=int, default=8, help="situations per scene")
+    p.add_argument("--agents", default=",".join(SQA_AGENTS), help="comma-separated")
+    p.add_argument("--workers", type=int, default=2, help="processes (one scene each)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
+    p.add_argument("--out", type=Path, required=True, help="results folder (resumable)")
+    p.add_argument("--no-progress", action="store_true")
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    spec = SqaSpec(
+        split=args.split,
+        scenes=args.scenes,
+        situations=args.situations,
+        agents=check_agents([a.strip() for a in args.agents.split(",") if a.strip()]),
+        seed=args.seed,
+        embedder=args.embedder,
+    )
+    text, records = run_sqa_eval(
+        spec, args.out, workers=args.workers, progress=not args.no_progress
+    )
+    print(text)
+    print(f"wrote {args.out / 'summary.md'} ({len(records)} answers)")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m glmap_tools.eval.sqa", description=__doc__)
+    add_arguments(p)
+    return run_cli(p.parse_args(argv))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
