@@ -7,6 +7,9 @@ from dataclasses import dataclass
 
 from glmap_tools.errors import InvalidInputError, did_you_mean
 
+# Calibrated on the tune split (scene seeds 1000-1003), see nav/design.md: the score s_u at
+# which an instance counts as the goal, per task (category names vs full descriptions).
+STOP_THRESHOLDS = {"objectnav": 0.5, "instnav": 0.75}
 POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
 ACTIONS = ("move_forward", "turn_left", "turn_right", "stop")
 
@@ -31,6 +34,7 @@ class NavConfig:
         optimistic: whether plans may cross unknown cells (frontier exploration does).
         stuck_steps: steps without progress after which the waypoint is given up.
         plan_stride: the FMM planner works on cells this many map cells wide (1 = map cells).
+        initial_spin: turn_left steps taken first, to look around (12 x 30 deg = a full turn).
     """
 
     agent_radius: float = 0.18
@@ -38,7 +42,7 @@ class NavConfig:
     forward_step: float = 0.25
     turn_angle_deg: float = 30.0
     value_sigma: float = 0.5
-    stop_threshold: float = 0.6
+    stop_threshold: float = 0.5
     min_observations: int = 2
     stop_distance: float = 0.75
     min_frontier_size: int = 5
@@ -47,6 +51,7 @@ class NavConfig:
     optimistic: bool = True
     stuck_steps: int = 12
     plan_stride: int = 1
+    initial_spin: int = 12
 
     def __post_init__(self) -> None:
         positive = (
@@ -75,8 +80,23 @@ class NavConfig:
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise InvalidInputError(f"NavConfig.{name}={value!r} must be an integer >= 1.")
+        if not (isinstance(self.initial_spin, int) and self.initial_spin >= 0):
+            raise InvalidInputError(
+                f"NavConfig.initial_spin={self.initial_spin!r} must be an integer >= 0."
+            )
         if self.window_margin < 0:
             raise InvalidInputError(f"NavConfig.window_margin={self.window_margin!r} must be >= 0.")
+
+    @classmethod
+    def for_task(cls, task: str, **overrides: object) -> NavConfig:
+        """The defaults with the stop threshold calibrated for `task` ('objectnav'|'instnav')."""
+        if task not in STOP_THRESHOLDS:
+            raise InvalidInputError(
+                f"unknown task {task!r}.{did_you_mean(task, STOP_THRESHOLDS)} "
+                f"Choose from {sorted(STOP_THRESHOLDS)}."
+            )
+        values: dict[str, object] = {"stop_threshold": STOP_THRESHOLDS[task], **overrides}
+        return cls(**values)  # type: ignore[arg-type]
 
     @property
     def turn_angle(self) -> float:

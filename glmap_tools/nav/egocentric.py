@@ -15,13 +15,11 @@ import math
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.geometry.backproject import backproject
 from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.map.occupancy import DenseOccupancy
 from glmap_tools.nav.grid import Window
 from glmap_tools.nav.value import ValueMap, as_window
 
-BEARING_BIN = math.radians(1.0)
 DEPTH_STRIDE = 4
 GROW = 64  # cells added on each side when the accumulator grows
 
@@ -69,24 +67,22 @@ class EgocentricValueMap:
     def view_cone(self, frame: RGBDFrame) -> tuple[np.ndarray, np.ndarray]:
         """Cells the frame saw and their confidence: ([K, 2] int (i, j), [K] float in (0, 1]).
 
-        A cell is in the cone when its bearing from the camera is inside the horizontal
-        field of view and it is no farther than the farthest depth point at that bearing.
+        A cell is in the cone when its bearing from the camera falls on an image column and
+        it is no farther (in the plane) than the farthest depth point of that column.
         """
         intr = frame.intrinsics
         half_fov = math.atan2(intr.width / 2.0, intr.fx)
-        cloud = backproject(
-            frame.depth, intr, frame.pose, max_range=self.max_range, stride=DEPTH_STRIDE
-        )
         cam = frame.pose.translation[:2]
         heading = frame.pose.heading
-        if len(cloud) == 0:
+        depth = frame.depth[::DEPTH_STRIDE]
+        valid = np.isfinite(depth) & (depth > 0) & (depth <= self.max_range)
+        if not valid.any():
             return np.zeros((0, 2), np.int64), np.zeros(0)
-        d = cloud.points[:, :2] - cam
-        rel = (np.arctan2(d[:, 1], d[:, 0]) - heading + math.pi) % (2 * math.pi) - math.pi
-        n_bins = int(math.ceil(2 * half_fov / BEARING_BIN)) + 1
-        bins = np.clip(((rel + half_fov) / BEARING_BIN).astype(np.int64), 0, n_bins - 1)
-        reach = np.zeros(n_bins)
-        np.maximum.at(reach, bins, np.hypot(d[:, 0], d[:, 1]))
+        # Planar reach per image column: a level camera's column u looks along bearing
+        # atan((u - cx) / fx) to the right, at planar distance z * sqrt(1 + x^2) of depth z.
+        cols = (np.arange(intr.width) - intr.cx) / intr.fx
+        planar = np.where(valid, depth * np.sqrt(1.0 + cols**2)[None, :], 0.0)
+        reach = planar.max(axis=0)  # [W]
         s = self.cell_size
         r_max = float(reach.max())
         i_lo, i_hi = math.floor((cam[0] - r_max) / s), math.floor((cam[0] + r_max) / s)
@@ -95,9 +91,11 @@ class EgocentricValueMap:
         cx, cy = (ii + 0.5) * s - cam[0], (jj + 0.5) * s - cam[1]
         dist = np.hypot(cx, cy)
         ang = (np.arctan2(cy, cx) - heading + math.pi) % (2 * math.pi) - math.pi
-        inside = np.abs(ang) <= half_fov
-        b = np.clip(((ang + half_fov) / BEARING_BIN).astype(np.int64), 0, n_bins - 1)
-        inside &= dist <= reach[b]
+        inside = np.abs(ang) < half_fov
+        # Image x grows to the right, bearing to the left (counter-clockwise).
+        u = np.round(intr.cx - intr.fx * np.tan(np.where(inside, ang, 0.0))).astype(np.int64)
+        u = np.clip(u, 0, intr.width - 1)
+        inside &= dist <= reach[u]
         conf = np.cos(ang[inside] / half_fov * (math.pi / 2)) ** 2
         cells = np.stack([ii[inside], jj[inside]], axis=1)
         keep = conf > 1e-6

@@ -16,7 +16,7 @@ import skfmm
 from scipy import sparse
 from scipy.sparse import csgraph
 
-from glmap_tools.map.occupancy import DenseOccupancy
+from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
 from glmap_tools.nav.config import NavConfig
 from glmap_tools.nav.errors import UnreachableGoalError
 from glmap_tools.nav.grid import agent_rc, clear_footprint, plannable
@@ -127,11 +127,13 @@ def next_action(
     heading: float,
     config: NavConfig,
     arrived: bool,
+    blocked_ahead: bool = False,
 ) -> str:
     """The discrete action that follows `path` ([K, 2] world xy from the agent).
 
     'stop' when `arrived`; otherwise turn toward the path point `config.lookahead` metres
-    ahead until the heading is within half a turn of it, then move forward.
+    ahead until the heading is within half a turn of it, then move forward, unless
+    `blocked_ahead` (a forward step would enter blocked space): then turn toward the path.
     """
     if arrived or len(path) == 0:
         return "stop"
@@ -142,9 +144,9 @@ def next_action(
         return "stop"
     want = math.atan2(target[1] - agent_xy[1], target[0] - agent_xy[0])
     diff = (want - heading + math.pi) % (2 * math.pi) - math.pi
-    if abs(diff) <= config.turn_angle / 2 + 1e-9:
+    if abs(diff) <= config.turn_angle / 2 + 1e-9 and not blocked_ahead:
         return "move_forward"
-    return "turn_left" if diff > 0 else "turn_right"
+    return "turn_left" if diff >= 0 else "turn_right"
 
 
 def plan_on_field(
@@ -179,8 +181,39 @@ def plan_on_field(
     if reachable:
         path[-1] = goal_xy
     arrived = length <= config.forward_step / 2
-    action = next_action(path, agent_xy, heading, config, arrived)
+    action = next_action(
+        path,
+        agent_xy,
+        heading,
+        config,
+        arrived,
+        not forward_is_free(occ, field, agent_xy, heading, config),
+    )
     return Plan(path, length, action, reachable, end_xy)
+
+
+def forward_is_free(
+    occ: DenseOccupancy,
+    field: np.ndarray,
+    agent_xy: tuple[float, float],
+    heading: float,
+    config: NavConfig,
+) -> bool:
+    """Whether one forward step stays off obstacle cells (seen, or where a move was stopped).
+
+    Only hard evidence counts: the inflated margin is for planning, and an agent that ended
+    up inside it (noise, a cleared footprint) must still be able to move out.
+    """
+    h, w = field.shape
+    n = max(1, math.ceil(config.forward_step / (occ.cell_size / 2)))
+    for k in range(1, n + 1):
+        t = config.forward_step * k / n
+        r, c = occ.world_to_index(
+            agent_xy[0] + t * math.cos(heading), agent_xy[1] + t * math.sin(heading)
+        )
+        if 0 <= r < h and 0 <= c < w and occ.state[r, c] == OBSTACLE:
+            return False
+    return True
 
 
 def nearest_finite(field: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] | None:

@@ -102,8 +102,11 @@ def _bump(
         return
     if math.hypot(agent_xy[0] - state.last_xy[0], agent_xy[1] - state.last_xy[1]) >= BUMP_MOVE:
         return
-    for t in (config.agent_radius + s, config.agent_radius + 2 * s):
-        for side in (-s, 0.0, s):
+    # The simulator stops the centre where its inflated free space ends: the obstacle's
+    # surface is about one agent radius ahead, somewhere across the agent's front.
+    sides = np.arange(-config.agent_radius, config.agent_radius + 1e-9, s / 2)
+    for t in (config.agent_radius + s / 2, config.agent_radius + s):
+        for side in sides:
             x = agent_xy[0] + t * math.cos(heading) - side * math.sin(heading)
             y = agent_xy[1] + t * math.sin(heading) + side * math.cos(heading)
             state.blocked.add((math.floor(x / s), math.floor(y / s)))
@@ -239,6 +242,11 @@ def decide(
     waypoint, out = _choose_and_plan(
         value, fronts, trav, xy, heading, match, occ, field, state, config
     )
+    if state.steps < config.initial_spin and waypoint.kind != "goal":
+        # A full turn first: the camera sees nothing closer than ~1.5 m of floor ahead and
+        # nothing behind, so the first map is a narrow cone.
+        waypoint = Waypoint(xy, "explore", None, 0.0, "looking around before the first move.")
+        out = Plan(np.array([xy]), 0.0, "turn_left", False, xy)
     _track_progress(state, waypoint, out, config)
     state.last_waypoint, state.last_action = waypoint, out.action
     state.last_xy, state.last_heading = xy, heading
@@ -272,6 +280,9 @@ def _choose_and_plan(
         wp = choose_waypoint(
             value, fronts, trav, xy, match, config, occ=occ, distance=field, avoid=state.avoid
         )
+        if wp.xy is None and state.avoid and fronts:
+            state.avoid.clear()  # every frontier was given up once: give them another chance
+            continue
         if wp.xy is None:
             return wp, Plan(np.zeros((0, 2)), math.inf, "stop", False, xy)
         if wp.kind == "goal" and wp.xy == xy:
@@ -286,9 +297,8 @@ def _choose_and_plan(
             state.avoid.append(wp.xy)  # reached, yet still a frontier: look elsewhere
             continue
         return wp, out
-    return Waypoint(None, "none", None, 0.0, "every waypoint was given up."), Plan(
-        np.zeros((0, 2)), math.inf, "stop", False, xy
-    )
+    look = Waypoint(xy, "explore", None, 0.0, "every nearby waypoint was given up: look around.")
+    return look, Plan(np.array([xy]), 0.0, "turn_left", False, xy)
 
 
 def _track_progress(state: NavState, wp: Waypoint, out: Plan, config: NavConfig) -> None:

@@ -164,19 +164,20 @@ def choose_waypoint(
                 )
         # The match has no reachable cell near it yet: keep exploring (next best).
 
-    usable = [
-        f
-        for f in fronts
-        if math.isfinite(f.distance)
-        and all(
-            math.hypot(f.target[0] - a[0], f.target[1] - a[1]) > config.stop_distance for a in avoid
-        )
-    ]
+    usable: list[tuple[Frontier, np.ndarray]] = []  # (frontier, [K, 2] xy of its usable cells)
+    for f in fronts:
+        if not math.isfinite(f.distance):
+            continue
+        xy = occ_xy(f.cells)
+        keep = np.ones(len(xy), dtype=bool)
+        for a in avoid:
+            keep &= np.hypot(xy[:, 0] - a[0], xy[:, 1] - a[1]) > config.stop_distance
+        if keep.any():
+            usable.append((f, xy[keep]))
     peak = value.argmax_xy() if value is not None else None
     if usable and peak is not None:
         best = None
-        for f in usable:
-            xy = occ_xy(f.cells)
+        for f, xy in usable:
             d = np.hypot(xy[:, 0] - peak[0], xy[:, 1] - peak[1])
             k = int(np.argmin(d))
             key = (float(d[k]), f.distance)
@@ -193,9 +194,10 @@ def choose_waypoint(
             f"({peak[0]:.2f}, {peak[1]:.2f}).",
         )
     if usable:
-        f = min(usable, key=lambda f: (f.distance, -f.size))
+        f, xy = min(usable, key=lambda fx: (fx[0].distance, -fx[0].size))
+        k = int(np.argmin(np.hypot(xy[:, 0] - f.target[0], xy[:, 1] - f.target[1])))
         return Waypoint(
-            f.target,
+            (float(xy[k, 0]), float(xy[k, 1])),
             "frontier",
             None,
             0.0,

@@ -1,0 +1,126 @@
+"""decide() on a small built map: deterministic, finds the goal, every policy, bad input."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from glmap_tools import synthetic as scenes
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.nav import (
+    ACTIONS,
+    POLICIES,
+    EmbeddingScorer,
+    NavConfig,
+    NavState,
+    decide,
+    value_map,
+)
+
+TEXTS = {
+    1: ("chair", "a red chair with a wooden frame"),
+    2: ("table", "a large oak dining table"),
+}
+ROOM = 2.5  # half width of the walled room, metres
+
+
+def walls() -> list[scenes.Box]:
+    grey = (0.8, 0.8, 0.8)
+    h, t = 2.0, 0.1
+    return [
+        scenes.Box((-ROOM, -ROOM, 0), (ROOM, -ROOM + t, h), grey, 0),
+        scenes.Box((-ROOM, ROOM - t, 0), (ROOM, ROOM, h), grey, 0),
+        scenes.Box((-ROOM, -ROOM, 0), (-ROOM + t, ROOM, h), grey, 0),
+        # The right wall has a 1 m door at y in [-0.5, 0.5] to unexplored space.
+        scenes.Box((ROOM - t, -ROOM, 0), (ROOM, -0.5, h), grey, 0),
+        scenes.Box((ROOM - t, 0.5, 0), (ROOM, ROOM, h), grey, 0),
+    ]
+
+
+@pytest.fixture(scope="module")
+def built() -> GLMap:
+    """A walled room with a chair and a table, seen from its centre in eight directions."""
+    boxes = scenes.floor(6.0) + walls() + scenes.chair(1.2, 1.3, object_id=1)
+    boxes += scenes.table(-1.0, -1.2, object_id=2)
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    for k in range(8):
+        a = 2 * math.pi * k / 8
+        eye = (0.0, 0.0, 0.88)
+        frame, ids = scenes.view(boxes, eye, (math.cos(a), math.sin(a), 0.88), 96, 72)
+        glmap.integrate(frame, scenes.semantics(ids, TEXTS))
+    return glmap
+
+
+CONFIG = NavConfig(stop_threshold=0.5, min_observations=1, initial_spin=0)
+
+
+def test_decide_heads_for_the_matched_instance_and_stops_within_reach(built: GLMap) -> None:
+    chair = next(i for i, u in built.instances.items() if u.label == "chair")
+    d = decide(built, (0.0, 0.0), 0.0, "a red chair", state=NavState(), config=CONFIG)
+    assert d.waypoint.kind == "goal" and d.matched_unit == chair
+    assert d.plan.reachable and d.action in ("turn_left", "move_forward")
+    assert d.waypoint.xy is not None
+    assert math.dist(d.waypoint.xy, (1.2, 1.3)) <= CONFIG.stop_distance + 0.35
+    # Standing next to the chair: stop.
+    d = decide(built, (0.6, 1.3), 0.0, "a red chair", state=NavState(), config=CONFIG)
+    assert (d.action, d.waypoint.kind) == ("stop", "goal")
+
+
+def test_a_goal_not_in_the_map_sends_the_agent_to_the_door_frontier(built: GLMap) -> None:
+    d = decide(built, (0.0, 0.0), math.pi, "a bathtub", state=NavState(), config=CONFIG)
+    assert d.waypoint.kind == "frontier" and d.matched_unit is None
+    assert d.waypoint.xy is not None and d.waypoint.xy[0] > 2.0  # in the doorway
+    assert any(f.centroid[0] > 2.0 for f in d.frontiers)
+    assert d.action in ("turn_left", "turn_right")  # it faces away from the door
+
+
+def test_the_same_map_and_state_give_the_same_decision_every_time(built: GLMap) -> None:
+    runs = [
+        decide(built, (0.3, -0.2), 1.0, "a table", state=NavState(), config=CONFIG)
+        for _ in range(2)
+    ]
+    a, b = runs
+    assert (a.action, a.waypoint, a.matched_unit) == (b.action, b.waypoint, b.matched_unit)
+    np.testing.assert_array_equal(a.plan.path, b.plan.path)
+    np.testing.assert_array_equal(a.value.values, b.value.values)  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize("policy", POLICIES)
+def test_every_policy_returns_an_action_and_only_value_policies_a_value_map(
+    built: GLMap, policy: str
+) -> None:
+    boxes = scenes.floor(6.0) + walls()
+    frame, _ = scenes.view(boxes, (0.0, 0.0, 0.88), (1.0, 0.0, 0.88), 96, 72)
+    d = decide(
+        built,
+        (0.0, 0.0),
+        0.0,
+        "a bathtub",
+        policy=policy,
+        state=NavState(),
+        config=CONFIG,
+        frame=frame,
+    )
+    assert d.action in ACTIONS
+    assert (d.value is None) == (policy == "frontier")
+
+
+def test_the_value_map_of_a_goal_peaks_at_its_unit(built: GLMap) -> None:
+    vm = value_map(built, "a red chair", EmbeddingScorer(built.embedder), units="instances")
+    x, y = vm.argmax_xy()  # type: ignore[misc]
+    assert math.dist((x, y), (1.2, 1.3)) < 0.4
+
+
+def test_an_empty_goal_or_unknown_policy_is_refused_with_the_fix(built: GLMap) -> None:
+    with pytest.raises(InvalidInputError, match="goal '' is empty"):
+        decide(built, (0.0, 0.0), 0.0, "", state=NavState())
+    with pytest.raises(InvalidInputError, match="Did you mean 'glmap-region'"):
+        decide(built, (0.0, 0.0), 0.0, "a chair", policy="glmap-regions")
+    with pytest.raises(InvalidInputError, match="finite"):
+        decide(built, (math.nan, 0.0), 0.0, "a chair")
+    with pytest.raises(InvalidInputError, match="units="):
+        value_map(built, "a chair", EmbeddingScorer(built.embedder), units="all")

@@ -1,0 +1,155 @@
+"""Frontiers on hand-built occupancy grids, and the waypoint rule that picks among them."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
+from glmap_tools.nav import (
+    GoalMatch,
+    NavConfig,
+    ValueMap,
+    choose_waypoint,
+    frontiers,
+    traversable,
+)
+from glmap_tools.nav.planner import agent_field
+
+CELL = 0.05
+RADIUS = 0.18
+
+
+def room_with_door(door_cells: int) -> DenseOccupancy:
+    """A 2 m x 2 m free room (walls all round) in unknown space; a door in the right wall.
+
+    Rows 10..50, columns 10..50 (walls on the border rows/columns); the door is centred
+    on row 30 of column 50; beyond it everything is unknown.
+    """
+    state = np.full((61, 81), UNKNOWN, dtype=np.int8)
+    state[10:51, 10:51] = OBSTACLE
+    state[11:50, 11:50] = FREE
+    half = door_cells // 2
+    state[30 - half : 30 - half + door_cells, 50] = FREE
+    return DenseOccupancy(state, (0, 0), CELL)
+
+
+def centre(occ: DenseOccupancy) -> tuple[float, float]:
+    return occ.index_to_world(30, 30)
+
+
+def test_a_room_with_a_door_to_unknown_space_has_one_frontier_in_the_doorway() -> None:
+    occ = room_with_door(20)  # a 1 m door
+    fronts = frontiers(occ, centre(occ), RADIUS, min_size=3)
+    assert len(fronts) == 1
+    f = fronts[0]
+    door = occ.index_to_world(30, 50)
+    assert math.dist(f.centroid, door) < 0.1
+    # 20 door cells less the inflation of the door posts on both sides (3 cells each).
+    assert f.size == 20 - 2 * 3
+    assert np.all(f.cells[:, 1] == 50)
+    assert f.distance == pytest.approx(math.dist(centre(occ), door), rel=0.05)
+    assert math.dist(f.target, f.centroid) <= CELL
+
+
+def test_a_door_narrower_than_the_agent_is_closed_by_inflation() -> None:
+    wide, narrow = room_with_door(10), room_with_door(6)  # 0.5 m and 0.3 m doors
+    assert len(frontiers(wide, centre(wide), RADIUS, min_size=1)) == 1
+    assert frontiers(narrow, centre(narrow), RADIUS, min_size=1) == []
+    # The same narrow door is open to a thinner agent.
+    assert len(frontiers(narrow, centre(narrow), 0.1, min_size=1)) == 1
+
+
+def test_a_frontier_behind_a_wall_is_not_reachable_and_is_left_out() -> None:
+    occ = room_with_door(20)
+    state = occ.state.copy()
+    state[30, 50] = state[20:41, 50] = OBSTACLE  # close the door
+    state[20:40, 60:75] = FREE  # a seen patch beyond the wall, with unknown all round it
+    closed = DenseOccupancy(state, occ.origin, CELL)
+    assert frontiers(closed, centre(closed), RADIUS, min_size=1) == []
+    inside = closed.index_to_world(30, 67)
+    assert len(frontiers(closed, inside, RADIUS, min_size=1)) == 1
+
+
+def test_clusters_smaller_than_min_size_are_dropped() -> None:
+    occ = room_with_door(20)
+    assert frontiers(occ, centre(occ), RADIUS, min_size=15) == []
+
+
+def two_door_room() -> DenseOccupancy:
+    """The room with a 1 m door on the right (row 30) and one on the top wall (column 20)."""
+    occ = room_with_door(20)
+    state = occ.state.copy()
+    state[50, 10:31] = FREE
+    state[50, 10] = OBSTACLE
+    return DenseOccupancy(state, occ.origin, CELL)
+
+
+def value_peak_at(occ: DenseOccupancy, row: int, col: int) -> ValueMap:
+    values = np.zeros(occ.state.shape)
+    values[row, col] = 1.0
+    return ValueMap(values, occ.origin, CELL, 1.0, 0.5)
+
+
+def test_the_waypoint_is_the_frontier_closest_to_the_value_maximum() -> None:
+    occ = two_door_room()
+    here = occ.index_to_world(35, 40)  # nearer the right door
+    config = NavConfig()
+    field = agent_field(occ, here, config)
+    fronts = frontiers(occ, here, RADIUS, min_size=3, distance_field=field)
+    assert len(fronts) == 2
+    trav = traversable(occ, RADIUS)
+    top = value_peak_at(occ, 58, 20)  # beyond the top door
+    wp = choose_waypoint(top, fronts, trav, here, None, config, occ=occ, distance=field)
+    assert wp.kind == "frontier" and wp.xy is not None
+    assert occ.world_to_index(*wp.xy)[0] == 50  # in the top doorway
+    right = value_peak_at(occ, 30, 70)
+    wp = choose_waypoint(right, fronts, trav, here, None, config, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]
+    # Without a value map: the nearest frontier (the right door).
+    wp = choose_waypoint(None, fronts, trav, here, None, config, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]
+    # A frontier the planner cannot reach is skipped for the next best.
+    blocked = [f if f.cells[0, 0] != 50 else _unreachable(f) for f in fronts]
+    wp = choose_waypoint(top, blocked, trav, here, None, config, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]
+
+
+def _unreachable(f):  # type: ignore[no-untyped-def]
+    from dataclasses import replace
+
+    return replace(f, distance=math.inf)
+
+
+def test_a_matched_unit_gives_the_nearest_navigable_cell_within_the_stop_distance() -> None:
+    occ = room_with_door(20)
+    config = NavConfig()
+    here = occ.index_to_world(20, 20)
+    cells = np.array([(i, j) for i in range(38, 42) for j in range(38, 42)])  # a 20 cm box
+    match = GoalMatch(7, 0.9, 3, cells)
+    trav = traversable(occ, RADIUS)
+    field = agent_field(occ, here, config)
+    wp = choose_waypoint(None, [], trav, here, match, config, occ=occ, distance=field)
+    assert wp.kind == "goal" and wp.unit_id == 7 and wp.xy is not None
+    assert trav[occ.world_to_index(*wp.xy)]
+    box_centre = (40 * CELL, 40 * CELL)
+    assert math.dist(wp.xy, box_centre) <= config.stop_distance + 0.1 + 0.001
+    assert math.dist(wp.xy, box_centre) >= 0.4  # not further in than it must: the near edge
+    # Standing within the stop distance already: the waypoint is where the agent is.
+    near = (40 * CELL - 0.5, 40 * CELL)
+    wp = choose_waypoint(None, [], trav, near, match, config, occ=occ, distance=field)
+    assert wp.kind == "goal" and wp.xy == near
+
+
+def test_no_frontier_no_match_and_no_value_means_no_waypoint() -> None:
+    occ = room_with_door(0)  # a closed room: nothing left to explore
+    here = centre(occ)
+    trav = traversable(occ, RADIUS)
+    assert frontiers(occ, here, RADIUS) == []
+    wp = choose_waypoint(None, [], trav, here, None, NavConfig(), occ=occ)
+    assert (wp.kind, wp.xy) == ("none", None)
+    # With a value map the agent heads for its best navigable cell instead.
+    wp = choose_waypoint(value_peak_at(occ, 45, 45), [], trav, here, None, NavConfig(), occ=occ)
+    assert wp.kind == "explore" and math.dist(wp.xy, occ.index_to_world(45, 45)) < 0.2  # type: ignore[arg-type]

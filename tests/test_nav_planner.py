@@ -1,0 +1,159 @@
+"""The FMM planner against its Dijkstra reference, obstacle inflation, and the next action."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
+from glmap_tools.nav import (
+    DIJKSTRA8_MAX_RATIO,
+    NavConfig,
+    OutsideMapError,
+    UnreachableGoalError,
+    geodesic,
+    inflate,
+    next_action,
+    plan,
+    reference_geodesic,
+)
+from glmap_tools.nav.grid import inflate_reference
+
+CELL = 0.05
+# FMM is isotropic; 8-connected Dijkstra pays up to DIJKSTRA8_MAX_RATIO (8.24 %) on straight
+# lines between the 8 directions. Near obstacles both hug corners on the grid, and FMM's
+# first cells around the source carry a discretisation error of about half a cell, so the
+# ratio is held in [1 - 3 %, DIJKSTRA8_MAX_RATIO + 3 %] for cells at least 10 cells away.
+LOW, HIGH = 0.97, DIJKSTRA8_MAX_RATIO + 0.03
+
+
+def room(h: int = 60, w: int = 80) -> np.ndarray:
+    """[h, w] int8 state: a FREE room with OBSTACLE walls all round."""
+    state = np.full((h, w), FREE, dtype=np.int8)
+    state[0, :] = state[-1, :] = state[:, 0] = state[:, -1] = OBSTACLE
+    return state
+
+
+def random_plannable(seed: int, h: int, w: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    ok = np.ones((h, w), dtype=bool)
+    for _ in range(6):  # a few rectangular obstacles
+        r, c = rng.integers(0, h - 8), rng.integers(0, w - 8)
+        ok[r : r + rng.integers(2, 12), c : c + rng.integers(2, 12)] = False
+    return ok
+
+
+@pytest.mark.parametrize(("seed", "h", "w"), [(0, 40, 40), (1, 60, 90), (2, 80, 50)])
+def test_fmm_geodesic_agrees_with_dijkstra_within_the_stated_tolerance(
+    seed: int, h: int, w: int
+) -> None:
+    ok = random_plannable(seed, h, w)
+    rows, cols = np.nonzero(ok)
+    k = len(rows) // 2
+    src = (int(rows[k]), int(cols[k]))
+    fast = geodesic(ok, src, CELL)
+    ref = reference_geodesic(ok, src, CELL)
+    assert np.array_equal(np.isfinite(fast), np.isfinite(ref))
+    far = np.isfinite(ref) & (ref >= 10 * CELL)
+    ratio = ref[far] / fast[far]
+    assert ratio.min() >= LOW, ratio.min()
+    assert ratio.max() <= HIGH, ratio.max()
+
+
+def test_fmm_is_exact_along_an_axis_and_shorter_than_dijkstra_off_the_8_directions() -> None:
+    ok = np.ones((41, 101), dtype=bool)
+    fast = geodesic(ok, (20, 0), CELL)
+    ref = reference_geodesic(ok, (20, 0), CELL)
+    assert fast[20, 100] == pytest.approx(100 * CELL, rel=0.01)
+    # (20 rows, 50 cols): about 22 deg off the axis, where 8-connected paths are worst.
+    true = math.hypot(20, 50) * CELL
+    assert fast[0, 50] == pytest.approx(true, rel=0.02)
+    assert ref[0, 50] / true > 1.07
+
+
+@pytest.mark.parametrize("radius", [0.9, 2.5, 3.6, 5.0])
+def test_row_wise_inflation_equals_binary_dilation_with_a_disk(radius: float) -> None:
+    mask = np.random.default_rng(3).random((50, 70)) < 0.03
+    assert np.array_equal(inflate(mask, radius), inflate_reference(mask, radius))
+
+
+def occ_of(state: np.ndarray, origin: tuple[int, int] = (-10, -20)) -> DenseOccupancy:
+    return DenseOccupancy(state, origin, CELL)
+
+
+def test_a_plan_has_the_reference_length_and_runs_from_agent_to_goal_on_free_cells() -> None:
+    state = room()
+    state[10:50, 40] = OBSTACLE  # a wall with a gap at the bottom
+    occ = occ_of(state)
+    start, goal = occ.index_to_world(30, 20), occ.index_to_world(30, 60)
+    out = plan(occ, start, 0.0, goal, NavConfig())
+    assert out.reachable
+    np.testing.assert_allclose(out.path[0], start)
+    np.testing.assert_allclose(out.path[-1], goal)
+    ok = (state == FREE) & ~inflate(state == OBSTACLE, 0.18 / CELL)
+    ref = reference_geodesic(ok, occ.world_to_index(*goal), CELL)[occ.world_to_index(*start)]
+    assert LOW <= ref / out.length <= HIGH
+    polyline = float(np.linalg.norm(np.diff(out.path, axis=0), axis=1).sum())
+    assert out.length <= polyline * 1.001
+    for x, y in out.path[1:-1]:
+        assert ok[occ.world_to_index(x, y)]
+
+
+def test_facing_the_path_moves_forward_behind_turns_and_at_the_goal_stops() -> None:
+    config = NavConfig()
+    path = np.array([[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]])
+    assert next_action(path, (0.0, 0.0), 0.0, config, arrived=False) == "move_forward"
+    assert next_action(path, (0.0, 0.0), math.radians(10), config, False) == "move_forward"
+    assert next_action(path, (0.0, 0.0), math.pi, config, False) in ("turn_left", "turn_right")
+    assert next_action(path, (0.0, 0.0), math.radians(-90), config, False) == "turn_left"
+    assert next_action(path, (0.0, 0.0), math.radians(90), config, False) == "turn_right"
+    assert next_action(path, (0.0, 0.0), 0.0, config, arrived=True) == "stop"
+    assert next_action(path, (0.0, 0.0), 0.0, config, False, blocked_ahead=True) == "turn_left"
+
+
+def test_plan_stops_at_the_goal_and_turns_when_the_goal_is_behind() -> None:
+    occ = occ_of(room())
+    here = occ.index_to_world(30, 40)
+    assert plan(occ, here, 0.0, here).action == "stop"
+    behind = occ.index_to_world(30, 20)
+    assert plan(occ, here, 0.0, behind).action in ("turn_left", "turn_right")
+    assert plan(occ, here, math.pi, behind).action == "move_forward"
+
+
+def test_an_enclosed_goal_is_unreachable_and_the_error_names_the_nearest_reachable_point() -> None:
+    state = room()
+    state[20:40, 50] = state[20:40, 70] = state[20, 50:71] = state[40, 50:71] = OBSTACLE
+    occ = occ_of(state)
+    start, goal = occ.index_to_world(30, 10), occ.index_to_world(30, 60)
+    with pytest.raises(UnreachableGoalError, match="Nearest reachable point") as info:
+        plan(occ, start, 0.0, goal)
+    assert info.value.nearest_xy is not None
+    near = info.value.nearest_xy
+    # Just outside the box's inflated walls: 14 cells (0.7 m) from the goal, and reachable.
+    assert math.dist(near, goal) == pytest.approx(14 * CELL)
+    assert plan(occ, start, 0.0, near).reachable
+    loose = plan(occ, start, 0.0, goal, strict=False)
+    assert not loose.reachable and math.isfinite(loose.length)
+    assert loose.goal_xy == pytest.approx(info.value.nearest_xy)
+
+
+def test_unknown_space_is_crossed_only_when_planning_is_optimistic() -> None:
+    state = room()
+    state[:, 40] = OBSTACLE
+    state[25:35, 40] = UNKNOWN  # an unseen stretch of the dividing wall
+    occ = occ_of(state)
+    start, goal = occ.index_to_world(30, 20), occ.index_to_world(30, 60)
+    assert plan(occ, start, 0.0, goal, NavConfig(optimistic=True)).reachable
+    with pytest.raises(UnreachableGoalError):
+        plan(occ, start, 0.0, goal, NavConfig(optimistic=False))
+
+
+def test_an_agent_or_goal_outside_the_window_is_refused() -> None:
+    occ = occ_of(room())
+    inside = occ.index_to_world(30, 40)
+    with pytest.raises(OutsideMapError, match="agent position"):
+        plan(occ, (100.0, 100.0), 0.0, inside)
+    with pytest.raises(OutsideMapError, match="goal position"):
+        plan(occ, inside, 0.0, (-100.0, 0.0))

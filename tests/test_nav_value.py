@@ -1,0 +1,92 @@
+"""The Eq. 7 value map against its direct double sum, the scorer, and the egocentric map."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from glmap_tools import synthetic as scenes
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.map.grid import IndexGrid
+from glmap_tools.nav import (
+    EgocentricValueMap,
+    EmbeddingScorer,
+    UnitText,
+    Window,
+    value_map_from_scores,
+    value_map_reference,
+)
+
+
+def small_grid() -> IndexGrid:
+    """Two instances and a region over both (cells overlap, as in a real map)."""
+    grid = IndexGrid(0.05)
+    grid.set_unit(1, [(i, j) for i in range(2, 5) for j in range(3, 6)])
+    grid.set_unit(2, [(12, 9), (13, 9), (13, 10)])
+    grid.set_unit(3, grid.cells_of_unit(1) | grid.cells_of_unit(2))
+    grid.set_unit(4, [(-3, -2)])  # outside the window below: must not contribute
+    return grid
+
+
+@pytest.mark.parametrize("sigma", [0.05, 0.12, 0.3])
+def test_the_fast_value_map_equals_the_explicit_double_sum_of_eq_7(sigma: float) -> None:
+    grid = small_grid()
+    window = Window(0, 0, 16, 18)
+    scores = {1: 0.9, 2: 0.4, 3: 0.25, 4: 1.0}
+    fast = value_map_from_scores(scores, grid, window, sigma)
+    ref = value_map_reference(scores, grid, window, sigma)
+    np.testing.assert_allclose(fast.values, ref.values, rtol=0, atol=1e-12)
+    assert fast.peak == pytest.approx(ref.peak, rel=1e-12)
+    assert fast.values.max() == pytest.approx(1.0)
+    assert fast.origin == (0, 0) and fast.values.shape == (16, 18)
+
+
+def test_the_value_map_peaks_on_the_best_unit_and_lists_separate_top_cells() -> None:
+    grid = small_grid()
+    vm = value_map_from_scores({1: 0.2, 2: 0.9}, grid, Window(0, 0, 16, 18), 0.1)
+    x, y = vm.argmax_xy()  # type: ignore[misc]
+    assert grid.cell_of(x, y) in grid.cells_of_unit(2)
+    top = vm.top_cells(3, min_separation=0.3)
+    assert top[0][2] == pytest.approx(1.0)
+    assert all(math.dist(a[:2], b[:2]) >= 0.3 for a in top for b in top if a is not b)
+
+
+def test_a_map_where_nothing_scores_is_empty_and_has_no_maximum() -> None:
+    vm = value_map_from_scores({1: 0.0}, small_grid(), Window(0, 0, 8, 8), 0.2)
+    assert vm.empty and vm.argmax_xy() is None and vm.top_cells() == []
+    with pytest.raises(InvalidInputError, match="must be in"):
+        value_map_from_scores({1: 1.5}, small_grid(), Window(0, 0, 8, 8), 0.2)
+
+
+def test_the_embedding_scorer_maps_cosines_to_zero_one_and_ranks_the_matching_text_first() -> None:
+    scorer = EmbeddingScorer(HashingEmbedder())
+    units = [
+        UnitText(1, "instance", "a red chair with four legs"),
+        UnitText(2, "instance", "a wooden table"),
+        UnitText(3, "region", "a kitchen with a stove"),
+    ]
+    s = scorer.score("red chair", units)
+    assert s.shape == (3,) and np.all((s >= 0) & (s <= 1))
+    assert int(np.argmax(s)) == 0
+    assert scorer.score("a wooden table", [units[1]])[0] == pytest.approx(1.0, abs=1e-6)
+    with pytest.raises(InvalidInputError, match="goal"):
+        scorer.score("  ", units)
+
+
+def test_the_egocentric_map_fills_the_view_cone_and_fuses_by_confidence() -> None:
+    boxes = scenes.floor(6.0) + [scenes.Box((3.0, -3.0, 0.0), (3.2, 3.0, 2.0), (0.7, 0.7, 0.7), 0)]
+    frame, _ = scenes.view(boxes, (0.0, 0.0, 0.9), (1.0, 0.0, 0.9), 80, 60)
+    ego = EgocentricValueMap(0.05)
+    n = ego.add_frame(frame, 0.8)
+    assert n > 100
+    vm = ego.as_value_map()
+    assert vm.value_at(2.0, 0.0) == pytest.approx(0.8)  # on the optical axis, before the wall
+    assert vm.value_at(-1.0, 0.0) == 0.0  # behind the camera
+    assert vm.value_at(4.0, 0.0) == 0.0  # behind the wall
+    ego.add_frame(frame, 0.2)  # same view, same confidences: the plain mean
+    assert ego.as_value_map().value_at(2.0, 0.0) == pytest.approx(0.5)
+    # Off-axis cells are trusted less: a confident on-axis view outweighs them.
+    assert ego.confidence.max() <= 1.0 + 1e-9
