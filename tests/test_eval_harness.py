@@ -18,7 +18,7 @@ import pytest
 from agents.runner import AGENTS
 from glmap_tools import cli
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.eval import EvalSpec, episode_seed
+from glmap_tools.eval import EvalSpec, episode_seed, select_episodes
 from glmap_tools.eval.ray_engine import CONNECT_TIMEOUT_S, RayUnavailableError, check_address
 from glmap_tools.eval.run import EvalRun, run_eval
 
@@ -177,3 +177,14 @@ def test_a_grpc_server_that_is_not_ray_is_told_apart() -> None:
 def test_a_malformed_ray_address_says_what_forms_work() -> None:
     with pytest.raises(InvalidInputError, match="HOST:PORT or ray://HOST:PORT"):
         check_address("my-cluster")
+
+
+def test_the_selection_is_the_first_scenes_and_their_first_episodes() -> None:
+    from glmap_tools.sim.benchmark import load_split
+
+    every = load_split("tune", "instnav")
+    scenes = sorted({be.scene for be in every})[:2]
+    expected = [[be.episode_id for be in every if be.scene == s][:3] for s in scenes]
+    chosen = [be.episode_id for be in select_episodes("instnav", "tune", 2, 3)]
+    assert chosen == expected[0] + expected[1]
+    assert chosen == [be.episode_id for be in select_episodes("instnav", "tune", 2, 3)]
