@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from glmap_tools import synthetic as scenes
+from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.map.structure import StructureLayer
 from glmap_tools.views import render_map, select_view, situated_views, view_intrinsics
 
 CHAIR_XY = (0.0, 0.7)
@@ -105,3 +107,31 @@ def test_the_layer_can_be_switched_off():
     frame, ids = scenes.view(room(), (0.0, 2.6, 1.2), (*CHAIR_XY, 0.3), 96, 72)
     assert glmap.integrate(frame, scenes.semantics(ids, TEXTS)).structure_gaussians == 0
     assert len(glmap.structure) == 0 and len(glmap.instances) == 1
+
+
+def _random_structure(rng: np.random.Generator, n: int, centre: float) -> GaussianSet:
+    means = centre + rng.uniform(-0.25, 0.25, (n, 3))
+    a = rng.normal(0, 0.01, (n, 3, 3))
+    covs = a @ a.transpose(0, 2, 1) + 1e-5 * np.eye(3)
+    colors = rng.uniform(0, 1, (n, 3))
+    return GaussianSet(means, covs, colors, np.full(n, 0.8), rng.integers(5, 50, n))
+
+
+@pytest.mark.parametrize("centre", [0.0, 1e5])  # 1e5 m: beyond the packed keys' reach
+def test_the_fast_per_voxel_merge_equals_the_plain_reference(centre):
+    rng = np.random.default_rng(7)
+    layer = StructureLayer(0.05)
+    for _ in range(3):
+        fitted = _random_structure(rng, 500, centre)
+        fast, slow = layer.compute_update(fitted), layer.compute_update_reference(fitted)
+        assert sorted(fast) == sorted(slow)
+        for key, chunk in fast.items():
+            other = slow[key]
+            np.testing.assert_array_equal(chunk.keys, other.keys)
+            np.testing.assert_array_equal(chunk.gaussians.counts, other.gaussians.counts)
+            for name in ("means", "covs", "colors", "opacities"):
+                np.testing.assert_allclose(
+                    getattr(chunk.gaussians, name), getattr(other.gaussians, name), atol=1e-5
+                )
+        layer.apply(fast)
+    assert len(layer) == len({tuple(k) for c in layer.chunks.values() for k in c.keys.tolist()})

@@ -51,14 +51,28 @@ def chunk_of_keys(keys: np.ndarray) -> np.ndarray:  # [K, 3] -> [K, 2]
     return np.floor_divide(keys[:, :2], CHUNK)
 
 
-def _group_sorted(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(order, labels): a lexicographic sort of [N, 3] keys and a label per sorted row,
-    equal labels for equal keys, increasing with the key."""
+KEY_BITS = 21  # bits per axis of a packed voxel key: +-1M voxels, 52 km at 5 cm
+_OFFSET = 1 << (KEY_BITS - 1)
+
+
+def pack_keys(keys: np.ndarray) -> np.ndarray | None:  # [N, 3] -> [N] int64
+    """One int64 per voxel key, ordered as the keys are lexicographically; None when a key
+    lies beyond +-2**20 voxels on some axis."""
+    shifted = keys + _OFFSET
+    if len(keys) and (shifted.min() < 0 or shifted.max() >= 1 << KEY_BITS):
+        return None
+    return (shifted[:, 0] << (2 * KEY_BITS)) | (shifted[:, 1] << KEY_BITS) | shifted[:, 2]
+
+
+def _lexical_rank(keys: np.ndarray) -> np.ndarray:  # [N, 3] -> [N] int64
+    """Dense rank of each key in lexicographic order (equal keys, equal rank): a slower
+    stand-in for `pack_keys` that works for any key."""
     order = np.lexsort((keys[:, 2], keys[:, 1], keys[:, 0]))
-    sorted_keys = keys[order]
     new = np.ones(len(keys), dtype=bool)
-    new[1:] = np.any(np.diff(sorted_keys, axis=0) != 0, axis=1)
-    return order, np.cumsum(new) - 1
+    new[1:] = np.any(np.diff(keys[order], axis=0) != 0, axis=1)
+    rank = np.empty(len(keys), dtype=np.int64)
+    rank[order] = np.cumsum(new) - 1
+    return rank
 
 
 class StructureLayer:
@@ -90,7 +104,8 @@ class StructureLayer:
         """New chunks for the chunks that one frame's structure Gaussians touch.
 
         Gaussians sharing a voxel (stored or new) are combined into one by their counts and
-        moments; the layer itself is not changed (see `apply`).
+        moments; stored Gaussians in voxels the frame did not see are kept as they are. The
+        layer itself is not changed (see `apply`).
 
         Args:
             fitted: the frame's structure Gaussians (one per coarse voxel, merge off).
@@ -98,25 +113,61 @@ class StructureLayer:
         if len(fitted) == 0:
             return {}
         new_keys = self.voxel_keys(fitted)
-        touched = {tuple(map(int, c)) for c in np.unique(chunk_of_keys(new_keys), axis=0)}
+        new_chunks = chunk_of_keys(new_keys)
+        touched = {(int(i), int(j)) for i, j in set(map(tuple, new_chunks.tolist()))}
         old = [self.chunks[c] for c in sorted(touched) if c in self.chunks]
-        keys = np.concatenate([*(c.keys for c in old), new_keys])
-        g = GaussianSet.concat([*(c.gaussians for c in old), fitted])
-        order, labels = _group_sorted(keys)
-        merged = combine(g.subset(order), labels)
-        first = np.flatnonzero(np.r_[True, np.diff(labels) != 0])
-        merged_keys = keys[order][first]
-        chunk = chunk_of_keys(merged_keys)
-        by_chunk = np.lexsort((chunk[:, 1], chunk[:, 0]))  # stable: keys stay sorted within
-        chunk, merged_keys = chunk[by_chunk], merged_keys[by_chunk]
-        merged = merged.subset(by_chunk)
+        old_keys = np.concatenate([c.keys for c in old]) if old else np.zeros((0, 3), np.int64)
+        old_g = GaussianSet.concat([c.gaussians for c in old])
+        keys = np.concatenate([old_keys, new_keys])
+        rank = pack_keys(keys)
+        if rank is None:
+            rank = _lexical_rank(keys)
+        # Only stored voxels the frame saw again are combined; the rest pass through.
+        seen = np.isin(rank[: len(old_keys)], rank[len(old_keys) :])
+        parts = np.concatenate([np.flatnonzero(seen), len(old_keys) + np.arange(len(new_keys))])
+        labels, first, inverse = np.unique(rank[parts], return_index=True, return_inverse=True)
+        combined = combine(GaussianSet.concat([old_g.subset(seen), fitted]), inverse.reshape(-1))
+        kept = np.flatnonzero(~seen)
+        all_keys = np.concatenate([old_keys[kept], keys[parts[first]]])
+        all_g = GaussianSet.concat([old_g.subset(kept), combined])
+        all_rank = np.concatenate([rank[kept], labels])
+        chunk = chunk_of_keys(all_keys)
+        order = np.lexsort((all_rank, chunk[:, 1], chunk[:, 0]))  # by chunk, then by key
+        chunk, all_keys, all_g = chunk[order], all_keys[order], all_g.subset(order)
         bounds = np.flatnonzero(np.r_[True, np.any(np.diff(chunk, axis=0) != 0, axis=1), True])
         out: dict[ChunkKey, StructureChunk] = {}
         for start, stop in zip(bounds[:-1], bounds[1:], strict=True):
             key = (int(chunk[start, 0]), int(chunk[start, 1]))
             rows = np.arange(start, stop)
-            out[key] = StructureChunk(merged_keys[rows].copy(), merged.subset(rows))
+            out[key] = StructureChunk(all_keys[rows], all_g.subset(rows))
         return out
+
+    def compute_update_reference(self, fitted: GaussianSet) -> dict[ChunkKey, StructureChunk]:
+        """`compute_update` the slow, plain way (a dict of voxels); for tests.
+
+        Every voxel of a touched chunk is combined on its own, also voxels holding one
+        Gaussian, so values may differ from the fast path in the last float32 bit.
+        """
+        voxels: dict[tuple[int, int, int], list[GaussianSet]] = {}
+        new_keys = self.voxel_keys(fitted)
+        touched = {(int(k[0]) // CHUNK, int(k[1]) // CHUNK) for k in new_keys}
+        for c in touched & set(self.chunks):
+            chunk = self.chunks[c]
+            for row, k in enumerate(chunk.keys.tolist()):
+                voxels.setdefault(tuple(k), []).append(chunk.gaussians.subset([row]))
+        for row, k in enumerate(new_keys.tolist()):
+            voxels.setdefault(tuple(k), []).append(fitted.subset([row]))
+        out: dict[ChunkKey, tuple[list[tuple[int, int, int]], list[GaussianSet]]] = {}
+        for k in sorted(voxels):
+            members = GaussianSet.concat(voxels[k])
+            one = combine(members, np.zeros(len(members), dtype=np.int64))
+            keys, sets = out.setdefault((k[0] // CHUNK, k[1] // CHUNK), ([], []))
+            keys.append(k)
+            sets.append(one)
+        return {
+            c: StructureChunk(np.array(keys, dtype=np.int64), GaussianSet.concat(sets))
+            for c, (keys, sets) in out.items()
+        }
 
     def apply(self, chunks: dict[ChunkKey, StructureChunk]) -> None:
         """Make chunks from `compute_update` (or a loaded store) current."""
