@@ -18,6 +18,32 @@ COMMAND_MODULES = [
 ]
 
 
+class HelpWithDefaults(argparse.RawDescriptionHelpFormatter):
+    """--help text that ends each option's line with its default, when it has one."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        if default is None or default is False or default == [] or default == argparse.SUPPRESS:
+            return text
+        if "default" in text.lower():  # the help already says it
+            return text
+        return f"{text} (default: %(default)s)".strip()
+
+
+def show_defaults(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Make `parser` and every subcommand parser under it print defaults in --help."""
+    parser.formatter_class = HelpWithDefaults
+    for action in parser._actions:
+        has_default = action.default is not None and action.default is not False
+        if action.help is None and action.option_strings and has_default:
+            action.help = "(default: %(default)s)"  # argparse skips options without help
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                show_defaults(sub)
+    return parser
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="glmap", description="Build and query Gaussian-Language Maps (GLMap)."
@@ -25,7 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(subparsers)
-    return parser
+    return show_defaults(parser)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, field_validator
+
+DECIMALS = 4  # metres to 0.1 mm: enough for any map, no float32 noise in the output
 
 
 class UnitChange(BaseModel):
@@ -92,3 +94,13 @@ class MapSummary(BaseModel):
     bounds: list[list[float]] | None = Field(
         default=None, description="[[xmin, ymin, zmin], [xmax, ymax, zmax]] of all instances"
     )
+
+    @field_validator("floor_z")
+    @classmethod
+    def _round_floor(cls, v: float | None) -> float | None:
+        return None if v is None else round(float(v), DECIMALS)
+
+    @field_validator("bounds")
+    @classmethod
+    def _round_bounds(cls, v: list[list[float]] | None) -> list[list[float]] | None:
+        return None if v is None else [[round(float(x), DECIMALS) for x in row] for row in v]

@@ -80,7 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--no-warm-up", action="store_true", help="skip the renderer warm-up")
     p.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
-    return p
+    from glmap_tools.cli import show_defaults
+
+    return show_defaults(p)
 
 
 def config_from_args(args: argparse.Namespace) -> ServerConfig:
