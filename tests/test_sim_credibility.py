@@ -152,3 +152,40 @@ def test_map_eval_min_pixels_reaches_the_annotations(small_scene, capsys) -> Non
     assert "0 map instances for 0 visible objects" in capsys.readouterr().out
     assert glmap_main([*base, "--min-pixels", "0"]) == 1
     assert "--min-pixels 0 must be at least 1" in capsys.readouterr().err
+
+
+def test_stopping_behind_the_wall_of_the_goal_room_is_not_a_success() -> None:
+    from glmap_tools.sim.env import ObjectNavEnv
+    from glmap_tools.sim.episodes import Episode, EpisodeSet
+    from glmap_tools.sim.render import CameraSpec
+
+    data = {
+        "name": "two rooms",
+        "rooms": [
+            {"id": 1, "type": "bedroom", "polygon": [[0, 0], [4, 0], [4, 4], [0, 4]]},
+            {"id": 2, "type": "hallway", "polygon": [[4, 0], [8, 0], [8, 4], [4, 4]]},
+        ],
+        "openings": [{"id": 1, "rooms": [1, 2], "center": [4, 3.3], "width": 0.9}],
+        "objects": [
+            {"id": 1, "category": "wardrobe", "mesh": "primitive/wardrobe",
+             "position": [3.6, 1.0, 0.0], "heading": 0.0, "size": [0.6, 0.6, 2.0]},
+        ],
+    }  # fmt: skip
+    layout = layout_from_dict(data)
+
+    def stop_at(x: float, y: float) -> dict:
+        episode = Episode(0, "objectnav", (x, y), 0.0, "wardrobe", (1,), 3.0)
+        env = ObjectNavEnv(layout, EpisodeSet("objectnav", "two rooms", None, [episode]),
+                           camera=CameraSpec(64, 48))  # fmt: skip
+        try:
+            env.reset(seed=0, options={"episode_index": 0})
+            surface = env.surface_distance()
+            return {"surface": surface, **env.step(0)[4]}
+        finally:
+            env.close()
+
+    behind = stop_at(4.4, 1.0)  # 0.5 m from the wardrobe, through the wall
+    assert behind["surface"] <= 1.0 and not behind["success"]
+    assert behind["distance_to_goal"] > 1.0, "the goal cells lie in the bedroom"
+    inside = stop_at(2.8, 1.0)
+    assert inside["success"] and inside["distance_to_goal"] == 0.0

@@ -8,7 +8,8 @@ Observation (a Dict):
 
 Actions: 0 stop, 1 move_forward (0.25 m), 2 turn_left (30 deg), 3 turn_right (30 deg).
 An episode ends on stop (terminated) or after `max_steps` steps (truncated). Success: the
-agent stopped within `success_distance` metres of a goal object's footprint.
+agent stopped within `success_distance` metres of a goal object's footprint surface (planar
+distance from its centre to the footprint rectangle), with no wall in between.
 
 `info` carries the ground-truth perception of the frame (`instance_mask` [H, W] int32 and
 `annotation` in the format of `glmap_tools.perception.annotated`) and the metrics
@@ -45,6 +46,7 @@ from glmap_tools.sim.layout import Layout
 from glmap_tools.sim.layout_io import load_layout
 from glmap_tools.sim.motion import Action, AgentState, MotionConfig, apply_action
 from glmap_tools.sim.navigation import NavGrid, build_nav_grid
+from glmap_tools.sim.reach import reaches
 from glmap_tools.sim.render import Z_FAR, CameraSpec, RenderedView, SceneRenderer
 
 GOAL_CHARSET = string.ascii_letters + string.digits + " -',."
@@ -203,6 +205,16 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
             for i in self.episode.goal_object_ids
         )
 
+    def reaches_goal(self, state: AgentState | None = None) -> bool:
+        """Whether `state` is within the success distance of a goal footprint's surface
+        with no wall in between (`reach.reaches`)."""
+        s = state or self.state
+        assert self.episode is not None
+        return any(
+            bool(reaches(self.grid, self.layout.object(i), s.xy[None], self.success_distance)[0])
+            for i in self.episode.goal_object_ids
+        )
+
     # ------------------------------------------------------------------ gym API
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -277,7 +289,7 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
         mask, annotation = annotate_view(
             self._view.instance_mask, self.layout, self.min_object_pixels
         )
-        success = bool(stopped and self.surface_distance() <= self.success_distance)
+        success = bool(stopped and self.reaches_goal())
         shortest = self.episode.geodesic_distance
         spl = shortest / max(shortest, self._path_length, 1e-9) if success else 0.0
         return {

@@ -2,9 +2,10 @@
 
 An episode is a start (position, heading) and a goal: every instance of a category
 (ObjectNav) or one instance named by a unique description (InstNav). Success means stopping
-within `success_distance` metres of a goal object's footprint. `geodesic_distance` is the
-shortest path on the navigable grid from the start to the goal cells (the navigable cells
-within `success_distance - cell` of a goal footprint, so standing in one is a success).
+within `success_distance` metres of a goal object's footprint surface with no wall in
+between (`reach.py`). `geodesic_distance` is the shortest path on the navigable grid from
+the start to the goal cells (the navigable cells within `success_distance - cell` of a goal
+footprint and on its side of the walls, so standing in one is a success).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from glmap_tools.sim.instnav import instance_goals
 from glmap_tools.sim.jsonfile import read_json
 from glmap_tools.sim.layout import Layout, SceneObject
 from glmap_tools.sim.navigation import NavGrid, build_nav_grid
+from glmap_tools.sim.reach import clear_of_walls_reference, nearest_footprint_points, reaches
 
 FORMAT = "glmap-sim-episodes"
 VERSION = 1
@@ -58,10 +60,11 @@ class EpisodeSet:
 def goal_cells(
     grid: NavGrid, targets: Sequence[SceneObject], success_distance: float
 ) -> np.ndarray:
-    """[H, W] bool navigable cells whose centre is within reach of a target's footprint.
+    """[H, W] bool navigable cells whose centre reaches a target (`reach.reaches`).
 
-    Only the window around each footprint (grown by the reach) is measured, so the cost
-    does not grow with the apartment.
+    A cell reaches a target when its centre is within `success_distance - cell` of the
+    target's footprint with no wall in between. Only the window around each footprint
+    (grown by the reach) is measured, so the cost does not grow with the apartment.
     """
     near = np.zeros(grid.shape, dtype=bool)
     reach = success_distance - grid.cell
@@ -77,7 +80,7 @@ def goal_cells(
             continue
         rows, cols = np.mgrid[r0 : r1 + 1, c0 : c1 + 1]
         pts = grid.to_world(np.column_stack([rows.ravel(), cols.ravel()]))
-        inside = (obj.distance_to(pts) <= reach).reshape(rows.shape)
+        inside = reaches(grid, obj, pts, reach).reshape(rows.shape)
         near[r0 : r1 + 1, c0 : c1 + 1] |= inside
     return near & grid.navigable
 
@@ -85,12 +88,14 @@ def goal_cells(
 def goal_cells_reference(
     grid: NavGrid, targets: Sequence[SceneObject], success_distance: float
 ) -> np.ndarray:
-    """Slow reference of `goal_cells`: every cell of the grid measured."""
+    """Slow reference of `goal_cells`: every cell of the grid, one wall check at a time."""
     xs, ys = grid.cell_centers()
     pts = np.column_stack([xs.ravel(), ys.ravel()])
     near = np.zeros(len(pts), dtype=bool)
     for obj in targets:
-        near |= obj.distance_to(pts) <= success_distance - grid.cell
+        for i in np.nonzero(obj.distance_to(pts) <= success_distance - grid.cell)[0]:
+            end = nearest_footprint_points(obj, pts[i][None])[0]
+            near[i] |= clear_of_walls_reference(grid, pts[i], end)
     return near.reshape(grid.shape) & grid.navigable
 
 

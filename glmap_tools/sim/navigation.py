@@ -59,6 +59,8 @@ class NavGrid:
         free: [H, W] bool, floor not covered by walls or obstacles (ignoring the agent size).
         navigable: [H, W] bool, where the agent centre may be (free, eroded by the radius,
             restricted to the largest connected component).
+        walls: [H, W] bool wall cells (pieces below `OBSTACLE_MAX_BASE`; doorways open), or
+            None for a grid built without a layout.
     """
 
     origin: np.ndarray  # [2]
@@ -66,6 +68,7 @@ class NavGrid:
     free: np.ndarray  # [H, W]
     navigable: np.ndarray  # [H, W]
     agent_radius: float
+    walls: np.ndarray | None = None  # [H, W]
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -195,9 +198,11 @@ def build_nav_grid(
             ]
         )
         _fill_rect(free, xs, ys, _ccw(corners), True)
+    walls = np.zeros((h, w), dtype=bool)
     for piece in wall_pieces(layout) if pieces is None else pieces:
         if piece.z0 < OBSTACLE_MAX_BASE:
-            _fill_rect(free, xs, ys, _ccw(piece.corners), False)
+            _fill_rect(walls, xs, ys, _ccw(piece.corners), True)
+    free &= ~walls
     for obj in layout.objects:
         if is_obstacle(obj):
             _fill_rect(free, xs, ys, _ccw(obj.footprint()), False)
@@ -208,7 +213,7 @@ def build_nav_grid(
     if n > 1:
         sizes = ndimage.sum(navigable, labels, index=np.arange(1, n + 1))
         navigable = labels == (1 + int(np.argmax(sizes)))
-    return NavGrid(origin, cell, free, navigable, agent_radius)
+    return NavGrid(origin, cell, free, navigable, agent_radius, walls)
 
 
 def _wall_direction(layout: Layout, center: np.ndarray, room: Room) -> np.ndarray:
