@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from glmap_tools.bench.report import Report
+from glmap_tools.cli import HelpWithDefaults
 from glmap_tools.gaussians.estimator import EstimatorConfig, GaussianEstimator
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Intrinsics, Pose, backproject, depth_from_uint16
@@ -185,7 +187,9 @@ def psnr_table(points: np.ndarray, colors: np.ndarray, voxel: float) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench estimator")
+    parser = argparse.ArgumentParser(
+        prog="python -m glmap_tools.bench estimator", formatter_class=HelpWithDefaults
+    )
     parser.add_argument("--repeats", type=int, default=9, help="timed runs per figure")
     parser.add_argument("--no-cold", action="store_true", help="skip the cold-compile probe")
     parser.add_argument("--psnr", action="store_true", help="also print the size-cap PSNR table")
@@ -196,6 +200,7 @@ def main(argv: list[str] | None = None) -> int:
     from glmap_tools.gaussians import _estimator_fast
     from glmap_tools.gaussians.merge import remerge
 
+    report = Report("bench estimator")
     t0 = time.perf_counter()
     points, colors = synthetic_frame()
     pose = Pose.looking_at(np.array(EYE), np.array(TARGET))
@@ -222,6 +227,8 @@ def main(argv: list[str] | None = None) -> int:
         f"\n{'voxel':>6} {'voxels':>7} {'fast ms/frame':>14} {'ref ms/frame*':>14} {'ratio':>6} "
         f"{'G unmerged':>10} {'G merged':>9} {'B/G':>4} {'ms/50k inst':>12} {'G inst':>7}"
     )
+    frame_ms: dict[float, float] = {}  # voxel -> median ms per frame
+    instance_ms: dict[float, float] = {}  # voxel -> median ms per 50k-point instance
     for voxel in (0.015, 0.02):
         cfg = EstimatorConfig(voxel_size=voxel)
         fast = GaussianEstimator(cfg)
@@ -234,6 +241,7 @@ def main(argv: list[str] | None = None) -> int:
         ref_frame_ms = ref_ms * len(points) / len(window)
         inst_ms = _times_ms(lambda f=fast: f.fit(inst_points, inst_colors), args.repeats)
         n_inst = len(fast.fit(inst_points, inst_colors))
+        frame_ms[voxel], instance_ms[voxel] = fast_ms[1], inst_ms[1]
         print(
             f"{voxel * 100:>4.1f}cm {n_voxels:>7} {fast_ms[0]:>6.1f} /{fast_ms[1]:>6.1f} "
             f"{ref_frame_ms:>14.0f} {ref_frame_ms / fast_ms[1]:>5.0f}x {len(unmerged):>10} "
@@ -244,7 +252,10 @@ def main(argv: list[str] | None = None) -> int:
         f"fast: min / median of {args.repeats} runs. * reference: one run on the central "
         f"160x120-pixel window ({len(window)} points), extrapolated by point count."
     )
-    print("targets (2 cores): <= 40 ms per frame at 1.5 cm, <= 5 ms per 50k-point instance")
+    report.check("fit of a 640x480 frame at 1.5 cm, median", frame_ms[0.015], "<=", 40.0, "ms")
+    for voxel, ms in instance_ms.items():
+        name = f"fit of a 50k-point instance at {voxel * 100:.1f} cm, median"
+        report.check(name, ms, "<=", 5.0, "ms")
 
     cfg = EstimatorConfig(voxel_size=0.02)
     again, again_colors = synthetic_frame(seed=1)  # the same view, colour noise re-drawn
@@ -274,4 +285,4 @@ def main(argv: list[str] | None = None) -> int:
             )
     if args.psnr:
         psnr_table(*synthetic_frame(noise=0.0), 0.02)
-    return 0
+    return report.finish()

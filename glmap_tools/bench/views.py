@@ -17,13 +17,15 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import time
 from pathlib import Path
 
 import numpy as np
 
 from glmap_tools import synthetic as scenes
+from glmap_tools.bench.report import Report
+from glmap_tools.cli import HelpWithDefaults
+from glmap_tools.gaussians.estimator import EstimatorConfig
 from glmap_tools.gaussians.render import warm_up
 from glmap_tools.ingest.cli import bundled_folder
 from glmap_tools.ingest.datasets import IngestFrame, open_sequence
@@ -47,8 +49,14 @@ def _integrate(glmap: GLMap, frames: list[IngestFrame]) -> None:
         glmap.integrate(item.frame, item.semantics, item.index)
 
 
-def redwood_quality(frames: list[IngestFrame], out: Path) -> None:
-    """Print the held-out-frame PSNR table and write its images."""
+# Floors tests/test_views_redwood.py holds at the default tau (views/design.md).
+TARGET_PSNR_DB = 23.5  # map colour
+TARGET_PSNR_OVER_BLACK_DB = 16.5
+TARGET_COVERAGE = 0.55
+
+
+def redwood_quality(frames: list[IngestFrame], out: Path, report: Report) -> None:
+    """Print the held-out-frame PSNR table, check the default tau's floors, write images."""
     held_out = frames[4].frame
     print("Redwood: map of frames 0-3 rendered at frame 4 (640x480), covered = alpha > 0.5")
     print(f"{'tau':>6} {'Gaussians':>10} {'PSNR dB':>8} {'over black':>11} {'covered':>8}")
@@ -61,6 +69,17 @@ def redwood_quality(frames: list[IngestFrame], out: Path) -> None:
             f"{tau:>6.0f} {n:>10} {score.psnr:>8.2f} {score.psnr_composited:>11.2f} "
             f"{score.coverage:>8.1%}"
         )
+        if tau == EstimatorConfig().tau:  # the default
+            name = f"Redwood frame 4 from frames 0-3, tau {tau:.0f}"
+            report.check(f"{name}: PSNR, map colour", score.psnr, ">=", TARGET_PSNR_DB, "dB")
+            report.check(
+                f"{name}: PSNR, over black",
+                score.psnr_composited,
+                ">=",
+                TARGET_PSNR_OVER_BLACK_DB,
+                "dB",
+            )
+            report.check(f"{name}: covered share", score.coverage, ">=", TARGET_COVERAGE)
         folder = out / f"redwood_tau{tau:.0f}"
         folder.mkdir(parents=True, exist_ok=True)
         write_png(folder / "rendered.png", view.rgb)
@@ -150,19 +169,20 @@ def synthetic_selection(chairs: list[int]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench views", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m glmap_tools.bench views",
+        description=__doc__,
+        formatter_class=HelpWithDefaults,
+    )
     parser.add_argument("--out", type=Path, default=Path("out/views"))
     parser.add_argument("--chairs", type=int, nargs="+", default=[4, 12])
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    load_before = os.getloadavg()[0]
+    report = Report("bench views")
     print(f"renderer warm-up (numba compile or cache load) {warm_up():.2f} s\n")
     frames = list(open_sequence(bundled_folder()).frames())
-    redwood_quality(frames, args.out)
+    redwood_quality(frames, args.out, report)
     redwood_views(frames, args.out)
     synthetic_selection(args.chairs)
-    print(
-        f"\nload average {os.getloadavg()[0]:.2f} (before: {load_before:.2f}); images in "
-        f"{args.out}/"
-    )
-    return 0
+    print(f"\nimages in {args.out}/")
+    return report.finish()
