@@ -319,6 +319,7 @@ def walk_to(
     steps = bumps = in_a_row = 0
     walked = 0.0
     outcome = "step budget"
+    last = ""
     while True:
         if _arrived(agent, target, cell):
             outcome = "reached"
@@ -332,6 +333,11 @@ def walk_to(
         if steps >= max_steps:
             break
         action = plan.action if plan.action != "stop" else "move_forward"
+        if {action, last} == {"turn_left", "turn_right"}:
+            # The path's direction lies between two headings a turn apart (or a new frame
+            # moved it): the heading is within one turn of it, so step instead of dithering.
+            action = "move_forward"
+        last = action
         simulator.step(sim, action)
         integrate(session, sim)
         steps += 1
@@ -357,3 +363,17 @@ def walk_to(
         "planned_m": round(float(planned), 2),
         "end_xy": [round(float(v), 2) for v in plan.goal_xy],
     }
+
+
+def from_agent(session: Session, units: list[Any]) -> list[dict[str, Any]]:
+    """[{id, distance_m, bearing_deg}] of `units` (UnitInfo) from the simulator agent.
+
+    Empty unless the session has a running simulator episode.
+    """
+    sim = session.extras.get(simulator.SIM_KEY)
+    if sim is None or sim.over or not sim.info:
+        return []
+    agent = simulator.agent_pose(sim)
+    return [
+        {"id": u.id, **relative(agent, (float(u.centroid[0]), float(u.centroid[1])))} for u in units
+    ]

@@ -7,7 +7,7 @@ from typing import Annotated
 
 from mcp.server.mcpserver import Context, Image, MCPServer
 from mcp.types import TextContent, ToolAnnotations
-from pydantic import Field
+from pydantic import BaseModel, Field
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.map import FREE, OBSTACLE
@@ -20,6 +20,7 @@ from glmap_tools.server.inputs import (
     decode_frame,
 )
 from glmap_tools.server.results import Hits, MapInfo, ObserveResult, UnitsAt
+from glmap_tools.server.navsession import from_agent
 from glmap_tools.server.runtime import (
     app_state,
     compact_json,
@@ -50,6 +51,26 @@ Query = Annotated[
 TopK = Annotated[int, Field(ge=1, le=50, description="how many hits to return, best first")]
 UnitId = Annotated[int, Field(ge=1, le=2**62, description="an instance or region id")]
 OCCUPANCY_NAMES = {FREE: "free", OBSTACLE: "obstacle"}
+
+
+class FromAgent(BaseModel):
+    """Where a unit lies from the simulator agent."""
+
+    id: int
+    distance_m: float = Field(description="straight-line metres from the agent to the centroid")
+    bearing_deg: float = Field(description="degrees from the agent's heading, + = to its left")
+
+
+class AgentHits(Hits):
+    """Hits, and where they lie from the agent while a simulator episode runs."""
+
+    from_agent: list[FromAgent] = Field(default_factory=list, description="per hit, same order")
+
+
+class AgentUnitsAt(UnitsAt):
+    """Units around a point, and where they lie from the agent while an episode runs."""
+
+    from_agent: list[FromAgent] = Field(default_factory=list, description="per unit, same order")
 
 
 def resource_uris(handle: str) -> list[str]:
@@ -137,7 +158,7 @@ def register(server: MCPServer) -> None:
     @tool_errors
     async def find_instance(
         query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = None
-    ) -> Hits:
+    ) -> AgentHits:
         """Find objects in the map by description, e.g. 'the sofa' or 'something to sit on'.
 
         Returns the best-matching instances with id, description, score (higher is
@@ -146,9 +167,10 @@ def register(server: MCPServer) -> None:
         """
         target = session_of(ctx, session)
 
-        def run() -> Hits:
+        def run() -> AgentHits:
             with locked(target) as glmap:
-                return Hits(query=query, hits=glmap.find_instances(query, top_k))
+                hits = glmap.find_instances(query, top_k)
+            return AgentHits(query=query, hits=hits, from_agent=from_agent(target, hits))
 
         return await in_thread(run)
 
@@ -180,18 +202,25 @@ def register(server: MCPServer) -> None:
             float, Field(ge=0, le=5, description="search radius on the floor plan (metres)")
         ] = 0.25,
         session: SessionArg = None,
-    ) -> UnitsAt:
+    ) -> AgentUnitsAt:
         """List the instances and regions on the floor plan around (x, y), nearest first.
 
         Also says whether (x, y) itself is free space, an obstacle, or unseen.
         """
         target = session_of(ctx, session)
 
-        def run() -> UnitsAt:
+        def run() -> AgentUnitsAt:
             with locked(target) as glmap:
                 units = glmap.units_at(x, y, radius)
                 occ = OCCUPANCY_NAMES.get(glmap.occupancy.state_at(x, y), "unknown")
-            return UnitsAt(x=x, y=y, radius=radius, occupancy=occ, units=units)
+            return AgentUnitsAt(
+                x=x,
+                y=y,
+                radius=radius,
+                occupancy=occ,
+                units=units,
+                from_agent=from_agent(target, units),
+            )
 
         return await in_thread(run)
 

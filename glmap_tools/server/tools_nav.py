@@ -58,6 +58,9 @@ def _decide(session: Session, goal: str, policy: str) -> tuple[Any, tuple[float,
     with locked(session) as glmap:
         if nav is not None:
             state, scorer, config = nav.state, nav.scorer, nav.config
+            # Count every step taken since sim_reset (look_around, navigate_to, sim_step
+            # included), so a full turn already taken counts as the policy's initial spin.
+            state.steps = max(state.steps, len(nav.path) - 1)
         else:
             state, scorer, config = NavState(), EmbeddingScorer(glmap.embedder), NavConfig()
         decision = decide(
