@@ -109,3 +109,41 @@ def test_every_dataset_up_axis_maps_onto_plus_z(up):
 def test_an_unknown_up_axis_is_refused():
     with pytest.raises(InvalidInputError, match="up axis 'w'"):
         adapters.world_zup_from_up_axis("w")
+
+
+@pytest.mark.parametrize(
+    ("bad", "message"),
+    [
+        (dict(fx=1e-300), "horizontal field of view"),
+        (dict(fy=1e-3), "vertical field of view"),
+        (dict(fx=1e9), "times the image side"),
+        (dict(cx=1e300), "principal point"),
+        (dict(cy=-1000.0), "principal point"),
+        (dict(cx=float("inf")), "principal point"),
+    ],
+)
+def test_intrinsics_of_an_impossible_camera_are_refused_naming_the_value(bad, message):
+    args = dict(fx=525.0, fy=525.0, cx=319.5, cy=239.5, width=640, height=480) | bad
+    with pytest.raises(InvalidInputError, match=message):
+        Intrinsics(**args)
+
+
+@pytest.mark.parametrize("hfov", [170.0001, 179.999, 179.9999999, 180.0, float("nan"), True])
+def test_a_field_of_view_over_170_degrees_is_refused(hfov):
+    with pytest.raises(InvalidInputError, match="hfov_deg"):
+        Intrinsics.from_fov(64, 48, hfov)
+
+
+def test_the_widest_and_narrowest_accepted_cameras_keep_finite_rays():
+    wide = Intrinsics.from_fov(64, 48, 170.0)
+    narrow = Intrinsics(6400.0, 6400.0, 31.5, 23.5, 64, 48)
+    for k in (wide, narrow):
+        depth = np.ones((48, 64), np.float32)
+        cloud = backproject(depth, k, Pose.identity())
+        assert len(cloud) == 64 * 48 and np.all(np.isfinite(cloud.points))
+
+
+def test_a_pose_translated_1e300_m_is_refused_though_finite_and_rigid():
+    with pytest.raises(InvalidInputError, match="from the origin"):
+        Pose.from_rt(np.eye(3), np.array([1e300, 0.0, 0.0]))
+    assert Pose.from_rt(np.eye(3), np.array([1e5, 0.0, 0.0])).translation[0] == 1e5

@@ -9,9 +9,13 @@ from glmap_tools.errors import InvalidInputError
 from glmap_tools.language.embed import HashingEmbedder, default_embedder
 from glmap_tools.language.text_merger import (
     DELIMITER,
+    FOLD_WORDS,
+    MAX_UNITS_PER_DESCRIPTION,
     ExtractiveTextMerger,
     TextMerger,
     append_text,
+    lazy_greedy,
+    plain_greedy,
     split_buffer,
     word_count,
 )
@@ -145,3 +149,83 @@ def test_bad_arguments_are_rejected_with_the_fix(merger: ExtractiveTextMerger) -
         merger.merge("a sofa", 10)  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match="synonym_threshold=1.5"):
         ExtractiveTextMerger(HashingEmbedder(), synonym_threshold=1.5)
+
+
+# ------------------------------------------------------------------ bounded work
+
+
+class CountingEmbedder:
+    """The hashing embedder, recording every text it is asked to embed."""
+
+    def __init__(self) -> None:
+        self.inner = HashingEmbedder()
+        self.name, self.dim, self.default_tau_s = "counting", self.inner.dim, 0.44
+        self.texts: list[str] = []
+
+    def embed(self, texts):  # type: ignore[no-untyped-def]
+        self.texts.extend(texts)
+        return self.inner.embed(texts)
+
+
+def _content_words_of(text: str) -> list[str]:
+    return [
+        w for w in ExtractiveTextMerger(HashingEmbedder()).texts_to_embed([text]) if " " not in w
+    ]
+
+
+def _made_up_sentences(seed: int, sentences: int) -> str:
+    """`sentences` short sentences of distinct made-up words (nothing folds, nothing repeats)."""
+    rng = np.random.default_rng(seed)
+    return " ".join(
+        " ".join(f"zq{int(w)}x" for w in rng.integers(0, 10**6, size=3)) + "."
+        for _ in range(sentences)
+    )
+
+
+def test_a_merge_embeds_a_bounded_number_of_texts_however_long_its_buffer() -> None:
+    counting = CountingEmbedder()
+    merger = ExtractiveTextMerger(counting)
+    descriptions = [_made_up_sentences(seed, 250) for seed in range(2)]  # 2 x 1000 words
+    out = merger.merge(descriptions, 300)
+    assert 1 <= word_count(out) <= 300
+    # Units: at most MAX_UNITS_PER_DESCRIPTION per description; words: at most FOLD_WORDS.
+    assert len(counting.texts) <= 2 * MAX_UNITS_PER_DESCRIPTION + FOLD_WORDS
+
+
+def test_a_merge_keeps_sentences_only_from_the_first_eight_of_each_description(
+    merger: ExtractiveTextMerger,
+) -> None:
+    description = _made_up_sentences(0, 40)
+    first = description.split(". ")[:MAX_UNITS_PER_DESCRIPTION]
+    out = merger.merge([description, "a grey sofa."], 300)
+    kept = {s.rstrip(".") for part in split_buffer(out) for s in part.split(". ")}
+    assert kept == {s.rstrip(".") for s in first} | {"a grey sofa"}
+    # Split again, the merged buffer gives the same units: nothing new to embed.
+    again = merger.texts_to_embed([out])
+    assert set(again) <= set(merger.texts_to_embed([description, "a grey sofa."])) | set(
+        _content_words_of(out)
+    )
+
+
+def test_texts_to_embed_are_exactly_what_the_merge_embeds() -> None:
+    counting = CountingEmbedder()
+    merger = ExtractiveTextMerger(counting)
+    texts = SOFA_VIEWS + [_made_up_sentences(1, 30)]
+    expected = merger.texts_to_embed(texts)
+    merger.merge(texts, 40)
+    assert counting.texts == expected
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_lazy_greedy_picks_what_the_plain_greedy_reference_picks(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(5, 60))
+    concepts = [set(rng.integers(0, 40, size=int(rng.integers(1, 8))).tolist()) for _ in range(n)]
+    weight = {c: int(rng.integers(1, 5)) for c in range(40)}
+    costs = rng.integers(2, 30, size=n).tolist()
+    centrality = rng.uniform(-1, 1, size=n)
+    scale = [max(0.05, (1.0 + float(c)) / 2.0) for c in centrality]
+    for budget in (5, 40, 150, 1000):
+        lazy = lazy_greedy(concepts, weight, costs, scale, centrality, budget)
+        plain = plain_greedy(concepts, weight, costs, scale, centrality, budget)
+        assert lazy == plain

@@ -16,6 +16,15 @@ from glmap_tools.errors import InvalidInputError
 
 RIGID_TOLERANCE = 1e-4
 MAX_IMAGE_SIDE = 8192
+# Sane cameras only: a field of view up to MAX_FOV_DEG on either axis (wider pinhole views
+# stretch pixels towards infinity), focal lengths at most MAX_FOCAL_RATIO image sides, the
+# principal point within PRINCIPAL_MARGIN image sizes of the image, and camera centres
+# within MAX_COORDINATE metres of the origin (a map bounds its own world more tightly:
+# MapConfig.world_limit).
+MAX_FOV_DEG = 170.0
+MAX_FOCAL_RATIO = 100.0
+PRINCIPAL_MARGIN = 0.5
+MAX_COORDINATE = 1e6
 
 
 @dataclass(frozen=True)
@@ -37,23 +46,47 @@ class Intrinsics:
                     f"Intrinsics {name}={value!r} must be a positive finite focal length in "
                     "pixels; pass e.g. fx=fy=525 for a 640x480 PrimeSense camera."
                 )
-        for name in ("cx", "cy"):
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                raise InvalidInputError(f"Intrinsics {name}={value!r} must be finite.")
         for name in ("width", "height"):
             value = getattr(self, name)
             if not (isinstance(value, int | np.integer) and 0 < value <= MAX_IMAGE_SIDE):
                 raise InvalidInputError(
                     f"Intrinsics {name}={value!r} must be an integer in 1..{MAX_IMAGE_SIDE}."
                 )
+        side = max(self.width, self.height)
+        for f, c, size, axis in (
+            ("fx", "cx", self.width, "horizontal"),
+            ("fy", "cy", self.height, "vertical"),
+        ):
+            focal, centre = getattr(self, f), getattr(self, c)
+            least = size / (2.0 * math.tan(math.radians(MAX_FOV_DEG) / 2.0))
+            if focal < least:
+                fov = math.degrees(2.0 * math.atan(size / (2.0 * focal)))
+                raise InvalidInputError(
+                    f"Intrinsics {f}={focal!r} gives a {axis} field of view of {fov:.6g} deg "
+                    f"for {size} pixels; at most {MAX_FOV_DEG:g} deg is supported, so {f} "
+                    f"must be >= {least:.4g}. Check the units (pixels) or undistort a fisheye."
+                )
+            if focal > MAX_FOCAL_RATIO * side:
+                raise InvalidInputError(
+                    f"Intrinsics {f}={focal!r} is over {MAX_FOCAL_RATIO:g} times the image "
+                    f"side ({side} pixels); give the focal length in pixels of this image."
+                )
+            low, high = -PRINCIPAL_MARGIN * size, (1.0 + PRINCIPAL_MARGIN) * size
+            if not (math.isfinite(centre) and low <= centre <= high):
+                raise InvalidInputError(
+                    f"Intrinsics {c}={centre!r} is not near the {size}-pixel image; the "
+                    f"principal point must lie in [{low:g}, {high:g}], usually about {size / 2:g}."
+                )
 
     @classmethod
     def from_fov(cls, width: int, height: int, hfov_deg: float) -> Intrinsics:
         """Square-pixel intrinsics from the horizontal field of view (degrees)."""
-        if not (0 < hfov_deg < 180):
+        if isinstance(hfov_deg, bool) or not (
+            isinstance(hfov_deg, int | float | np.number) and 0 < hfov_deg <= MAX_FOV_DEG
+        ):
             raise InvalidInputError(
-                f"hfov_deg={hfov_deg!r} must be in (0, 180) degrees, e.g. 79 for the agent camera."
+                f"hfov_deg={hfov_deg!r} must be in (0, {MAX_FOV_DEG:g}] degrees, e.g. 79 for "
+                "the agent camera."
             )
         fx = width / (2.0 * math.tan(math.radians(hfov_deg) / 2.0))
         return cls(fx, fx, (width - 1) / 2.0, (height - 1) / 2.0, int(width), int(height))
@@ -99,6 +132,13 @@ class Pose:
         if not np.allclose(m[3], [0, 0, 0, 1], atol=RIGID_TOLERANCE):
             raise InvalidInputError(
                 f"pose bottom row is {m[3].tolist()}; a rigid transform ends with [0, 0, 0, 1]."
+            )
+        far = float(np.abs(m[:3, 3]).max())
+        if far > MAX_COORDINATE:
+            raise InvalidInputError(
+                f"pose translation {m[:3, 3].tolist()} is {far:.3g} m from the origin; camera "
+                f"centres must lie within {MAX_COORDINATE:g} m. Give the position in metres "
+                "(not mm), relative to a nearby origin."
             )
         r = m[:3, :3]
         err = float(np.abs(r @ r.T - np.eye(3)).max())

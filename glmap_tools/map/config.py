@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.geometry.camera import MAX_COORDINATE
 
 
 @dataclass(frozen=True)
@@ -26,6 +28,11 @@ class MapConfig:
             object mask); None keeps no structure. See map/structure.py for the 5 cm.
         structure_stride: pixel stride for the structure layer's points; 0 = about 160
             columns whatever the image width (stride 2 at 320 x 240, 4 at 640 x 480).
+        world_limit: every camera centre and observed point lies within this many metres
+            of the origin on each axis (x, y, z); a frame reaching farther is refused.
+        max_span: the map's extent on each axis, over its camera centres and the points of
+            a new frame, is at most this (m); a frame that would stretch it is refused.
+            See map/bounds.py.
         estimator: extra keyword overrides for the Gaussian Estimator config.
     """
 
@@ -40,14 +47,22 @@ class MapConfig:
     occupancy_stride: int = 2
     structure_voxel: float | None = 0.05
     structure_stride: int = 0
+    world_limit: float = 1000.0
+    max_span: float = 200.0
     estimator: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         positive = ("voxel_size", "cell_size", "max_range", "camera_height")
-        for name in positive:
+        for name in (*positive, "world_limit", "max_span"):
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and value > 0):
-                raise InvalidInputError(f"MapConfig.{name}={value!r} must be a positive number.")
+            if not (isinstance(value, int | float) and 0 < value < math.inf):
+                raise InvalidInputError(
+                    f"MapConfig.{name}={value!r} must be a positive finite number."
+                )
+        if self.world_limit > MAX_COORDINATE:
+            raise InvalidInputError(
+                f"MapConfig.world_limit={self.world_limit!r} must be <= {MAX_COORDINATE:g} m."
+            )
         if self.tau_s is not None and not (-1.0 <= self.tau_s <= 1.0):
             raise InvalidInputError(f"MapConfig.tau_s={self.tau_s!r} must be a cosine in [-1, 1].")
         if not (isinstance(self.max_text_words, int) and self.max_text_words >= 10):

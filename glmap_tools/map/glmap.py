@@ -12,6 +12,7 @@ from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
 from glmap_tools.gaussians.estimator import EstimatorConfig, GaussianEstimator
 from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.map import queries
+from glmap_tools.map.bounds import check_frame_bounds
 from glmap_tools.map.config import MapConfig
 from glmap_tools.map.fusion import FramePlan, plan_frame
 from glmap_tools.map.grid import IndexGrid
@@ -132,6 +133,7 @@ class GLMap:
         """
         if not isinstance(frame, RGBDFrame):
             raise InvalidInputError(f"frame must be an RGBDFrame, got {type(frame).__name__}.")
+        check_frame_bounds(frame, self.config, self.trajectory)  # world_limit, max_span
         index = len(self.trajectory) if frame_index is None else int(frame_index)
         plan = plan_frame(self, frame, semantics, index)
         if self.store is not None:

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS
 from glmap_tools.perception.semantics import FrameSemantics, GroupObservation, ObjectObservation
 
 
@@ -27,6 +28,17 @@ def _int_field(entry: Mapping[str, Any], key: str, where: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer):
         raise InvalidInputError(f"{where} needs an integer {key!r}, got {value!r}.")
     return int(value)
+
+
+def _text_field(entry: Mapping[str, Any], where: str) -> str:
+    """The entry's description, at most MAX_DESCRIPTION_CHARS characters."""
+    text = str(entry.get("description", "") or "")
+    if len(text) > MAX_DESCRIPTION_CHARS:
+        raise InvalidInputError(
+            f"{where} has a description of {len(text)} characters; the limit is "
+            f"{MAX_DESCRIPTION_CHARS}: shorten it (a sentence or two per object)."
+        )
+    return text
 
 
 def semantics_from_annotation(
@@ -66,7 +78,7 @@ def semantics_from_annotation(
         if obj_id <= 0:
             raise InvalidInputError(f"{where} has id {obj_id}; object ids are > 0 (0 = none).")
         label = str(entry.get("label", "") or "")
-        description = str(entry.get("description", "") or "")
+        description = _text_field(entry, where)
         objects.append(ObjectObservation(obj_id, label, description, mask == obj_id))
     groups = []
     for i, entry in enumerate(annotation.get("groups", [])):
@@ -81,7 +93,7 @@ def semantics_from_annotation(
         groups.append(
             GroupObservation(
                 _int_field(entry, "id", where),
-                str(entry.get("description", "") or ""),
+                _text_field(entry, where),
                 tuple(int(m) for m in members),
             )
         )

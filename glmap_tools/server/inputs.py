@@ -18,13 +18,18 @@ from pydantic import BaseModel, ConfigDict, Field
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Intrinsics, Pose
 from glmap_tools.geometry.adapters import from_dataset
+from glmap_tools.geometry.camera import MAX_FOV_DEG
 from glmap_tools.geometry.frame import RGBDFrame
+from glmap_tools.language.embed import Embedder
+from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS, ExtractiveTextMerger
 from glmap_tools.perception.annotated import semantics_from_annotation
 from glmap_tools.perception.semantics import FrameSemantics
 from glmap_tools.server.config import MIB, ServerConfig
 from glmap_tools.server.images import decode_depth, decode_mask, decode_rgb
 
-MAX_OBJECTS = 512
+# Per frame, at most this many objects and groups (see docs/mcp.md, "Limits").
+MAX_OBJECTS = 64
+MAX_GROUPS = 16
 
 
 class FileInput(BaseModel):
@@ -43,13 +48,14 @@ class FileInput(BaseModel):
 class IntrinsicsInput(BaseModel):
     """Pinhole intrinsics in pixels (fx, fy, cx, cy), or a horizontal field of view."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
     fx: float | None = Field(default=None, description="focal length x (pixels)")
     fy: float | None = Field(default=None, description="focal length y (pixels)")
     cx: float | None = Field(default=None, description="principal point x (pixels)")
     cy: float | None = Field(default=None, description="principal point y (pixels)")
     hfov_deg: float | None = Field(
-        default=None, description="horizontal field of view (degrees), instead of fx..cy"
+        default=None,
+        description=f"horizontal field of view (degrees, <= {MAX_FOV_DEG:g}), instead of fx..cy",
     )
 
 
@@ -77,7 +83,11 @@ class ObjectAnnotation(BaseModel):
     model_config = ConfigDict(extra="forbid")
     id: int = Field(ge=1, le=65535, description="the object's pixel value in the mask")
     label: str = Field(default="", max_length=200, description="short category, e.g. 'chair'")
-    description: str = Field(default="", max_length=4000, description="open-vocabulary description")
+    description: str = Field(
+        default="",
+        max_length=MAX_DESCRIPTION_CHARS,
+        description="open-vocabulary description",
+    )
 
 
 class GroupAnnotation(BaseModel):
@@ -85,7 +95,9 @@ class GroupAnnotation(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     id: int = Field(ge=0, le=65535, description="the group's id within this frame")
-    description: str = Field(max_length=4000, description="e.g. 'dining area: table, chairs'")
+    description: str = Field(
+        max_length=MAX_DESCRIPTION_CHARS, description="e.g. 'dining area: table, chairs'"
+    )
     members: list[int] = Field(max_length=MAX_OBJECTS, description="object ids of this frame")
 
 
@@ -98,7 +110,7 @@ class AnnotationInput(BaseModel):
         "same size as the depth image; 0 = no object"
     )
     objects: list[ObjectAnnotation] = Field(max_length=MAX_OBJECTS)
-    groups: list[GroupAnnotation] = Field(default_factory=list, max_length=MAX_OBJECTS)
+    groups: list[GroupAnnotation] = Field(default_factory=list, max_length=MAX_GROUPS)
 
 
 @dataclass
@@ -280,3 +292,18 @@ def decode_frame(
         "groups": [g.model_dump() for g in annotations.groups],
     }
     return frame, semantics_from_annotation(mask, labels)
+
+
+def embed_ahead(embedder: Embedder, semantics: FrameSemantics) -> None:
+    """Embed a frame's texts, and what merging them into text buffers embeds, ahead of time.
+
+    Run outside the map's lock: the embedder caches the vectors, so integrating the frame
+    (which embeds the same texts under the lock) reuses them instead of running the model
+    there, and other calls on the map wait less (docs/mcp.md, "Limits").
+    """
+    texts = [o.text for o in semantics.objects] + [g.description.strip() for g in semantics.groups]
+    texts = [t for t in texts if t]
+    merger = ExtractiveTextMerger(embedder)
+    pieces = [p for t in texts for p in merger.texts_to_embed([t])]
+    if texts:
+        embedder.embed(list(dict.fromkeys(texts + pieces)))

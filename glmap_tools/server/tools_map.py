@@ -18,6 +18,7 @@ from glmap_tools.server.inputs import (
     IntrinsicsInput,
     PoseInput,
     decode_frame,
+    embed_ahead,
 )
 from glmap_tools.server.results import Hits, MapInfo, ObserveResult, UnitsAt
 from glmap_tools.server.navsession import from_agent
@@ -141,6 +142,7 @@ def register(server: MCPServer) -> None:
             perceive = state.perception
             semantics = await in_thread(lambda: perceive(frame))
         await ctx.report_progress(1, 3, f"fusing {len(semantics.objects)} objects")
+        await in_thread(lambda: embed_ahead(state.embedder, semantics))  # outside the lock
 
         def integrate() -> ObserveResult:
             with locked(target) as glmap:

@@ -1,0 +1,180 @@
+"""`python -m glmap_tools.bench lock`: how long one observe_frame keeps its map locked.
+
+The worst case within the server's documented limits: a frame with the most objects
+(`MAX_OBJECTS`) and groups (`MAX_GROUPS`), every description at the longest allowed
+(`MAX_DESCRIPTION_CHARS`) and built to be expensive to merge (many short sentences of
+rare made-up words, so nothing is in the embedder's cache), seen again and again so every
+text buffer overflows and is merged on every sighting.
+
+The lock-hold time is measured from outside, as another client of the map feels it: while
+each observe_frame runs, a second task on the same session calls what_is_at in a loop; the
+longest of those calls is how long the map stayed locked (plus one cheap call). Target:
+LOCK_TARGET_S.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+LOCK_TARGET_S = 2.0
+SYLLABLES = ["zor", "bex", "qua", "vil", "mur", "tak", "pho", "gry", "lun", "dex", "kiv", "sno"]
+
+
+def tiled_frame(objects: int, width: int, height: int) -> tuple[Any, np.ndarray]:
+    """A camera 2 m in front of a wall split into `objects` tiles, one object per tile.
+
+    Returns:
+        (RGBDFrame, ids [H, W] int32 with tile k holding id k + 1).
+    """
+    from glmap_tools.geometry import Intrinsics, Pose
+    from glmap_tools.geometry.frame import RGBDFrame
+
+    cols = int(np.ceil(np.sqrt(objects)))
+    rows = int(np.ceil(objects / cols))
+    v, u = np.mgrid[0:height, 0:width]
+    tile = (v * rows // height) * cols + (u * cols // width)
+    ids = np.where(tile < objects, tile + 1, 0).astype(np.int32)
+    rng = np.random.default_rng(0)
+    palette = rng.integers(30, 226, size=(objects + 1, 3), dtype=np.uint8)
+    rgb = palette[ids]
+    depth = np.full((height, width), 2.0, np.float32)
+    intrinsics = Intrinsics.from_fov(width, height, 79.0)
+    pose = Pose.looking_at(np.array([0.0, -2.0, 1.2]), np.array([0.0, 0.0, 1.2]))
+    return RGBDFrame(rgb, depth, intrinsics, pose), ids
+
+
+def costly_description(rng: np.random.Generator, pool: list[str], max_chars: int) -> str:
+    """Short sentences of words drawn from `pool`, up to `max_chars` characters."""
+    out: list[str] = []
+    size = 0
+    while True:
+        words = rng.choice(pool, size=int(rng.integers(2, 5)))
+        sentence = " ".join(words) + "."
+        if size + len(sentence) + 1 > max_chars:
+            return " ".join(out)
+        out.append(sentence)
+        size += len(sentence) + 1
+
+
+def made_up_words(rng: np.random.Generator, n: int) -> list[str]:
+    """`n` distinct nonsense words of 3-4 syllables (several word pieces each)."""
+    words: set[str] = set()
+    while len(words) < n:
+        words.add("".join(rng.choice(SYLLABLES, size=int(rng.integers(3, 5)))))
+    return sorted(words)
+
+
+async def observed_with_probe(client: Any, call: dict[str, Any]) -> tuple[float, list[float], Any]:
+    """Call observe_frame while another task calls what_is_at on the same map in a loop.
+
+    Returns:
+        (observe_frame seconds, seconds of each what_is_at call, the observe_frame result).
+    """
+    import anyio
+
+    waits: list[float] = []
+    done = anyio.Event()
+    out: dict[str, Any] = {}
+
+    async def observe() -> None:
+        start = time.perf_counter()
+        out["res"] = await client.call_tool("observe_frame", call)
+        out["s"] = time.perf_counter() - start
+        done.set()
+
+    async def probe() -> None:
+        await anyio.sleep(0.05)
+        while not done.is_set():
+            start = time.perf_counter()
+            await client.call_tool("what_is_at", {"x": 0.0, "y": 0.0, "radius": 0.1})
+            waits.append(time.perf_counter() - start)
+            await anyio.sleep(0.05)
+
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(observe)
+        tg.start_soon(probe)
+    return out["s"], waits, out["res"]
+
+
+async def run(args: argparse.Namespace) -> int:
+    from mcp import Client
+
+    from glmap_tools.bench.report import Report, load_average
+    from glmap_tools.server import ServerConfig, build_server
+    from glmap_tools.server.frames import observe_arguments
+
+    report = Report("bench lock")
+    frame, ids = tiled_frame(args.objects, args.width, args.height)
+    rng = np.random.default_rng(args.seed)
+    pools = [made_up_words(rng, 300) for _ in range(args.objects)]
+    report.info(
+        f"observe_frame {args.width}x{args.height}, {args.objects} objects and "
+        f"{args.groups} groups, descriptions of {args.chars} characters, "
+        f"{args.sightings} sightings, embedder {args.embedder}"
+    )
+    worst = 0.0
+    with tempfile.TemporaryDirectory() as tmp:
+        config = ServerConfig(maps_dir=Path(tmp), embedder=args.embedder, warm_up=False)
+        async with Client(build_server(config)) as client:
+            # Warm-up (embedder load, JIT) on a one-object frame, then a fresh map.
+            one = [{"id": 1, "label": "thing", "description": "a thing"}]
+            await client.call_tool("observe_frame", observe_arguments(frame, ids == 1, one))
+            await client.call_tool("new_map", {})
+            for sighting in range(args.sightings):
+                objects = [
+                    {
+                        "id": k + 1,
+                        "label": f"thing {k + 1}",
+                        "description": costly_description(rng, pools[k], args.chars),
+                    }
+                    for k in range(args.objects)
+                ]
+                groups = [
+                    {
+                        "id": g + 1,
+                        "description": costly_description(rng, pools[g], args.chars),
+                        "members": [g + 1, (g + args.groups) % args.objects + 1],
+                    }
+                    for g in range(args.groups)
+                ]
+                call = observe_arguments(frame, ids, objects, groups)
+                observe_s, waits, res = await observed_with_probe(client, call)
+                if res.is_error:
+                    report.info(f"observe_frame failed: {res.content[0].text}")
+                    return 1
+                update = (res.structured_content or {})["report"]
+                held = max(waits, default=0.0)
+                worst = max(worst, held)
+                report.info(
+                    f"sighting {sighting + 1}: observe_frame {observe_s:.2f} s, "
+                    f"{len(update['instances_merged'])} instances and "
+                    f"{len(update['regions_merged'])} regions merged; longest wait of a "
+                    f"concurrent what_is_at {held:.2f} s ({len(waits)} calls); {load_average()}"
+                )
+    report.check("lock hold, worst sighting", worst, "<=", LOCK_TARGET_S, "s")
+    return report.finish()
+
+
+def main(argv: list[str] | None = None) -> int:
+    import anyio
+
+    from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS
+    from glmap_tools.server.inputs import MAX_GROUPS, MAX_OBJECTS
+
+    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench lock")
+    parser.add_argument("--objects", type=int, default=MAX_OBJECTS)
+    parser.add_argument("--groups", type=int, default=MAX_GROUPS)
+    parser.add_argument("--chars", type=int, default=MAX_DESCRIPTION_CHARS)
+    parser.add_argument("--sightings", type=int, default=3)
+    parser.add_argument("--width", type=int, default=640)
+    parser.add_argument("--height", type=int, default=480)
+    parser.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    return int(anyio.run(run, args) or 0)

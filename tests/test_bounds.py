@@ -1,0 +1,233 @@
+"""Poses, intrinsics and descriptions that would poison a map are refused at the boundary.
+
+Through the library (GLMap.integrate, MapConfig) and through a real in-memory MCP client
+session; after every refusal the map answers every query and its file is byte for byte
+what it was.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from mcp import Client
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.geometry import Pose
+from glmap_tools.geometry.frame import RGBDFrame
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS
+from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.map.bounds import OutOfBoundsError, check_frame_bounds, frame_extent
+from glmap_tools.perception.annotated import semantics_from_annotation
+from glmap_tools.server import build_server
+from glmap_tools.server.inputs import MAX_GROUPS
+from tests.test_server_fixtures import OBJECTS, config, counts, frame_args, view
+
+EYE = (0.0, -2.6, 1.4)
+
+
+def moved(frame: RGBDFrame, offset: tuple[float, float, float]) -> RGBDFrame:
+    """The same images seen from a camera shifted by `offset` metres."""
+    m = frame.pose.matrix.copy()
+    m[:3, 3] += offset
+    return RGBDFrame(frame.rgb, frame.depth, frame.intrinsics, Pose(m))
+
+
+def semantics_of(ids: np.ndarray):  # type: ignore[no-untyped-def]
+    objects = [
+        {"id": int(i), "label": OBJECTS[int(i)][0], "description": OBJECTS[int(i)][1]}
+        for i in np.unique(ids)
+        if i
+    ]
+    return semantics_from_annotation(ids, {"objects": objects})
+
+
+def observed_map(path: Path, **config: Any) -> tuple[GLMap, bytes]:
+    """A stored map of one view of the test scene, and its file's bytes."""
+    glmap = GLMap.open(path, MapConfig(voxel_size=0.04, **config), embedder=HashingEmbedder())
+    frame, ids = view(EYE)
+    glmap.integrate(frame, semantics_of(ids))
+    return glmap, path.read_bytes()
+
+
+def state(glmap: GLMap) -> tuple[Any, ...]:
+    s = glmap.summary()
+    return s.frames, s.instances, s.regions, s.gaussians, s.bounds, len(glmap.trajectory)
+
+
+# ---------------------------------------------------------------------- library
+
+
+@pytest.mark.parametrize(
+    ("offset", "message"),
+    [
+        ((2000.0, 0.0, 0.0), "world_limit"),  # beyond +-1 km
+        ((0.0, 900.0, 0.0), "max_span"),  # a frame 900 m from the first one
+        ((0.0, 0.0, 300.0), "max_span"),  # 300 m up
+    ],
+)
+def test_a_frame_outside_the_world_is_refused_and_the_map_and_file_stay_as_they_were(
+    tmp_path: Path, offset: tuple[float, float, float], message: str
+) -> None:
+    path = tmp_path / "flat.glmap"
+    glmap, file_before = observed_map(path)
+    before = state(glmap)
+    frame, ids = view(EYE)
+    with pytest.raises(OutOfBoundsError, match=message):
+        glmap.integrate(moved(frame, offset), semantics_of(ids))
+    assert state(glmap) == before
+    assert path.read_bytes() == file_before
+    # The map still answers, and another view inside the world is still taken.
+    assert glmap.find_instances("a red wooden chair")[0].description == "a red wooden chair"
+    assert glmap.units_at(0.0, 0.0, 0.5)
+    glmap.integrate(moved(frame, (0.5, 0.0, 0.0)), semantics_of(ids))
+    assert glmap.summary().frames == 2
+    glmap.close()
+    reopened = GLMap.open(path, embedder=HashingEmbedder())
+    assert reopened.summary().frames == 2
+    reopened.close()
+
+
+def test_a_first_frame_far_from_the_origin_but_inside_the_world_is_accepted() -> None:
+    glmap = GLMap(MapConfig(voxel_size=0.04), embedder=HashingEmbedder())
+    frame, ids = view(EYE)
+    glmap.integrate(moved(frame, (900.0, -900.0, 0.0)), semantics_of(ids))
+    lo, hi = glmap.summary().bounds or ([0.0], [0.0])
+    assert 890 < lo[0] < hi[0] < 910
+
+
+def test_depth_reaching_beyond_the_world_limit_is_refused() -> None:
+    cfg = MapConfig(voxel_size=0.04, max_range=500.0, world_limit=100.0)
+    frame, _ = view(EYE)
+    far = RGBDFrame(frame.rgb, np.full_like(frame.depth, 400.0), frame.intrinsics, frame.pose)
+    with pytest.raises(OutOfBoundsError, match="points reach"):
+        check_frame_bounds(far, cfg, [])
+    lo, hi = frame_extent(far, cfg.max_range)
+    assert hi[1] > 100.0  # the camera looks along +y
+
+
+def test_the_frame_extent_is_the_box_of_its_back_projected_points() -> None:
+    from glmap_tools.geometry import backproject
+
+    frame, _ = view(EYE)
+    lo, hi = frame_extent(frame, 5.0)
+    points = backproject(frame.depth, frame.intrinsics, frame.pose, max_range=5.0).points
+    np.testing.assert_allclose(lo, np.minimum(points.min(axis=0), frame.pose.translation))
+    np.testing.assert_allclose(hi, np.maximum(points.max(axis=0), frame.pose.translation))
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"world_limit": float("inf")},
+        {"world_limit": -1.0},
+        {"world_limit": 1e7},
+        {"max_span": float("nan")},
+        {"max_range": float("inf")},
+    ],
+)
+def test_map_config_refuses_world_bounds_that_are_not_positive_finite(bad: dict) -> None:
+    with pytest.raises(InvalidInputError, match=next(iter(bad))):
+        MapConfig(**bad)
+
+
+def test_world_bounds_are_saved_with_the_config_and_default_for_older_maps() -> None:
+    cfg = MapConfig(world_limit=250.0, max_span=80.0)
+    assert MapConfig.from_dict(cfg.to_dict()) == cfg
+    older = {k: v for k, v in MapConfig().to_dict().items() if k not in ("world_limit", "max_span")}
+    assert (MapConfig.from_dict(older).world_limit, MapConfig.from_dict(older).max_span) == (
+        1000.0,
+        200.0,
+    )
+
+
+def test_a_description_over_the_limit_is_refused_where_annotations_are_read() -> None:
+    _, ids = view(EYE)
+    long = "a chair. " * (MAX_DESCRIPTION_CHARS // 9 + 1)
+    with pytest.raises(InvalidInputError, match=f"limit is {MAX_DESCRIPTION_CHARS}"):
+        semantics_from_annotation(ids, {"objects": [{"id": 1, "description": long}]})
+    ok = long[:MAX_DESCRIPTION_CHARS]
+    assert semantics_from_annotation(ids, {"objects": [{"id": 1, "description": ok}]}).objects
+
+
+# ---------------------------------------------------------------------- MCP
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+def _with(args: dict[str, Any], **change: Any) -> dict[str, Any]:
+    out = copy.deepcopy(args)
+    if "translate" in change:
+        for k, d in enumerate(change["translate"]):
+            out["pose"]["matrix"][k][3] += d
+    if "intrinsics" in change:
+        out["intrinsics"] = change["intrinsics"]
+    return out
+
+
+BAD_FRAMES = [
+    ("a rigid pose 1e300 m away", {"translate": (1e300, 0.0, 0.0)}, "from the origin"),
+    ("a pose 2 km away", {"translate": (2000.0, 0.0, 0.0)}, "world_limit"),
+    ("a frame 900 m from the first", {"translate": (0.0, 900.0, 0.0)}, "max_span"),
+    ("hfov 179.999 deg", {"intrinsics": {"hfov_deg": 179.999}}, "hfov_deg=179.999"),
+    ("hfov 179.9999999 deg", {"intrinsics": {"hfov_deg": 179.9999999}}, "hfov_deg"),
+    ("fx = 1e-300", {"intrinsics": {"fx": 1e-300, "fy": 100, "cx": 80, "cy": 60}}, "fx=1e-300"),
+    ("cx = 1e300", {"intrinsics": {"fx": 100, "fy": 100, "cx": 1e300, "cy": 60}}, "cx=1e+300"),
+]
+
+
+@pytest.mark.anyio
+@pytest.mark.parametrize(("case", "change", "message"), BAD_FRAMES, ids=[c[0] for c in BAD_FRAMES])
+async def test_a_poisoning_frame_is_refused_by_the_server_and_everything_keeps_working(
+    tmp_path: Path, case: str, change: dict[str, Any], message: str
+) -> None:
+    maps = tmp_path / "maps"
+    async with Client(build_server(config(tmp_path))) as client:
+        await client.call_tool("new_map", {"name": "flat"})
+        await client.call_tool("observe_frame", frame_args())
+        before, file_before = await counts(client), (maps / "flat.glmap").read_bytes()
+        refused = await client.call_tool("observe_frame", _with(frame_args(), **change))
+        assert refused.is_error, case
+        assert message in refused.content[0].text
+        assert await counts(client) == before
+        assert (maps / "flat.glmap").read_bytes() == file_before
+        hits = await client.call_tool("find_instance", {"query": "red wooden chair"})
+        assert not hits.is_error and hits.structured_content["hits"]
+        chair = hits.structured_content["hits"][0]["id"]
+        for tool, args in [
+            ("what_is_at", {"x": 0.0, "y": 0.0, "radius": 0.5}),
+            ("describe_unit", {"id": chair}),
+            ("map_summary", {}),
+            ("export_ply", {"name": "flat"}),
+        ]:
+            result = await client.call_tool(tool, args)
+            assert not result.is_error, (tool, result.content[0].text)
+    async with Client(build_server(config(tmp_path))) as client:
+        loaded = await client.call_tool("load_map", {"name": "flat"})
+        assert not loaded.is_error and await counts(client) == before
+
+
+@pytest.mark.anyio
+async def test_the_server_refuses_a_description_or_group_count_over_its_limit(
+    tmp_path: Path,
+) -> None:
+    async with Client(build_server(config(tmp_path))) as client:
+        args = frame_args()
+        args["annotations"]["objects"][0]["description"] = "x" * (MAX_DESCRIPTION_CHARS + 1)
+        long = await client.call_tool("observe_frame", args)
+        assert long.is_error and str(MAX_DESCRIPTION_CHARS) in long.content[0].text
+        args = frame_args()
+        first = args["annotations"]["objects"][0]["id"]
+        args["annotations"]["groups"] = [
+            {"id": g, "description": "a corner", "members": [first]} for g in range(MAX_GROUPS + 1)
+        ]
+        many = await client.call_tool("observe_frame", args)
+        assert many.is_error and str(MAX_GROUPS) in many.content[0].text
+        assert await counts(client) == (0, 0, 0)
