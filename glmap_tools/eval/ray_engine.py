@@ -98,7 +98,12 @@ def check_address(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
     if target is None:
         return
     host, port = target
-    import grpc  # with Ray's client extra
+    try:
+        import grpc  # comes with Ray's client extra
+    except ImportError as exc:
+        raise RayUnavailableError(
+            "--ray-address needs Ray; install it with `pip install 'glmap-tools[ray]'`."
+        ) from exc
 
     method = CLIENT_METHOD if address.startswith("ray://") else GCS_METHOD
     answered = {grpc.StatusCode.UNAUTHENTICATED, grpc.StatusCode.PERMISSION_DENIED}
@@ -143,23 +148,34 @@ def run_ray(jobs: Sequence[Job], workers: int, embedder: str, address: str) -> I
             kw.update(num_cpus=max(1, workers), include_dashboard=False)
         os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
         ray.init(address=address, **kw)
+    actors: list[Any] = []
     try:
         actor_cls = ray.remote(num_cpus=1)(_RayWorker)
         n = max(1, min(workers, len(jobs)))
         actors = [actor_cls.remote(embedder) for _ in range(n)]
-        todo = list(jobs)
-        running: dict[Any, Any] = {}  # object ref -> actor
-        for actor in actors:
-            if todo:
-                running[actor.run.remote(todo.pop(0))] = actor
+        # As on local workers: actor k starts at the k-th block of the scene-ordered jobs.
+        cursors = [k * len(jobs) // n for k in range(n)]
+        taken = [False] * len(jobs)
+        running: dict[Any, int] = {}  # object ref -> actor index
+
+        def submit(k: int) -> None:
+            for step in range(len(jobs)):
+                i = (cursors[k] + step) % len(jobs)
+                if not taken[i]:
+                    taken[i] = True
+                    cursors[k] = i + 1
+                    running[actors[k].run.remote(jobs[i])] = k
+                    return
+
+        for k in range(n):
+            submit(k)
         while running:
             done, _ = ray.wait(list(running), num_returns=1)
-            actor = running.pop(done[0])
+            k = running.pop(done[0])
             yield ray.get(done[0])
-            if todo:
-                running[actor.run.remote(todo.pop(0))] = actor
+            submit(k)
+    finally:
         for actor in actors:
             ray.kill(actor)
-    finally:
         if started_here:
             ray.shutdown()
