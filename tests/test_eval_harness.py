@@ -44,6 +44,7 @@ def finished(tmp_path_factory: pytest.TempPathFactory) -> EvalRun:
     return run_eval(spec(), out, workers=2, progress=False)
 
 
+@pytest.mark.slow  # shares the 36-episode run: 42-51 s at load 10-15 on 2 cores
 def test_two_scenes_by_three_episodes_run_with_every_agent_on_two_workers(
     finished: EvalRun,
 ) -> None:
@@ -65,6 +66,7 @@ def test_two_scenes_by_three_episodes_run_with_every_agent_on_two_workers(
     assert {"success", "spl", "distance_to_goal", "steps", "tool_calls", "wall_s"} <= set(stored)
 
 
+@pytest.mark.slow  # shares the 36-episode run: 42-51 s at load 10-15 on 2 cores
 def test_the_summary_has_a_row_per_agent_and_paired_rows_against_the_first(
     finished: EvalRun,
 ) -> None:
@@ -79,6 +81,7 @@ def test_the_summary_has_a_row_per_agent_and_paired_rows_against_the_first(
     assert data["agents"]["random"]["steps"]["mean"] == MAX_STEPS  # random never stops
 
 
+@pytest.mark.slow  # shares the 36-episode run: 42-51 s at load 10-15 on 2 cores
 def test_a_rerun_skips_finished_episodes_and_plays_only_missing_or_stale_ones(
     finished: EvalRun,
 ) -> None:
@@ -105,6 +108,7 @@ def test_a_rerun_skips_finished_episodes_and_plays_only_missing_or_stale_ones(
             assert replay[key] == old[key]  # a seeded episode replays identically
 
 
+@pytest.mark.slow  # shares the 36-episode run: 42-51 s at load 10-15 on 2 cores
 def test_a_changed_setting_is_refused_unless_mixing_is_asked_for(finished: EvalRun) -> None:
     config = (finished.out / "eval.json").read_bytes()
     with pytest.raises(InvalidInputError, match=r"max_steps: 2 -> 3.*--mix-configs"):

@@ -9,12 +9,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from glmap_tools.eval import EvalSpec
 from glmap_tools.eval.run import run_eval
 
 KEYS = ("success", "spl", "distance_to_goal", "steps", "path_length", "collisions", "seed")
 
 
+@pytest.mark.slow  # Ray start + 4 episodes: 41 s at load 10 on 2 cores
 def test_a_local_ray_instance_plays_episodes_as_the_local_workers_do(tmp_path: Path) -> None:
     spec = EvalSpec("objectnav", "tune", 1, 1, ("glmap", "random"), max_steps=3, embedder="hashing")
     on_ray = run_eval(spec, tmp_path / "ray", workers=1, ray_address="local", progress=False)
