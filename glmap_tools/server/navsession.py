@@ -77,7 +77,8 @@ def start(session: Session, sim: simulator.SimEpisode, embedder: Embedder) -> Na
     """A fresh NavSession for the episode `sim` just reset to (kept in session.extras)."""
     from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState
 
-    config = NavConfig(
+    config = NavConfig.for_task(
+        sim.task,
         forward_step=sim.env.motion.forward_step,
         turn_angle_deg=math.degrees(sim.env.motion.turn_angle),
     )
@@ -207,6 +208,20 @@ def check_inside(occ: Any, xy: tuple[float, float], what: str) -> None:
         )
 
 
+def agent_distances(occ: Any, agent: tuple[float, float, float], config: Any) -> np.ndarray:
+    """[H, W] FMM geodesic metres from the agent over the cells a plan may cross (inf: none).
+
+    The agent's own footprint counts as crossable, so a pose grazing an obstacle still plans.
+    """
+    from glmap_tools.nav import geodesic, plannable
+
+    r0, c0 = occ.world_to_index(agent[0], agent[1])
+    ok = plannable(occ, config.agent_radius, config.optimistic)
+    rr, cc = np.ogrid[: ok.shape[0], : ok.shape[1]]
+    ok |= (rr - r0) ** 2 + (cc - c0) ** 2 <= (config.agent_radius / occ.cell_size) ** 2
+    return np.asarray(geodesic(ok, (r0, c0), occ.cell_size))
+
+
 def _unit_goal(occ: Any, field: np.ndarray, target: Target) -> tuple[float, float] | None:
     """The reachable cell within `target.near` of the unit's cells that is closest to the agent."""
     from scipy import ndimage
@@ -256,40 +271,26 @@ def plan_to(
         OutsideMapError: the target point is outside the map.
         UnreachableGoalError: nothing leads there (names the nearest reachable point).
     """
+    from glmap_tools.nav import plan
     from glmap_tools.nav.errors import UnreachableGoalError
-    from glmap_tools.nav.planner import agent_field, nearest_finite, plan_on_field
 
     nav = of(session)
     with locked(session) as glmap:
         occ = window(glmap, config, nav.state.blocked if nav is not None else None)
     check_inside(occ, target.xy, "target")
-    field = agent_field(occ, agent[:2], config)
-    goal = target.xy if target.unit_cells is None else _unit_goal(occ, field, target)
-    if goal is None and not strict:
-        goal = target.xy  # plan_on_field then heads for its nearest reachable point
-    if goal is None:
-        rc = nearest_finite(field, occ.world_to_index(*target.xy))
-        near = occ.index_to_world(*rc) if rc is not None else None
-        where = f"({near[0]:.2f}, {near[1]:.2f})" if near else "nowhere"
-        raise UnreachableGoalError(
-            f"no free cell within {target.near} m of the unit can be reached from "
-            f"({agent[0]:.2f}, {agent[1]:.2f}); nearest reachable point: {where}. Explore "
-            "towards it (look_around, frontiers) and try again.",
-            target.xy,
-            near,
-        )
-    out = plan_on_field(occ, field, agent[:2], agent[2], goal, config)
-    if strict and not out.reachable:
-        near = out.goal_xy if len(out.path) else None
-        where = f"({near[0]:.2f}, {near[1]:.2f})" if near else "nowhere (the agent is boxed in)"
-        raise UnreachableGoalError(
-            f"({target.xy[0]:.2f}, {target.xy[1]:.2f}) cannot be reached from "
-            f"({agent[0]:.2f}, {agent[1]:.2f}): it is blocked or enclosed by obstacles. "
-            f"Nearest reachable point: {where}.",
-            target.xy,
-            near,
-        )
-    return out
+    goal: tuple[float, float] | None = target.xy
+    if target.unit_cells is not None:
+        goal = _unit_goal(occ, agent_distances(occ, agent, config), target)
+        if goal is None and strict:
+            raise UnreachableGoalError(
+                f"no free cell within {target.near} m of the unit can be reached from "
+                f"({agent[0]:.2f}, {agent[1]:.2f}); walk towards it (navigate_to its centroid "
+                "with the nearest reachable point, look_around) and try again.",
+                target.xy,
+                None,
+            )
+    # Not strict: the planner heads for the nearest reachable point of an unreachable goal.
+    return plan(occ, agent[:2], agent[2], goal or target.xy, config, strict=strict)
 
 
 def walk_to(

@@ -152,7 +152,6 @@ def register(server: MCPServer) -> None:
         """
         from glmap_tools.nav import NavConfig
         from glmap_tools.nav import frontiers as find_frontiers
-        from glmap_tools.nav.planner import agent_field
 
         target = session_of(ctx, session)
 
@@ -162,7 +161,7 @@ def register(server: MCPServer) -> None:
             config = nav.config if nav is not None else NavConfig()
             with locked(target) as glmap:
                 occ = navsession.window(glmap, config)
-            field = agent_field(occ, agent[:2], config)
+            field = navsession.agent_distances(occ, agent, config)
             found = find_frontiers(
                 occ, agent[:2], config.agent_radius, config.min_frontier_size, field
             )
