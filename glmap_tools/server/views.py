@@ -9,6 +9,7 @@ says, in words for the model, how each camera was chosen.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -24,6 +25,7 @@ from glmap_tools.views.topdown import TopDownImage, draw_topdown
 if TYPE_CHECKING:
     from glmap_tools.map import GLMap
     from glmap_tools.views import RenderedView
+    from glmap_tools.views.topdown_frame import TopDownFrame
 
 EMPTY_MAP = (
     "the map is empty; observe frames (observe_frame or sim_step) before rendering or exporting it."
@@ -159,12 +161,23 @@ def _selected(glmap: GLMap, request: ViewRequest) -> Rendered:
 # ---------------------------------------------------------------------- top-down
 
 
+# The frame of each map's last top-down image: kept while the map fits in it, so the
+# scale and origin do not change from one map_summary to the next.
+_FRAMES: weakref.WeakKeyDictionary[GLMap, TopDownFrame] = weakref.WeakKeyDictionary()
+
+
 def topdown(glmap: GLMap) -> TopDownImage | None:
-    """The labelled top-down image, the latest camera drawn as the agent; None when empty."""
+    """The labelled top-down image, the latest camera drawn as the agent; None when empty.
+
+    Call with the map's lock held (the frame it keeps per map is updated).
+    """
     if not glmap.instances and not glmap.occupancy.chunks:
         return None
     agent = Pose(np.asarray(glmap.trajectory[-1], np.float64)) if glmap.trajectory else None
-    return draw_topdown(glmap, agent=agent)
+    image = draw_topdown(glmap, agent=agent, frame=_FRAMES.get(glmap))
+    if image.frame is not None:
+        _FRAMES[glmap] = image.frame
+    return image
 
 
 def describe_topdown(image: TopDownImage | None) -> str:

@@ -20,8 +20,9 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
-from glmap_tools.map.occupancy import FREE, OBSTACLE
+from glmap_tools.map.occupancy import CHUNK, FREE, OBSTACLE
 from glmap_tools.views.common import encode_png
+from glmap_tools.views.topdown_frame import Canvas, TopDownFrame, choose_frame
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
@@ -30,6 +31,9 @@ MAX_SIDE = 4096  # pixels: the cap on the image's longer side
 DEFAULT_SIDE = 768  # pixels
 MAX_PIXELS_PER_CELL = 8
 MAX_LABELS = 300  # more units than this are drawn without id labels
+MARGIN_CELLS = 2  # unseen cells kept around the content
+FONT, FONT_SCALE = cv2.FONT_HERSHEY_SIMPLEX, 0.4
+TICK_RGB = (0, 0, 0)
 UNSEEN, FREE_RGB, OBSTACLE_RGB = (200, 200, 200), (255, 255, 255), (90, 90, 90)
 TRAJECTORY_RGB, AGENT_RGB = (30, 90, 210), (220, 30, 30)
 HEAT_OPACITY = 0.6
@@ -89,6 +93,11 @@ class TopDownImage:
         y1: world y of the image's top edge (m).
         metres_per_pixel: scale.
         legend: one line per drawn layer, saying what its colours mean.
+        tick: metres between the ticks on the left and bottom edges (0: none).
+        label_boxes: (left, top, right, bottom) pixels of each text label written;
+            no two overlap.
+        frame: the placement; pass it back to `draw_topdown` to keep it while the map
+            fits.
     """
 
     rgb: np.ndarray  # [H, W, 3]
@@ -96,6 +105,9 @@ class TopDownImage:
     y1: float
     metres_per_pixel: float
     legend: tuple[str, ...]
+    tick: float = 0.0
+    label_boxes: tuple[tuple[int, int, int, int], ...] = ()
+    frame: TopDownFrame | None = None
 
     def world_to_pixel(self, x: float, y: float) -> tuple[float, float]:
         """(col, row) pixel coordinates of world (x, y)."""
@@ -111,36 +123,16 @@ class TopDownImage:
     def describe(self) -> str:
         """How to read the image, for people and agents."""
         h, w = self.rgb.shape[:2]
-        return (
-            f"top-down map, {w}x{h} px, +x right, +y up, {self.metres_per_pixel * 100:.1f} cm "
-            f"per pixel; the top-left corner is world (x, y) = ({self.x0:.2f}, {self.y1:.2f}) m. "
-            + " ".join(self.legend)
+        ticks = (
+            f"; ticks every {self.tick:g} m on the left (y) and bottom (x) edges"
+            if self.tick
+            else ""
         )
-
-
-@dataclass(frozen=True)
-class _Frame:
-    """Raster geometry: cells lo..hi (inclusive), k cells per raster cell, s px per raster cell."""
-
-    lo: np.ndarray  # [2] int (i, j)
-    hi: np.ndarray  # [2] int
-    k: int
-    s: int
-    cell: float
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        span = self.hi - self.lo + 1
-        return int(-(-span[1] // self.k)), int(-(-span[0] // self.k))
-
-    def raster(self, ij: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # ij: [K, 2]
-        """(rows, cols) of raster cells holding grid cells ij."""
-        return (self.hi[1] - ij[:, 1]) // self.k, (ij[:, 0] - self.lo[0]) // self.k
-
-    def px(self, x: float, y: float) -> tuple[int, int]:
-        mpp = self.cell * self.k / self.s
-        x0, y1 = self.lo[0] * self.cell, (self.hi[1] + 1) * self.cell
-        return int(round((x - x0) / mpp)), int(round((y1 - y) / mpp))
+        return (
+            f"top-down map, {w}x{h} px, +x right, +y up, {self.metres_per_pixel * 100:.3g} cm "
+            f"per pixel; the top-left corner is world (x, y) = ({self.x0:.2f}, {self.y1:.2f}) m"
+            f"{ticks}. " + " ".join(self.legend)
+        )
 
 
 def palette(uid: int) -> tuple[int, int, int]:
@@ -172,58 +164,55 @@ def _unit_cells(glmap: GLMap) -> dict[int, np.ndarray]:
     return out
 
 
-def _frame(
+def _content_bounds(
     glmap: GLMap,
     cells: dict[int, np.ndarray],
     extra_xy: list[tuple[float, float]],
     heatmap: HeatMap | None,
-    max_side: int,
-) -> _Frame:
+) -> tuple[np.ndarray, np.ndarray]:
+    """World xy bounds (lo, hi) of everything drawn: observed cells, units, overlay, agent."""
     cell = glmap.config.cell_size
     lo_parts, hi_parts = [], []
-    if glmap.occupancy.chunks:
-        dense = glmap.occupancy.to_dense()
-        h, w = dense.state.shape
-        lo_parts.append(np.array(dense.origin))
-        hi_parts.append(np.array(dense.origin) + [w - 1, h - 1])
+    for (ci, cj), counts in glmap.occupancy.chunks.items():
+        rows, cols = np.nonzero(counts.sum(axis=0))
+        if len(rows):
+            base = np.array([ci * CHUNK, cj * CHUNK])
+            lo_parts.append((base + [cols.min(), rows.min()]) * cell)
+            hi_parts.append((base + [cols.max() + 1, rows.max() + 1]) * cell)
     for c in cells.values():
-        lo_parts.append(c.min(0))
-        hi_parts.append(c.max(0))
+        lo_parts.append(c.min(0) * cell)
+        hi_parts.append((c.max(0) + 1) * cell)
     if heatmap is not None:
         hh, hw = heatmap.values.shape
-        corners = np.array(heatmap.origin, np.float64) * heatmap.cell_size
-        far = corners + np.array([hw, hh]) * heatmap.cell_size
-        lo_parts.append(np.floor(corners / cell).astype(np.int64))
-        hi_parts.append(np.floor(far / cell).astype(np.int64) - 1)
+        corner = np.array(heatmap.origin, np.float64) * heatmap.cell_size
+        lo_parts.append(corner)
+        hi_parts.append(corner + np.array([hw, hh]) * heatmap.cell_size)
     for x, y in extra_xy:
-        ij = np.floor(np.array([x, y]) / cell).astype(np.int64)
-        lo_parts.append(ij)
-        hi_parts.append(ij)
+        lo_parts.append(np.array([x, y]))
+        hi_parts.append(np.array([x, y]))
     if not lo_parts:
         raise InvalidInputError(
             "the map is empty: no instance in the index grid and no observed space; integrate "
             "frames before drawing it."
         )
-    lo = np.min(lo_parts, 0).astype(np.int64) - 2
-    hi = np.max(hi_parts, 0).astype(np.int64) + 2
-    span = int(max(hi - lo + 1))
-    k = max(1, -(-span // max_side))  # cells per raster cell, so the raster fits max_side
-    s = int(max(1, min(MAX_PIXELS_PER_CELL, max_side // -(-span // k))))
-    return _Frame(lo, hi, k, s, cell)
+    margin = MARGIN_CELLS * cell
+    return np.min(lo_parts, 0) - margin, np.max(hi_parts, 0) + margin
 
 
-def _paint(raster: np.ndarray, f: _Frame, ij: np.ndarray, color: Sequence[int]) -> None:
-    if len(ij):
-        r, c = f.raster(ij)
-        raster[r, c] = color
+def _paint_occupancy(canvas: Canvas, glmap: GLMap) -> bool:
+    """Free cells white, then obstacles dark grey (they win a shared pixel); chunk by chunk."""
+    occupancy = glmap.occupancy
+    for state_value, color in ((FREE, FREE_RGB), (OBSTACLE, OBSTACLE_RGB)):
+        for (ci, cj), counts in occupancy.chunks.items():
+            rows, cols = np.nonzero(occupancy.state_of_counts(counts) == state_value)
+            if len(rows):
+                canvas.paint(np.stack([cols + ci * CHUNK, rows + cj * CHUNK], axis=1), color)
+    return bool(occupancy.chunks)
 
 
-def _heat_overlay(raster: np.ndarray, f: _Frame, heatmap: HeatMap) -> tuple[float, float] | None:
-    """Blend the heat map into the raster; return the (vmin, vmax) drawn, or None."""
-    rows, cols = np.mgrid[0 : raster.shape[0], 0 : raster.shape[1]]
-    # Centre of each raster cell in world metres.
-    x = (f.lo[0] + cols.ravel() * f.k + f.k / 2.0) * f.cell
-    y = (f.hi[1] + 1 - rows.ravel() * f.k - f.k / 2.0) * f.cell
+def _heat_overlay(canvas: Canvas, heatmap: HeatMap) -> tuple[float, float] | None:
+    """Blend the heat map into the canvas; return the (vmin, vmax) drawn, or None."""
+    x, y = canvas.centres()
     values = heatmap.at(x, y)
     finite = np.isfinite(values)
     if not finite.any():
@@ -233,18 +222,66 @@ def _heat_overlay(raster: np.ndarray, f: _Frame, heatmap: HeatMap) -> tuple[floa
     t = np.clip((values[finite] - vmin) / max(vmax - vmin, 1e-12), 0.0, 1.0)
     lut = cv2.applyColorMap(np.arange(256, dtype=np.uint8)[:, None], cv2.COLORMAP_TURBO)
     colors = lut[(t * 255).round().astype(np.int64), 0, ::-1].astype(np.float64)  # BGR -> RGB
-    flat = raster.reshape(-1, 3)
+    flat = canvas.grid.reshape(-1, 3)
     idx = np.flatnonzero(finite)
     blended = (1 - HEAT_OPACITY) * flat[idx] + HEAT_OPACITY * colors
     flat[idx] = blended.round().astype(np.uint8)
     return vmin, vmax
 
 
-def _text(image: np.ndarray, text: str, xy: tuple[int, int], scale: float = 0.4) -> None:
+def _text(image: np.ndarray, text: str, xy: tuple[int, int], scale: float = FONT_SCALE) -> None:
     """Write white text with a dark outline, readable on any colour."""
-    font = cv2.FONT_HERSHEY_SIMPLEX
-    cv2.putText(image, text, xy, font, scale, (0, 0, 0), 3, cv2.LINE_AA)
-    cv2.putText(image, text, xy, font, scale, (255, 255, 255), 1, cv2.LINE_AA)
+    cv2.putText(image, text, xy, FONT, scale, (0, 0, 0), 3, cv2.LINE_AA)
+    cv2.putText(image, text, xy, FONT, scale, (255, 255, 255), 1, cv2.LINE_AA)
+
+
+class _Labels:
+    """Writes text labels where they overlap no earlier label (or skips them)."""
+
+    def __init__(self, image: np.ndarray) -> None:
+        self.image = image
+        self.taken = np.zeros(image.shape[:2], bool)
+        self.boxes: list[tuple[int, int, int, int]] = []
+        self.skipped = 0
+
+    def place(self, text: str, anchor: tuple[int, int], centred: bool = True) -> bool:
+        """Write `text` at `anchor` (its centre, or its bottom-left) or the nearest free
+        spot around it; False when all of them would overlap a label."""
+        (tw, th), base = cv2.getTextSize(text, FONT, FONT_SCALE, 3)
+        h, w = self.taken.shape
+        x = anchor[0] - tw // 2 if centred else anchor[0]
+        y = anchor[1] + th // 2 if centred else anchor[1]
+        step_x, step_y = tw // 2 + 3, th + 3
+        for dx, dy in ((0, 0), (step_x, 0), (-step_x, 0), (0, -step_y), (0, step_y),
+                       (step_x, -step_y), (-step_x, -step_y), (step_x, step_y),
+                       (-step_x, step_y)):  # fmt: skip
+            left, bottom = int(np.clip(x + dx, 0, max(w - tw - 1, 0))), y + dy
+            bottom = int(np.clip(bottom, th + 1, max(h - base - 1, th + 1)))
+            box = (left, bottom - th - 1, left + tw + 1, bottom + base)
+            if self.taken[box[1] : box[3], box[0] : box[2]].any():
+                continue
+            self.taken[box[1] : box[3], box[0] : box[2]] = True
+            self.boxes.append(box)
+            _text(self.image, text, (left, bottom))
+            return True
+        self.skipped += 1
+        return False
+
+
+def _draw_ticks(image: np.ndarray, frame: TopDownFrame, labels: _Labels) -> None:
+    """Ticks every frame.tick metres on the bottom (x) and left (y) edges, labelled."""
+    h, w = image.shape[:2]
+    tick, mpp = frame.tick, frame.metres_per_pixel
+    for k in range(math.ceil(frame.x0 / tick - 1e-9), math.floor(frame.x1 / tick + 1e-9) + 1):
+        col = int(round((k * tick - frame.x0) / mpp))
+        if 0 <= col < w:
+            cv2.line(image, (col, h - 1), (col, h - 6), TICK_RGB, 1)
+            labels.place(f"{k * tick:g}", (col + 2, h - 8), centred=False)
+    for k in range(math.ceil(frame.y0 / tick - 1e-9), math.floor(frame.y1 / tick + 1e-9) + 1):
+        row = int(round((frame.y1 - k * tick) / mpp))
+        if 0 <= row < h:
+            cv2.line(image, (0, row), (5, row), TICK_RGB, 1)
+            labels.place(f"{k * tick:g}", (7, row + 4), centred=False)
 
 
 def draw_topdown(
@@ -256,8 +293,15 @@ def draw_topdown(
     labels: bool = True,
     regions: bool = True,
     trajectory: bool = True,
+    metres_per_pixel: float | None = None,
+    frame: TopDownFrame | None = None,
 ) -> TopDownImage:
-    """Draw the map's index grid from above as a labelled image.
+    """Draw the map's index grid from above as a labelled image with metre ticks.
+
+    The scale is the finest of 1, 2, 2.5, 5 x 10^k m per pixel that fits max_side and the
+    corners lie on a coarse 1-2-5 spacing, so the frame stays put while the map grows
+    inside it (and a `frame` passed back is kept while everything fits).
+    Memory is bounded by the image (max_side^2 pixels), whatever the map's extent.
 
     Args:
         glmap: the map.
@@ -265,15 +309,17 @@ def draw_topdown(
             metres and radians (heading from +x, counter-clockwise).
         heatmap: an optional value heat-map blended over the cells it covers (turbo
             colours, cold = low).
-        max_side: cap on the image's longer side in pixels, 64..MAX_SIDE (4096); a map
-            with more cells than pixels is drawn several cells per pixel.
-        labels: write unit ids (instances at their centroids, regions as "R<id>").
+        max_side: cap on the image's longer side in pixels, 64..MAX_SIDE (4096).
+        labels: write unit ids (instances at their centroids, regions as "R<id>") where
+            they overlap no other label.
         regions: outline each region's cells with their convex hull.
         trajectory: draw the integrated camera positions as a blue line.
+        metres_per_pixel: a fixed scale instead of the ladder's choice.
+        frame: a previous image's frame, kept when everything still fits in it.
 
     Raises:
         InvalidInputError: nothing to draw (no instances and no observed space), a bad
-            agent pose, heat map or max_side.
+            agent pose, heat map, max_side or metres_per_pixel.
     """
     if isinstance(max_side, bool) or not isinstance(max_side, numbers.Integral):
         raise InvalidInputError(f"max_side={max_side!r} must be an integer number of pixels.")
@@ -286,64 +332,74 @@ def draw_topdown(
     agent_xyh = _agent_xy_heading(agent) if agent is not None else None
     cells = _unit_cells(glmap)
     extra = [agent_xyh[:2]] if agent_xyh is not None else []
-    f = _frame(glmap, cells, extra, heatmap, int(max_side))
-    raster = np.empty((*f.shape, 3), np.uint8)
-    raster[:] = UNSEEN
+    lo, hi = _content_bounds(glmap, cells, extra, heatmap)
+    cell = glmap.config.cell_size
+    keep = (
+        frame is not None
+        and metres_per_pixel is None
+        and max(frame.width, frame.height) <= max_side
+        and frame.holds(lo, hi)
+    )
+    if not keep:
+        frame = choose_frame(lo, hi, cell / MAX_PIXELS_PER_CELL, int(max_side), metres_per_pixel)
+    assert frame is not None
+    canvas = Canvas(frame, cell, UNSEEN)
     legend = ["Light grey = never observed."]
-    if glmap.occupancy.chunks:
-        dense = glmap.occupancy.to_dense()
-        rr, cc = np.nonzero(dense.state != 0)
-        ij = np.stack([cc + dense.origin[0], rr + dense.origin[1]], axis=1)
-        state = dense.state[rr, cc]
-        _paint(raster, f, ij[state == FREE], FREE_RGB)
-        _paint(raster, f, ij[state == OBSTACLE], OBSTACLE_RGB)  # obstacles win a shared pixel
+    if _paint_occupancy(canvas, glmap):
         legend.append("White = seen free, dark grey = obstacle.")
     # Largest footprints first, so a chair stays visible on top of the floor under it.
     for uid, c in sorted(cells.items(), key=lambda item: (-len(item[1]), item[0])):
-        _paint(raster, f, c, palette(uid))
+        canvas.paint(c, palette(uid))
     if cells:
         legend.append("Coloured cells = instance footprints (a colour per id).")
     if heatmap is not None:
-        drawn = _heat_overlay(raster, f, heatmap)
+        drawn = _heat_overlay(canvas, heatmap)
         if drawn is not None:
             legend.append(f"Heat overlay: blue = {drawn[0]:.3g} .. red = {drawn[1]:.3g}.")
-    image = np.ascontiguousarray(
-        cv2.resize(
-            raster,
-            (raster.shape[1] * f.s, raster.shape[0] * f.s),
-            interpolation=cv2.INTER_NEAREST,
-        )
-    )
+    image = canvas.image()
+    writer = _Labels(image)
+    _draw_ticks(image, frame, writer)
     label_count = len(cells) + (len(glmap.regions) if regions else 0)
     write_labels = labels and label_count <= MAX_LABELS
     if regions:
-        _draw_regions(image, f, glmap, write_labels)
+        _draw_regions(image, frame, glmap, writer if write_labels else None)
         if glmap.regions:
             legend.append("Outlines labelled R<id> = region hulls.")
     if trajectory and glmap.trajectory:
-        pts = np.array([f.px(p[0, 3], p[1, 3]) for p in glmap.trajectory], np.int32)
+        pts = np.array([frame.px(p[0, 3], p[1, 3]) for p in glmap.trajectory], np.int32)
         cv2.polylines(image, [pts.reshape(-1, 1, 2)], False, TRAJECTORY_RGB, 1, cv2.LINE_AA)
         legend.append("Blue line = camera trajectory.")
     if write_labels:
-        for uid in cells:
+        for uid in sorted(cells, key=lambda u: (-len(cells[u]), u)):
             cx, cy = glmap.instances[uid].centroid[:2]
-            _text(image, str(uid), f.px(float(cx), float(cy)))
-        legend.append("Numbers = instance ids at their centroids.")
+            writer.place(str(uid), frame.px(float(cx), float(cy)))
+        legend.append("Numbers = instance ids at (or next to) their centroids.")
+    if writer.skipped:
+        legend.append(f"{writer.skipped} labels left out where they would overlap others.")
     if agent_xyh is not None:
         x, y, heading = agent_xyh
         tip = (x + 0.5 * math.cos(heading), y + 0.5 * math.sin(heading))
-        cv2.arrowedLine(image, f.px(x, y), f.px(*tip), AGENT_RGB, 2, cv2.LINE_AA, tipLength=0.35)
-        cv2.circle(image, f.px(x, y), 3, AGENT_RGB, -1, cv2.LINE_AA)
+        start, end = frame.px(x, y), frame.px(*tip)
+        cv2.arrowedLine(image, start, end, AGENT_RGB, 2, cv2.LINE_AA, tipLength=0.35)
+        cv2.circle(image, start, 3, AGENT_RGB, -1, cv2.LINE_AA)
         legend.append(f"Red arrow = the agent at ({x:.2f}, {y:.2f}) facing its heading.")
-    mpp = f.cell * f.k / f.s
     return TopDownImage(
-        image, float(f.lo[0] * f.cell), float((f.hi[1] + 1) * f.cell), mpp, tuple(legend)
+        image,
+        frame.x0,
+        frame.y1,
+        frame.metres_per_pixel,
+        tuple(legend),
+        tick=frame.tick,
+        label_boxes=tuple(writer.boxes),
+        frame=frame,
     )
 
 
-def _draw_regions(image: np.ndarray, f: _Frame, glmap: GLMap, write_labels: bool) -> None:
+def _draw_regions(
+    image: np.ndarray, frame: TopDownFrame, glmap: GLMap, labels: _Labels | None
+) -> None:
     """Outline each region's cells by their convex hull, in the region's colour."""
-    mpp = f.cell * f.k / f.s
+    mpp, cell = frame.metres_per_pixel, glmap.config.cell_size
     for rid in sorted(glmap.regions):
         cells: set[tuple[int, int]] = set()
         for iid in glmap.regions[rid].instance_ids:
@@ -351,12 +407,11 @@ def _draw_regions(image: np.ndarray, f: _Frame, glmap: GLMap, write_labels: bool
         if not cells:
             continue
         ij = np.array(sorted(cells), np.float64)
-        corners = np.concatenate([ij + d for d in ((0, 0), (1, 0), (0, 1), (1, 1))]) * f.cell
-        x0, y1 = f.lo[0] * f.cell, (f.hi[1] + 1) * f.cell
-        px = np.stack([(corners[:, 0] - x0) / mpp, (y1 - corners[:, 1]) / mpp], axis=1)
+        corners = np.concatenate([ij + d for d in ((0, 0), (1, 0), (0, 1), (1, 1))]) * cell
+        px = np.stack([(corners[:, 0] - frame.x0) / mpp, (frame.y1 - corners[:, 1]) / mpp], 1)
         hull = cv2.convexHull(px.round().astype(np.int32))
         cv2.polylines(image, [hull], True, palette(rid), 2, cv2.LINE_AA)
-        if write_labels:
+        if labels is not None:
             # Above the hull's top-left corner, clear of the instance ids inside it.
             left, top = hull.reshape(-1, 2).min(axis=0)
-            _text(image, f"R{rid}", (int(left), max(int(top) - 4, 10)))
+            labels.place(f"R{rid}", (int(left), max(int(top) - 4, 10)), centred=False)
