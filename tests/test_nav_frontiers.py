@@ -97,7 +97,7 @@ def test_the_waypoint_is_the_frontier_closest_to_the_value_maximum() -> None:
     occ = two_door_room()
     here = occ.index_to_world(35, 40)  # nearer the right door
     config = NavConfig()
-    field = agent_field(occ, here, config)
+    field = agent_field(occ, here, config).metres
     fronts = frontiers(occ, here, RADIUS, min_size=3, distance_field=field)
     assert len(fronts) == 2
     trav = traversable(occ, RADIUS)
@@ -130,7 +130,7 @@ def test_a_matched_unit_gives_the_nearest_navigable_cell_within_the_stop_distanc
     cells = np.array([(i, j) for i in range(38, 42) for j in range(38, 42)])  # a 20 cm box
     match = GoalMatch(7, 0.9, 3, cells)
     trav = traversable(occ, RADIUS)
-    field = agent_field(occ, here, config)
+    field = agent_field(occ, here, config).metres
     wp = choose_waypoint(None, [], trav, here, match, config, occ=occ, distance=field)
     assert wp.kind == "goal" and wp.unit_id == 7 and wp.xy is not None
     assert trav[occ.world_to_index(*wp.xy)]

@@ -16,7 +16,7 @@ def main(argv: list[str] | None = None) -> int:
     if not argv or argv[0] in ("-h", "--help"):
         print("usage: python -m glmap_tools.bench {" + ",".join(names) + "} [args]")
         return 0 if argv else 2
-    name = argv[0]
+    name = argv[0].replace("-", "_")  # `nav-core` runs bench/nav_core.py
     if name not in names:
         print(
             f"unknown benchmark {name!r}.{did_you_mean(name, names)} Choose from {names}.",

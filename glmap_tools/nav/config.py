@@ -50,7 +50,7 @@ class NavConfig:
     window_margin: float = 1.0
     optimistic: bool = True
     stuck_steps: int = 12
-    plan_stride: int = 1
+    plan_stride: int = 2
     initial_spin: int = 12
 
     def __post_init__(self) -> None:

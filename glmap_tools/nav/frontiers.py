@@ -36,8 +36,8 @@ class Frontier:
 
 def frontier_mask(occ: DenseOccupancy, trav: np.ndarray) -> np.ndarray:
     """[H, W] bool: traversable cells with an UNKNOWN cell among their 8 neighbours."""
-    unknown = occ.state == UNKNOWN
-    near_unknown = ndimage.binary_dilation(unknown, structure=EIGHT)
+    unknown = (occ.state == UNKNOWN).view(np.uint8)
+    near_unknown = ndimage.maximum_filter(unknown, size=3, mode="constant").astype(bool)
     return trav & near_unknown
 
 
@@ -47,6 +47,7 @@ def frontiers(
     agent_radius: float,
     min_size: int = 5,
     distance_field: np.ndarray | None = None,
+    trav: np.ndarray | None = None,
 ) -> list[Frontier]:
     """Frontier clusters reachable from the agent through seen-free space, nearest first.
 
@@ -58,12 +59,15 @@ def frontiers(
         min_size: clusters with fewer cells are dropped (depth noise leaves tiny holes).
         distance_field: [H, W] geodesic metres from the agent over the same window (e.g. the
             planner's); when None, distances are straight-line metres to the nearest cell.
+        trav: [H, W] `traversable(occ, agent_radius)` when the caller has it already.
 
     Raises:
         OutsideMapError: the agent is outside the window.
     """
     rc = agent_rc(occ, agent_xy)
-    trav = clear_footprint(traversable(occ, agent_radius), rc, agent_radius / occ.cell_size)
+    if trav is None:
+        trav = traversable(occ, agent_radius)
+    trav = clear_footprint(trav, rc, agent_radius / occ.cell_size)
     labels, _ = ndimage.label(trav, structure=EIGHT)
     reach = trav & (labels == labels[rc])
     fmask = frontier_mask(occ, reach)

@@ -171,3 +171,15 @@ def clear_footprint(ok: np.ndarray, rc: tuple[int, int], radius_cells: float) ->
     keep = (offs[:, 0] >= 0) & (offs[:, 0] < h) & (offs[:, 1] >= 0) & (offs[:, 1] < w)
     out[offs[keep, 0], offs[keep, 1]] = True
     return out
+
+
+def nav_masks(
+    occ: DenseOccupancy, rc: tuple[int, int], agent_radius: float, optimistic: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """(traversable, plannable) [H, W] bool with one inflation, the agent's footprint clear."""
+    radius_cells = agent_radius / occ.cell_size
+    open_ = ~blocked(occ, agent_radius)
+    free = occ.state == FREE
+    ok = (free | (occ.state == UNKNOWN)) if optimistic else free
+    trav = clear_footprint(free & open_, rc, radius_cells)
+    return trav, clear_footprint(ok & open_, rc, radius_cells)

@@ -82,23 +82,91 @@ def descend(
     Stops at the source, at a local minimum, or after `max_cells` cells.
     """
     h, w = field.shape
-    r, c = start_rc
-    cells = [(r, c)]
+    pad = np.full((h + 2, w + 2), np.inf)
+    pad[1:-1, 1:-1] = field
+    flat = pad.ravel()
+    offsets = np.array([dr * (w + 2) + dc for dr, dc in _STEPS], dtype=np.int64)
+    idx = (start_rc[0] + 1) * (w + 2) + start_rc[1] + 1
+    out = [idx]
     limit = max_cells or h * w
-    while field[r, c] > 0 and len(cells) < limit:
-        best, best_v = (r, c), field[r, c]
-        for dr, dc in _STEPS:
-            rr, cc = r + dr, c + dc
-            if 0 <= rr < h and 0 <= cc < w:
-                # Normalise by step length so diagonals are compared fairly.
-                v = field[rr, cc]
-                if v < best_v:
-                    best, best_v = (rr, cc), v
-        if best == (r, c):
+    while flat[idx] > 0 and len(out) < limit:
+        nbrs = idx + offsets
+        k = int(np.argmin(flat[nbrs]))
+        if not flat[nbrs[k]] < flat[idx]:
             break
-        r, c = best
-        cells.append((r, c))
-    return np.array(cells, dtype=np.int64)
+        idx = int(nbrs[k])
+        out.append(idx)
+    cells = np.array(out, dtype=np.int64)
+    return np.stack([cells // (w + 2) - 1, cells % (w + 2) - 1], axis=1)
+
+
+@dataclass(frozen=True)
+class DistanceField:
+    """Geodesic metres from the agent, solved on cells `stride` map cells wide.
+
+    Attributes:
+        metres: [H, W] over the occupancy window (each map cell takes its block's value;
+            inf where the map cell is not plannable or not reachable).
+        coarse: [h, w] the FMM solution on the stride x stride blocks (= metres at stride 1).
+        stride: map cells per planning cell.
+        origin: (i0, j0) of the window.
+        cell_size: metres per map cell.
+    """
+
+    metres: np.ndarray  # [H, W]
+    coarse: np.ndarray  # [h, w]
+    stride: int
+    origin: tuple[int, int]
+    cell_size: float
+
+    def block_of(self, rc: tuple[int, int]) -> tuple[int, int]:
+        return (rc[0] // self.stride, rc[1] // self.stride)
+
+    def block_xy(self, blocks: np.ndarray) -> np.ndarray:
+        """[K, 2] world (x, y) of the centres of [K, 2] (row, col) planning blocks."""
+        half = self.stride / 2.0
+        return np.stack(
+            [
+                (blocks[:, 1] * self.stride + half + self.origin[0]) * self.cell_size,
+                (blocks[:, 0] * self.stride + half + self.origin[1]) * self.cell_size,
+            ],
+            axis=1,
+        )
+
+
+def pool_any(mask: np.ndarray, stride: int) -> np.ndarray:
+    """[ceil(H/s), ceil(W/s)] bool: blocks with at least one True cell."""
+    h, w = mask.shape
+    ph, pw = -h % stride, -w % stride
+    m = np.pad(mask, ((0, ph), (0, pw)))
+    blocks = m.reshape(m.shape[0] // stride, stride, m.shape[1] // stride, stride)
+    return np.asarray(blocks.any(axis=(1, 3)))
+
+
+def distance_field(
+    occ: DenseOccupancy,
+    ok: np.ndarray,
+    source_rc: tuple[int, int],
+    stride: int = 1,
+    optimistic: bool = True,
+) -> DistanceField:
+    """FMM geodesic metres from `source_rc` over the plannable cells `ok` of `occ`.
+
+    With stride > 1 the FMM runs on stride x stride blocks, a block plannable when any of
+    its cells is: when unknown cells are plannable (`optimistic`), the only blocked cells
+    are inflated obstacles, at least 2 x agent radius thick, so no block joins the two
+    sides of a wall, and a passage one agent wide stays open. Without optimism a thin line
+    of unknown cells could be jumped, so the FMM then runs on map cells (stride 1).
+    """
+    s = occ.cell_size
+    if stride == 1 or not optimistic:
+        coarse = geodesic(ok, source_rc, s)
+        return DistanceField(coarse, coarse, 1, occ.origin, s)
+    blocks = pool_any(ok, stride)
+    coarse = geodesic(blocks, (source_rc[0] // stride, source_rc[1] // stride), s * stride)
+    h, w = ok.shape
+    fine = np.repeat(np.repeat(coarse, stride, axis=0), stride, axis=1)[:h, :w]
+    return DistanceField(np.where(ok, fine, np.inf), coarse, stride, occ.origin, s)
 
 
 @dataclass(frozen=True)
@@ -151,50 +219,39 @@ def next_action(
 
 def plan_on_field(
     occ: DenseOccupancy,
-    field: np.ndarray,
+    field: DistanceField,
     agent_xy: tuple[float, float],
     heading: float,
     goal_xy: tuple[float, float],
     config: NavConfig,
 ) -> Plan:
-    """Plan from a geodesic `field` whose source is the agent: descend from the goal to it."""
-    s = occ.cell_size
+    """Plan with a distance `field` whose source is the agent: descend from the goal to it."""
     goal_rc = occ.world_to_index(float(goal_xy[0]), float(goal_xy[1]))
-    h, w = field.shape
+    h, w = field.metres.shape
     inside = 0 <= goal_rc[0] < h and 0 <= goal_rc[1] < w
-    length = float(field[goal_rc]) if inside else math.inf
+    length = float(field.metres[goal_rc]) if inside else math.inf
     reachable = math.isfinite(length)
     goal = (float(goal_xy[0]), float(goal_xy[1]))
     end_rc: tuple[int, int] | None = goal_rc
     if not reachable:
-        end_rc = nearest_finite(field, goal_rc)
+        end_rc = nearest_finite(field.metres, goal_rc)
         if end_rc is None:
             return Plan(np.zeros((0, 2)), math.inf, "stop", False, goal)
-        length = float(field[end_rc])
+        length = float(field.metres[end_rc])
     assert end_rc is not None
-    cells = descend(field, end_rc)[::-1]
-    path = np.stack(
-        [(cells[:, 1] + occ.origin[0] + 0.5) * s, (cells[:, 0] + occ.origin[1] + 0.5) * s], 1
-    )
+    blocks = descend(field.coarse, field.block_of(end_rc))[::-1]
+    path = field.block_xy(blocks)
     path[0] = agent_xy
-    end_xy = goal if reachable else (float(path[-1, 0]), float(path[-1, 1]))
-    if reachable:
-        path[-1] = goal_xy
+    end_xy = goal if reachable else occ.index_to_world(*end_rc)
+    path[-1] = end_xy
     arrived = length <= config.forward_step / 2
-    action = next_action(
-        path,
-        agent_xy,
-        heading,
-        config,
-        arrived,
-        not forward_is_free(occ, field, agent_xy, heading, config),
-    )
+    blocked = not forward_is_free(occ, agent_xy, heading, config)
+    action = next_action(path, agent_xy, heading, config, arrived, blocked)
     return Plan(path, length, action, reachable, end_xy)
 
 
 def forward_is_free(
     occ: DenseOccupancy,
-    field: np.ndarray,
     agent_xy: tuple[float, float],
     heading: float,
     config: NavConfig,
@@ -204,7 +261,7 @@ def forward_is_free(
     Only hard evidence counts: the inflated margin is for planning, and an agent that ended
     up inside it (noise, a cleared footprint) must still be able to move out.
     """
-    h, w = field.shape
+    h, w = occ.state.shape
     n = max(1, math.ceil(config.forward_step / (occ.cell_size / 2)))
     for k in range(1, n + 1):
         t = config.forward_step * k / n
@@ -227,12 +284,12 @@ def nearest_finite(field: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] | 
 
 def agent_field(
     occ: DenseOccupancy, agent_xy: tuple[float, float], config: NavConfig
-) -> np.ndarray:
-    """[H, W] FMM geodesic metres from the agent over the plannable cells of `occ`."""
+) -> DistanceField:
+    """FMM geodesic metres from the agent over the plannable cells of `occ`."""
     rc = agent_rc(occ, agent_xy)
     ok = plannable(occ, config.agent_radius, config.optimistic)
     ok = clear_footprint(ok, rc, config.agent_radius / occ.cell_size)
-    return geodesic(ok, rc, occ.cell_size)
+    return distance_field(occ, ok, rc, config.plan_stride, config.optimistic)
 
 
 def plan(

@@ -19,15 +19,8 @@ from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
 from glmap_tools.nav.config import NavConfig, check_policy
 from glmap_tools.nav.egocentric import EgocentricValueMap
 from glmap_tools.nav.frontiers import Frontier, frontiers
-from glmap_tools.nav.grid import (
-    agent_rc,
-    clear_footprint,
-    known_window,
-    plannable,
-    reframe,
-    traversable,
-)
-from glmap_tools.nav.planner import Plan, geodesic, plan_on_field
+from glmap_tools.nav.grid import agent_rc, known_window, nav_masks, reframe
+from glmap_tools.nav.planner import DistanceField, Plan, distance_field, plan_on_field
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
 from glmap_tools.nav.value import ValueMap, unit_cell_array, value_map_from_scores
 from glmap_tools.nav.waypoint import GoalMatch, Waypoint, choose_waypoint
@@ -212,14 +205,11 @@ def decide(
 
     occ = _window(glmap, xy, state, config)
     rc = agent_rc(occ, xy)
-    radius_cells = config.agent_radius / s
-    field = geodesic(
-        clear_footprint(plannable(occ, config.agent_radius, config.optimistic), rc, radius_cells),
-        rc,
-        s,
+    trav, plan_ok = nav_masks(occ, rc, config.agent_radius, config.optimistic)
+    field = distance_field(occ, plan_ok, rc, config.plan_stride, config.optimistic)
+    fronts = frontiers(
+        occ, xy, config.agent_radius, config.min_frontier_size, field.metres, trav=trav
     )
-    fronts = frontiers(occ, xy, config.agent_radius, config.min_frontier_size, distance_field=field)
-    trav = clear_footprint(traversable(occ, config.agent_radius), rc, radius_cells)
 
     units = map_units(glmap, "instances" if policy not in ("glmap", "glmap-region") else "both")
     scores = scorer.score(goal, units) if units else np.zeros(0)
@@ -271,14 +261,22 @@ def _choose_and_plan(
     heading: float,
     match: GoalMatch | None,
     occ: DenseOccupancy,
-    field: np.ndarray,
+    field: DistanceField,
     state: NavState,
     config: NavConfig,
 ) -> tuple[Waypoint, Plan]:
     """Choose a waypoint and plan to it; a frontier reached without effect is given up."""
     for _ in range(8):
         wp = choose_waypoint(
-            value, fronts, trav, xy, match, config, occ=occ, distance=field, avoid=state.avoid
+            value,
+            fronts,
+            trav,
+            xy,
+            match,
+            config,
+            occ=occ,
+            distance=field.metres,
+            avoid=state.avoid,
         )
         if wp.xy is None and state.avoid and fronts:
             state.avoid.clear()  # every frontier was given up once: give them another chance

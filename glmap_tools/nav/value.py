@@ -111,7 +111,9 @@ _CELL_CACHE: weakref.WeakKeyDictionary[IndexGrid, dict[int, tuple[frozenset, np.
 
 def unit_cell_array(grid: IndexGrid, unit_id: int) -> np.ndarray:
     """[K, 2] int (i, j) cells of a unit, cached until the grid replaces them."""
-    cache = _CELL_CACHE.setdefault(grid, {})
+    cache = _CELL_CACHE.get(grid)
+    if cache is None:
+        cache = _CELL_CACHE[grid] = {}
     cells = grid.cells_of_unit(unit_id)
     hit = cache.get(unit_id)
     if hit is not None and hit[0] is cells:
@@ -127,21 +129,19 @@ def as_window(window: Window | DenseOccupancy) -> Window:
 
 def score_image(scores: Mapping[int, float], grid: IndexGrid, window: Window) -> np.ndarray:
     """[H, W] sum_u s_u delta(v - p_u): each unit's score added on each of its cells."""
+    ids = [int(uid) for uid, s in scores.items() if s > 0]
     img = np.zeros(window.shape, dtype=np.float64)
-    parts_r, parts_c, parts_v = [], [], []
-    for uid, s in scores.items():
-        if s <= 0:
-            continue
-        cells = unit_cell_array(grid, int(uid))
-        r = cells[:, 1] - window.j0
-        c = cells[:, 0] - window.i0
-        keep = (r >= 0) & (r < window.height) & (c >= 0) & (c < window.width)
-        parts_r.append(r[keep])
-        parts_c.append(c[keep])
-        parts_v.append(np.full(int(keep.sum()), float(s)))
-    if parts_r:
-        flat = np.concatenate(parts_r) * window.width + np.concatenate(parts_c)
-        img.ravel()[:] = np.bincount(flat, np.concatenate(parts_v), minlength=img.size)
+    if not ids:
+        return img
+    arrays = [unit_cell_array(grid, uid) for uid in ids]
+    counts = np.array([len(a) for a in arrays])
+    cells = np.concatenate(arrays)
+    vals = np.repeat(np.array([float(scores[uid]) for uid in ids]), counts)
+    r = cells[:, 1] - window.j0
+    c = cells[:, 0] - window.i0
+    keep = (r >= 0) & (r < window.height) & (c >= 0) & (c < window.width)
+    flat = r[keep] * window.width + c[keep]
+    img.ravel()[:] = np.bincount(flat, vals[keep], minlength=img.size)
     return img
 
 
@@ -169,8 +169,13 @@ def value_map_from_scores(
     win = as_window(window)
     img = score_image(scores, grid, win)
     g = gaussian_kernel_1d(sigma / grid.cell_size)
-    h = ndimage.correlate1d(img, g, axis=0, mode="constant")
-    h = ndimage.correlate1d(h, g, axis=1, mode="constant")
+    # K_sigma is separable: filter along columns (only those holding a score), then rows.
+    h = np.zeros_like(img)
+    cols = np.flatnonzero(img.any(axis=0))
+    if len(cols):
+        h[:, cols] = ndimage.correlate1d(img[:, cols], g, axis=0, mode="constant")
+        rows = np.flatnonzero(h.any(axis=1))
+        h[rows] = ndimage.correlate1d(h[rows], g, axis=1, mode="constant")
     peak = float(h.max()) if h.size else 0.0
     values = h / peak if peak > 0 else np.zeros_like(h)
     return ValueMap(np.clip(values, 0.0, 1.0), win.origin, grid.cell_size, peak, sigma)
