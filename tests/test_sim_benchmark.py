@@ -144,3 +144,22 @@ def test_the_oracle_solves_benchmark_episodes_within_the_step_limit() -> None:
         assert info["steps"] < 500
     finally:
         env.close()
+
+
+def test_a_single_open_room_has_no_hidden_start_and_says_so() -> None:
+    from glmap_tools.sim.layout_io import layout_from_dict
+
+    layout = layout_from_dict(
+        {
+            "name": "open room",
+            "rooms": [{"id": 1, "type": "room", "polygon": [[0, 0], [8, 0], [8, 6], [0, 6]]}],
+            "objects": [
+                {"id": 1, "category": "sofa", "mesh": "kenney/loungeSofa",
+                 "position": [2.0, 1.0, 0.0], "heading": 1.5708},
+                {"id": 2, "category": "table", "mesh": "primitive/table",
+                 "position": [6.0, 4.5, 0.0]},
+            ],
+        }
+    )  # fmt: skip
+    with pytest.raises(InvalidInputError, match="no start out of sight"):
+        hidden_episodes(layout, "objectnav", 3, seed=0, tries=20)

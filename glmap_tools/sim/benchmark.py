@@ -133,6 +133,7 @@ def hidden_episodes(
     seed: int,
     grid: NavGrid | None = None,
     min_distance: float = MIN_GEODESIC,
+    tries: int = START_TRIES,
 ) -> EpisodeSet:
     """`count` episodes whose starts are out of sight of every goal object (deterministic).
 
@@ -141,8 +142,8 @@ def hidden_episodes(
     sight is drawn again.
 
     Raises:
-        InvalidInputError: a goal with no hidden start in `START_TRIES` draws twice in a row
-            for every goal, or a bad task or count.
+        InvalidInputError: more than twice as many goals in a row as there are goals found
+            no hidden start in `tries` draws each; a bad task or count.
     """
     _check_task(task)
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
@@ -153,16 +154,25 @@ def hidden_episodes(
     starts = [np.argwhere(np.isfinite(f) & (f >= min_distance)) for _, _, f in pool]
     rng = np.random.default_rng([int(seed), TASKS.index(task), 11])
     episodes: list[Episode] = []
+    misses = 0
     while len(episodes) < count:
         g = int(rng.integers(len(pool)))
         text, ids, field = pool[g]
-        for _ in range(START_TRIES):
+        for _ in range(tries):
             r, c = starts[g][int(rng.integers(len(starts[g])))]
             xy = grid.to_world(np.array([[r, c]]))[0]
             if not sight.in_sight(xy, ids):
                 break
         else:
-            continue  # every draw saw the goal: draw another goal
+            misses += 1  # every draw saw the goal: draw another goal
+            if misses > 2 * len(pool):
+                raise InvalidInputError(
+                    f"layout {layout.name!r}: no start out of sight of its {task} goals after "
+                    f"{misses} goals x {tries} draws; add walls or rooms, or lower "
+                    "min_distance."
+                )
+            continue
+        misses = 0
         episodes.append(
             Episode(
                 episode_id=len(episodes),
