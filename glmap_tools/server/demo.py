@@ -1,10 +1,13 @@
-"""`glmap demo`: walk a simulated apartment through MCP calls and write a readable transcript.
+"""`glmap demo`: the GLMap agent plays an ObjectNav episode through MCP calls; a transcript.
 
-Builds the server in process, connects a real MCP client session to it, plays one ObjectNav
-episode (look around, find the goal in the map, walk to it, stop), queries the map along
-the way (find_instance, find_region, what_is_at, describe_unit, render_view, map_summary),
-and writes `out/demo/` with every image and `transcript.md` / `transcript.html` of every
-call and its result.
+Builds the server in process and connects a real MCP client session to it. The GLMap agent
+(`agents.runner`, policy 'glmap': the value map of paper Eq. 7 over instance and region
+units, frontiers, the waypoint rule and the FMM planner, run server-side by `nav_step`)
+plays one ObjectNav episode at 320x240 and writes `out/demo/episode/` (trace.jsonl of every
+call, report.md/html with the egocentric frames and the value maps step by step). Then the
+map it built is queried (find_instance, find_region, what_is_at, describe_unit, value_map,
+render_view, map_summary), saved and exported as a PLY, and `out/demo/transcript.md` /
+`transcript.html` show every call, its result and images.
 """
 
 from __future__ import annotations
@@ -13,7 +16,6 @@ import argparse
 import base64
 import html
 import json
-import math
 import os
 import sys
 import time
@@ -21,11 +23,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from glmap_tools.errors import GLMapError
-
-LOOK_AROUND_TURNS = 12  # 12 x 30 degrees
-ARRIVE_DISTANCE = 0.9  # m from the goal's centroid
 MAX_TEXT = 2500  # characters of a result shown in the transcript
+MAX_EPISODE_MAPS = 6  # value maps of the episode shown in the transcript
+IMAGE_EVERY = 4  # the agent fetches the view and the value map every this many calls
 ELIDE = 64  # characters of a base64 argument shown
 
 
@@ -94,9 +94,15 @@ class Recorder:
         return result
 
     # ------------------------------------------------------------------ output
-    def write(self, title: str, intro: str) -> tuple[Path, Path]:
-        """Write transcript.md and transcript.html; return their paths."""
-        md = [f"# {title}", "", intro, ""]
+    def write(self, title: str, intro: str, extra: list[str] | None = None) -> tuple[Path, Path]:
+        """Write transcript.md and transcript.html; return their paths.
+
+        Args:
+            title: page title.
+            intro: the first paragraph.
+            extra: Markdown lines placed after the intro (the HTML shows their images).
+        """
+        md = [f"# {title}", "", intro, ""] + list(extra or [])
         for e in self.entries:
             status = "**error**" if e.is_error else "ok"
             md += [f"## {e.index}. `{e.tool}` — {status}, {e.seconds * 1000:.0f} ms", ""]
@@ -119,6 +125,13 @@ class Recorder:
             "max-height:420px}img{margin:4px;border:1px solid #ccc}.err{color:#b00}</style>",
             f"</head><body><h1>{html.escape(title)}</h1><p>{html.escape(intro)}</p>",
         ]
+        for line in extra or []:
+            if line.startswith("!["):
+                parts.append(f"<img src='{html.escape(line.split('](')[1][:-1])}'>")
+            elif line.startswith("## "):
+                parts.append(f"<h2>{html.escape(line[3:])}</h2>")
+            elif line:
+                parts.append(f"<p>{html.escape(line)}</p>")
         for e in self.entries:
             cls = " class='err'" if e.is_error else ""
             parts.append(
@@ -140,45 +153,15 @@ class Recorder:
         return md_path, html_path
 
 
-def _status(result: Any) -> dict[str, Any]:
-    if result.is_error:
-        raise GLMapError(f"the demo's simulator call failed: {result.content[0].text}")
-    return dict(json.loads(result.content[0].text))
-
-
-def _turn_towards(heading_deg: float, x: float, y: float, tx: float, ty: float) -> str | None:
-    """'turn_left'/'turn_right' to face (tx, ty) within 15 degrees, or None when facing it."""
-    want = math.degrees(math.atan2(ty - y, tx - x))
-    diff = (want - heading_deg + 180.0) % 360.0 - 180.0
-    if abs(diff) <= 15.0:
-        return None
-    return "turn_left" if diff > 0 else "turn_right"
-
-
-async def tour(rec: Recorder, scene: int, seed: int, max_steps: int) -> dict[str, Any]:
-    """Play one ObjectNav episode with the map's help; return the final status."""
-    await rec.call("list_maps", {}, "What maps are saved already?")
-    state = _status(
-        await rec.call(
-            "sim_reset",
-            {"task": "objectnav", "scene": scene, "seed": seed},
-            "Start an ObjectNav episode; the first frame goes into a fresh map.",
-        )
-    )
-    goal = state["goal"]
-    state = _status(
-        await rec.call(
-            "sim_step",
-            {"action": "turn_left", "repeat": LOOK_AROUND_TURNS},
-            "Look around: twelve 30-degree turns, each frame added to the map.",
-        )
-    )
+async def queries(rec: Recorder, play: dict[str, Any], goal: str) -> None:
+    """Ask the map the agent built about the goal and its surroundings; save and export it."""
     hits = await rec.call(
-        "find_instance", {"query": goal, "top_k": 3}, f"Ask the map where the {goal} is."
+        "find_instance", {"query": goal, "top_k": 3}, f"Where is the {goal} in the map?"
     )
-    await rec.call("find_instance", {"query": "something to sit on", "top_k": 3})
     await rec.call("find_region", {"query": "a place to cook", "top_k": 2})
-    target: dict[str, Any] | None = None
+    await rec.call(
+        "value_map", {"goal": goal}, "The value map (Eq. 7) the agent navigated by, at the end."
+    )
     found = hits.structured_content["hits"] if not hits.is_error else []
     if found:
         target = found[0]
@@ -190,34 +173,11 @@ async def tour(rec: Recorder, scene: int, seed: int, max_steps: int) -> dict[str
             {"target": "instance", "unit_id": target["id"]},
             "Look at the hit in the map's Gaussians.",
         )
-    steps = state["steps"]
-    blocked = 0
-    while target is not None and state["status"] == "running" and steps < max_steps:
-        x, y = state["position"]
-        tx, ty = target["centroid"][:2]
-        if math.hypot(tx - x, ty - y) <= ARRIVE_DISTANCE:
-            break
-        turn = _turn_towards(state["heading_deg"], x, y, tx, ty)
-        if blocked:
-            action, repeat, blocked = "turn_right", 3, 0
-        elif turn:
-            action, repeat = turn, 1
-        else:
-            action, repeat = "move_forward", 2
-        state = _status(
-            await rec.call("sim_step", {"action": action, "repeat": repeat}, f"towards {goal}")
-        )
-        blocked = 1 if state["collided"] else 0
-        steps = state["steps"]
-        if blocked and state["status"] == "running":
-            state = _status(
-                await rec.call("sim_step", {"action": "move_forward", "repeat": 1}, "sidestep")
-            )
-    x, y = state["position"]
+    x, y = play["position"]
     await rec.call(
         "render_view",
-        {"target": "situated", "x": x, "y": y, "heading_deg": state["heading_deg"]},
-        "Front, left, back and right views from where the agent stands.",
+        {"target": "situated", "x": x, "y": y, "heading_deg": play["heading_deg"]},
+        "Front, left, back and right views from where the agent stopped.",
     )
     await rec.call("render_view", {"target": "map"}, "The whole map from above at an angle.")
     await rec.call("map_summary", {}, "Counts, bounds and the top-down map.")
@@ -227,15 +187,33 @@ async def tour(rec: Recorder, scene: int, seed: int, max_steps: int) -> dict[str
         {"name": "demo", "overwrite": True},
         "Write its Gaussians as a 3DGS PLY file (maps/demo.ply) for a splat viewer.",
     )
-    if state["status"] == "running":
-        state = _status(await rec.call("sim_step", {"action": "stop"}, "Stop here."))
-    return state
+
+
+def episode_section(result: dict[str, Any], images: list[str], calls: int) -> list[str]:
+    """Markdown of the agent's episode: its result and its value maps, linked from episode/."""
+    maps = [i for i in images if i.endswith(".png")][-MAX_EPISODE_MAPS:]
+    facts = ", ".join(f"{k} {result[k]}" for k in ("success", "spl", "steps", "collisions"))
+    lines = [
+        "## The episode, played by the GLMap agent",
+        "",
+        f"{calls} MCP calls (sim_reset, then one nav_step per action): {facts}. Full report "
+        "with every fetched egocentric frame and value map: "
+        "[episode/report.html](episode/report.html) ([Markdown](episode/report.md)); every "
+        "call: `episode/trace.jsonl`.",
+        "",
+        "Value maps (heat = Eq. 7 over instance and region units; cyan = frontiers; magenta "
+        "= waypoint; green = planned path; blue = camera trajectory; red = the agent):",
+        "",
+    ]
+    lines += [f"![value map]({m})" for m in maps]
+    return lines + [""]
 
 
 async def run(out: Path, scene: int, seed: int, embedder: str, max_steps: int) -> int:
-    """Build the server in process, play the tour, write the transcript."""
+    """Build the server in process, let the GLMap agent play, query the map, write it all."""
     from mcp import Client
 
+    from agents.runner import play_episode
     from glmap_tools.server import ServerConfig, build_server
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
@@ -245,37 +223,54 @@ async def run(out: Path, scene: int, seed: int, embedder: str, max_steps: int) -
     async with Client(build_server(config)) as client:
         rec = Recorder(client, out)
         tools = sorted(t.name for t in (await client.list_tools()).tools)
-        final = await tour(rec, scene, seed, max_steps)
+        await rec.call("list_maps", {}, "What maps are saved already?")
+        print("the GLMap agent plays the episode (one nav_step per action) ...", flush=True)
+        result, traced = await play_episode(
+            client,
+            {"task": "objectnav", "scene": scene, "max_steps": max_steps},
+            "glmap",
+            seed=seed,
+            out_dir=out / "episode",
+            image_every=IMAGE_EVERY,
+            title=f"GLMap agent, scene {scene}, seed {seed}",
+        )
+        final = traced.records[-1].data()
+        await queries(rec, final, str(final["goal"]))
+    images = [f"episode/{i}" for r in traced.records for i in r.images]
     outcome = (
         f"Episode result: {final['status']} (goal: {final['goal']}, SPL {final.get('spl', 0)}, "
-        f"{final['steps']} steps). "
+        f"{final['steps']} steps, {len(traced.records)} calls). "
     )
     intro = (
         f"glmap demo: scene {scene}, episode seed {seed}, embedder {embedder}. The server "
-        f"offers {', '.join(tools)}. Each section is one MCP tools/call through a real client "
-        f"session, with its arguments, progress notifications, result and images. {outcome}"
-        f"Total {time.perf_counter() - start:.1f} s."
+        f"offers {', '.join(tools)}. Each section below is one MCP tools/call through a real "
+        f"client session, with its arguments, progress notifications, result and images. "
+        f"{outcome}Total {time.perf_counter() - start:.1f} s."
     )
-    md, page = rec.write("GLMap MCP demo", intro)
-    print(f"{outcome}\nwrote {md} and {page} ({len(rec.entries)} calls)")
+    md, page = rec.write(
+        "GLMap MCP demo", intro, episode_section(result, images, len(traced.records))
+    )
+    print(f"{outcome}\nwrote {md}, {page} and {out / 'episode' / 'report.html'}")
     return 0
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "demo",
-        help="walk a simulated apartment through the MCP server and write out/demo/",
+        help="the GLMap agent plays an ObjectNav episode through the MCP server -> out/demo/",
         description=(
-            "Start the GLMap MCP server in process, play one ObjectNav episode through MCP "
-            "calls (sim_step, find_instance, find_region, what_is_at, render_view, ...), and "
-            "write the images and a transcript (Markdown and HTML) of every call."
+            "Start the GLMap MCP server in process; the GLMap agent plays one ObjectNav "
+            "episode through MCP calls (nav_step: value map, frontiers, waypoint, FMM plan) "
+            "and writes its trace and report (frames and value maps) to out/demo/episode/; "
+            "then the map is queried (find_instance, value_map, render_view, ...), saved and "
+            "exported, with a transcript (Markdown and HTML) of every call."
         ),
     )
     p.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder")
     p.add_argument("--scene", type=int, default=0, help="generated apartment seed")
     p.add_argument("--seed", type=int, default=1, help="episode seed")
     p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
-    p.add_argument("--max-steps", type=int, default=80, help="actions before giving up")
+    p.add_argument("--max-steps", type=int, default=120, help="episode step limit")
     p.set_defaults(func=run_demo)
 
 
