@@ -50,7 +50,10 @@ floor-plan grid. World frame: metres, z up. Feed frames with observe_frame (or w
 simulator with sim_reset / sim_step), then ask: find_instance and find_region by words,
 what_is_at by position, describe_unit by id, render_view to see, map_summary for counts
 and a top-down image. Maps can be saved and reopened by name (save_map, load_map), and
-exported as 3D Gaussian Splatting PLY files (export_ply)."""
+exported as 3D Gaussian Splatting PLY files (export_ply). In the simulator: sim_reset, then
+look_around, value_map and navigate_to (or nav_step, or sim_step), and sim_step('stop') at
+the goal. Results are compact text (key: value lines, floats rounded to 3 decimals) with
+the exact values as structured content."""
 
 # Tools that render or integrate also wait for the kernels; every tool waits for the embedder.
 KERNEL_TOOLS = (
@@ -70,8 +73,9 @@ class GLMapServer(MCPServer[AppState]):
 
     tools/list carries each tool's description with its line breaks folded and its input
     schema without pydantic's titles and nullable unions (an optional argument is simply
-    not required); a model shared by several tools is described in the first only; output
-    schemas are left out. Results keep their structured content, and
+    not required); a model shared by several tools, and an argument described the same
+    way in several (session, query, name), are described in the first only; output schemas
+    are left out. Results keep their structured content, and
     their text block is a compact rendering of it (see `compact_text`), not a JSON copy.
 
     Attributes:
@@ -83,9 +87,16 @@ class GLMapServer(MCPServer[AppState]):
     async def list_tools(self) -> list[Tool]:
         tools = await super().list_tools()
         seen: dict[str, str] = {}  # $defs name -> the first tool that describes it
+        said: set[tuple[str, str]] = set()  # (argument, description) already given
         out = []
         for t in tools:
             schema = compact_schema(t.input_schema)
+            for arg, prop in schema.get("properties", {}).items():
+                text = prop.get("description")
+                if text is not None and (arg, text) in said:
+                    del prop["description"]  # described in an earlier tool
+                elif text is not None:
+                    said.add((arg, text))
             for name, model in schema.get("$defs", {}).items():
                 if name in seen:
                     schema["$defs"][name] = {

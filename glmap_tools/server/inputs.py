@@ -38,11 +38,9 @@ class FileInput(BaseModel):
     model_config = ConfigDict(extra="forbid")
     base64: str | None = Field(
         default=None,
-        description="the file's bytes, base64-encoded (a 'data:...;base64,' prefix is accepted)",
+        description="the file, base64-encoded",
     )
-    path: str | None = Field(
-        default=None, description="absolute path of a local file the server may read"
-    )
+    path: str | None = Field(default=None, description="absolute local path")
 
 
 class IntrinsicsInput(BaseModel):
@@ -65,15 +63,14 @@ class PoseInput(BaseModel):
     model_config = ConfigDict(extra="forbid")
     matrix: list[list[float | None]] = Field(
         max_length=8,
-        description="4x4 row-major world_from_camera (camera centre in the last column, metres)",
+        description="4x4 world_from_camera, row-major, metres",
     )
     camera: Literal["opencv", "opengl"] = Field(
         default="opencv",
-        description="camera axes: opencv = x right, y down, z forward; opengl = x right, "
-        "y up, looking down -z (pyrender, Blender, Habitat)",
+        description="opencv: x right, y down, z forward; opengl: y up, looks down -z",
     )
     world_up: Literal["z", "y", "-y", "x", "-x", "-z"] = Field(
-        default="z", description="the world's up axis: z (this server, ROS) or y (Habitat, glTF)"
+        default="z", description="world up axis (y in Habitat, glTF)"
     )
 
 
@@ -106,8 +103,7 @@ class AnnotationInput(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     mask: FileInput = Field(
-        description="instance-id image: single-channel 8/16-bit PNG or integer .npy, "
-        "same size as the depth image; 0 = no object"
+        description="object id per pixel (0 = none): 8/16-bit PNG or .npy, depth-sized"
     )
     objects: list[ObjectAnnotation] = Field(max_length=MAX_OBJECTS)
     groups: list[GroupAnnotation] = Field(default_factory=list, max_length=MAX_GROUPS)

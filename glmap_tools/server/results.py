@@ -156,8 +156,10 @@ def compact_description(text: str) -> str:
 
 
 def compact_schema(schema: Any, in_properties: bool = False) -> Any:
-    """A JSON schema without pydantic's titles and `additionalProperties: false` (the server
-    still refuses unknown fields, naming them), and with optional-or-null as just optional.
+    """A JSON schema without pydantic's titles, `additionalProperties: false` (the server
+    still refuses unknown fields, naming them), model docstrings in `$defs` (their fields
+    are described) and integer bounds past 2^53 (no JSON client can reach them), and with
+    optional-or-null as just optional.
 
     `{"anyOf": [X, {"type": "null"}], "default": null}` becomes X: leaving the argument out
     means the same, and weaker adapters handle a plain type better than a nullable union.
@@ -171,10 +173,16 @@ def compact_schema(schema: Any, in_properties: bool = False) -> Any:
         return {k: compact_schema(v) for k, v in schema.items()}
     out: dict[str, Any] = {}
     for key, value in schema.items():
-        if (key == "title" and isinstance(value, str)) or (
-            key == "additionalProperties" and value is False
+        if (
+            (key == "title" and isinstance(value, str))
+            or (key == "additionalProperties" and value is False)
+            or (key in ("maximum", "minimum") and isinstance(value, int) and abs(value) > 2**53)
         ):
             continue
+        if key == "$defs" and isinstance(value, dict):  # the fields say what matters
+            value = {
+                n: {k: v for k, v in d.items() if k != "description"} for n, d in value.items()
+            }
         out[key] = compact_schema(value, in_properties=key in ("properties", "$defs"))
     options = out.get("anyOf")
     if (

@@ -25,7 +25,7 @@ ExportName = Annotated[
     Field(
         min_length=1,
         max_length=70,
-        description="a bare file name: letters, digits, '-' or '_' (no folders; '.ply' is added)",
+        description="letters, digits, '-' or '_'",
     ),
 ]
 
@@ -64,18 +64,14 @@ def register(server: MCPServer) -> None:
         ctx: Context,
         unit_id: Annotated[
             int | None,
-            Field(ge=1, le=2**62, description="an instance or region id; omit for the whole map"),
+            Field(ge=1, le=2**62, description="omit for the whole map"),
         ] = None,
         overwrite: Annotated[
             bool, Field(description="replace an existing export of this name")
         ] = False,
         session: SessionArg = None,
     ) -> Exported:
-        """Write the map's 3D Gaussians (all, one instance, or a region) as a 3DGS PLY file.
-
-        The file goes into the server's maps folder as '<name>.ply', readable by 3D Gaussian
-        Splatting viewers; the result names the file, what it holds and how many Gaussians.
-        """
+        """Write the 3D Gaussians of the map, an instance or a region as a 3DGS '<name>.ply'."""
         state = app_state(ctx)
         target = session_of(ctx, session)
         path = export_path(state.config.maps_dir, name)

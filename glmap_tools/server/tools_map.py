@@ -46,10 +46,10 @@ Query = Annotated[
     Field(
         min_length=1,
         max_length=500,
-        description="what to look for, in words, e.g. 'a red armchair near the window'",
+        description="what to look for, in words",
     ),
 ]
-TopK = Annotated[int, Field(ge=1, le=50, description="how many hits to return, best first")]
+TopK = Annotated[int, Field(ge=1, le=50, description="hits to return")]
 UnitId = Annotated[int, Field(ge=1, le=2**62, description="an instance or region id")]
 OCCUPANCY_NAMES = {FREE: "free", OBSTACLE: "obstacle"}
 
@@ -106,21 +106,14 @@ def register(server: MCPServer) -> None:
         ] = 1000.0,
         annotations: Annotated[
             AnnotationInput | None,
-            Field(
-                description="instance mask + labels; required unless the server has a "
-                "perception backend"
-            ),
+            Field(description="mask + labels (needed without a perception backend)"),
         ] = None,
         session: SessionArg = None,
     ) -> ObserveResult:
-        """Add one posed RGB-D frame to the map: its objects become or merge into instances.
+        """Add a posed RGB-D frame: its annotated objects become or merge into instances.
 
-        Give the colour image, the registered depth image, the camera intrinsics, the
-        camera pose (a 4x4 world_from_camera matrix; say which camera and world axes it
-        uses), and the annotations: an instance-id mask and, for each id, a label and a
-        description; optional groups describe regions (e.g. 'dining area'). Files go as
-        base64 or as an absolute local path. Returns the ids of the instances and regions
-        added or merged. Nothing changes if any input is rejected.
+        Files go as base64 or a local path. Returns the ids added or merged; nothing changes
+        if any input is rejected.
         """
         state = app_state(ctx)
         target = session_of(ctx, session)
@@ -161,11 +154,10 @@ def register(server: MCPServer) -> None:
     async def find_instance(
         query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = None
     ) -> AgentHits:
-        """Find objects in the map by description, e.g. 'the sofa' or 'something to sit on'.
+        """Find objects by description, e.g. 'something to sit on'.
 
-        Returns the best-matching instances with id, description, score (higher is
-        closer), match (false when even the best hit does not fit the query: the map has no
-        such object yet), centroid and bounds in metres (world z up).
+        Hits: id, description, score, match (false: no such object mapped yet), centroid and
+        bounds (m, z up).
         """
         target = session_of(ctx, session)
 
@@ -181,11 +173,7 @@ def register(server: MCPServer) -> None:
     async def find_region(
         query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = None
     ) -> Hits:
-        """Find regions (groups of objects such as 'the dining area') by description.
-
-        Returns the best-matching regions with id, description, score, match (false: no
-        region fits the query), centroid, bounds and their member instance ids.
-        """
+        """Find regions (described groups of objects, e.g. 'the dining area') by description."""
         target = session_of(ctx, session)
 
         def run() -> Hits:
@@ -205,10 +193,7 @@ def register(server: MCPServer) -> None:
         ] = 0.25,
         session: SessionArg = None,
     ) -> AgentUnitsAt:
-        """List the instances and regions on the floor plan around (x, y), nearest first.
-
-        Also says whether (x, y) itself is free space, an obstacle, or unseen.
-        """
+        """Instances and regions on the floor plan near (x, y), nearest first; is (x, y) free?"""
         target = session_of(ctx, session)
 
         def run() -> AgentUnitsAt:
@@ -245,12 +230,7 @@ def register(server: MCPServer) -> None:
         include_image: Annotated[bool, Field(description="attach the top-down map image")] = True,
         session: SessionArg = None,
     ) -> list[TextContent | Image]:
-        """Counts and extent of the map, the session handle, and a top-down map image.
-
-        The image shows free space, obstacles, each instance (labelled with its id), region
-        outlines (R<id>), the camera trajectory and the latest camera as a red arrow; the
-        text says how its pixels map to world metres.
-        """
+        """Counts and extent of the map, and a labelled top-down image (ticks in metres)."""
         target = session_of(ctx, session)
 
         def run() -> tuple[MapInfo, TopDownImage | None, bytes | None]:

@@ -112,9 +112,7 @@ def register(server: MCPServer) -> None:
     ) -> list[TextContent | Image]:
         """Where the goal likely is: the value map (paper Eq. 7) over the top-down map.
 
-        The image shows the heat map, frontiers, the chosen waypoint and its planned path;
-        the text gives the waypoint (distance, bearing from the agent, + = left) and the
-        top cells. Go there with navigate_to.
+        With frontiers, the chosen waypoint and its path; go there with navigate_to.
         """
         target = session_of(ctx, session)
 
@@ -145,11 +143,7 @@ def register(server: MCPServer) -> None:
         top_k: Annotated[int, Field(ge=1, le=50, description="nearest first")] = 8,
         session: SessionArg = None,
     ) -> list[TextContent]:
-        """Frontiers: edges between seen-free and unexplored space that the agent can reach.
-
-        Each: a point to go to, size (cells), path and straight distance (m) and bearing
-        from the agent (degrees, + = left).
-        """
+        """Reachable edges of explored free space: point, size, path length, bearing (+ = left)."""
         from glmap_tools.nav import NavConfig
         from glmap_tools.nav import frontiers as find_frontiers
 
@@ -189,11 +183,9 @@ def register(server: MCPServer) -> None:
         max_steps: Annotated[int, Field(ge=1, le=500, description="action budget")] = 100,
         session: SessionArg = None,
     ) -> list[TextContent | Image]:
-        """Walk (simulator) to (x, y) or next to a unit along the planner's shortest path.
+        """Walk (simulator) to (x, y) or next to a unit, replanning on every frame.
 
-        Replans on every new frame (each goes into the map) until reached, blocked or out
-        of steps. Returns the outcome, steps, metres walked, collisions, the status and the
-        final view. It does not stop the episode: call sim_step('stop') at the goal.
+        Every frame goes into the map; the episode goes on (stop with sim_step).
         """
         target = session_of(ctx, session)
         if (unit_id is None) == (x is None or y is None) or (x is None) != (y is None):
@@ -233,11 +225,7 @@ def register(server: MCPServer) -> None:
     @server.tool(annotations=ACTING)
     @tool_errors
     async def look_around(ctx: Context, session: SessionArg = None) -> list[TextContent | Image]:
-        """Turn a full circle in place (simulator), adding every frame to the map.
-
-        Returns the status and one contact sheet of all the frames, each labelled with its
-        step and heading.
-        """
+        """Turn a full circle in place (simulator), adding every frame to the map."""
         target = session_of(ctx, session)
 
         def run() -> list[TextContent | Image]:
@@ -276,10 +264,10 @@ def register(server: MCPServer) -> None:
         images: Annotated[bool, Field(description="attach the view and the value map")] = False,
         session: SessionArg = None,
     ) -> list[TextContent | Image]:
-        """Let a navigation policy act (simulator): decide, take the action, integrate.
+        """Let a navigation policy act (simulator): decide, act, integrate.
 
-        glmap* = value map over both/instance/region units; egocentric = VLFM-like; frontier
-        = nearest frontier. Text: each decision (action, waypoint, reason) and the status.
+        glmap* = value map over both/instance/region units; egocentric = VLFM-like; frontier =
+        nearest frontier.
         """
         target = session_of(ctx, session)
 

@@ -59,10 +59,7 @@ def register(server: MCPServer) -> None:
         ctx: Context,
         task: Annotated[
             Literal["objectnav", "instnav"],
-            Field(
-                description="objectnav: find any object of a category; instnav: find the "
-                "one object a description singles out"
-            ),
+            Field(description="objectnav: any object of a category; instnav: one described object"),
         ] = "objectnav",
         scene: Annotated[int, Field(ge=0, le=100_000, description="which generated apartment")] = 0,
         seed: Annotated[int, Field(ge=0, le=2**31 - 1, description="which episode")] = 0,
@@ -70,7 +67,7 @@ def register(server: MCPServer) -> None:
             str | None,
             Field(
                 max_length=256,
-                description="pick the goal (a category or description) instead of a random one",
+                description="a category or description instead of a random goal",
             ),
         ] = None,
         episode: Annotated[
@@ -84,12 +81,10 @@ def register(server: MCPServer) -> None:
         ] = False,
         session: SessionArg = None,
     ) -> list[TextContent | Image]:
-        """Start a navigation episode in a simulated apartment and show what the agent sees.
+        """Start a navigation episode in a simulated apartment and show the agent's view.
 
-        A generated apartment (scene, seed, goal) or a benchmark episode. Returns the goal,
-        the camera pose and the egocentric image; the frame is added to this session's map
-        (a fresh one unless keep_map). Then look_around, value_map, navigate_to or sim_step,
-        and sim_step('stop') at the goal.
+        A generated apartment or a benchmark episode; the frame goes into a fresh map (or the
+        current one with keep_map).
         """
         state = app_state(ctx)
         target = session_of(ctx, session)
@@ -129,10 +124,7 @@ def register(server: MCPServer) -> None:
     async def sim_step(
         action: Annotated[
             Action,
-            Field(
-                description="move_forward 0.25 m, turn_left / turn_right 30 degrees, or "
-                "stop (ends the episode: success if the goal is within 1 m)"
-            ),
+            Field(description="move 0.25 m, turn 30 deg, or stop (success: goal within 1 m)"),
         ],
         ctx: Context,
         repeat: Annotated[
@@ -140,10 +132,9 @@ def register(server: MCPServer) -> None:
         ] = 1,
         session: SessionArg = None,
     ) -> list[TextContent | Image]:
-        """Act in the simulator; each new frame is added to the map. Returns the new view.
+        """Act in the simulator; each frame goes into the map.
 
-        The text gives the pose, whether the agent bumped into something, the map updates,
-        and once the episode ends its result (success, SPL).
+        Returns the view, pose, collisions and, once the episode ends, success and SPL.
         """
         target = session_of(ctx, session)
         sim = target.extras.get(SIM_KEY)

@@ -69,12 +69,10 @@ def register(server: MCPServer) -> None:
         ] = "",
         session: SessionArg = None,
     ) -> list[TextContent | Image]:
-        """Situated QA: locate a situation text in the map (paper 3.2) and show it.
+        """Situated QA (paper 3.2): locate a situation text in the map and show it.
 
-        Returns the pose (x, y, heading), its confidence and the units that decided it, the
-        units around with distance and bearing (+ = left), a heat map (red: where, blue:
-        what is faced), and front/left/back/right views, each captioned. Answer the
-        question from them; `map_answer` is the map-only answer when a question is given.
+        Returns the pose and its confidence, the units around (distance, bearing), a heat map
+        and four captioned views; map_answer answers a given question from the map.
         """
         target = session_of(ctx, session)
 

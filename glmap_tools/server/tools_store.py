@@ -26,7 +26,7 @@ MapName = Annotated[
     Field(
         min_length=1,
         max_length=70,
-        description="a bare map name: letters, digits, '-' or '_' (no folders, no suffix)",
+        description="letters, digits, '-' or '_'",
     ),
 ]
 
@@ -52,17 +52,15 @@ def register(server: MCPServer) -> None:
             str | None,
             Field(
                 max_length=70,
-                description="save under this name from the start (every frame is "
-                "committed to it); omit for an unsaved scratch map",
+                description="save under this name from the start; omit for a scratch map",
             ),
         ] = None,
         session: SessionArg = None,
     ) -> MapInfo:
-        """Start an empty map for this session; the current map is dropped unless saved.
+        """Start an empty map (the current one is dropped unless saved).
 
-        Returns the session handle. On a stateless HTTP server shared by several clients,
-        calling this without a session starts a new session of your own: pass its handle as
-        `session` to every later call.
+        On a stateless HTTP server shared by several clients this starts your own session:
+        pass the returned handle as `session` to later calls.
         """
         target = session_for_new_map(ctx, session)
         registry = app_state(ctx).registry
@@ -83,10 +81,7 @@ def register(server: MCPServer) -> None:
         ] = False,
         session: SessionArg = None,
     ) -> SavedMap:
-        """Save this session's map under a name; later frames are committed to it too.
-
-        Maps live in the server's maps folder; give a bare name such as 'flat-3'.
-        """
+        """Save the map under a name; later frames are committed to it too."""
         target = session_of(ctx, session)
         registry = app_state(ctx).registry
 
@@ -105,10 +100,7 @@ def register(server: MCPServer) -> None:
     @server.tool(annotations=ToolAnnotations(destructive_hint=True, idempotent_hint=True))
     @tool_errors
     async def load_map(name: MapName, ctx: Context, session: SessionArg = None) -> MapInfo:
-        """Open a saved map for this session (the current map is dropped unless saved).
-
-        Sessions that open the same saved map share it: all see each other's frames.
-        """
+        """Open a saved map (the current one is dropped unless saved); sessions share it."""
         target = session_for_new_map(ctx, session)
         registry = app_state(ctx).registry
 
@@ -121,10 +113,7 @@ def register(server: MCPServer) -> None:
     @server.tool(annotations=READ_ONLY)
     @tool_errors
     async def list_maps(ctx: Context) -> MapList:
-        """List the saved maps by name (open one with load_map).
-
-        Only regular map files directly in the maps folder are listed (no symlinks).
-        """
+        """List the saved maps (open one with load_map)."""
         registry = app_state(ctx).registry
 
         def run() -> MapList:

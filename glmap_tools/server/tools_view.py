@@ -34,10 +34,7 @@ def register(server: MCPServer) -> None:
     async def render_view(
         target: Annotated[
             Target,
-            Field(
-                description="instance or region (by unit_id), map (all of it), pose (a "
-                "camera you give), situated (front/left/back/right at x, y, heading_deg)"
-            ),
+            Field(description="instance/region: unit_id; pose: pose; situated: x, y, heading_deg"),
         ],
         ctx: Context,
         unit_id: Annotated[
@@ -52,22 +49,15 @@ def register(server: MCPServer) -> None:
         ] = 0.0,
         context: Annotated[
             bool,
-            Field(
-                description="instance/region: also draw the rest of the map around it "
-                "(false = the unit alone)"
-            ),
+            Field(description="instance/region: draw the map around it too"),
         ] = True,
         width: Side | None = None,
         height: Side | None = None,
         session: SessionArg = None,
     ) -> list[TextContent | Image]:
-        """Render the map's 3D Gaussians as images, with the camera pose used for each.
+        """Render the map's 3D Gaussians: a unit, the map, a pose, or 4 views around a spot.
 
-        Use it to look at an instance or region you found (seen from the agent's eye height
-        in navigable space, from the side that shows most of it; the text says how the view
-        was chosen), at the whole map, from a given camera pose, or around a spot:
-        'situated' gives four views (front, left, back, right) from the agent's eye height
-        at (x, y) facing heading_deg.
+        Units are seen from the agent's eye height, from the side that shows most of them.
         """
         state = app_state(ctx)
         target_session = session_of(ctx, session)
