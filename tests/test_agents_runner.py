@@ -84,3 +84,30 @@ async def test_unknown_agents_and_episodes_are_refused_with_the_closest_name(tmp
     assert main([EPISODE, "--agent", "frontiers"]) == 2
     assert "Did you mean 'frontier'" in capsys.readouterr().err
     assert AGENTS == ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier", "random")
+
+
+async def test_an_instnav_episode_runs_the_instnav_agent_on_a_description(tmp_path):
+    episode = load_split("tune", "instnav")[0]
+    out = tmp_path / "inst"
+    async with open_session(config(tmp_path)) as session:
+        result = await run_episode(
+            session, episode.episode_id, "egocentric", seed=0, out_dir=out, max_steps=3
+        )
+    start = json.loads(calls(out)[0]["texts"][0])
+    assert start["task"] == "instnav" and start["goal"] == episode.episode.goal_text
+    assert result.steps <= 3 and result.tool_calls == 1 + result.steps
+    assert all(c["arguments"]["policy"] == "egocentric" for c in calls(out)[1:])
+
+
+@pytest.mark.slow
+async def test_an_agent_can_drive_a_server_started_as_a_stdio_command(tmp_path):
+    import shlex
+    import sys
+
+    command = shlex.join(
+        [sys.executable, "-m", "glmap_tools.server", "--embedder", "hashing", "--no-warm-up"]
+        + ["--maps-dir", str(tmp_path / "maps")]
+    )
+    async with open_session(server_command=command) as session:
+        result = await run_episode(session, EPISODE, "random", seed=2, max_steps=3)
+    assert result.steps == 3 and result.tool_calls == 4

@@ -68,3 +68,21 @@ async def test_stepping_before_any_reset_says_to_reset_first(tmp_path):
     async with Client(build_server(config(tmp_path))) as client:
         result = await client.call_tool("sim_step", {"action": "move_forward"})
     assert result.is_error and "call sim_reset first" in result.content[0].text
+
+
+async def test_the_image_size_and_step_limit_can_be_chosen_at_reset(tmp_path):
+    import base64
+
+    import cv2
+    import numpy as np
+
+    async with Client(build_server(config(tmp_path))) as client:
+        start = await client.call_tool("sim_reset", {"size": "160x120", "max_steps": 2})
+        first = status(start)
+        status(await client.call_tool("sim_step", {"action": "turn_left"}))
+        last = status(await client.call_tool("sim_step", {"action": "turn_left"}))
+        bad = await client.call_tool("sim_reset", {"size": "100x100"})
+    jpeg = np.frombuffer(base64.b64decode(start.content[1].data), np.uint8)
+    assert cv2.imdecode(jpeg, cv2.IMREAD_COLOR).shape == (120, 160, 3)
+    assert first["max_steps"] == 2 and last["status"] == "out of steps"
+    assert bad.is_error and "320x240" in bad.content[0].text
