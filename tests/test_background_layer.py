@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from glmap_tools import synthetic as scenes
+from glmap_tools.gaussians.ply import read_ply
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, MapConfig
 from glmap_tools.map.structure import StructureLayer
-from glmap_tools.views import render_map, select_view, situated_views, view_intrinsics
+from glmap_tools.views import export_ply, render_map, select_view, situated_views, view_intrinsics
 
 CHAIR_XY = (0.0, 0.7)
 TEXTS = {1: ("chair", "a red chair with wooden legs")}
@@ -135,3 +136,10 @@ def test_the_fast_per_voxel_merge_equals_the_plain_reference(centre):
                 )
         layer.apply(fast)
     assert len(layer) == len({tuple(k) for c in layer.chunks.values() for k in c.keys.tolist()})
+
+
+def test_a_ply_export_holds_the_structure_only_when_asked(glmap, tmp_path):
+    units = export_ply(glmap, tmp_path / "units.ply")
+    both = export_ply(glmap, tmp_path / "both.ply", structure=True)
+    assert both.gaussians == units.gaussians + len(glmap.structure)
+    assert len(read_ply(tmp_path / "both.ply")) == both.gaussians

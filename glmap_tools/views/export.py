@@ -17,6 +17,7 @@ from glmap_tools.views.targets import (
     instance_ids_of,
     map_gaussians,
     unit_label,
+    with_structure,
 )
 
 if TYPE_CHECKING:
@@ -57,6 +58,7 @@ def export_ply(
     unit_id: int | None = None,
     *,
     sh_degree: int = 0,
+    structure: bool = False,
 ) -> ExportResult:
     """Write a map, an instance or a region as a standard 3D Gaussian Splatting PLY.
 
@@ -71,6 +73,8 @@ def export_ply(
         unit_id: None for the whole map, an instance id, or a region id (the union of
             its instances' Gaussians).
         sh_degree: 0 (colour only) or 3 (adds the 45 zero f_rest_* properties).
+        structure: also write the structure background layer (walls, floor), after the
+            units' Gaussians; `gaussians` in the result counts both.
 
     Raises:
         InvalidInputError: an empty map, a bad id or sh_degree.
@@ -89,6 +93,7 @@ def export_ply(
     p = _check_path(path)
     cached = map_gaussians(glmap)
     g = cached.gaussians if unit_id is None else cached.gaussians.subset(cached.mask_of(ids))
+    g = with_structure(glmap, g, structure)
     write_ply(p, g, sh_degree=sh_degree)
     return ExportResult(p, what, len(g), ids)
 
