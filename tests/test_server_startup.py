@@ -6,6 +6,8 @@ The timing itself (initialize and tools/list within 1 s of launch) is measured b
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import threading
 
 import anyio
@@ -87,3 +89,18 @@ def test_the_background_embedder_has_its_models_name_and_size_before_it_loads():
     assert (embedder.name, embedder.dim) == ("hashing-64", 64) and not task.done
     gate.set()
     assert embedder.embed(["a chair"]).shape == (1, 64)
+
+
+def test_building_the_server_imports_none_of_the_slow_libraries(tmp_path):
+    """What `glmap-mcp` runs before it can answer tools/list stays light (numpy, cv2, mcp)."""
+    code = (
+        "import sys\n"
+        "from glmap_tools.server import ServerConfig, build_server\n"
+        f"build_server(ServerConfig(maps_dir={str(tmp_path)!r}))\n"
+        "slow = ('scipy', 'numba', 'torch', 'sentence_transformers', 'skfmm', 'pyrender')\n"
+        "print(' '.join(m for m in slow if m in sys.modules))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert done.stdout.strip() == "", done.stdout
