@@ -161,6 +161,60 @@ async def run(args: argparse.Namespace) -> int:
     return report.finish()
 
 
+# Frames the server must refuse quickly (issue 12 item 2): (case, pose offset, intrinsics).
+POISON: list[tuple[str, tuple[float, float, float], dict[str, float] | None]] = [
+    ("pose translated 1e300 m", (1e300, 0.0, 0.0), None),
+    ("second frame 900 m away", (-900.0, 0.0, 0.0), None),
+    ("hfov 179.999 deg", (0.0, 0.0, 0.0), {"hfov_deg": 179.999}),
+    ("hfov 179.9999999 deg", (0.0, 0.0, 0.0), {"hfov_deg": 179.9999999}),
+    ("fx = 1e-300", (0.0, 0.0, 0.0), {"fx": 1e-300, "fy": 40.0, "cx": 31.5, "cy": 23.5}),
+    ("cx = 1e300", (0.0, 0.0, 0.0), {"fx": 40.0, "fy": 40.0, "cx": 1e300, "cy": 23.5}),
+]
+
+
+async def run_refusals(args: argparse.Namespace) -> int:
+    """Time each poisoning 64x48 frame of POISON after one good frame, and map_summary after."""
+    import resource
+
+    from mcp import Client
+
+    from glmap_tools.bench.report import Report
+    from glmap_tools.server import ServerConfig, build_server
+    from glmap_tools.server.frames import observe_arguments
+
+    report = Report("bench lock --refusals")
+    frame, ids = tiled_frame(4, 64, 48)
+    objects = [{"id": k, "label": "thing", "description": f"thing {k}"} for k in range(1, 5)]
+    good = observe_arguments(frame, ids, objects)
+    worst = 0.0
+    with tempfile.TemporaryDirectory() as tmp:
+        config = ServerConfig(maps_dir=Path(tmp), embedder="hashing", warm_up=False)
+        async with Client(build_server(config)) as client:
+            await client.call_tool("observe_frame", good)
+            for case, offset, intrinsics in POISON:
+                call = {**good, "pose": {**good["pose"]}}
+                call["pose"]["matrix"] = [list(r) for r in good["pose"]["matrix"]]
+                for k in range(3):
+                    call["pose"]["matrix"][k][3] += offset[k]
+                if intrinsics is not None:
+                    call["intrinsics"] = intrinsics
+                rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+                start = time.perf_counter()
+                res = await client.call_tool("observe_frame", call)
+                took = time.perf_counter() - start
+                summary = await client.call_tool("map_summary", {})
+                grew = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss) / 1024
+                worst = max(worst, took)
+                verdict = "refused" if res.is_error else "ACCEPTED"
+                after = "map_summary fails" if summary.is_error else "map_summary ok"
+                report.info(
+                    f"{case}: {verdict} in {took * 1e3:.0f} ms, peak memory +{grew:.0f} MiB, "
+                    f"{after}: {res.content[0].text[:110]}"
+                )
+    report.check("slowest refusal of a poisoning frame", worst, "<=", 0.5, "s")
+    return report.finish()
+
+
 def main(argv: list[str] | None = None) -> int:
     import anyio
 
@@ -176,5 +230,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--height", type=int, default=480)
     parser.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--refusals", action="store_true", help="time the refusal of poisoning frames instead"
+    )
     args = parser.parse_args(argv)
-    return int(anyio.run(run, args) or 0)
+    return int(anyio.run(run_refusals if args.refusals else run, args) or 0)
