@@ -154,9 +154,9 @@ class StructureLayer:
         for c in touched & set(self.chunks):
             chunk = self.chunks[c]
             for row, k in enumerate(chunk.keys.tolist()):
-                voxels.setdefault(tuple(k), []).append(chunk.gaussians.subset([row]))
+                voxels.setdefault(tuple(k), []).append(chunk.gaussians.subset(np.array([row])))
         for row, k in enumerate(new_keys.tolist()):
-            voxels.setdefault(tuple(k), []).append(fitted.subset([row]))
+            voxels.setdefault(tuple(k), []).append(fitted.subset(np.array([row])))
         out: dict[ChunkKey, tuple[list[tuple[int, int, int]], list[GaussianSet]]] = {}
         for k in sorted(voxels):
             members = GaussianSet.concat(voxels[k])
