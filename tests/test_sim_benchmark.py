@@ -163,3 +163,28 @@ def test_a_single_open_room_has_no_hidden_start_and_says_so() -> None:
     )  # fmt: skip
     with pytest.raises(InvalidInputError, match="no start out of sight"):
         hidden_episodes(layout, "objectnav", 3, seed=0, tries=20)
+
+
+def test_books_on_a_tall_bookcase_are_in_sight_in_front_of_it_but_not_behind_a_wall() -> None:
+    from glmap_tools.sim.layout_io import layout_from_dict
+
+    layout = layout_from_dict(
+        {
+            "rooms": [
+                {"id": 1, "type": "office", "polygon": [[0, 0], [6, 0], [6, 4], [0, 4]]},
+                {"id": 2, "type": "hallway", "polygon": [[6, 0], [9, 0], [9, 4], [6, 4]]},
+            ],
+            "openings": [{"id": 1, "rooms": [1, 2], "center": [6, 0.7], "width": 0.9}],
+            "objects": [
+                {"id": 1, "category": "bookcase", "mesh": "kenney/bookcaseOpen",
+                 "position": [3.0, 3.75, 0.0], "heading": -1.5708},
+                {"id": 2, "category": "books", "mesh": "kenney/books",
+                 "position": [3.0, 3.75, 1.0], "supported_by": 1},
+            ],
+        }
+    )  # fmt: skip
+    sight = SightChecker(layout, build_nav_grid(layout))
+    assert (sight.blockers == 1).any(), "the bookcase is tall enough to block"
+    for xy, seen in (([3.0, 1.5], True), ([7.5, 3.0], False)):
+        assert sight.in_sight(np.array(xy), (2,)) is seen
+        assert sight.in_sight_reference(np.array(xy), (2,)) is seen

@@ -5,7 +5,8 @@ below the camera (`CAMERA_HEIGHT`; the wall above a door does not block) and tal
 (top at least `TALL_OBJECT` metres, base below the camera: wardrobes, fridges, bookcases,
 floor lamps, large plants). Lower furniture does not block: the camera looks over a sofa.
 A goal is in sight from a point when a straight line from it reaches any point of a goal
-footprint's outline without crossing a blocker; the goal objects themselves never block.
+footprint's outline without crossing a blocker; the goal objects themselves never block,
+nor do the objects they stand on (books on a bookcase are seen with the bookcase).
 Thin gaps between blocker cells can let a line through, so `in_sight` errs towards "seen",
 which keeps starts the benchmark calls out of sight truly out of sight.
 """
@@ -79,6 +80,16 @@ class SightChecker:
             pts.append(self._outlines[i])
         return np.concatenate(pts)
 
+    def see_through(self, goal_ids: Sequence[int]) -> np.ndarray:
+        """[M] ids that do not block sight to these goals: the goals and their supports."""
+        ids = set(goal_ids)
+        for i in goal_ids:
+            support = self.layout.object(i).supported_by
+            while support is not None and support not in ids:
+                ids.add(support)
+                support = self.layout.object(support).supported_by
+        return np.array(sorted(ids), dtype=np.int64)
+
     def in_sight(self, xy: np.ndarray, goal_ids: Sequence[int]) -> bool:
         """Whether a straight line from `xy` [2] reaches a goal outline unblocked.
 
@@ -99,7 +110,7 @@ class SightChecker:
         h, w = self.blockers.shape
         row, col = np.clip(row, 0, h - 1), np.clip(col, 0, w - 1)
         hit = self.blockers[row, col]
-        blocked = (hit != 0) & ~np.isin(hit, np.asarray(goal_ids)) & valid
+        blocked = (hit != 0) & ~np.isin(hit, self.see_through(goal_ids)) & valid
         return bool((~blocked.any(axis=1)).any())
 
     def in_sight_reference(self, xy: np.ndarray, goal_ids: Sequence[int]) -> bool:
@@ -107,6 +118,7 @@ class SightChecker:
         start = np.asarray(xy, dtype=np.float64)
         step = self.grid.cell / 4
         h, w = self.blockers.shape
+        clear_ids = {int(i) for i in self.see_through(goal_ids)}
         for target in self._targets(goal_ids):
             length = float(np.linalg.norm(target - start))
             direction = (target - start) / max(length, 1e-9)
@@ -115,7 +127,7 @@ class SightChecker:
                 p = start + direction * (k * step)
                 r, c = self.grid.cell_of(float(p[0]), float(p[1]))
                 v = int(self.blockers[min(max(r, 0), h - 1), min(max(c, 0), w - 1)])
-                if v != 0 and v not in goal_ids:
+                if v != 0 and v not in clear_ids:
                     clear = False
                     break
                 k += 1
