@@ -22,7 +22,13 @@ from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
 from glmap_tools.map.occupancy import CHUNK, FREE, OBSTACLE
 from glmap_tools.views.common import encode_png
-from glmap_tools.views.topdown_frame import Canvas, TopDownFrame, choose_frame
+from glmap_tools.views.topdown_frame import (
+    Canvas,
+    Labels,
+    TopDownFrame,
+    choose_frame,
+    draw_ticks,
+)
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
@@ -32,8 +38,6 @@ DEFAULT_SIDE = 768  # pixels
 MAX_PIXELS_PER_CELL = 8
 MAX_LABELS = 300  # more units than this are drawn without id labels
 MARGIN_CELLS = 2  # unseen cells kept around the content
-FONT, FONT_SCALE = cv2.FONT_HERSHEY_SIMPLEX, 0.4
-TICK_RGB = (0, 0, 0)
 UNSEEN, FREE_RGB, OBSTACLE_RGB = (200, 200, 200), (255, 255, 255), (90, 90, 90)
 TRAJECTORY_RGB, AGENT_RGB = (30, 90, 210), (220, 30, 30)
 HEAT_OPACITY = 0.6
@@ -229,61 +233,6 @@ def _heat_overlay(canvas: Canvas, heatmap: HeatMap) -> tuple[float, float] | Non
     return vmin, vmax
 
 
-def _text(image: np.ndarray, text: str, xy: tuple[int, int], scale: float = FONT_SCALE) -> None:
-    """Write white text with a dark outline, readable on any colour."""
-    cv2.putText(image, text, xy, FONT, scale, (0, 0, 0), 3, cv2.LINE_AA)
-    cv2.putText(image, text, xy, FONT, scale, (255, 255, 255), 1, cv2.LINE_AA)
-
-
-class _Labels:
-    """Writes text labels where they overlap no earlier label (or skips them)."""
-
-    def __init__(self, image: np.ndarray) -> None:
-        self.image = image
-        self.taken = np.zeros(image.shape[:2], bool)
-        self.boxes: list[tuple[int, int, int, int]] = []
-        self.skipped = 0
-
-    def place(self, text: str, anchor: tuple[int, int], centred: bool = True) -> bool:
-        """Write `text` at `anchor` (its centre, or its bottom-left) or the nearest free
-        spot around it; False when all of them would overlap a label."""
-        (tw, th), base = cv2.getTextSize(text, FONT, FONT_SCALE, 3)
-        h, w = self.taken.shape
-        x = anchor[0] - tw // 2 if centred else anchor[0]
-        y = anchor[1] + th // 2 if centred else anchor[1]
-        step_x, step_y = tw // 2 + 3, th + 3
-        for dx, dy in ((0, 0), (step_x, 0), (-step_x, 0), (0, -step_y), (0, step_y),
-                       (step_x, -step_y), (-step_x, -step_y), (step_x, step_y),
-                       (-step_x, step_y)):  # fmt: skip
-            left, bottom = int(np.clip(x + dx, 0, max(w - tw - 1, 0))), y + dy
-            bottom = int(np.clip(bottom, th + 1, max(h - base - 1, th + 1)))
-            box = (left, bottom - th - 1, left + tw + 1, bottom + base)
-            if self.taken[box[1] : box[3], box[0] : box[2]].any():
-                continue
-            self.taken[box[1] : box[3], box[0] : box[2]] = True
-            self.boxes.append(box)
-            _text(self.image, text, (left, bottom))
-            return True
-        self.skipped += 1
-        return False
-
-
-def _draw_ticks(image: np.ndarray, frame: TopDownFrame, labels: _Labels) -> None:
-    """Ticks every frame.tick metres on the bottom (x) and left (y) edges, labelled."""
-    h, w = image.shape[:2]
-    tick, mpp = frame.tick, frame.metres_per_pixel
-    for k in range(math.ceil(frame.x0 / tick - 1e-9), math.floor(frame.x1 / tick + 1e-9) + 1):
-        col = int(round((k * tick - frame.x0) / mpp))
-        if 0 <= col < w:
-            cv2.line(image, (col, h - 1), (col, h - 6), TICK_RGB, 1)
-            labels.place(f"{k * tick:g}", (col + 2, h - 8), centred=False)
-    for k in range(math.ceil(frame.y0 / tick - 1e-9), math.floor(frame.y1 / tick + 1e-9) + 1):
-        row = int(round((frame.y1 - k * tick) / mpp))
-        if 0 <= row < h:
-            cv2.line(image, (0, row), (5, row), TICK_RGB, 1)
-            labels.place(f"{k * tick:g}", (7, row + 4), centred=False)
-
-
 def draw_topdown(
     glmap: GLMap,
     *,
@@ -357,8 +306,8 @@ def draw_topdown(
         if drawn is not None:
             legend.append(f"Heat overlay: blue = {drawn[0]:.3g} .. red = {drawn[1]:.3g}.")
     image = canvas.image()
-    writer = _Labels(image)
-    _draw_ticks(image, frame, writer)
+    writer = Labels(image)
+    draw_ticks(image, frame, writer)
     label_count = len(cells) + (len(glmap.regions) if regions else 0)
     write_labels = labels and label_count <= MAX_LABELS
     if regions:
@@ -396,7 +345,7 @@ def draw_topdown(
 
 
 def _draw_regions(
-    image: np.ndarray, frame: TopDownFrame, glmap: GLMap, labels: _Labels | None
+    image: np.ndarray, frame: TopDownFrame, glmap: GLMap, labels: Labels | None
 ) -> None:
     """Outline each region's cells by their convex hull, in the region's colour."""
     mpp, cell = frame.metres_per_pixel, glmap.config.cell_size

@@ -1,11 +1,13 @@
 """Where the top-down image lies in the world, and a canvas whose memory is the image's.
 
 The scale comes from a fixed ladder (1, 2, 2.5, 5 x 10^k m per pixel) and the corners are
-snapped to a 1-2-5 spacing of at least 16 pixels, so drawing a map again gives the same frame until the map
-outgrows it (a frame can also be passed back in and kept while the map fits). Cells are
+snapped to a 1-2-5 spacing of at least 16 pixels, so drawing a map again gives the same
+frame until the map outgrows it (a frame can also be passed back in and kept while the map
+fits). Cells are
 painted straight onto the pixels (several cells per pixel), or, when a cell spans
 several pixels, onto a cell grid over the frame that is then sampled per pixel: either
-way memory is bounded by the pixel cap, never by the map's extent.
+way memory is bounded by the pixel cap, never by the map's extent. Text labels go where
+they overlap no earlier label, and ticks mark round metres along two edges.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
@@ -23,6 +26,8 @@ SCALES = tuple(m * 10.0**e for e in range(-3, 6) for m in (1.0, 2.0, 2.5, 5.0))
 TICKS = tuple(m * 10.0**e for e in range(-2, 8) for m in (1.0, 2.0, 5.0))
 MIN_TICK_PX = 64  # ticks at least this many pixels apart
 MIN_SNAP_PX = 16  # the corners lie on a 1-2-5 spacing of at least this many pixels
+FONT, FONT_SCALE = cv2.FONT_HERSHEY_SIMPLEX, 0.4
+TICK_RGB = (0, 0, 0)
 
 
 def tick_spacing(metres_per_pixel: float, min_px: int = MIN_TICK_PX) -> float:
@@ -187,3 +192,61 @@ class Canvas:
             self.j1 - np.floor(y / self.cell).astype(np.int64), 0, self.grid.shape[0] - 1
         )
         return np.ascontiguousarray(self.grid[rows][:, cols])
+
+
+def write_text(
+    image: np.ndarray, text: str, xy: tuple[int, int], scale: float = FONT_SCALE
+) -> None:
+    """Write white text with a dark outline, readable on any colour."""
+    cv2.putText(image, text, xy, FONT, scale, (0, 0, 0), 3, cv2.LINE_AA)
+    cv2.putText(image, text, xy, FONT, scale, (255, 255, 255), 1, cv2.LINE_AA)
+
+
+class Labels:
+    """Writes text labels where they overlap no earlier label (or skips them)."""
+
+    def __init__(self, image: np.ndarray) -> None:
+        self.image = image
+        self.taken = np.zeros(image.shape[:2], bool)
+        self.boxes: list[tuple[int, int, int, int]] = []
+        self.skipped = 0
+
+    def place(self, text: str, anchor: tuple[int, int], centred: bool = True) -> bool:
+        """Write `text` at `anchor` (its centre, or its bottom-left) or the nearest free
+        spot around it; False when all of them would overlap a label."""
+        size, base = cv2.getTextSize(text, FONT, FONT_SCALE, 3)
+        tw, th = int(size[0]), int(size[1])
+        h, w = int(self.taken.shape[0]), int(self.taken.shape[1])
+        x = anchor[0] - tw // 2 if centred else anchor[0]
+        y = anchor[1] + th // 2 if centred else anchor[1]
+        step_x, step_y = tw // 2 + 3, th + 3
+        for dx, dy in ((0, 0), (step_x, 0), (-step_x, 0), (0, -step_y), (0, step_y),
+                       (step_x, -step_y), (-step_x, -step_y), (step_x, step_y),
+                       (-step_x, step_y)):  # fmt: skip
+            left, bottom = int(np.clip(x + dx, 0, max(w - tw - 1, 0))), y + dy
+            bottom = int(np.clip(bottom, th + 1, max(h - base - 1, th + 1)))
+            box = (left, bottom - th - 1, left + tw + 1, bottom + base)
+            if self.taken[box[1] : box[3], box[0] : box[2]].any():
+                continue
+            self.taken[box[1] : box[3], box[0] : box[2]] = True
+            self.boxes.append(box)
+            write_text(self.image, text, (left, bottom))
+            return True
+        self.skipped += 1
+        return False
+
+
+def draw_ticks(image: np.ndarray, frame: TopDownFrame, labels: Labels) -> None:
+    """Ticks every frame.tick metres on the bottom (x) and left (y) edges, labelled."""
+    h, w = image.shape[:2]
+    tick, mpp = frame.tick, frame.metres_per_pixel
+    for k in range(math.ceil(frame.x0 / tick - 1e-9), math.floor(frame.x1 / tick + 1e-9) + 1):
+        col = int(round((k * tick - frame.x0) / mpp))
+        if 0 <= col < w:
+            cv2.line(image, (col, h - 1), (col, h - 6), TICK_RGB, 1)
+            labels.place(f"{k * tick:g}", (col + 2, h - 8), centred=False)
+    for k in range(math.ceil(frame.y0 / tick - 1e-9), math.floor(frame.y1 / tick + 1e-9) + 1):
+        row = int(round((frame.y1 - k * tick) / mpp))
+        if 0 <= row < h:
+            cv2.line(image, (0, row), (5, row), TICK_RGB, 1)
+            labels.place(f"{k * tick:g}", (7, row + 4), centred=False)
