@@ -207,7 +207,7 @@ class Labels:
 
     def __init__(self, image: np.ndarray) -> None:
         self.image = image
-        self.taken = np.zeros(image.shape[:2], bool)
+        self.taken: np.ndarray = np.zeros(image.shape[:2], bool)
         self.boxes: list[tuple[int, int, int, int]] = []
         self.skipped = 0
 
@@ -216,7 +216,7 @@ class Labels:
         spot around it; False when all of them would overlap a label."""
         size, base = cv2.getTextSize(text, FONT, FONT_SCALE, 3)
         tw, th = int(size[0]), int(size[1])
-        h, w = int(self.taken.shape[0]), int(self.taken.shape[1])
+        h, w = self.taken.shape
         x = anchor[0] - tw // 2 if centred else anchor[0]
         y = anchor[1] + th // 2 if centred else anchor[1]
         step_x, step_y = tw // 2 + 3, th + 3
