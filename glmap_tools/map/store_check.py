@@ -46,34 +46,17 @@ CONFIG_RANGES = {
 }
 STRUCTURE_VOXEL_RANGE = (0.01, 1.0)
 
-COLUMNS = {
-    "meta": ("key", "value"),
-    "instances": [
-        "id",
-        "label",
-        "text",
-        "embedding",
-        "means",
-        "covs",
-        "colors",
-        "opacities",
-        "counts",
-        "observations",
-        "first_frame",
-        "last_frame",
-    ],
-    "regions": [
-        "id",
-        "text",
-        "embedding",
-        "instance_ids",
-        "observations",
-        "first_frame",
-        "last_frame",
-    ],
-    "occupancy": ("ci", "cj", "counts"),
-    "frames": ("seq", "frame_index", "pose"),
-    "structure": ["ci", "cj", "keys", "means", "covs", "colors", "opacities", "counts"],
+_UNIT_ROW = "embedding means covs colors opacities counts observations first_frame last_frame"
+COLUMNS: dict[str, tuple[str, ...]] = {
+    table: tuple(names.split())
+    for table, names in {
+        "meta": "key value",
+        "instances": "id label text " + _UNIT_ROW,
+        "regions": "id text embedding instance_ids observations first_frame last_frame",
+        "occupancy": "ci cj counts",
+        "frames": "seq frame_index pose",
+        "structure": "ci cj keys means covs colors opacities counts",
+    }.items()
 }
 TABLES_OF_VERSION = {
     1: ("meta", "instances", "regions", "occupancy", "frames"),
@@ -239,8 +222,8 @@ def check_tables(refuse: Refuser, conn: sqlite3.Connection, version: int) -> Non
         columns = tuple(row[1] for row in conn.execute(f"PRAGMA table_info({table})"))
         if not columns:
             raise refuse(f"table {table!r} is missing")
-        if columns != tuple(COLUMNS[table]):
-            raise refuse(f"table {table!r} has columns {list(columns)}, not {COLUMNS[table]}")
+        if columns != COLUMNS[table]:
+            raise refuse(f"table {table!r} has columns {list(columns)}, not {list(COLUMNS[table])}")
 
 
 def parse_version(refuse: Refuser, meta: dict[Any, Any], newest: int) -> int:
