@@ -231,3 +231,54 @@ async def test_the_server_refuses_a_description_or_group_count_over_its_limit(
         many = await client.call_tool("observe_frame", args)
         assert many.is_error and str(MAX_GROUPS) in many.content[0].text
         assert await counts(client) == (0, 0, 0)
+
+
+# ---------------------------------------------------------------------- lock work
+
+
+class CachingEmbedder:
+    """The hashing embedder behind a text -> vector cache, counting texts not in it."""
+
+    def __init__(self) -> None:
+        self.inner = HashingEmbedder()
+        self.name, self.dim, self.default_tau_s = "caching", self.inner.dim, 0.2
+        self.cache: dict[str, np.ndarray] = {}
+        self.misses = 0
+
+    def embed(self, texts):  # type: ignore[no-untyped-def]
+        new = [t for t in dict.fromkeys(texts) if t not in self.cache]
+        self.misses += len(new)
+        self.cache.update(zip(new, self.inner.embed(new), strict=True) if new else [])
+        return np.stack([self.cache[t] for t in texts]) if texts else np.zeros((0, self.dim))
+
+
+def test_after_embed_ahead_integrating_long_repeated_descriptions_embeds_nothing_new() -> None:
+    from glmap_tools.bench.lock import costly_description, tiled_frame
+    from glmap_tools.server.inputs import embed_ahead
+
+    embedder = CachingEmbedder()
+    glmap = GLMap(MapConfig(voxel_size=0.04), embedder=embedder)
+    frame, ids = tiled_frame(6, 96, 72)
+    rng = np.random.default_rng(0)
+    # About 200 words per description: two sightings overflow the 300-word buffers.
+    pools = [[f"w{k}x{i}" for i in range(80)] for k in range(6)]
+    merged = 0
+    for _ in range(3):
+        annotation = {
+            "objects": [
+                {"id": k + 1, "description": costly_description(rng, pools[k], 1000)}
+                for k in range(6)
+            ],
+            "groups": [
+                {"id": 1, "description": costly_description(rng, pools[0], 1000), "members": [1, 2]}
+            ],
+        }
+        semantics = semantics_from_annotation(ids, annotation)
+        embed_ahead(embedder, semantics)
+        embedder.misses = 0
+        report = glmap.integrate(frame, semantics)  # the part that runs under the map's lock
+        assert embedder.misses == 0
+        merged += len(report.instances_merged) + len(report.regions_merged)
+    assert merged >= 10  # the buffers overflowed and were merged under the lock
+    # Every buffer was merged (the raw descriptions alone hold 3 x ~200 words).
+    assert all(150 < len(u.text.split()) <= 300 for u in glmap.instances.values())
