@@ -152,6 +152,11 @@ def fmm_vs_reference(report: Report, stride: int) -> None:
 
 
 def agent_step(report: Report, steps: int) -> None:
+    """Time `steps` steps of policy 'glmap' on the first tune ObjectNav episode at 320x240.
+
+    The check is on process CPU time (all threads): on an idle 2-core machine the wall time
+    is at most that, and this machine is shared, so wall time is printed for reference.
+    """
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     from glmap_tools.bench._nav_loop import run_episode
     from glmap_tools.sim.benchmark import load_split
@@ -161,12 +166,13 @@ def agent_step(report: Report, steps: int) -> None:
     t = result["timings"]
     step = np.array(t["render"]) + np.array(t["integrate"]) + np.array(t["decide"])
     report.info(
-        f"agent step on {be.episode_id} ({len(step)} steps, 320x240): render "
+        f"agent step on {be.episode_id} ({len(step)} steps, 320x240), CPU time p50: render "
         f"{np.median(t['render']):.1f} ms, integrate {np.median(t['integrate']):.1f} ms, "
-        f"decide {np.median(t['decide']):.1f} ms (p50)"
+        f"decide (value map + frontiers + plan) {np.median(t['decide']):.1f} ms; wall time "
+        f"p50 {np.median(t['wall']):.1f} ms at this load"
     )
     report.check(
-        "agent step p50 (render + integrate + value map + plan)",
+        "agent step CPU time p50 (render + integrate + value map + plan)",
         float(np.median(step)),
         "<=",
         150.0,
