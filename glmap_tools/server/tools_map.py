@@ -20,8 +20,8 @@ from glmap_tools.server.inputs import (
     decode_frame,
     embed_ahead,
 )
-from glmap_tools.server.results import Hits, MapInfo, ObserveResult, UnitsAt
 from glmap_tools.server.navsession import from_agent
+from glmap_tools.server.results import Hits, MapInfo, ObserveResult, UnitsAt
 from glmap_tools.server.runtime import (
     app_state,
     compact_json,
@@ -164,7 +164,11 @@ def register(server: MCPServer) -> None:
         def run() -> AgentHits:
             with locked(target) as glmap:
                 hits = glmap.find_instances(query, top_k)
-            return AgentHits(query=query, hits=hits, from_agent=from_agent(target, hits))
+            return AgentHits(
+                query=query,
+                hits=hits,
+                from_agent=[FromAgent(**d) for d in from_agent(target, hits)],
+            )
 
         return await in_thread(run)
 
@@ -206,7 +210,7 @@ def register(server: MCPServer) -> None:
                 radius=radius,
                 occupancy=occ,
                 units=units,
-                from_agent=from_agent(target, units),
+                from_agent=[FromAgent(**d) for d in from_agent(target, units)],
             )
 
         return await in_thread(run)

@@ -80,11 +80,14 @@ def _decide(session: Session, goal: str, policy: str) -> tuple[Any, tuple[float,
 
 def _waypoint(decision: Any, agent: tuple[float, float, float]) -> dict[str, Any]:
     w = decision.waypoint
-    out: dict[str, Any] = {"kind": w.kind, "xy": [round(float(v), 2) for v in w.xy]}
+    out: dict[str, Any] = {"kind": w.kind}
+    if w.xy is not None:
+        out["xy"] = [round(float(v), 2) for v in w.xy]
     if w.unit_id is not None:
         out["unit_id"] = int(w.unit_id)
     out["score"] = round(float(w.score), 3)
-    out.update(navsession.relative(agent, (float(w.xy[0]), float(w.xy[1]))))
+    if w.xy is not None:
+        out.update(navsession.relative(agent, (float(w.xy[0]), float(w.xy[1]))))
     out["reason"] = w.reason
     return out
 
@@ -96,7 +99,7 @@ def _nav_png(session: Session, decision: Any, agent: tuple[float, float, float])
             agent,
             decision.value,
             decision.frontiers,
-            tuple(decision.waypoint.xy) if decision.waypoint.kind != "none" else None,
+            tuple(decision.waypoint.xy) if decision.waypoint.xy is not None else None,
             decision.plan.path if decision.plan is not None else None,
         )
     return image.to_png()
