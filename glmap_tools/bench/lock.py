@@ -215,6 +215,33 @@ async def run_refusals(args: argparse.Namespace) -> int:
     return report.finish()
 
 
+def run_merge_scaling(args: argparse.Namespace) -> int:
+    """Time one extractive merge per buffer length (hashing embedder: the algorithm alone)."""
+    from glmap_tools.bench.report import Report
+    from glmap_tools.language.embed import HashingEmbedder
+    from glmap_tools.language.text_merger import DELIMITER, ExtractiveTextMerger
+
+    report = Report("bench lock --merge-scaling")
+    rng = np.random.default_rng(args.seed)
+    pool = made_up_words(rng, 4000)
+    merger = ExtractiveTextMerger(HashingEmbedder())
+    per_word: dict[int, float] = {}
+    for words in (1000, 2000, 4000, 8000):
+        descriptions = [costly_description(rng, pool, 1000) for _ in range(words // 100)]
+        buffer = DELIMITER.join(descriptions)
+        n = len(buffer.split())
+        start = time.perf_counter()
+        merger.merge([buffer], 300)
+        took = time.perf_counter() - start
+        per_word[words] = took / n
+        report.info(
+            f"merge of a {n}-word buffer: {took * 1e3:.0f} ms ({took / n * 1e6:.0f} us/word)"
+        )
+    growth = per_word[8000] / per_word[1000]
+    report.check("time per word, 8k-word vs 1k-word buffer", growth, "<=", 1.5)
+    return report.finish()
+
+
 def main(argv: list[str] | None = None) -> int:
     import anyio
 
@@ -233,5 +260,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--refusals", action="store_true", help="time the refusal of poisoning frames instead"
     )
+    parser.add_argument(
+        "--merge-scaling", action="store_true", help="time merges of growing buffers instead"
+    )
     args = parser.parse_args(argv)
+    if args.merge_scaling:
+        return run_merge_scaling(args)
     return int(anyio.run(run_refusals if args.refusals else run, args) or 0)
