@@ -285,6 +285,8 @@ async def run_llm_episode(
     out_dir.mkdir(parents=True, exist_ok=True)
     client = TracedClient(client_session, out_dir)
     transcript = Transcript(out_dir / "transcript.jsonl")
+    if getattr(llm, "transcript", False) is None:  # the model's calls go to the same file
+        llm.transcript = transcript  # type: ignore[attr-defined]
     agent = LLMToolAgent(llm, prompts, budget=budget, transcript=transcript)
     try:
         reset = await client.call(

@@ -133,9 +133,13 @@ def write(name: str, scenario: Callable[[str], Any], responder: Any, source: str
             CASSETTES / name, upstream=model.host, record_command=record_command(name)
         ) as proxy,
     ):
-        scenario(proxy.host)
+        result = scenario(proxy.host)
         proxy.cassette.header["source"] = source
     print(f"wrote {CASSETTES / name}: {len(proxy.cassette.exchanges)} exchanges")
+    if isinstance(result, dict):  # the outcome a replay must reach again
+        keep = {k: v for k, v in result.items() if k not in ("wall_s",)}
+        golden = CASSETTES / name.replace(".jsonl", ".result.json")
+        golden.write_text(json.dumps(keep, indent=1, sort_keys=True) + "\n")
 
 
 AGENT_EPISODE = "tune/objectnav/s00-000"
@@ -166,8 +170,8 @@ def agent_episode(host: str, out_dir: Path | None = None) -> dict[str, Any]:
                 client(host),
                 seed=AGENT_SEED,
                 out_dir=folder / "episode",
-                budget=Budget(max_turns=30),
-                max_steps=200,
+                budget=Budget(max_turns=12),
+                max_steps=50,
             )
 
     if out_dir is not None:
@@ -195,6 +199,40 @@ def scripted_navigator(method: str, path: str, body: Any) -> tuple[int, Any]:
         x, y = w["xy"]
         return 200, chat_reply(model, "", [("navigate_to", {"x": x, "y": y, "max_steps": 25})])
     return 200, chat_reply(model, "", [("value_map", {})])
+
+
+SQA_SITUATION = "I am standing next to the dining table, facing the blue chair"
+SQA_QUESTION = "What is in front of me?"
+
+
+def sqa_mllm(host: str) -> Any:
+    """One situated question answered by the MLLM from locate_situation's views."""
+    import asyncio
+    import tempfile
+
+    from mcp import Client
+
+    from agents.sqa import answer
+    from glmap_tools.server import build_server
+    from tests.test_server_fixtures import config, frame_args
+
+    async def run(folder: Path) -> Any:
+        async with Client(build_server(config(folder))) as mcp_client:
+            for eye in ((0.0, -2.6, 1.4), (-2.5, 1.5, 1.4)):
+                await mcp_client.call_tool("observe_frame", frame_args(eye))
+            llm = OllamaClient(MODEL, host=host, retries=0, vision=True)
+            return await answer(mcp_client, SQA_SITUATION, SQA_QUESTION, llm)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        return asyncio.run(run(Path(tmp)))
+
+
+def scripted_sqa(method: str, path: str, body: Any) -> tuple[int, Any]:
+    """Plays the MLLM: answers with the first object the map notes put in front."""
+    text = body["messages"][0]["content"]
+    m = re.search(r"front: ([a-z ]+?) \(", text)
+    reply = {"answer": m.group(1) if m else "unknown", "confidence": 0.7}
+    return 200, chat_reply(body["model"], json.dumps(reply))
 
 
 FAULT_REPLIES = [
@@ -231,6 +269,7 @@ def main() -> int:
     write("nav_scores.jsonl", nav_scores, keyword_scores, HAND_WRITTEN)
     write("map_text_merge.jsonl", map_text_merge, merge_first_sentence, HAND_WRITTEN)
     write("faults.jsonl", faults, scripted_faults, FAULTS_SOURCE)
+    write("sqa_mllm.jsonl", sqa_mllm, scripted_sqa, HAND_WRITTEN)
     write("agent_episode.jsonl", agent_episode, scripted_navigator, HAND_WRITTEN)
     return 0
 

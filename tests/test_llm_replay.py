@@ -195,3 +195,36 @@ def test_structured_output_sends_the_json_schema_as_format():
     assert value.scores == []
     assert server.requests[0][2]["format"]["required"] == ["scores"]
     assert json.dumps(server.requests[0][2]["format"])  # plain JSON schema
+
+
+def test_an_mllm_answers_a_situated_question_from_the_captioned_views():
+    with replay("sqa_mllm.jsonl") as server:
+        out = sc.sqa_mllm(server.host)
+    assert out.source == "mllm" and 0.0 <= out.confidence <= 1.0
+    assert out.located["situation"]["facing_text"] == "the blue chair"
+    if not RECORDING:
+        assert out.answer == "chair"
+    # The request carried one image (the views sheet) and the direction annotations.
+    request = Cassette.load(sc.CASSETTES / "sqa_mllm.jsonl").exchanges[0]["request"]["body"]
+    (image,) = request["messages"][0]["images"]
+    assert image.startswith("sha256:")
+    assert "front (top left), left (top right)" in request["messages"][0]["content"]
+
+
+def test_a_tool_agent_episode_replays_to_the_same_tool_results_step_by_step(tmp_path):
+    """The replay matches every model request exactly, and each request carries every tool
+    result so far, so a different tool result anywhere fails with a miss."""
+    with replay("agent_episode.jsonl") as server:
+        result = sc.agent_episode(server.host, tmp_path)
+    trace = [json.loads(line) for line in (tmp_path / "episode" / "trace.jsonl").open()]
+    events = [json.loads(line) for line in (tmp_path / "episode" / "transcript.jsonl").open()]
+    assert [t["tool"] for t in trace][0] == "sim_reset"
+    assert sum(e["kind"] == "llm_request" for e in events) == result["turns"]
+    assert all(
+        e.get("prompt", "").startswith("tool_agent_system@")
+        for e in events
+        if e["kind"] == "llm_request"
+    )
+    if not RECORDING:
+        golden = json.loads((sc.CASSETTES / "agent_episode.result.json").read_text())
+        assert {k: v for k, v in result.items() if k != "wall_s"} == golden

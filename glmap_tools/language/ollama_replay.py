@@ -10,7 +10,9 @@ Cassette file (JSON Lines): a header line
     {"format": "glmap-ollama-cassette", "version": 1, "source": ..., "record": ...}
 then one line per exchange: {"key", "request": {"method", "path", "body"}, "response":
 {"status", "body"}}. Request bodies are stored canonically: sorted keys, `keep_alive`
-dropped, images replaced by their SHA-256 (so cassettes stay small and diffable).
+dropped, images replaced by their SHA-256 (so cassettes stay small and diffable). Keys
+ignore image content (only how many images a message carries), since renders can differ
+in their last bits from one CPU to another.
 `source` says whether a file was recorded from a model or written by hand.
 """
 
@@ -49,8 +51,23 @@ def canonical(body: Any) -> Any:
     return scrub(body)
 
 
+def _mask_images(value: Any) -> Any:
+    """Images replaced by a placeholder: renders may differ in their last bits across CPUs,
+    so a request matches on its text and on how many images it carries."""
+    if isinstance(value, dict):
+        return {
+            k: (["image"] * len(v) if k == "images" and isinstance(v, list) else _mask_images(v))
+            for k, v in value.items()
+        }
+    if isinstance(value, list):
+        return [_mask_images(v) for v in value]
+    return value
+
+
 def request_key(method: str, path: str, body: Any) -> str:
-    text = json.dumps([method, path, canonical(body)], sort_keys=True, ensure_ascii=False)
+    """The matching key of a request: method, path and canonical body, images masked."""
+    masked = _mask_images(canonical(body))
+    text = json.dumps([method, path, masked], sort_keys=True, ensure_ascii=False)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
