@@ -71,14 +71,12 @@ def register(server: MCPServer) -> None:
             ),
         ] = None,
         episode: Annotated[
-            str,
-            Field(max_length=64, description="a benchmark episode id (bench/objectnav/s03-017)"),
-        ] = "",
-        size: Annotated[Size | None, Field(description="camera image size")] = None,
-        max_steps: Annotated[int | None, Field(ge=1, le=5000, description="step limit")] = None,
-        keep_map: Annotated[
-            bool, Field(description="add to the current map instead of starting a new one")
-        ] = False,
+            str | None,
+            Field(max_length=64, description="benchmark id, e.g. tune/objectnav/s00-000"),
+        ] = None,
+        size: Size | None = None,
+        max_steps: Annotated[int | None, Field(ge=1, le=5000)] = None,
+        keep_map: Annotated[bool, Field(description="add to the current map")] = False,
         session: SessionArg = None,
     ) -> list[TextContent | Image]:
         """Start a navigation episode in a simulated apartment and show the agent's view.
