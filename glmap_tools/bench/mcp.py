@@ -266,8 +266,9 @@ async def run_http(args: argparse.Namespace) -> int:
     rng = np.random.default_rng(1)
     token = "bench-token"
     with tempfile.TemporaryDirectory() as tmp:
-        n = max(args.sizes)
-        synthetic_map_file(Path(tmp) / f"synthetic-{n}.glmap", n, embedder)
+        n = max(args.sizes)  # 0: the empty default map (times the transport alone)
+        if n:
+            synthetic_map_file(Path(tmp) / f"synthetic-{n}.glmap", n, embedder)
         command = (
             shlex.split(args.server_command)
             if args.server_command
@@ -293,7 +294,8 @@ async def run_http(args: argparse.Namespace) -> int:
             async with Client(
                 streamable_http_client(url, http_client=http), mode="legacy"
             ) as client:
-                await timed(client, "load_map", {"name": f"synthetic-{n}"})
+                if n:
+                    await timed(client, "load_map", {"name": f"synthetic-{n}"})
                 queries = synthetic_texts(args.calls + 5, rng)
                 queries = [f"{q} in the {ROOMS[i % len(ROOMS)]} {i}" for i, q in enumerate(queries)]
                 for q in queries[:5]:
