@@ -129,3 +129,29 @@ def test_an_empty_goal_or_unknown_policy_is_refused_with_the_fix(built: GLMap) -
         decide(built, (math.nan, 0.0), 0.0, "a chair")
     with pytest.raises(InvalidInputError, match="units="):
         value_map(built, "a chair", EmbeddingScorer(built.embedder), units="all")
+
+
+def test_a_forward_move_that_goes_nowhere_marks_an_obstacle_and_the_waypoint_is_given_up(
+    built: GLMap,
+) -> None:
+    config = NavConfig(stop_threshold=0.5, min_observations=1, initial_spin=0, stuck_steps=3)
+    probe = decide(built, (0.0, 0.0), 0.0, "a bathtub", state=NavState(), config=config)
+    ahead = probe.plan.path[min(len(probe.plan.path) - 1, 6)]
+    heading = math.atan2(ahead[1], ahead[0])
+    state = NavState()
+    first = decide(built, (0.0, 0.0), heading, "a bathtub", state=state, config=config)
+    assert first.action == "move_forward" and not state.blocked
+    # The simulator refused the move: same pose again.
+    second = decide(built, (0.0, 0.0), heading, "a bathtub", state=state, config=config)
+    assert state.blocked  # cells one agent radius ahead are now obstacles
+    assert second.action != "move_forward"
+    chosen = []
+    for _ in range(config.stuck_steps + 1):
+        d = decide(built, (0.0, 0.0), heading, "a bathtub", state=state, config=config)
+        chosen.append(d.waypoint.xy)
+    # No progress for stuck_steps steps: that waypoint is given up, and the next is elsewhere.
+    assert len(state.avoid) == 1
+    given_up = state.avoid[0]
+    assert chosen.count(given_up) >= config.stuck_steps
+    assert d.waypoint.xy is not None
+    assert math.dist(d.waypoint.xy, given_up) > config.stop_distance

@@ -229,14 +229,15 @@ def decide(
             state.egocentric.add_frame(frame, _frame_score(glmap, goal, scorer, semantics))
         value = state.egocentric.as_value_map(occ)
 
-    waypoint, out = _choose_and_plan(
-        value, fronts, trav, xy, heading, match, occ, field, state, config
-    )
-    if state.steps < config.initial_spin and waypoint.kind != "goal":
+    if state.steps < config.initial_spin and match is None:
         # A full turn first: the camera sees nothing closer than ~1.5 m of floor ahead and
         # nothing behind, so the first map is a narrow cone.
         waypoint = Waypoint(xy, "explore", None, 0.0, "looking around before the first move.")
         out = Plan(np.array([xy]), 0.0, "turn_left", False, xy)
+    else:
+        waypoint, out = _choose_and_plan(
+            value, fronts, trav, xy, heading, match, occ, field, state, config
+        )
     _track_progress(state, waypoint, out, config)
     state.last_waypoint, state.last_action = waypoint, out.action
     state.last_xy, state.last_heading = xy, heading
