@@ -10,6 +10,10 @@ The lock-hold time is measured from outside, as another client of the map feels 
 each observe_frame runs, a second task on the same session calls what_is_at in a loop; the
 longest of those calls is how long the map stayed locked (plus one cheap call). Target:
 LOCK_TARGET_S.
+
+`--refusals` times how fast the frames of issue 12 item 2 that would poison a map (a pose
+1e300 m away, hfov 179.999 deg, fx = 1e-300, ...) are refused; `--merge-scaling` times
+one extractive merge per buffer length, to show it costs about linear in the buffer.
 """
 
 from __future__ import annotations
