@@ -164,3 +164,14 @@ def test_an_agent_or_goal_outside_the_window_is_refused() -> None:
         plan(occ, (100.0, 100.0), 0.0, inside)
     with pytest.raises(OutsideMapError, match="goal position"):
         plan(occ, inside, 0.0, (-100.0, 0.0))
+
+
+def test_a_boxed_in_agent_reaches_nothing_and_plans_say_so() -> None:
+    field = geodesic(np.zeros((5, 5), dtype=bool), (2, 2), CELL)
+    assert field[2, 2] == 0.0 and np.isinf(np.delete(field.ravel(), 12)).all()
+    state = room(30, 30)
+    state[10:21, 10] = state[10:21, 20] = state[10, 10:21] = state[20, 10:21] = OBSTACLE
+    occ = occ_of(state)
+    inside, outside = occ.index_to_world(15, 15), occ.index_to_world(25, 25)
+    with pytest.raises(UnreachableGoalError):
+        plan(occ, inside, 0.0, outside)

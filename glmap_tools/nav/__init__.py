@@ -4,14 +4,16 @@ an FMM planner with its discrete next action, goal scorers f_S and the per-step 
 Pure numpy/scipy/scikit-fmm: no MCP, no model library (scorers receive an embedder).
 """
 
-from glmap_tools.nav.config import ACTIONS, POLICIES, NavConfig
+from glmap_tools.nav.config import ACTIONS, POLICIES, STOP_THRESHOLDS, NavConfig
 from glmap_tools.nav.egocentric import EgocentricValueMap
 from glmap_tools.nav.errors import OutsideMapError, UnreachableGoalError
 from glmap_tools.nav.frontiers import Frontier, frontiers
 from glmap_tools.nav.grid import Window, inflate, plannable, traversable
 from glmap_tools.nav.planner import (
     DIJKSTRA8_MAX_RATIO,
+    DistanceField,
     Plan,
+    distance_field,
     geodesic,
     next_action,
     plan,
@@ -31,6 +33,8 @@ __all__ = [
     "ACTIONS",
     "DIJKSTRA8_MAX_RATIO",
     "POLICIES",
+    "STOP_THRESHOLDS",
+    "DistanceField",
     "EgocentricValueMap",
     "EmbeddingScorer",
     "Frontier",
@@ -48,6 +52,7 @@ __all__ = [
     "Window",
     "choose_waypoint",
     "decide",
+    "distance_field",
     "frontiers",
     "geodesic",
     "inflate",

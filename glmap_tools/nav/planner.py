@@ -35,10 +35,14 @@ def geodesic(trav: np.ndarray, goal_rc: tuple[int, int], cell_size: float) -> np
         cell_size: metres.
     """
     trav = np.asarray(trav, dtype=bool)
-    phi = np.ones(trav.shape)
-    phi[goal_rc] = -1.0
     mask = ~trav
     mask[goal_rc] = False
+    if mask.sum() == mask.size - 1:  # nothing around the source to march into
+        out = np.full(trav.shape, np.inf)
+        out[goal_rc] = 0.0
+        return out
+    phi = np.ones(trav.shape)
+    phi[goal_rc] = -1.0
     dist = skfmm.distance(np.ma.MaskedArray(phi, mask), dx=cell_size)
     # The zero level set lies half a cell around the source centre.
     out = np.ma.filled(dist, np.inf).astype(np.float64) + 0.5 * cell_size
