@@ -91,8 +91,11 @@ def contact_sheet(frames: Sequence[np.ndarray], labels: Sequence[str], cols: int
     sheet = np.full((rows * th, cols * TILE_WIDTH, 3), 255, np.uint8)
     for k, (rgb, label) in enumerate(zip(frames, labels, strict=True)):
         tile = cv2.resize(rgb, (TILE_WIDTH, th), interpolation=cv2.INTER_AREA)
-        cv2.putText(tile, label, (4, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 3)
-        cv2.putText(tile, label, (4, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1)
+        (w, h), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)
+        cv2.rectangle(tile, (0, 0), (w + 8, h + 10), (0, 0, 0), -1)
+        cv2.putText(
+            tile, label, (4, h + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA
+        )
         r, c = divmod(k, cols)
         sheet[r * th : (r + 1) * th, c * TILE_WIDTH : (c + 1) * TILE_WIDTH] = tile
     return sheet
