@@ -190,7 +190,7 @@ async def run_refusals(args: argparse.Namespace) -> int:
     frame, ids = tiled_frame(4, 64, 48)
     objects = [{"id": k, "label": "thing", "description": f"thing {k}"} for k in range(1, 5)]
     good = observe_arguments(frame, ids, objects)
-    worst = 0.0
+    worst, accepted = 0.0, 0
     with tempfile.TemporaryDirectory() as tmp:
         config = ServerConfig(maps_dir=Path(tmp), embedder="hashing", warm_up=False)
         async with Client(build_server(config)) as client:
@@ -213,9 +213,11 @@ async def run_refusals(args: argparse.Namespace) -> int:
                 after = "map_summary fails" if summary.is_error else "map_summary ok"
                 report.info(
                     f"{case}: {verdict} in {took * 1e3:.0f} ms, peak memory +{grew:.0f} MiB, "
-                    f"{after}: {res.content[0].text[:110]}"
+                    f"{after}: {getattr(res.content[0], 'text', '')[:110]}"
                 )
-    report.check("slowest refusal of a poisoning frame", worst, "<=", 0.5, "s")
+                accepted += not res.is_error
+    report.check("poisoning frames accepted", accepted, "<=", 0)
+    report.check("slowest answer to a poisoning frame", worst, "<=", 0.5, "s")
     return report.finish()
 
 
