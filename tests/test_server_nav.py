@@ -59,6 +59,7 @@ async def chat_episode(client: Client, reset: dict, budget: int = 10) -> tuple[d
     return await call("sim_step", {"action": "stop"}), calls
 
 
+@pytest.mark.slow  # loads MiniLM (the hashing embedder does not match goals well)
 async def test_a_chat_client_finishes_an_objectnav_episode_in_at_most_ten_calls(tmp_path):
     minilm = dataclasses.replace(config(tmp_path), embedder="minilm")  # scores goals well
     server = build_server(dataclasses.replace(minilm, sim_size=(160, 120)))
