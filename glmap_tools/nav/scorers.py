@@ -14,6 +14,7 @@ if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
     from glmap_tools.map.glmap import GLMap
 
+DETERMINERS = {"a", "an", "the", "this", "that", "these", "those", "my", "some", "any", "one"}
 UNIT_KINDS = {"both": ("instance", "region"), "instances": ("instance",), "regions": ("region",)}
 
 
@@ -81,7 +82,10 @@ class EmbeddingScorer:
     """Cosine of the goal embedding against each unit's text embedding, mapped to [0, 1].
 
     s = clip((cos - floor) / (1 - floor), 0, 1): cosines at or below `floor` (what unrelated
-    texts reach with this embedder) count as no evidence, 1 stays 1.
+    texts reach with this embedder) count as no evidence, 1 stays 1. A bare category goal
+    ("picture") is embedded as a noun phrase ("a picture"), like the unit descriptions it is
+    compared with: sentence embedders place a lone word poorly (MiniLM: "picture" vs "a
+    framed picture in purple tones" 0.34, "a picture" 0.52).
 
     Args:
         embedder: the map's text embedder phi (`glmap.embedder`), so unit embeddings and the
@@ -101,12 +105,19 @@ class EmbeddingScorer:
             raise InvalidInputError(f"floor={self.floor!r} must be a cosine in [-1, 1).")
         self._goal_cache: dict[str, np.ndarray] = {}
 
+    @staticmethod
+    def goal_phrase(goal: str) -> str:
+        """The text embedded for a goal: 'a <goal>' unless it starts with a determiner."""
+        goal = check_goal(goal)
+        first = goal.split()[0].lower()
+        return goal if first in DETERMINERS else f"a {goal}"
+
     def goal_embedding(self, goal: str) -> np.ndarray:
         """[D] embedding of the goal text (cached: a goal stays fixed over an episode)."""
         goal = check_goal(goal)
         vec = self._goal_cache.get(goal)
         if vec is None:
-            vec = np.asarray(self.embedder.embed([goal])[0], dtype=np.float32)
+            vec = np.asarray(self.embedder.embed([self.goal_phrase(goal)])[0], dtype=np.float32)
             if len(self._goal_cache) > 256:
                 self._goal_cache.clear()
             self._goal_cache[goal] = vec
