@@ -4,9 +4,9 @@ Loading the MiniLM embedder (torch, ~10 s) and compiling or loading the numba ke
 (estimator, fusion, splatting) used to run before the server answered `initialize`; MCP
 clients that wait 5 s (pydantic-ai) or 15 s (the Inspector) gave up. Now the lifespan starts
 them on daemon threads and returns; a tool call that arrives before they finish waits for
-them, and says so (a progress notification, a log message to the client and a line on
-stderr). `python -m glmap_tools.server.background` runs the same work once in the
-foreground, so `.ci/setup` fills numba's on-disk cache (every kernel uses cache=True).
+them, and says so (a progress notification and a line on stderr). `glmap-mcp --prepare`
+runs the same work once in the foreground, so `.ci/setup` fills numba's on-disk cache
+(every kernel uses cache=True).
 """
 
 from __future__ import annotations
@@ -170,15 +170,11 @@ def warm_kernels() -> float:
     return time.perf_counter() - start
 
 
-def main() -> int:
-    """Fill numba's cache and check the embedder loads (run by .ci/setup)."""
+def prepare() -> int:
+    """Fill numba's cache and check the embedder loads (`glmap-mcp --prepare`, .ci/setup)."""
     seconds = warm_kernels()
     print(f"glmap-mcp kernels ready in {seconds:.1f} s (numba cache filled)")
     start = time.perf_counter()
     load_embedder("minilm", None).embed(["a chair"])
     print(f"text embedder loaded in {time.perf_counter() - start:.1f} s")
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

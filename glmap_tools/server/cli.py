@@ -78,7 +78,16 @@ def build_parser() -> argparse.ArgumentParser:
         default=1,
         help="BLAS/torch threads (default 1: steady latency; 0 = the libraries' defaults)",
     )
-    p.add_argument("--no-warm-up", action="store_true", help="skip the renderer warm-up")
+    p.add_argument(
+        "--no-warm-up",
+        action="store_true",
+        help="do not load the compiled kernels in the background at start (then on first use)",
+    )
+    p.add_argument(
+        "--prepare",
+        action="store_true",
+        help="fill numba's kernel cache and load the embedder once, then exit (for setup)",
+    )
     p.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     from glmap_tools.cli import show_defaults
 
@@ -203,6 +212,10 @@ def main(argv: list[str] | None = None) -> int:
     import logging
 
     logging.basicConfig(level=args.log_level, stream=sys.stderr)
+    if args.prepare:
+        from glmap_tools.server.background import prepare
+
+        return prepare()
     try:
         token = read_token(args)
         config = config_from_args(args)
