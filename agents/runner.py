@@ -29,7 +29,20 @@ from agents.report import write_report
 from agents.trace import TracedClient
 from glmap_tools.errors import InvalidInputError, did_you_mean
 
-AGENTS = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier", "random")
+AGENTS = (
+    "glmap",
+    "glmap-instance",
+    "glmap-region",
+    "egocentric",
+    "frontier",
+    "random",
+    "llm-tools",
+)
+# llm-tools: a chat model through Ollama calls the tools itself (agents/llm_agent.py); its
+# model, server and prompt folder come from these environment variables (set by
+# `glmap eval --model/--ollama-host/--prompts`).
+LLM_ENV = {"model": "GLMAP_LLM_MODEL", "host": "OLLAMA_HOST", "prompts": "GLMAP_PROMPTS"}
+DEFAULT_LLM_MODEL = "qwen3:8b"
 AGENT_SIZE = "320x240"
 
 
@@ -47,6 +60,11 @@ class EpisodeResult(BaseModel):
     tool_calls: int = Field(description="MCP tool calls the episode took, sim_reset included")
     wall_s: float
     seed: int
+    tokens: int = Field(default=0, description="model tokens (llm-tools), prompt + output")
+    turns: int = Field(default=0, description="model calls (llm-tools)")
+    prompts: dict[str, str] = Field(
+        default_factory=dict, description="prompt name -> name@hash (llm-tools)"
+    )
 
 
 def check_agent(agent: str) -> str:
@@ -166,6 +184,8 @@ async def run_episode(
         ToolCallError: the server refused the episode (e.g. an unknown episode id).
     """
     check_agent(agent)
+    if agent == "llm-tools":
+        return await _run_llm_episode(client_session, episode_id, seed, out_dir, max_steps)
     result, _ = await play_episode(
         client_session,
         {"episode": episode_id, "max_steps": max_steps},
@@ -177,6 +197,38 @@ async def run_episode(
         title=f"{agent} on {episode_id}",
     )
     return EpisodeResult(episode_id=episode_id, **result)
+
+
+async def _run_llm_episode(
+    client_session: Any, episode_id: str, seed: int, out_dir: Path | None, max_steps: int
+) -> EpisodeResult:
+    """The llm-tools agent on one episode (model settings from `LLM_ENV`)."""
+    import os
+    import tempfile
+
+    from agents.llm_agent import run_llm_episode
+    from glmap_tools.language.llm import OllamaClient
+    from glmap_tools.language.prompts import PromptSet
+
+    model = os.environ.get(LLM_ENV["model"]) or DEFAULT_LLM_MODEL
+    llm = OllamaClient(model, host=os.environ.get(LLM_ENV["host"]) or None)
+    folder = os.environ.get(LLM_ENV["prompts"])
+    prompts = PromptSet(folder) if folder else None
+    with tempfile.TemporaryDirectory(prefix="glmap-llm-") as tmp:
+        out = out_dir if out_dir is not None else Path(tmp)
+        r = await run_llm_episode(
+            client_session,
+            episode_id,
+            llm,
+            seed=seed,
+            out_dir=out,
+            prompts=prompts,
+            max_steps=max_steps,
+        )
+    return EpisodeResult(
+        episode_id=episode_id,
+        **{k: r[k] for k in EpisodeResult.model_fields if k not in ("episode_id",) and k in r},
+    )
 
 
 async def _main(args: argparse.Namespace) -> int:
