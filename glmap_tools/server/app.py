@@ -59,7 +59,6 @@ the exact values as structured content."""
 KERNEL_TOOLS = (
     "observe_frame",
     "render_view",
-    "map_summary",
     "sim_reset",
     "sim_step",
     "navigate_to",
