@@ -172,7 +172,12 @@ def _floor_and_ceiling(grid: _Grid, config: GeometricConfig) -> np.ndarray:
             continue  # a ceiling is only trusted above a floor
         if not pick_lowest and height - float(np.median(z[removed])) < 1.8:
             continue
-        removed |= grid.valid & (np.abs(z - height) < config.plane_distance) & (np.abs(nz) > 0.5)
+        # Normals blur next to objects; points right at the plane's height go regardless.
+        gap = np.abs(z - height)
+        near = (gap < config.plane_distance) & (
+            (np.abs(nz) > 0.5) | (gap < config.plane_distance / 2)
+        )
+        removed |= grid.valid & near
     return removed
 
 
