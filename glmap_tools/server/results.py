@@ -158,7 +158,8 @@ def compact_description(text: str) -> str:
 def compact_schema(schema: Any, in_properties: bool = False) -> Any:
     """A JSON schema without pydantic's titles, `additionalProperties: false` (the server
     still refuses unknown fields, naming them), model docstrings in `$defs` (their fields
-    are described) and integer bounds past 2^53 (no JSON client can reach them), and with
+    are described), integer bounds past 2^53 (no JSON client can reach them) and defaults
+    that are empty or false (what leaving an argument out means anyway), and with
     optional-or-null as just optional.
 
     `{"anyOf": [X, {"type": "null"}], "default": null}` becomes X: leaving the argument out
@@ -177,6 +178,7 @@ def compact_schema(schema: Any, in_properties: bool = False) -> Any:
             (key == "title" and isinstance(value, str))
             or (key == "additionalProperties" and value is False)
             or (key in ("maximum", "minimum") and isinstance(value, int) and abs(value) > 2**53)
+            or (key == "default" and (value == "" or value is False))
         ):
             continue
         if key == "$defs" and isinstance(value, dict):  # the fields say what matters
