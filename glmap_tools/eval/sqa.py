@@ -165,7 +165,7 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
                 pred, supported, qtype = "", False, "unlocated"
             else:
                 if agent == "text-only":
-                    where = surroundings(glmap, 0.0, 0.0, 0.0, radius=1e4)
+                    where = surroundings(glmap, 0.0, 0.0, 0.0, radius=None)
                 else:
                     assert pose is not None
                     where = surroundings(glmap, pose[0], pose[1], pose[2])
@@ -177,6 +177,7 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
                 {
                     "scene": scene,
                     "question_id": q["question_id"],
+                    "situation": q["situation"],
                     "type": q["question_type"],
                     "agent": agent,
                     "prediction": pred,
@@ -241,10 +242,10 @@ def summarize(records: list[dict[str, Any]], agents: Sequence[str], resamples: i
             rs = [r for r in records if r["type"] == t and r["agent"] == agent]
             row.append(f"{np.mean([r['em1'] for r in rs]):.2f}" if rs else "-")
         lines.append("| " + " | ".join(row) + " |")
-    loc = {}
+    loc = {}  # one row per situation: localisation does not depend on the question
     for r in records:
         if r["agent"] == "glmap":
-            loc[(r["scene"], r["question_id"])] = r
+            loc[(r["scene"], r["situation"])] = r
     if loc:
         ok = np.array(
             [
@@ -257,7 +258,8 @@ def summarize(records: list[dict[str, Any]], agents: Sequence[str], resamples: i
         lines += [
             "",
             f"Localisation (glmap): within {LOCALISED_M:.0f} m and {LOCALISED_DEG:.0f} deg on "
-            f"{cell(bootstrap_mean(ok, resamples=resamples))} of questions; median error "
+            f"{cell(bootstrap_mean(ok, resamples=resamples))} of {len(ok)} situations; "
+            "median error "
             f"{np.median(errs) if errs else float('nan'):.2f} m, "
             f"{np.median(degs) if degs else float('nan'):.0f} deg; "
             f"{sum('error' in r for r in loc.values())} not located.",

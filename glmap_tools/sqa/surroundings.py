@@ -75,13 +75,27 @@ class Surroundings:
         }
 
 
+def _all_units(glmap: GLMap, x: float, y: float) -> list[tuple[int, float]]:
+    """(id, distance to its nearest cell) of every instance."""
+    s = glmap.grid.cell_size
+    out = []
+    for uid in glmap.instances:
+        cells = np.array(sorted(glmap.grid.cells_of_unit(uid)), dtype=np.float64)
+        if len(cells) == 0:
+            continue
+        gap = np.maximum(np.maximum(cells * s - (x, y), (x, y) - (cells + 1) * s), 0.0)
+        out.append((uid, float(np.hypot(gap[:, 0], gap[:, 1]).min())))
+    return out
+
+
 def surroundings(
-    glmap: GLMap, x: float, y: float, heading: float, radius: float = AROUND
+    glmap: GLMap, x: float, y: float, heading: float, radius: float | None = AROUND
 ) -> Surroundings:
-    """The instances within `radius` of (x, y) with bearings relative to `heading`."""
+    """The instances within `radius` of (x, y) (None: all) with bearings from `heading`."""
     s = glmap.grid.cell_size
     rows = []
-    for uid, dist in glmap.grid.units_near(x, y, radius):
+    near = glmap.grid.units_near(x, y, radius) if radius is not None else _all_units(glmap, x, y)
+    for uid, dist in near:
         unit = glmap.instances.get(uid)
         if unit is None:
             continue

@@ -1,0 +1,55 @@
+"""glmap eval sqa on a small split: the table, resuming, and bad settings."""
+
+import json
+
+import pytest
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.eval.sqa import SQA_AGENTS, SqaSpec, check_agents, run_sqa_eval
+
+SMALL = SqaSpec(
+    split="tune",
+    scenes=1,
+    situations=3,
+    embedder="hashing",
+    image=(160, 120),
+    tour_step=1.0,
+    tour_spin=4,
+)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sqa")
+    text, records = run_sqa_eval(SMALL, out, workers=1, progress=False)
+    return out, text, records
+
+
+def test_a_small_split_prints_em_for_every_agent_and_the_localisation(run):
+    out, text, records = run
+    for agent in SQA_AGENTS:
+        assert f"| {agent} | " in text
+    assert "Localisation (glmap): within 1 m and 45 deg" in text
+    assert (out / "summary.md").read_text().endswith(text.split("\n", 2)[2])
+    assert {r["agent"] for r in records} == set(SQA_AGENTS)
+    n = len(records) // len(SQA_AGENTS)
+    assert n >= 3 and all(isinstance(r["em1"], bool) for r in records)
+    # Room questions are answered by no agent: the map holds no room names.
+    assert not any(r["em1"] for r in records if r["type"] == "room")
+
+
+def test_a_rerun_reuses_the_scene_results_and_other_settings_are_refused(run):
+    out, _, records = run
+    scene_file = next((out / "scenes").glob("*.json"))
+    before = scene_file.stat().st_mtime_ns
+    _, again = run_sqa_eval(SMALL, out, workers=1, progress=False)
+    assert scene_file.stat().st_mtime_ns == before and again == records
+    other = SqaSpec(**{**SMALL.__dict__, "situations": 4})
+    with pytest.raises(InvalidInputError, match="other settings"):
+        run_sqa_eval(other, out, workers=1, progress=False)
+    assert json.loads(scene_file.read_text())["spec"] == SMALL.key()
+
+
+def test_an_unknown_sqa_agent_suggests_the_closest():
+    with pytest.raises(InvalidInputError, match="Did you mean 'gt-pose'"):
+        check_agents(["gt-pos"])
