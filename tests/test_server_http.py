@@ -117,21 +117,21 @@ async def test_half_sent_requests_neither_pile_up_nor_lock_out_an_authorised_cli
     url, log = guarded_server
     stalled = [half_sent(url) for _ in range(SLOW_SOCKETS)]
     try:
-        # Three times the cap stalled: the oldest were closed to stay within the cap ...
-        over_cap = sum(closed_by_server(s, 0.2) for s in stalled[:CAP])
-        assert over_cap == CAP
-        # ... and a client sending whole requests still gets in and is answered.
+        # Three times the cap stalled: a client sending whole requests still gets in ...
         with anyio.fail_after(60):
             assert "find_instance" in await tools_via(url)
-        # Whatever was still stalled is closed once the request deadline passes.
-        deadline = time.monotonic() + DEADLINE_S + 5
+        # ... and every stalled connection is closed: the oldest to stay within the cap, the
+        # rest once the request deadline passes (generous bounds: CI machines are busy).
+        deadline = time.monotonic() + DEADLINE_S + 20
         for s in stalled:
             assert closed_by_server(s, max(deadline - time.monotonic(), 0.1))
     finally:
         for s in stalled:
             s.close()
-    warnings = [line for line in log if "half-sent" in line or "not received within" in line]
-    assert 0 < len(warnings) <= 2 * 6  # two messages, each at most 5 times + one summary
+    capped = [line for line in log if "half-sent" in line]
+    late = [line for line in log if "not received within" in line]
+    assert capped  # the cap closed some before their deadline
+    assert len(capped) <= 6 and len(late) <= 6  # each at most 5 times + one summary
 
 
 @pytest.fixture
