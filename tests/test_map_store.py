@@ -266,7 +266,7 @@ CRAFTED = {
     "label-is-a-blob": ("UPDATE instances SET label = x'00ff'",),
     "bad-pose": ("UPDATE frames SET pose = ?", (_npy(np.full((4, 4), 2.0)),)),
     "bad-floor": ("UPDATE meta SET value = 'NaN' WHERE key = 'floor_z'",),
-    "structure-keys-elsewhere": ("UPDATE structure SET ci = ci + 5",),
+    "structure-keys-elsewhere": ("UPDATE structure SET ci = ci + 1000",),
 }
 
 
