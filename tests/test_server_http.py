@@ -92,6 +92,18 @@ def half_sent(url: str) -> socket.socket:
     return sock
 
 
+def slow_body(url: str) -> socket.socket:
+    """A request with the token and whole headers whose body stops after a few bytes."""
+    parsed = urlparse(url)
+    sock = socket.create_connection((parsed.hostname, parsed.port), timeout=10)
+    sock.sendall(
+        b"POST /mcp HTTP/1.1\r\nHost: 127.0.0.1\r\nAuthorization: Bearer " + TOKEN.encode()
+        + b"\r\nContent-Type: application/json\r\nAccept: application/json, text/event-stream"
+        + b"\r\nContent-Length: 5000\r\n\r\n{\"jsonrpc\": "
+    )  # fmt: skip
+    return sock
+
+
 def closed_by_server(sock: socket.socket, timeout: float) -> bool:
     sock.settimeout(timeout)
     try:
@@ -120,6 +132,8 @@ async def test_half_sent_requests_neither_pile_up_nor_lock_out_an_authorised_cli
         # Three times the cap stalled: a client sending whole requests still gets in ...
         with anyio.fail_after(60):
             assert "find_instance" in await tools_via(url)
+        # Authorised requests whose body stalls are cut off too.
+        stalled += [slow_body(url) for _ in range(3)]
         # ... and every stalled connection is closed: the oldest to stay within the cap, the
         # rest once the request deadline passes (generous bounds: CI machines are busy).
         deadline = time.monotonic() + DEADLINE_S + 20

@@ -10,7 +10,7 @@ Here each connection is an `h11` protocol that
 - must deliver a whole request (headers and body) within `request_timeout` seconds of its
   first byte, or is closed;
 - counts against `max_connections`: a new connection over the cap closes the oldest one
-  still sending its request (never one whose request is complete and being answered), so
+  still sending its request (never one whose request has arrived and is being answered), so
   an attacker's half-sent requests cannot lock out a client that sends whole requests.
 
 `RepeatFilter` lets the same log message through a few times a minute and then counts it.
@@ -61,10 +61,8 @@ class GuardedH11Protocol(H11Protocol):
             self._close_one_receiving()
 
     def _receiving(self) -> bool:
-        """Still sending its request (headers or body), with no reply under way."""
-        return self.conn.their_state in (h11.IDLE, h11.SEND_BODY) and (
-            self.cycle is None or self.cycle.response_complete
-        )
+        """Still sending its request: its headers, or a body the app is waiting for."""
+        return self.conn.their_state in (h11.IDLE, h11.SEND_BODY)
 
     def _close_one_receiving(self) -> None:
         """Make room: close the oldest connection that has not delivered its request."""
