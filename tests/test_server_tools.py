@@ -211,7 +211,6 @@ BAD_INPUTS = [
     ("intrinsics", {"fx": 100.0}, "need fx, fy, cx and cy"),
     ("intrinsics.fx", -5.0, "positive finite focal length"),
     ("depth_scale", 0, "greater than 0"),
-    ("annotations", _DELETE, "needs annotations"),
     ("annotations.objects", [{"id": 9, "label": "ghost"}], "mask of object 9"),
     ("annotations.groups", [{"id": 1, "description": "x", "members": [7]}], "unknown member"),
     ("rgb", {"path": "relative/rgb.png"}, "is relative"),

@@ -9,13 +9,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError, UnknownIdError
 from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS
-from glmap_tools.perception.geometric import Segment
 from glmap_tools.perception.semantics import FrameSemantics, GroupObservation, ObjectObservation
+
+if TYPE_CHECKING:
+    from glmap_tools.perception.geometric import Segment
 
 IGNORE = "ignore"
 

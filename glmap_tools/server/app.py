@@ -16,6 +16,7 @@ from glmap_tools.server import (
     tools_export,
     tools_map,
     tools_nav,
+    tools_perception,
     tools_sim,
     tools_sqa,
     tools_store,
@@ -64,6 +65,7 @@ KERNEL_TOOLS = (
     "navigate_to",
     "look_around",
     "nav_step",
+    "label_segments",
 )
 
 
@@ -208,6 +210,7 @@ def build_server(
     )
     server.background = background
     tools_map.register(server)
+    tools_perception.register(server)
     tools_store.register(server)
     tools_view.register(server)
     tools_export.register(server)

@@ -9,9 +9,9 @@ from mcp.server.mcpserver import Context, Image, MCPServer
 from mcp.types import TextContent, ToolAnnotations
 from pydantic import BaseModel, Field
 
-from glmap_tools.errors import InvalidInputError
 from glmap_tools.map import FREE, OBSTACLE
 from glmap_tools.map.report import UnitInfo
+from glmap_tools.server import tools_perception
 from glmap_tools.server.inputs import (
     AnnotationInput,
     FileInput,
@@ -106,11 +106,13 @@ def register(server: MCPServer) -> None:
         ] = 1000.0,
         annotations: Annotated[
             AnnotationInput | None,
-            Field(description="mask + labels (needed without a perception backend)"),
+            Field(description="mask + labels; omit: segments come back pending"),
         ] = None,
         session: SessionArg = None,
     ) -> ObserveResult:
         """Add a posed RGB-D frame: its annotated objects become or merge into instances.
+
+        Without annotations its segments come back pending: name them with label_segments.
 
         Files go as base64 or a local path. Returns the ids added or merged; nothing changes
         if any input is rejected.
@@ -124,14 +126,9 @@ def register(server: MCPServer) -> None:
             )
         )
         if semantics is None:
-            if state.perception is None:
-                raise InvalidInputError(
-                    "observe_frame needs annotations: this server has no perception backend "
-                    "(an MLLM backend comes later), so pass annotations={'mask': {'base64': "
-                    "<single-channel PNG of object ids, 0 = none>}, 'objects': [{'id': 1, "
-                    "'label': 'chair', 'description': 'a blue office chair'}], 'groups': "
-                    "[{'id': 1, 'description': 'desk corner', 'members': [1]}]}."
-                )
+            if state.perception is None:  # geometry now, segments pending for label_segments
+                pending = await tools_perception.observe_unannotated(state, target, frame)
+                return pending  # type: ignore[return-value]  # the SDK checks it as ObserveResult
             perceive = state.perception
             semantics = await in_thread(lambda: perceive(frame))
         await ctx.report_progress(1, 3, f"fusing {len(semantics.objects)} objects")

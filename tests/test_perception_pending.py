@@ -1,0 +1,85 @@
+"""Pending frames expire by count, age and map; the contact sheet shows every segment."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from glmap_tools import synthetic as sy
+from glmap_tools.errors import UnknownIdError
+from glmap_tools.perception.geometric import segment_frame
+from glmap_tools.perception.pending import PendingFrames
+from glmap_tools.perception.sheet import TILE, segment_color, segment_sheet
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+class Owner:
+    """Stands for a map: pending frames hold it by weak reference."""
+
+
+@pytest.fixture(scope="module")
+def frame_and_segments():
+    boxes = sy.floor() + sy.chair(0.0, 0.5, object_id=1) + sy.table(1.3, 0.8, 2)
+    frame, _ = sy.view(boxes, (0.3, -2.0, 1.4), (0.3, 0.8, 0.4))
+    return frame, segment_frame(frame)
+
+
+def test_the_oldest_frames_expire_beyond_the_count_limit(frame_and_segments):
+    frame, segments = frame_and_segments
+    store, owner = PendingFrames(max_frames=2), Owner()
+    tokens = [store.add("s", owner, frame, segments, i).token for i in range(3)]
+    assert store.tokens("s") == tokens[1:]
+    with pytest.raises(UnknownIdError, match="more than 2 frames"):
+        store.get("s", tokens[0], owner)
+    assert store.get("s", tokens[2], owner).frame_index == 2
+
+
+def test_frames_expire_with_age_and_sessions_do_not_see_each_other(frame_and_segments):
+    frame, segments = frame_and_segments
+    clock, owner = Clock(), Owner()
+    store = PendingFrames(max_age_s=60.0, clock=clock)
+    token = store.add("a", owner, frame, segments, 0).token
+    with pytest.raises(UnknownIdError, match="no frame has that id"):
+        store.get("b", token, owner)
+    clock.now = 59.0
+    assert store.get("a", token, owner).token == token
+    clock.now = 61.0
+    with pytest.raises(UnknownIdError, match="keep 60 s"):
+        store.get("a", token, owner)
+
+
+def test_a_frame_of_another_map_is_expired(frame_and_segments):
+    frame, segments = frame_and_segments
+    store = PendingFrames()
+    owner = Owner()
+    token = store.add("s", owner, frame, segments, 0).token
+    with pytest.raises(UnknownIdError, match="replaced or closed"):
+        store.get("s", token, Owner())
+    with pytest.raises(UnknownIdError, match="replaced or closed"):  # and stays expired
+        store.get("s", token, owner)
+
+
+def test_the_masked_frame_keeps_depth_only_on_the_mask(frame_and_segments):
+    frame, segments = frame_and_segments
+    pending = PendingFrames().add("s", Owner(), frame, segments, 0)
+    masked = pending.masked_frame(segments[0].mask)
+    assert np.all(masked.depth[~segments[0].mask] == 0)
+    np.testing.assert_array_equal(masked.depth[segments[0].mask], frame.depth[segments[0].mask])
+
+
+def test_the_contact_sheet_has_a_tile_per_segment_in_its_colour(frame_and_segments):
+    frame, segments = frame_and_segments
+    sheet = segment_sheet(frame.rgb, segments)
+    assert sheet.dtype == np.uint8 and sheet.shape[2] == 3
+    rows = (len(segments) + 3) // 4
+    overview_height = sheet.shape[0] - rows * TILE
+    assert overview_height > 0
+    for seg in segments:  # each outline colour shows in the overview
+        assert np.all(sheet[:overview_height] == segment_color(seg.id), axis=-1).any()
