@@ -83,7 +83,15 @@ async def test_unknown_agents_and_episodes_are_refused_with_the_closest_name(tmp
             await run_episode(session, EPISODE[:-1], "random", seed=0)
     assert main([EPISODE, "--agent", "frontiers"]) == 2
     assert "Did you mean 'frontier'" in capsys.readouterr().err
-    assert AGENTS == ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier", "random")
+    assert AGENTS == (
+        "glmap",
+        "glmap-instance",
+        "glmap-region",
+        "egocentric",
+        "frontier",
+        "random",
+        "llm-tools",
+    )
 
 
 async def test_an_instnav_episode_runs_the_instnav_agent_on_a_description(tmp_path):

@@ -1,4 +1,5 @@
-"""`glmap eval objectnav|instnav`: SR, SPL, distance to goal, steps and tool calls per agent."""
+"""`glmap eval objectnav|instnav|sqa|compare`: navigation (SR, SPL, distance to goal, steps,
+tool calls per agent), situated QA (EM-1, EM-R1, localisation), and two runs side by side."""
 
 from __future__ import annotations
 
@@ -11,16 +12,36 @@ DEFAULT_AGENTS = "glmap,glmap-instance,glmap-region,egocentric,frontier,random"
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    p = subparsers.add_parser(
-        "eval",
-        help="evaluate navigation agents on the benchmark split (table with intervals)",
+    top = subparsers.add_parser(
+        "eval", help="evaluate agents on the benchmark split (tables with intervals)"
+    )
+    kinds = top.add_subparsers(dest="task", metavar="TASK", required=True)
+    for task in TASKS:
+        _register_nav(kinds, task)
+    from glmap_tools.eval import compare, sqa
+
+    q = kinds.add_parser(
+        "sqa",
+        help="situated QA: EM-1, EM-R1 and localisation per agent",
+        description=(sqa.__doc__ or "").split("\n\n")[0],
+    )
+    sqa.add_arguments(q)
+    q.set_defaults(func=sqa.run_cli)
+    c = kinds.add_parser("compare", help="two result folders side by side (prompt experiments)")
+    compare.add_arguments(c)
+    c.set_defaults(func=compare.run_cli)
+
+
+def _register_nav(kinds: argparse._SubParsersAction, task: str) -> None:
+    p = kinds.add_parser(
+        task,
+        help=f"{task}: SR, SPL, distance to goal, steps and tool calls per agent",
         description=(
             "Play the first N scenes x K episodes of a benchmark split with each agent, in "
             "parallel, and write per-episode JSON, summary.md and summary.json to --out. "
             "A rerun skips the episodes already in --out. See docs/evaluation.md."
         ),
     )
-    p.add_argument("task", choices=TASKS, help="objectnav (a category) or instnav (an instance)")
     p.add_argument("--split", choices=SPLITS, required=True, help="tune for choosing settings")
     p.add_argument("--scenes", type=int, help="the first N scenes of the split (default: all)")
     p.add_argument(
@@ -46,22 +67,56 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="play nothing: write the table from the episodes already finished in --out",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    g = p.add_argument_group("the llm-tools agent (a model that calls the tools; needs Ollama)")
+    g.add_argument("--model", default="", help="Ollama model, e.g. qwen3:8b")
+    g.add_argument("--ollama-host", default=None, help="Ollama URL ($OLLAMA_HOST or local)")
+    g.add_argument("--prompts", type=Path, default=None, help="prompt override folder")
     p.set_defaults(func=run)
+
+
+def _llm_settings(args: argparse.Namespace, agents: tuple[str, ...]) -> tuple[str, str]:
+    """Model and prompt-set digest of the llm-tools agent; exported to the workers' env.
+
+    Worker processes inherit the environment (local workers; Ray workers need the same
+    variables in their runtime environment).
+    """
+    import hashlib
+    import os
+
+    from agents.runner import DEFAULT_LLM_MODEL, LLM_ENV
+    from glmap_tools.language.prompts import PromptSet
+
+    if "llm-tools" not in agents:
+        return "", ""
+    model = args.model or DEFAULT_LLM_MODEL
+    prompts = PromptSet(args.prompts)
+    refs = sorted(prompts.get(n).ref for n in prompts.names())
+    os.environ[LLM_ENV["model"]] = model
+    if args.ollama_host:
+        os.environ[LLM_ENV["host"]] = args.ollama_host
+    if args.prompts:
+        os.environ[LLM_ENV["prompts"]] = str(Path(args.prompts).resolve())
+    digest = hashlib.sha256(" ".join(refs).encode()).hexdigest()[:12]
+    return model, digest
 
 
 def run(args: argparse.Namespace) -> int:
     from glmap_tools.eval.run import run_eval
     from glmap_tools.eval.spec import EvalSpec, parse_agents
 
+    agents = parse_agents(args.agents)
+    llm_model, prompts = _llm_settings(args, agents)
     spec = EvalSpec(
         task=args.task,
         split=args.split,
         scenes=args.scenes,
         episodes_per_scene=args.episodes_per_scene,
-        agents=parse_agents(args.agents),
+        agents=agents,
         seed=args.seed,
         max_steps=args.max_steps,
         embedder=args.embedder,
+        llm_model=llm_model,
+        prompts=prompts,
     )
     result = run_eval(
         spec,

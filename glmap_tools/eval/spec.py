@@ -17,7 +17,7 @@ TASKS = ("objectnav", "instnav")
 SPLITS = ("tune", "bench")
 EMBEDDERS = ("minilm", "hashing")
 # Settings that change what one episode's result is; a results folder holds one set of them.
-RESULT_KEYS = ("task", "split", "seed", "max_steps", "embedder")
+RESULT_KEYS = ("task", "split", "seed", "max_steps", "embedder", "llm_model", "prompts")
 
 
 def known_agents() -> tuple[str, ...]:
@@ -90,6 +90,8 @@ class EvalSpec:
         seed: base seed; each episode's seed is `episode_seed(seed, episode_id)`.
         max_steps: actions before an episode is cut off (500 in the benchmark).
         embedder: the server's text embedder, 'minilm' or 'hashing'.
+        llm_model: the Ollama model of the llm-tools agent ('' when none plays).
+        prompts: the prompt set it used, as a digest of every prompt's name@hash.
     """
 
     task: str
@@ -100,6 +102,8 @@ class EvalSpec:
     seed: int = 0
     max_steps: int = 500
     embedder: str = "minilm"
+    llm_model: str = ""
+    prompts: str = ""
 
     def __post_init__(self) -> None:
         check_choice("task", self.task, TASKS)
@@ -119,7 +123,9 @@ class EvalSpec:
         from agents.runner import AGENT_SIZE
 
         d = asdict(self)
-        return {**{k: d[k] for k in RESULT_KEYS}, "image_size": AGENT_SIZE}
+        # The model settings only count when a model plays (older folders lack them).
+        keys = [k for k in RESULT_KEYS if k not in ("llm_model", "prompts") or d[k]]
+        return {**{k: d[k] for k in keys}, "image_size": AGENT_SIZE}
 
 
 def select_episodes(task: str, split: str, scenes: int | None, per_scene: int | None) -> list[Any]:
