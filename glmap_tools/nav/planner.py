@@ -193,6 +193,19 @@ class Plan:
     goal_xy: tuple[float, float]
 
 
+def heading_error(
+    path: np.ndarray, agent_xy: tuple[float, float], heading: float, lookahead: float
+) -> float | None:
+    """Radians to turn (counter-clockwise +) to face the path point `lookahead` m away."""
+    d = np.hypot(path[:, 0] - agent_xy[0], path[:, 1] - agent_xy[1])
+    ahead = np.flatnonzero(d >= lookahead)
+    target = path[ahead[0]] if len(ahead) else path[-1]
+    if math.hypot(target[0] - agent_xy[0], target[1] - agent_xy[1]) < 1e-6:
+        return None
+    want = math.atan2(target[1] - agent_xy[1], target[0] - agent_xy[0])
+    return (want - heading + math.pi) % (2 * math.pi) - math.pi
+
+
 def next_action(
     path: np.ndarray,
     agent_xy: tuple[float, float],
@@ -209,13 +222,9 @@ def next_action(
     """
     if arrived or len(path) == 0:
         return "stop"
-    d = np.hypot(path[:, 0] - agent_xy[0], path[:, 1] - agent_xy[1])
-    ahead = np.flatnonzero(d >= config.lookahead)
-    target = path[ahead[0]] if len(ahead) else path[-1]
-    if math.hypot(target[0] - agent_xy[0], target[1] - agent_xy[1]) < 1e-6:
+    diff = heading_error(path, agent_xy, heading, config.lookahead)
+    if diff is None:
         return "stop"
-    want = math.atan2(target[1] - agent_xy[1], target[0] - agent_xy[0])
-    diff = (want - heading + math.pi) % (2 * math.pi) - math.pi
     if abs(diff) <= config.turn_angle / 2 + 1e-9 and not blocked_ahead:
         return "move_forward"
     return "turn_left" if diff >= 0 else "turn_right"
@@ -251,6 +260,17 @@ def plan_on_field(
     arrived = length <= config.forward_step / 2
     blocked = not forward_is_free(occ, agent_xy, heading, config)
     action = next_action(path, agent_xy, heading, config, arrived, blocked)
+    if action in ("turn_left", "turn_right") and not blocked:
+        # The path leaves between this heading and the next turn, and that turn faces a
+        # blocked step: go on this way (the plan is redone every step).
+        diff = heading_error(path, agent_xy, heading, config.lookahead)
+        turned = heading + (config.turn_angle if action == "turn_left" else -config.turn_angle)
+        if (
+            diff is not None
+            and abs(diff) <= config.turn_angle
+            and not forward_is_free(occ, agent_xy, turned, config)
+        ):
+            action = "move_forward"
     return Plan(path, length, action, reachable, end_xy)
 
 

@@ -9,7 +9,7 @@ an instance whose score reaches `stop_threshold` after `min_observations` frames
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -20,7 +20,14 @@ from glmap_tools.nav.config import NavConfig, check_policy
 from glmap_tools.nav.egocentric import EgocentricValueMap
 from glmap_tools.nav.frontiers import Frontier, frontiers
 from glmap_tools.nav.grid import agent_rc, known_window, nav_masks, reframe
-from glmap_tools.nav.planner import DistanceField, Plan, distance_field, plan_on_field
+from glmap_tools.nav.planner import (
+    DistanceField,
+    Plan,
+    distance_field,
+    forward_is_free,
+    heading_error,
+    plan_on_field,
+)
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
 from glmap_tools.nav.value import ValueMap, unit_cell_array, value_map_from_scores
 from glmap_tools.nav.waypoint import GoalMatch, Waypoint, choose_waypoint
@@ -33,6 +40,7 @@ if TYPE_CHECKING:
 POLICY_UNITS = {"glmap": "both", "glmap-instance": "instances", "glmap-region": "regions"}
 PROGRESS = 0.25  # metres of progress toward the waypoint that reset the stuck counter
 BUMP_MOVE = 0.02  # metres: a move_forward that moved less than this hit something
+TURNS = {"turn_left": "turn_right", "turn_right": "turn_left"}  # each turn and its opposite
 
 
 @dataclass
@@ -57,6 +65,7 @@ class NavState:
     last_xy: tuple[float, float] | None = None
     last_heading: float = 0.0
     best_distance: float = math.inf
+    turns_in_place: int = 0
     since_progress: int = 0
     steps: int = 0
     scorer: Scorer | None = None
@@ -238,6 +247,8 @@ def decide(
         waypoint, out = _choose_and_plan(
             value, fronts, trav, xy, heading, match, occ, field, state, config
         )
+    out = _keep_turning(state, xy, out)
+    out = _unstick(state, occ, xy, heading, out, config)
     _track_progress(state, waypoint, out, config)
     state.last_waypoint, state.last_action = waypoint, out.action
     state.last_xy, state.last_heading = xy, heading
@@ -298,6 +309,45 @@ def _choose_and_plan(
         return wp, out
     look = Waypoint(xy, "explore", None, 0.0, "every nearby waypoint was given up: look around.")
     return look, Plan(np.array([xy]), 0.0, "turn_left", False, xy)
+
+
+def _keep_turning(state: NavState, xy: tuple[float, float], out: Plan) -> Plan:
+    """Turn on the way the agent already turns, in place: left-right-left never gets out.
+
+    Flip-flopping happens when the path leaves straight ahead but the step ahead is blocked
+    (turning either way then points away from the path), or the path leaves straight behind.
+    """
+    last = state.last_action
+    if last not in TURNS or out.action != TURNS[last] or state.last_xy is None:
+        return out
+    if math.hypot(xy[0] - state.last_xy[0], xy[1] - state.last_xy[1]) < BUMP_MOVE:
+        return replace(out, action=str(last))
+    return out
+
+
+def _unstick(
+    state: NavState,
+    occ: DenseOccupancy,
+    xy: tuple[float, float],
+    heading: float,
+    out: Plan,
+    config: NavConfig,
+) -> Plan:
+    """After a full turn in place, walk on the first free heading within 90 deg of the path.
+
+    Obstacles below the camera's view are only found by bumping into them; the cells they
+    leave can block every heading near the path's direction while the planner, which clears
+    the agent's own footprint, still routes through. Any free step towards the path helps.
+    """
+    moved = state.last_xy is None or math.dist(xy, state.last_xy) >= BUMP_MOVE
+    state.turns_in_place = 0 if moved or out.action not in TURNS else state.turns_in_place + 1
+    if state.turns_in_place < round(360 / config.turn_angle_deg):
+        return out
+    diff = heading_error(out.path, xy, heading, config.lookahead) if len(out.path) else None
+    if diff is not None and abs(diff) <= math.pi / 2 and forward_is_free(occ, xy, heading, config):
+        state.turns_in_place = 0
+        return replace(out, action="move_forward")
+    return out
 
 
 def _track_progress(state: NavState, wp: Waypoint, out: Plan, config: NavConfig) -> None:
