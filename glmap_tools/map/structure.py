@@ -134,12 +134,12 @@ class StructureLayer:
         all_rank = np.concatenate([rank[kept], labels])
         chunk = chunk_of_keys(all_keys)
         order = np.lexsort((all_rank, chunk[:, 1], chunk[:, 0]))  # by chunk, then by key
-        chunk, all_keys, all_g = chunk[order], all_keys[order], all_g.subset(order)
+        chunk = chunk[order]
         bounds = np.flatnonzero(np.r_[True, np.any(np.diff(chunk, axis=0) != 0, axis=1), True])
         out: dict[ChunkKey, StructureChunk] = {}
         for start, stop in zip(bounds[:-1], bounds[1:], strict=True):
             key = (int(chunk[start, 0]), int(chunk[start, 1]))
-            rows = np.arange(start, stop)
+            rows = order[start:stop]  # one copy per chunk, straight from the unsorted rows
             out[key] = StructureChunk(all_keys[rows], all_g.subset(rows))
         return out
 
