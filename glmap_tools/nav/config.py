@@ -9,7 +9,7 @@ from glmap_tools.errors import InvalidInputError, did_you_mean
 
 # Calibrated on the tune split (scene seeds 1000-1003), see nav/design.md: the score s_u at
 # which an instance counts as the goal, per task (category names vs full descriptions).
-STOP_THRESHOLDS = {"objectnav": 0.5, "instnav": 0.75}
+STOP_THRESHOLDS = {"objectnav": 0.56, "instnav": 0.75}
 POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
 ACTIONS = ("move_forward", "turn_left", "turn_right", "stop")
 
@@ -42,7 +42,7 @@ class NavConfig:
     forward_step: float = 0.25
     turn_angle_deg: float = 30.0
     value_sigma: float = 0.5
-    stop_threshold: float = 0.5
+    stop_threshold: float = 0.56
     min_observations: int = 2
     stop_distance: float = 0.75
     min_frontier_size: int = 5
