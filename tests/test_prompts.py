@@ -116,3 +116,23 @@ def test_backends_default_offline_and_select_the_llm_parts_by_name(tmp_path):
     assert merger.prompts.get("text_merge").source == str(tmp_path / "text_merge.txt")
     with pytest.raises(InvalidInputError, match="Did you mean 'llm'"):
         LLMSettings(scorer="lm")
+
+
+def test_the_server_gives_every_map_the_text_merger_its_settings_ask_for(tmp_path):
+    from glmap_tools.language.backends import LLMSettings
+    from glmap_tools.language.embed import HashingEmbedder
+    from glmap_tools.language.llm_merger import LLMTextMerger
+    from glmap_tools.language.text_merger import ExtractiveTextMerger
+    from glmap_tools.server import ServerConfig
+    from glmap_tools.server.cli import build_parser, config_from_args
+    from glmap_tools.server.state import SessionRegistry
+
+    args = build_parser().parse_args(["--text-merger", "llm", "--llm-model", "qwen3:4b"])
+    config = config_from_args(args)
+    assert config.llm == LLMSettings(text_merger="llm", model="qwen3:4b")
+    for llm, kind in ((config.llm, LLMTextMerger), (LLMSettings(), ExtractiveTextMerger)):
+        registry = SessionRegistry(
+            ServerConfig(maps_dir=tmp_path / "maps", embedder="hashing", llm=llm),
+            HashingEmbedder(),
+        )
+        assert isinstance(registry._scratch().glmap.text_merger, kind)

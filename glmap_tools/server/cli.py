@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from glmap_tools.errors import GLMapError, InvalidInputError
+from glmap_tools.language.backends import add_llm_arguments, settings_from_args
 from glmap_tools.map import MapConfig
 from glmap_tools.server.config import MIB, ServerConfig, default_maps_dir
 from glmap_tools.server.http import MAX_CONNECTIONS, REQUEST_TIMEOUT_S
@@ -89,6 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="fill numba's kernel cache and load the embedder once, then exit (for setup)",
     )
     p.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    add_llm_arguments(p)
     from glmap_tools.cli import show_defaults
 
     return show_defaults(p)
@@ -108,6 +110,7 @@ def config_from_args(args: argparse.Namespace) -> ServerConfig:
         file_roots=roots,
         warm_up=not args.no_warm_up,
         compute_threads=args.threads or None,
+        llm=settings_from_args(args),
     )
 
 

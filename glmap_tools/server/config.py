@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Literal
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.language.backends import LLMSettings
 from glmap_tools.map.config import MapConfig
 
 EmbedderName = Literal["minilm", "hashing"]
@@ -51,6 +52,8 @@ class ServerConfig:
         sim_max_steps: actions per simulator episode before it is cut off.
         compute_threads: BLAS and torch threads while the server runs (None: leave the
             process as it is); 1 keeps latency low and steady when calls overlap.
+        llm: the language backends: text merger and f_S scorer (offline by default; "llm"
+            uses an Ollama model, see docs/own_model.md).
     """
 
     maps_dir: Path = field(default_factory=default_maps_dir)
@@ -66,6 +69,7 @@ class ServerConfig:
     sim_size: tuple[int, int] = (320, 240)
     sim_max_steps: int = 500
     compute_threads: int | None = 1
+    llm: LLMSettings = field(default_factory=LLMSettings)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "maps_dir", Path(self.maps_dir).expanduser())

@@ -73,8 +73,13 @@ class NavSession:
         return float(np.max(self.scorer.score(self.goal, units)))
 
 
-def start(session: Session, sim: simulator.SimEpisode, embedder: Embedder) -> NavSession:
-    """A fresh NavSession for the episode `sim` just reset to (kept in session.extras)."""
+def start(
+    session: Session, sim: simulator.SimEpisode, embedder: Embedder, scorer: Any = None
+) -> NavSession:
+    """A fresh NavSession for the episode `sim` just reset to (kept in session.extras).
+
+    `scorer`: f_S for the value map; default embedding cosine on `embedder`.
+    """
     from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState
 
     config = NavConfig.for_task(
@@ -82,7 +87,7 @@ def start(session: Session, sim: simulator.SimEpisode, embedder: Embedder) -> Na
         forward_step=sim.env.motion.forward_step,
         turn_angle_deg=math.degrees(sim.env.motion.turn_angle),
     )
-    scorer = EmbeddingScorer(embedder)
+    scorer = scorer if scorer is not None else EmbeddingScorer(embedder)
     nav = NavSession(str(sim.obs["goal"]), NavState(scorer=scorer), config, scorer, embedder)
     session.extras[NAV_KEY] = nav
     return nav

@@ -160,10 +160,18 @@ class SessionRegistry:
         # fusion code (scipy, numba), which the server's handshake must not wait for.
 
     # ------------------------------------------------------------------ maps
+    def _merger(self) -> Any:
+        """The text merger of a map, as the settings ask (extractive unless told)."""
+        from glmap_tools.language.backends import make_text_merger
+
+        return make_text_merger(self.config.llm, self.embedder)
+
     def _scratch(self) -> LiveMap:
         from glmap_tools.map import GLMap  # loads fusion (scipy, numba): not at import
 
-        live = LiveMap(GLMap(self.config.map_config, embedder=self.embedder))
+        live = LiveMap(
+            GLMap(self.config.map_config, embedder=self.embedder, text_merger=self._merger())
+        )
         live.users = 1
         return live
 
@@ -223,7 +231,12 @@ class SessionRegistry:
             from glmap_tools.map import GLMap
 
             with paths_hidden(self.maps_dir):
-                glmap = GLMap.open(path, self.config.map_config, embedder=self.embedder)
+                glmap = GLMap.open(
+                    path,
+                    self.config.map_config,
+                    embedder=self.embedder,
+                    text_merger=self._merger(),
+                )
             live = LiveMap(glmap, stem, users=1)
             self._named[stem] = live
             self._switch(session, live)
@@ -251,7 +264,7 @@ class SessionRegistry:
                 from glmap_tools.map import GLMap
 
                 with paths_hidden(self.maps_dir):
-                    glmap = GLMap.open(path, embedder=self.embedder)
+                    glmap = GLMap.open(path, embedder=self.embedder, text_merger=self._merger())
                 live = LiveMap(glmap, stem)
                 self._named[stem] = live
             if session.live is not live:

@@ -111,7 +111,12 @@ def register(server: MCPServer) -> None:
             simulator.reset(sim, seed, goal)
             if not keep_map:
                 state.registry.new_map(target, None)
-            navsession.start(target, sim, state.embedder)
+            scorer = None
+            if state.config.llm.scorer != "embedding":
+                from glmap_tools.language.backends import make_scorer
+
+                scorer = make_scorer(state.config.llm, state.embedder)
+            navsession.start(target, sim, state.embedder, scorer)
             return _reply(target, sim, [_integrate(target, sim)])
 
         await ctx.report_progress(0, 1, "building the apartment")
