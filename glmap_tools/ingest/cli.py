@@ -17,9 +17,12 @@ from glmap_tools.language.backends import (
 )
 
 if TYPE_CHECKING:
-    from glmap_tools.ingest.datasets import RGBDSequence
+    from collections.abc import Callable
+
+    from glmap_tools.ingest.datasets import IngestFrame, RGBDSequence
     from glmap_tools.language.embed import Embedder
     from glmap_tools.map import GLMap
+    from glmap_tools.perception.semantics import FrameSemantics
 
 BUNDLED = "redwood_livingroom1_5frames"
 
@@ -54,6 +57,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default="minilm",
         help="text embedder (hashing: fast, dependency-free, less accurate)",
     )
+    p.add_argument(
+        "--perception",
+        choices=["annotated", "geometric"],
+        default="annotated",
+        help="annotated: annotations/ masks and labels; geometric: model-free segments "
+        "named by --labels (glmap_tools.perception.labels_file)",
+    )
+    p.add_argument(
+        "--labels",
+        type=Path,
+        help="labels file for --perception geometric (default for the bundled frames: "
+        "the bundled labels file)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_llm_arguments(p, scorer=False)
     p.set_defaults(func=run_build)
@@ -63,6 +79,32 @@ def _embedder(name: str) -> Embedder:
     from glmap_tools.language import embed
 
     return embed.HashingEmbedder() if name == "hashing" else embed.default_embedder()
+
+
+def _geometric_perception(args: argparse.Namespace) -> Callable[[IngestFrame], FrameSemantics]:
+    """Frame -> semantics of its geometric segments named by the labels file."""
+    from glmap_tools.errors import InvalidInputError
+    from glmap_tools.perception.geometric import segment_frame
+    from glmap_tools.perception.labelling import semantics_from_labels
+    from glmap_tools.perception.labels_file import FrameLabels, load_labels_file, pointed_labels
+
+    path = args.labels
+    if path is None and args.folder is None:
+        path = bundled_folder().with_name(f"{BUNDLED}.labels.json")
+    if path is None:
+        raise InvalidInputError(
+            "--perception geometric needs --labels FILE: the names of each frame's objects, "
+            "by pixels pointing at them (see glmap_tools.perception.labels_file)."
+        )
+    frames = load_labels_file(path)
+
+    def perceive(item: IngestFrame) -> FrameSemantics:
+        segments = segment_frame(item.frame)
+        named = frames.get(item.rgb_path.stem, FrameLabels((), ()))
+        labels, groups, _ = pointed_labels(segments, named)
+        return semantics_from_labels(segments, labels, groups)
+
+    return perceive
 
 
 def run_build(args: argparse.Namespace) -> int:
@@ -82,6 +124,7 @@ def run_build(args: argparse.Namespace) -> int:
         max_frames=args.max_frames,
         stride=args.stride,
     )
+    perceive = _geometric_perception(args) if args.perception == "geometric" else None
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.building")
     tmp.unlink(missing_ok=True)
@@ -94,7 +137,9 @@ def run_build(args: argparse.Namespace) -> int:
     unannotated = 0
     try:
         for item in tqdm(sequence.frames(), total=len(sequence), unit="frame", disable=args.quiet):
-            if item.semantics is None:
+            if perceive is not None:
+                glmap.integrate(item.frame, perceive(item), item.index)
+            elif item.semantics is None:
                 from glmap_tools.perception import FrameSemantics
 
                 unannotated += 1
