@@ -98,10 +98,12 @@ def phrasings(text: str) -> list[str]:
 
 
 def label_matrix(glmap: GLMap) -> tuple[np.ndarray, np.ndarray]:
-    """(embeddings [N, D] of the instances' labels, [N] bool has a label), rows as instance_matrix.
+    """(embeddings [L, D] of the distinct labels, [N] row of each instance's label or -1).
 
-    Cached with the map's other matrices (cleared on every update); distinct labels are
-    embedded once.
+    Instances in `instance_matrix` order; -1 marks an instance without a (meaningful) label.
+    Few labels are distinct, so scoring them costs an [L, D] product and an [N] gather
+    instead of a second [N, D] product. Cached with the map's other matrices (cleared on
+    every update).
     """
     cache = glmap._matrix_cache
     cached = cache.get("instance-label")
@@ -109,14 +111,15 @@ def label_matrix(glmap: GLMap) -> tuple[np.ndarray, np.ndarray]:
         ids, _ = glmap.instance_matrix()
         labels = [glmap.instances[int(i)].label.strip() for i in ids]
         distinct = sorted(set(labels) - {""})
-        matrix = np.zeros((len(labels), glmap.embedder.dim), np.float32)
-        if distinct:
-            vectors = glmap.embedder.embed(distinct)  # [L, D]
-            row_of = {lab: j for j, lab in enumerate(distinct)}
-            has = np.array([lab != "" for lab in labels], dtype=bool)
-            matrix[has] = vectors[[row_of[lab] for lab in labels if lab]]
-        has_label: np.ndarray = np.asarray(matrix.any(axis=1))  # [N] bool
-        cached = cache["instance-label"] = (matrix, has_label)
+        vectors = (
+            glmap.embedder.embed(distinct).astype(np.float32)
+            if distinct
+            else np.zeros((0, glmap.embedder.dim), np.float32)
+        )  # [L, D]
+        meaningful = {lab for lab, v in zip(distinct, vectors, strict=True) if np.any(v)}
+        row_of = {lab: j for j, lab in enumerate(distinct)}
+        index = np.array([row_of[lab] if lab in meaningful else -1 for lab in labels], np.int64)
+        cached = cache["instance-label"] = (vectors, index)
     return cached
 
 
@@ -129,9 +132,11 @@ def text_scores(glmap: GLMap, kind: str, text: str) -> tuple[np.ndarray, np.ndar
     q = glmap.embedder.embed(phrasings(text)).mean(axis=0)  # [D]
     scores = matrix @ q  # [N]
     if kind == "instance":
-        labels, has_label = label_matrix(glmap)
-        mixed = LABEL_WEIGHT * (labels @ q) + (1.0 - LABEL_WEIGHT) * scores
-        scores = np.where(has_label, mixed, scores)
+        vectors, index = label_matrix(glmap)
+        if len(vectors):
+            label_scores = (vectors @ q)[np.maximum(index, 0)]  # [N]
+            mixed = LABEL_WEIGHT * label_scores + (1.0 - LABEL_WEIGHT) * scores
+            scores = np.where(index >= 0, mixed, scores)
     return ids, scores
 
 
