@@ -90,6 +90,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--step", type=float, default=0.4, help="metres between walking frames")
     p.add_argument("--spin", type=int, default=8, help="headings looked at in each room")
     p.add_argument("--max-frames", type=int, help="stop after this many frames")
+    p.add_argument(
+        "--perception",
+        choices=["annotated", "geometric"],
+        default="annotated",
+        help="annotated: ground-truth masks; geometric: model-free segments named by "
+        "ground truth (largest overlap), which measures the segmenter",
+    )
     _add_camera(p)
     p.set_defaults(func=run_map_eval)
 
@@ -221,7 +228,14 @@ def run_map_eval(args: argparse.Namespace) -> int:
     glmap = GLMap(embedder=embedder)
     start = time.perf_counter()
     seen = build_map_from_tour(
-        layout, glmap, _camera(args), args.step, args.spin, args.max_frames, args.min_pixels
+        layout,
+        glmap,
+        _camera(args),
+        args.step,
+        args.spin,
+        args.max_frames,
+        args.min_pixels,
+        perception=args.perception,
     )
     result = evaluate_instances(glmap, layout, seen)
     print(

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
 from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.perception.annotated import semantics_from_annotation
@@ -140,16 +141,27 @@ def build_map_from_tour(
     spin: int = 8,
     max_frames: int | None = None,
     min_pixels: int | None = None,
+    perception: str = "annotated",
 ) -> set[int]:
     """Integrate a tour's frames into `glmap`; returns the ids of the objects seen.
 
     `min_pixels`: objects smaller in a frame are left out of its annotation (default: 64 at
-    640x480, scaled with the image area).
+    640x480, scaled with the image area). `perception`: "annotated" (ground-truth masks) or
+    "geometric" (model-free segments named by ground truth, largest overlap).
     """
+    if perception not in ("annotated", "geometric"):
+        raise InvalidInputError(
+            f"perception {perception!r} is unknown; use 'annotated' or 'geometric'."
+        )
     seen: set[int] = set()
     for i, (frame, semantics, listed) in enumerate(
         tour_frames(layout, camera, step, spin, max_frames, min_pixels)
     ):
+        if perception == "geometric":
+            from glmap_tools.perception.geometric import segment_frame
+            from glmap_tools.perception.labelling import oracle_semantics
+
+            semantics, _ = oracle_semantics(segment_frame(frame), semantics)
         glmap.integrate(frame, semantics, frame_index=i)
         seen |= listed
     return seen
