@@ -273,11 +273,13 @@ async def run_llm_episode(
     prompts: PromptSet | None = None,
     budget: Budget | None = None,
     max_steps: int = 500,
+    image_size: str = "",
 ) -> dict[str, Any]:
     """Play benchmark episode `episode_id` with a tool-calling model; return the result.
 
     Writes `trace.jsonl` (tool calls), `transcript.jsonl` (model and tool events) and
-    `result.json` into `out_dir`.
+    `result.json` into `out_dir`. `image_size`: the simulator's images, default the
+    agents' 320x240.
     """
     from agents.runner import AGENT_SIZE
 
@@ -291,7 +293,12 @@ async def run_llm_episode(
     try:
         reset = await client.call(
             "sim_reset",
-            {"episode": episode_id, "seed": seed, "size": AGENT_SIZE, "max_steps": max_steps},
+            {
+                "episode": episode_id,
+                "seed": seed,
+                "size": image_size or AGENT_SIZE,
+                "max_steps": max_steps,
+            },
         )
         start = reset.data()
         start_images = [(out_dir / p).read_bytes() for p in reset.images]

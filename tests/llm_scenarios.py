@@ -172,6 +172,7 @@ def agent_episode(host: str, out_dir: Path | None = None) -> dict[str, Any]:
                 out_dir=folder / "episode",
                 budget=Budget(max_turns=12),
                 max_steps=50,
+                image_size="160x120",
             )
 
     if out_dir is not None:
