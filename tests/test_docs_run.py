@@ -284,3 +284,29 @@ async def test_map_summary_prints_metres_rounded_not_float32_noise(tmp_path, any
     text = result.content[0].text
     assert '"bounds"' in text and '"floor_z"' in text
     assert not re.search(r"\d\.\d{5,}", text), text
+
+
+def test_every_benchmark_prints_its_targets_through_the_shared_report():
+    bench = REPO / "glmap_tools" / "bench"
+    modules = [p for p in bench.glob("*.py") if not p.name.startswith("_") and p.stem != "report"]
+    assert len(modules) >= 7
+    for path in modules:
+        assert "Report(" in path.read_text(encoding="utf-8"), f"{path.name} prints no Report"
+
+
+def test_a_report_line_states_value_target_ratio_and_verdict(capsys):
+    from glmap_tools.bench.report import Report
+
+    report = Report("bench demo")
+    report.check("find_instance p50", 12.34, "<=", 20.0, "ms")
+    report.check("top-1, held-out half", 0.75, ">=", 0.8)
+    assert report.finish() == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("bench demo: load average")
+    assert lines[1] == "find_instance p50: 12.3 ms  target <= 20 ms  ratio 0.62  MET"
+    assert lines[2] == "top-1, held-out half: 0.75  target >= 0.8  ratio 0.94  MISSED"
+    assert lines[3].endswith("targets: 1 MET, 1 MISSED (top-1, held-out half)")
+    from glmap_tools.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="op='<'"):
+        report.check("x", 1.0, "<", 2.0)  # type: ignore[arg-type]

@@ -20,6 +20,8 @@ import os
 from dataclasses import dataclass, field
 from typing import Literal
 
+from glmap_tools.errors import InvalidInputError
+
 __all__ = ["Check", "Report", "load_average"]
 
 Op = Literal["<=", ">="]
@@ -100,7 +102,9 @@ class Report:
     def check(self, name: str, value: float, op: Op, target: float, unit: str = "") -> Check:
         """Record and print one figure against its target; returns the Check."""
         if op not in ("<=", ">="):
-            raise ValueError(f"op={op!r}: use '<=' (lower is better) or '>=' (higher is better).")
+            raise InvalidInputError(
+                f"op={op!r}: use '<=' (lower is better) or '>=' (higher is better)."
+            )
         c = Check(name, float(value), op, float(target), unit)
         self.checks.append(c)
         self._print(c.line())
