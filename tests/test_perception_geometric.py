@@ -52,7 +52,7 @@ def test_segments_carry_world_bounds_and_a_colour_crop_of_their_object():
     frame, ids = sy.view(SCENE, EYES[0], (0.0, 1.0, 0.4))
     segments = segment_frame(frame)
     box = next(s for s in segments if _composition(s.mask, ids).get(3, 0) > s.pixels / 2)
-    np.testing.assert_allclose(box.lo[2], 0.0, atol=0.03)
+    np.testing.assert_allclose(box.lo[2], 0.0, atol=0.06)  # the floor band goes with the floor
     np.testing.assert_allclose(box.hi[2], 0.45, atol=0.03)
     assert BOX_ON_FLOOR.lo[0] - 0.03 <= box.centroid[0] <= BOX_ON_FLOOR.hi[0] + 0.03
     assert box.crop.dtype == np.uint8 and box.crop.ndim == 3

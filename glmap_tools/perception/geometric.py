@@ -359,8 +359,8 @@ def segment_frame(frame: RGBDFrame, config: GeometricConfig | None = None) -> li
     crease = _creases(grid, keep, config)
     inner = keep & ~crease
     a, b = _edges(grid, inner, config)
-    labels = _absorb(grid_components(inner, a, b), crease)
-    labels = _full_resolution(labels, frame, config)
+    coarse = _absorb(grid_components(inner, a, b), crease)
+    labels = _full_resolution(coarse, frame, config)
     height, width = labels.shape
     min_pixels = max(8, round(config.min_pixels * height * width / (640 * 480)))
     counts = np.bincount(labels.ravel())
@@ -370,19 +370,23 @@ def segment_frame(frame: RGBDFrame, config: GeometricConfig | None = None) -> li
     if not candidates:
         return []
     objects = ndimage.find_objects(labels)
-    k = frame.intrinsics
+    # 3D bounds from the working grid's points (a quarter of the pixels at stride 2).
+    flat = coarse.ravel()
+    order = np.argsort(flat, kind="stable")
+    starts = np.searchsorted(flat[order], np.arange(len(counts) + 1))
+    grid_points = grid.points.reshape(-1, 3).astype(np.float64)
     segments: list[Segment] = []
     for label in candidates:
         sl = objects[label - 1]
         assert sl is not None
+        pts = grid_points[order[starts[label] : starts[label + 1]]]
+        if len(pts) == 0:
+            continue
+        lo, hi = np.percentile(pts, [1, 99], axis=0)
         local = labels[sl] == label
         rows, cols = np.nonzero(local)
         rows = rows + sl[0].start
         cols = cols + sl[1].start
-        z = frame.depth[rows, cols].astype(np.float64)
-        cam = np.stack([(cols - k.cx) / k.fx * z, (rows - k.cy) / k.fy * z, z], axis=1)
-        pts = frame.pose.transform_points(cam)
-        lo, hi = np.percentile(pts, 1, axis=0), np.percentile(pts, 99, axis=0)
         if np.sort(hi - lo)[1] < config.min_thickness:
             continue
         mask = np.zeros((height, width), dtype=bool)
