@@ -321,7 +321,7 @@ async def run_llm_episode(
         "turns": agent.budget.turns,
         "tokens": agent.budget.tokens,
         "notes": agent.budget.notes,
-        "prompts": agent.prompts.refs(),
+        "prompts": {"tool_agent_system": agent.prompts.get("tool_agent_system").ref},
         "wall_s": round(time.perf_counter() - t0, 3),
         "seed": seed,
     }
