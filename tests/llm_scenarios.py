@@ -236,6 +236,52 @@ def scripted_sqa(method: str, path: str, body: Any) -> tuple[int, Any]:
     return 200, chat_reply(body["model"], json.dumps(reply))
 
 
+SEGMENT_EYE = (0.0, -2.6, 1.4)
+
+
+def segment_naming(host: str) -> dict[str, Any]:
+    """The MLLM names the geometric segments of a ray-cast frame; named ones become units."""
+    from glmap_tools.perception.mllm_naming import MLLMSegmentNamer
+    from tests.test_server_fixtures import scene
+
+    frame, _ = scenes.view(scene(), SEGMENT_EYE, (0.0, 0.3, 0.4), 320, 240)
+    namer = MLLMSegmentNamer(OllamaClient(MODEL, host=host, retries=0, vision=True))
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    glmap.integrate(frame, namer(frame))
+    return {
+        "calls": namer.calls,
+        "instances": sorted([u.label, u.text] for u in glmap.instances.values()),
+        "regions": sorted(r.text for r in glmap.regions.values()),
+    }
+
+
+def scripted_segment_namer(method: str, path: str, body: Any) -> tuple[int, Any]:
+    """Plays the MLLM from the prompt's sizes alone (it cannot see the image): wider than
+    1 m is a table, a top above 0.8 m a chair; the rest is left out; one group of all."""
+    lines = re.findall(
+        r"^(\d+): ([\d.]+) x ([\d.]+) x ([\d.]+) m, top ([\d.-]+) m$",
+        body["messages"][0]["content"],
+        re.MULTILINE,
+    )
+    objects = []
+    for sid, w, d, _, top in lines:
+        wide = max(float(w), float(d))
+        label = "table" if wide >= 1.0 else "chair" if float(top) >= 0.8 else None
+        if label:
+            desc = f"a {label} about {wide:.1f} m across and {float(top):.1f} m tall"
+            objects.append({"segments": [int(sid)], "label": label, "description": desc})
+    groups = [{"members": [o["segments"][0] for o in objects], "description": "a dining corner"}]
+    reply = {"objects": objects, "groups": groups if objects else []}
+    return 200, chat_reply(body["model"], json.dumps(reply))
+
+
+SEGMENT_SOURCE = (
+    "written by hand: replies from a scripted stand-in (tests/llm_scenarios.py "
+    "scripted_segment_namer: size rules on the prompt's segment lines, no language model, "
+    "the image unseen); replace with a real recording"
+)
+
+
 FAULT_REPLIES = [
     'Sure! Here are the scores:\n{"scores": [{"id": 1, "probability": 0.9}]}\nHope it helps.',
     '```json\n{"scores": [{"id": 1, "probability": 0.9}, {"id": 2, "probability": 0.02}]}\n```',
@@ -272,6 +318,7 @@ def main() -> int:
     write("faults.jsonl", faults, scripted_faults, FAULTS_SOURCE)
     write("sqa_mllm.jsonl", sqa_mllm, scripted_sqa, HAND_WRITTEN)
     write("agent_episode.jsonl", agent_episode, scripted_navigator, HAND_WRITTEN)
+    write("segment_naming.jsonl", segment_naming, scripted_segment_namer, SEGMENT_SOURCE)
     return 0
 
 

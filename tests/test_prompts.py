@@ -20,6 +20,7 @@ FIELDS = {
     "sqa_situation": {"situation", "kind_plural", "question", "units"},
     "sqa_answer": {"situation", "views", "context", "question"},
     "tool_agent_system": {"task", "max_turns"},
+    "segment_naming": {"segments"},
 }
 
 

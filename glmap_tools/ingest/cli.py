@@ -59,10 +59,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--perception",
-        choices=["annotated", "geometric"],
+        choices=["annotated", "geometric", "geometric+mllm"],
         default="annotated",
         help="annotated: annotations/ masks and labels; geometric: model-free segments "
-        "named by --labels (glmap_tools.perception.labels_file)",
+        "named by --labels (glmap_tools.perception.labels_file); geometric+mllm: named by "
+        "the vision model --llm-model (Ollama)",
     )
     p.add_argument(
         "--labels",
@@ -88,6 +89,16 @@ def _geometric_perception(args: argparse.Namespace) -> Callable[[IngestFrame], F
     from glmap_tools.perception.labelling import semantics_from_labels
     from glmap_tools.perception.labels_file import FrameLabels, load_labels_file, pointed_labels
 
+    if args.perception == "geometric+mllm":
+        from glmap_tools.language.llm import OllamaClient
+        from glmap_tools.perception.mllm_naming import MLLMSegmentNamer
+
+        settings = settings_from_args(args)
+        client = OllamaClient(
+            settings.model, host=settings.host, timeout=settings.timeout, vision=True
+        )
+        namer = MLLMSegmentNamer(client, prompts=settings.prompt_set())
+        return lambda item: namer(item.frame)
     path = args.labels
     if path is None and args.folder is None:
         path = bundled_folder().with_name(f"{BUNDLED}.labels.json")
@@ -124,7 +135,7 @@ def run_build(args: argparse.Namespace) -> int:
         max_frames=args.max_frames,
         stride=args.stride,
     )
-    perceive = _geometric_perception(args) if args.perception == "geometric" else None
+    perceive = _geometric_perception(args) if args.perception != "annotated" else None
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.building")
     tmp.unlink(missing_ok=True)
