@@ -43,6 +43,8 @@ LOW_CONFIDENCE = 0.35  # best p below this: a result, marked low-confidence
 STAND_REACH = 0.6  # m from the anchor's cells: where one stands at it ...
 STAND_RADIUS = 1.2  # ... or, when nothing is free that close, at most this far
 MAX_TEXT = 512
+TIE = 0.05  # scores this close to the best count as equally good
+REGION_MARGIN = 0.1  # a region must beat the best anchor object by this to place the agent
 
 _FACING = re.compile(
     r"\b(?:facing|face|looking (?:at|towards?)|look(?:ing)? towards?|turned towards?|"
@@ -218,6 +220,34 @@ def _stand_point(
     return float(near[k, 0]), float(near[k, 1])
 
 
+def _centroid(glmap: GLMap, unit_id: int) -> tuple[float, float]:
+    c = glmap.instances[unit_id].gaussians.means.mean(axis=0)
+    return float(c[0]), float(c[1])
+
+
+def _closest_pair(
+    glmap: GLMap, instances: list[UnitText], p_anchor: np.ndarray, p_face: np.ndarray | None
+) -> tuple[int, int | None]:
+    """(anchor id, facing id): the best-scored ones, ties (within TIE) broken by distance."""
+    ids = [u.unit_id for u in instances]
+    cand_a = [i for i, p in enumerate(p_anchor) if p >= float(p_anchor.max()) - TIE]
+    if p_face is None or float(p_face.max()) < MIN_SCORE:
+        return ids[cand_a[0]], None
+    cand_f = [j for j, p in enumerate(p_face) if p >= float(p_face.max()) - TIE]
+    best: tuple[float, int, int] | None = None
+    for i in cand_a:
+        for j in cand_f:
+            if i == j:
+                continue
+            a, f = _centroid(glmap, ids[i]), _centroid(glmap, ids[j])
+            d = math.hypot(a[0] - f[0], a[1] - f[1])
+            if best is None or d < best[0]:
+                best = (d, i, j)
+    if best is None:
+        return ids[cand_a[0]], ids[cand_f[0]]
+    return ids[best[1]], ids[best[2]]
+
+
 def situate(
     glmap: GLMap,
     text: str,
@@ -315,6 +345,20 @@ def situate(
             if glmap.grid.cell_of(*peak_r) in glmap.grid.cells_of_unit(u.unit_id)
             or u.score >= 0.9 * anchors[0].score
         ][:1] or [anchors[0].unit_id]
+    if split_text and len(instances):
+        best_a = float(p_anchor.max())
+        best_region = float(p_r.max()) if len(p_r) else 0.0
+        if best_a >= MIN_SCORE and best_a + REGION_MARGIN >= best_region:
+            # An object names where one stands: Eq. 7 sums a unit's score over all its
+            # cells, so a large region outweighs a small anchor at the peak; take the
+            # anchor object itself, and among equally good anchors and facing objects
+            # the pair closest together (one faces something in the same room).
+            pair = _closest_pair(glmap, instances, p_anchor, p_o if facing else None)
+            anchor_ids = [pair[0]]
+            peak_r = _centroid(glmap, pair[0])
+            if pair[1] is not None:
+                peak_o = _centroid(glmap, pair[1])
+            notes.append("pose from the best anchor/facing pair (closest together on ties)")
     x, y = _stand_point(glmap, peak_r, anchor_ids, peak_o, notes)
     if peak_o is not None and math.hypot(peak_o[0] - x, peak_o[1] - y) > 1e-6:
         heading = math.atan2(peak_o[1] - y, peak_o[0] - x)
