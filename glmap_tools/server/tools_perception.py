@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from glmap_tools.perception.geometric import Segment
 
 PENDING_KEY = "pending_frames"
-SegmentId = Annotated[int, Field(ge=1, le=4096)]
+SegmentId = Annotated[int, Field(ge=1)]
 
 
 class PendingSegment(BaseModel):
@@ -65,7 +65,7 @@ class LabelInput(BaseModel):
     """One object: its segments (pieces of one object go together), label, description."""
 
     model_config = ConfigDict(extra="forbid")
-    segments: list[SegmentId] = Field(min_length=1, max_length=32)
+    segments: list[SegmentId] = Field(min_length=1, max_length=MAX_OBJECTS)
     label: str = Field(max_length=200, description=f"short category, or {IGNORE!r}")
     description: str = Field(default="", max_length=MAX_DESCRIPTION_CHARS)
 
@@ -154,12 +154,12 @@ def register(server: MCPServer) -> None:
         ],
         labels: Annotated[list[LabelInput], Field(max_length=MAX_OBJECTS)],
         ctx: Context,
-        groups: Annotated[list[GroupInput], Field(max_length=MAX_GROUPS)] = [],  # noqa: B006
+        groups: Annotated[list[GroupInput] | None, Field(max_length=MAX_GROUPS)] = None,
         session: Annotated[str | None, Field(max_length=64)] = None,
     ) -> ObserveResult:
-        """Name a pending frame's segments; named ones become instances, groups regions.
+        """Name a pending frame's segments: named ones become instances, groups regions.
 
-        Unlisted segments are ignored. Nothing changes if any entry is rejected.
+        Unlisted segments are ignored; nothing changes if an entry is rejected.
         """
         from glmap_tools.server.runtime import app_state
 
@@ -173,7 +173,7 @@ def register(server: MCPServer) -> None:
                 semantics = semantics_from_labels(
                     pending.segments,
                     [SegmentLabel(tuple(e.segments), e.label, e.description) for e in labels],
-                    [SegmentGroup(tuple(g.members), g.description) for g in groups],
+                    [SegmentGroup(tuple(g.members), g.description) for g in groups or ()],
                 )
                 if semantics.objects:
                     covered = semantics.objects[0].mask.copy()
