@@ -35,6 +35,7 @@ class NavConfig:
         stuck_steps: steps without progress after which the waypoint is given up.
         plan_stride: the FMM planner works on cells this many map cells wide (1 = map cells).
         initial_spin: turn_left steps taken first, to look around (12 x 30 deg = a full turn).
+        bump_memory: steps a cell where a forward move was stopped stays an obstacle.
     """
 
     agent_radius: float = 0.18
@@ -52,6 +53,7 @@ class NavConfig:
     stuck_steps: int = 12
     plan_stride: int = 2
     initial_spin: int = 12
+    bump_memory: int = 40
 
     def __post_init__(self) -> None:
         positive = (
@@ -76,7 +78,13 @@ class NavConfig:
                 f"NavConfig.stop_distance={self.stop_distance} must not exceed "
                 f"success_radius={self.success_radius}; the agent would stop too far away."
             )
-        for name in ("min_observations", "min_frontier_size", "stuck_steps", "plan_stride"):
+        for name in (
+            "min_observations",
+            "min_frontier_size",
+            "stuck_steps",
+            "plan_stride",
+            "bump_memory",
+        ):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise InvalidInputError(f"NavConfig.{name}={value!r} must be an integer >= 1.")

@@ -68,7 +68,8 @@ def frontiers(
     if trav is None:
         trav = traversable(occ, agent_radius)
     trav = clear_footprint(trav, rc, agent_radius / occ.cell_size)
-    labels, _ = ndimage.label(trav, structure=EIGHT)
+    # 4-connected, as the FMM marches: a diagonal pinch is no way through.
+    labels, _ = ndimage.label(trav)
     reach = trav & (labels == labels[rc])
     fmask = frontier_mask(occ, reach)
     clusters, n = ndimage.label(fmask, structure=EIGHT)

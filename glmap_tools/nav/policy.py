@@ -52,6 +52,8 @@ class NavState:
         avoid: (x, y) of waypoints given up (stuck, or reached without clearing them).
         rejected_units: matched instances given up (no way to reach them).
         blocked: (i, j) cells where a forward move was stopped (obstacles the map missed).
+        blocked_at: the step each blocked cell was added (it is forgotten after
+            `NavConfig.bump_memory` steps).
         last_waypoint: the previous step's waypoint.
         steps: decisions taken.
     """
@@ -60,6 +62,7 @@ class NavState:
     avoid: list[tuple[float, float]] = field(default_factory=list)
     rejected_units: set[int] = field(default_factory=set)
     blocked: set[tuple[int, int]] = field(default_factory=set)
+    blocked_at: dict[tuple[int, int], int] = field(default_factory=dict)
     last_waypoint: Waypoint | None = None
     last_action: str | None = None
     last_xy: tuple[float, float] | None = None
@@ -99,19 +102,27 @@ class NavDecision:
 def _bump(
     state: NavState, agent_xy: tuple[float, float], heading: float, config: NavConfig, s: float
 ) -> None:
-    """After a forward move that did not move, remember the cells just ahead as blocked."""
+    """After a forward move that did not move, remember the cell just ahead as blocked.
+
+    The simulator stops the centre where its inflated free space ends, so the obstacle is
+    about one agent radius ahead. One cell, inflated like any obstacle, turns the agent
+    aside; marking the whole front would seal doorways whose frame the agent grazed. The
+    memory fades after `config.bump_memory` steps, so a wrong guess does not last.
+    """
+    for cell in [c for c, k in state.blocked_at.items() if state.steps - k > config.bump_memory]:
+        state.blocked.discard(cell)
+        del state.blocked_at[cell]
+    for cell in state.blocked:  # cells added by a caller (e.g. a walk) age from now
+        state.blocked_at.setdefault(cell, state.steps)
     if state.last_action != "move_forward" or state.last_xy is None:
         return
     if math.hypot(agent_xy[0] - state.last_xy[0], agent_xy[1] - state.last_xy[1]) >= BUMP_MOVE:
         return
-    # The simulator stops the centre where its inflated free space ends: the obstacle's
-    # surface is about one agent radius ahead, somewhere across the agent's front.
-    sides = np.arange(-config.agent_radius, config.agent_radius + 1e-9, s / 2)
-    for t in (config.agent_radius + s / 2, config.agent_radius + s):
-        for side in sides:
-            x = agent_xy[0] + t * math.cos(heading) - side * math.sin(heading)
-            y = agent_xy[1] + t * math.sin(heading) + side * math.cos(heading)
-            state.blocked.add((math.floor(x / s), math.floor(y / s)))
+    t = config.agent_radius + s / 2
+    x, y = agent_xy[0] + t * math.cos(heading), agent_xy[1] + t * math.sin(heading)
+    cell = (math.floor(x / s), math.floor(y / s))
+    state.blocked.add(cell)
+    state.blocked_at[cell] = state.steps
 
 
 def _window(
@@ -127,6 +138,20 @@ def _window(
         keep = (r >= 0) & (r < h) & (c >= 0) & (c < w)
         occ.state[r[keep], c[keep]] = OBSTACLE
     return occ
+
+
+def _surroundings(
+    glmap: GLMap, xy: tuple[float, float], state: NavState, config: NavConfig
+) -> tuple[DenseOccupancy, np.ndarray, DistanceField, list[Frontier]]:
+    """The occupancy window, traversable cells, distance field and frontiers around the agent."""
+    occ = _window(glmap, xy, state, config)
+    rc = agent_rc(occ, xy)
+    trav, plan_ok = nav_masks(occ, rc, config.agent_radius, config.optimistic)
+    field = distance_field(occ, plan_ok, rc, config.plan_stride, config.optimistic)
+    fronts = frontiers(
+        occ, xy, config.agent_radius, config.min_frontier_size, field.metres, trav=trav
+    )
+    return occ, trav, field, fronts
 
 
 def find_goal_match(
@@ -212,13 +237,13 @@ def decide(
     s = glmap.grid.cell_size
     _bump(state, xy, heading, config, s)
 
-    occ = _window(glmap, xy, state, config)
-    rc = agent_rc(occ, xy)
-    trav, plan_ok = nav_masks(occ, rc, config.agent_radius, config.optimistic)
-    field = distance_field(occ, plan_ok, rc, config.plan_stride, config.optimistic)
-    fronts = frontiers(
-        occ, xy, config.agent_radius, config.min_frontier_size, field.metres, trav=trav
-    )
+    occ, trav, field, fronts = _surroundings(glmap, xy, state, config)
+    if not fronts and state.blocked:
+        # Bumps may have sealed the only way on (a doorway the map already draws narrow):
+        # forget them before concluding there is nothing left to explore.
+        state.blocked.clear()
+        state.blocked_at.clear()
+        occ, trav, field, fronts = _surroundings(glmap, xy, state, config)
 
     units = map_units(glmap, "instances" if policy not in ("glmap", "glmap-region") else "both")
     scores = scorer.score(goal, units) if units else np.zeros(0)
@@ -293,6 +318,10 @@ def _choose_and_plan(
         if wp.xy is None and state.avoid and fronts:
             state.avoid.clear()  # every frontier was given up once: give them another chance
             continue
+        if wp.xy is None and fronts:
+            # Frontiers the planner cannot reach yet (a pinch left by bumps): look around.
+            look = Waypoint(xy, "explore", None, 0.0, "no frontier can be reached: look around.")
+            return look, Plan(np.array([xy]), 0.0, "turn_left", False, xy)
         if wp.xy is None:
             return wp, Plan(np.zeros((0, 2)), math.inf, "stop", False, xy)
         if wp.kind == "goal" and wp.xy == xy:
