@@ -59,12 +59,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--perception",
-        choices=["annotated", "geometric", "geometric+mllm"],
+        choices=["annotated", "geometric", "geometric+mllm", "mllm"],
         default="annotated",
         help="annotated: annotations/ masks and labels; geometric: model-free segments "
         "named by --labels (glmap_tools.perception.labels_file); geometric+mllm: named by "
-        "the vision model --llm-model (Ollama)",
+        "the vision model --llm-model (Ollama); mllm: the paper's MLLM + GroundingDINO "
+        "(--detector) + SAM (--segmenter)",
     )
+    p.add_argument("--detector", type=Path, help="GroundingDINO model folder (--perception mllm)")
+    p.add_argument("--segmenter", type=Path, help="SAM model folder (--perception mllm)")
     p.add_argument(
         "--labels",
         type=Path,
@@ -83,20 +86,32 @@ def _embedder(name: str) -> Embedder:
 
 
 def _geometric_perception(args: argparse.Namespace) -> Callable[[IngestFrame], FrameSemantics]:
-    """Frame -> semantics of its geometric segments named by the labels file."""
+    """Frame -> semantics for --perception geometric, geometric+mllm or mllm."""
     from glmap_tools.errors import InvalidInputError
     from glmap_tools.perception.geometric import segment_frame
     from glmap_tools.perception.labelling import semantics_from_labels
     from glmap_tools.perception.labels_file import FrameLabels, load_labels_file, pointed_labels
 
-    if args.perception == "geometric+mllm":
+    if args.perception in ("geometric+mllm", "mllm"):
         from glmap_tools.language.llm import OllamaClient
-        from glmap_tools.perception.mllm_naming import MLLMSegmentNamer
 
         settings = settings_from_args(args)
         client = OllamaClient(
             settings.model, host=settings.host, timeout=settings.timeout, vision=True
         )
+        if args.perception == "mllm":
+            from glmap_tools.perception.grounding import GroundedSegmenter, MLLMGroundedPerception
+
+            if args.detector is None or args.segmenter is None:
+                raise InvalidInputError(
+                    "--perception mllm needs --detector FOLDER (GroundingDINO) and --segmenter "
+                    "FOLDER (SAM): local model folders; nothing is downloaded at run time."
+                )
+            grounded = GroundedSegmenter(args.detector, args.segmenter)
+            paper = MLLMGroundedPerception(client, grounded, prompts=settings.prompt_set())
+            return lambda item: paper(item.frame)
+        from glmap_tools.perception.mllm_naming import MLLMSegmentNamer
+
         namer = MLLMSegmentNamer(client, prompts=settings.prompt_set())
         return lambda item: namer(item.frame)
     path = args.labels
