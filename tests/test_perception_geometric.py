@@ -146,3 +146,19 @@ def test_the_ground_truth_oracle_names_each_segment_after_its_object(labelled_vi
     semantics, labels = oracle_semantics(segments, truth)
     assert sorted(o.label for o in semantics.objects) == ["box", "chair", "table"]
     assert len(semantics.groups) == 1 and len(semantics.groups[0].members) == 2
+
+
+@pytest.mark.parametrize("size", [(1, 1), (3, 5), (60, 80)])
+@pytest.mark.parametrize("fill", [0.0, np.nan, np.inf, -1.0])
+def test_a_frame_without_usable_depth_has_no_segments(size, fill):
+    from glmap_tools.geometry import Intrinsics, Pose
+    from glmap_tools.geometry.frame import RGBDFrame
+
+    h, w = size
+    frame = RGBDFrame(
+        np.zeros((h, w, 3), np.uint8),
+        np.full((h, w), fill, np.float32),
+        Intrinsics.from_fov(w, h, 70.0),
+        Pose.looking_at(np.array([0.0, 0.0, 1.2]), np.array([1.0, 0.0, 1.0])),
+    )
+    assert segment_frame(frame) == []

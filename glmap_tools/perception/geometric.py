@@ -193,7 +193,7 @@ def _walls(grid: _Grid, taken: np.ndarray, config: GeometricConfig) -> np.ndarra
     flat_normals = grid.normals.reshape(-1, 3)
     for _ in range(config.max_walls):
         idx = np.flatnonzero(candidates)
-        if len(idx) < config.wall_min_share * total:
+        if len(idx) == 0 or len(idx) < config.wall_min_share * total:
             break
         sample = idx[rng.choice(len(idx), size=min(len(idx), 1024), replace=False)]
         seeds = sample[: config.ransac_iterations]
