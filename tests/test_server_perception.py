@@ -134,3 +134,18 @@ async def test_the_observe_reply_lists_segment_bounds_in_metres(tmp_path):
         assert f"frame={pending['frame']}" in result.content[0].text
         assert table["hi"][2] == pytest.approx(0.75, abs=0.05)
         assert table["lo"][0] < 1.4 < table["hi"][0]
+
+
+async def test_an_unannotated_frame_without_valid_depth_is_refused_and_nothing_waits(tmp_path):
+    from glmap_tools.geometry.frame import RGBDFrame
+
+    frame, _ = view(EYE, 320, 240)
+    empty = RGBDFrame(frame.rgb, frame.depth * 0, frame.intrinsics, frame.pose)
+    async with Client(build_server(config(tmp_path))) as client:
+        result = await client.call_tool("observe_frame", observe_arguments(empty))
+        assert result.is_error and "no valid pixel" in result.content[0].text
+        assert await counts(client) == (0, 0, 0)
+        late = await client.call_tool(
+            "label_segments", {"frame": "f1", "labels": [{"segments": [1], "label": "chair"}]}
+        )
+        assert late.is_error and "Pending frames: none" in late.content[0].text
