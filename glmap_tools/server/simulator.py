@@ -55,16 +55,9 @@ def on_sim_thread(fn: Any, *args: Any) -> Any:
 
 def _release_context() -> None:
     """Make no EGL context current on this thread, so another thread may render."""
-    if os.environ.get("PYOPENGL_PLATFORM") != "egl":
-        return
-    try:
-        from OpenGL import EGL
+    from glmap_tools.sim.render import release_current_context
 
-        display = EGL.eglGetCurrentDisplay()
-        if display != EGL.EGL_NO_DISPLAY:
-            EGL.eglMakeCurrent(display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
-    except Exception:  # best effort: the next render reports any real trouble
-        pass
+    release_current_context()
 
 
 @dataclass

@@ -188,11 +188,33 @@ class SceneRenderer:
             mesh.is_visible = not color
 
     def close(self) -> None:
-        """Stop using the shared OpenGL context (it stays alive for other renderers)."""
+        """Stop using the shared OpenGL context (it stays alive for other renderers).
+
+        The context is also released from this thread: an EGL context is current on one
+        thread at a time, and another thread (the server's simulator thread, say) may
+        render at the same size next.
+        """
         self._renderer = None
+        release_current_context()
 
     def __enter__(self) -> SceneRenderer:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def release_current_context() -> None:
+    """Make no EGL context current on the calling thread (a no-op off EGL)."""
+    import os
+
+    if os.environ.get("PYOPENGL_PLATFORM") != "egl":
+        return
+    try:
+        from OpenGL import EGL
+
+        display = EGL.eglGetCurrentDisplay()
+        if display != EGL.EGL_NO_DISPLAY:
+            EGL.eglMakeCurrent(display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
+    except Exception:  # best effort: the next render reports any real trouble
+        pass
