@@ -137,3 +137,15 @@ def test_the_server_gives_every_map_the_text_merger_its_settings_ask_for(tmp_pat
             HashingEmbedder(),
         )
         assert isinstance(registry._scratch().glmap.text_merger, kind)
+
+
+def test_glmap_mcp_picks_the_perception_of_unannotated_frames():
+    from glmap_tools.perception.mllm_naming import MLLMSegmentNamer
+    from glmap_tools.server.cli import build_parser, perception_from_args
+
+    parse = build_parser().parse_args
+    assert perception_from_args(parse([])) is None  # pending: the agent names segments
+    namer = perception_from_args(parse(["--perception", "geometric+mllm", "--llm-model", "x:1b"]))
+    assert isinstance(namer, MLLMSegmentNamer) and namer.client.vision
+    with pytest.raises(InvalidInputError, match="needs --detector FOLDER"):
+        perception_from_args(parse(["--perception", "mllm"]))

@@ -91,6 +91,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     add_llm_arguments(p)
+    g = p.add_argument_group("perception of frames without annotations")
+    g.add_argument(
+        "--perception",
+        choices=["pending", "geometric+mllm", "mllm"],
+        default="pending",
+        help="pending: model-free segments the calling agent names with label_segments; "
+        "geometric+mllm: an Ollama vision model names them; mllm: MLLM + GroundingDINO + SAM",
+    )
+    g.add_argument("--detector", type=Path, help="GroundingDINO model folder (--perception mllm)")
+    g.add_argument("--segmenter", type=Path, help="SAM model folder (--perception mllm)")
     from glmap_tools.cli import show_defaults
 
     return show_defaults(p)
@@ -210,6 +220,34 @@ def read_token(args: argparse.Namespace, environ: Any = os.environ) -> str | Non
     return environ.get(TOKEN_ENV) or None
 
 
+def perception_from_args(args: argparse.Namespace) -> Any:
+    """The perception backend of observe_frame frames without annotations, or None.
+
+    None (--perception pending): the frame's segments come back pending and the calling
+    agent names them with label_segments. geometric+mllm: an Ollama vision model names the
+    segments; mllm: the paper's MLLM + GroundingDINO + SAM (local model folders).
+    """
+    if args.perception == "pending":
+        return None
+    from glmap_tools.language.llm import OllamaClient
+
+    settings = settings_from_args(args)
+    client = OllamaClient(settings.model, host=settings.host, timeout=settings.timeout, vision=True)
+    if args.perception == "mllm":
+        from glmap_tools.perception.grounding import GroundedSegmenter, MLLMGroundedPerception
+
+        if args.detector is None or args.segmenter is None:
+            raise InvalidInputError(
+                "--perception mllm needs --detector FOLDER (GroundingDINO) and --segmenter "
+                "FOLDER (SAM): local model folders; nothing is downloaded at run time."
+            )
+        grounded = GroundedSegmenter(args.detector, args.segmenter)
+        return MLLMGroundedPerception(client, grounded, prompts=settings.prompt_set())
+    from glmap_tools.perception.mllm_naming import MLLMSegmentNamer
+
+    return MLLMSegmentNamer(client, prompts=settings.prompt_set())
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     import logging
@@ -222,6 +260,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         token = read_token(args)
         config = config_from_args(args)
+        perception = perception_from_args(args)
     except GLMapError as exc:
         print(f"glmap-mcp: error: {exc}", file=sys.stderr)
         return 2
@@ -234,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         from glmap_tools.server.app import build_server
 
-        build_server(config).run("stdio")
+        build_server(config, perception).run("stdio")
         return 0
     host = args.host or "127.0.0.1"
     if host not in LOOPBACK and not token:
@@ -248,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
     from glmap_tools.server.app import build_server
 
     serve_http(
-        build_server(config),
+        build_server(config, perception),
         config,
         host,
         args.port,
