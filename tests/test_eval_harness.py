@@ -97,6 +97,9 @@ def test_a_rerun_skips_finished_episodes_and_plays_only_missing_or_stale_ones(
     table_only = run_eval(spec(), finished.out, play=False, progress=False)
     assert (table_only.ran, len(table_only.records["frontier"])) == (0, 5)
     assert "Finished: 35 of 36 (agent, episode) pairs." in (finished.out / "summary.md").read_text()
+    same = run_eval(spec(), finished.out, play=False, complete_only=True, progress=False)
+    assert {len(r) for r in same.records.values()} == {5}  # every row on the same 5 episodes
+    assert "(only episodes every agent finished)" in (finished.out / "summary.md").read_text()
     # A result of an episode whose benchmark files changed since is not silently reused.
     stale.write_text(json.dumps({**before[stale], "episode_key": "0" * 16}))
     with pytest.raises(InvalidInputError, match="played on other benchmark files"):

@@ -66,6 +66,11 @@ def _register_nav(kinds: argparse._SubParsersAction, task: str) -> None:
         action="store_true",
         help="play nothing: write the table from the episodes already finished in --out",
     )
+    p.add_argument(
+        "--complete-only",
+        action="store_true",
+        help="the table counts only episodes that every listed agent finished",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     g = p.add_argument_group("the llm-tools agent (a model that calls the tools; needs Ollama)")
     g.add_argument("--model", default="", help="Ollama model, e.g. qwen3:8b")
@@ -128,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
         resamples=args.resamples,
         progress=not args.no_progress,
         play=not args.summarize_only,
+        complete_only=args.complete_only,
     )
     print((result.out / "summary.md").read_text(encoding="utf-8"))
     print(

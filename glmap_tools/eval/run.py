@@ -49,6 +49,7 @@ class EvalRun:
     wall_s: float = 0.0
     mixed: bool = False
     total: int = 0
+    complete_only: bool = False
 
     @property
     def episodes_per_hour(self) -> float:
@@ -79,6 +80,7 @@ def run_eval(
     resamples: int = DEFAULT_RESAMPLES,
     progress: bool = True,
     play: bool = True,
+    complete_only: bool = False,
 ) -> EvalRun:
     """Play every (episode, agent) of `spec` not yet in `out`, then summarize all of them.
 
@@ -92,6 +94,8 @@ def run_eval(
         resamples: bootstrap resamples of the table's intervals.
         progress: show a tqdm progress bar on stderr.
         play: False only rewrites the table from the episodes already finished in `out`.
+        complete_only: the table counts only episodes that every agent finished (so every
+            row covers the same episodes, e.g. after a run was stopped part way).
 
     Raises:
         InvalidInputError: unknown agents, too many scenes or episodes, negative workers,
@@ -158,6 +162,9 @@ def run_eval(
                     records[job.agent][job.episode_id] = stored
                 bar.update(1)
     wall = time.perf_counter() - start
+    if complete_only:
+        common = set.intersection(*(set(r) for r in records.values()))
+        records = {a: {e: r for e, r in rs.items() if e in common} for a, rs in records.items()}
     summary = summarize(records, spec.agents, resamples=resamples)
     run = EvalRun(
         spec,
@@ -170,6 +177,7 @@ def run_eval(
         wall,
         results.mixed,
         len(selected) * len(spec.agents),
+        complete_only,
     )
     _write_summary(run)
     return run
@@ -182,7 +190,8 @@ def _write_summary(run: EvalRun) -> None:
         f"Selection: the first {s.scenes or 'all'} scenes x {s.episodes_per_scene or 'all'} "
         f"episodes of each; seed {s.seed}, max_steps {s.max_steps}, embedder {s.embedder}, "
         f"images {s.result_config()['image_size']}. Finished: "
-        f"{sum(len(r) for r in run.records.values())} of {run.total} (agent, episode) pairs.\n\n"
+        f"{sum(len(r) for r in run.records.values())} of {run.total} (agent, episode) pairs"
+        f"{' (only episodes every agent finished)' if run.complete_only else ''}.\n\n"
     )
     if run.mixed:
         head += "Warning: this folder mixes results run with different settings (eval.json).\n\n"
