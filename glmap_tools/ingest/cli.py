@@ -93,27 +93,12 @@ def _geometric_perception(args: argparse.Namespace) -> Callable[[IngestFrame], F
     from glmap_tools.perception.labels_file import FrameLabels, load_labels_file, pointed_labels
 
     if args.perception in ("geometric+mllm", "mllm"):
-        from glmap_tools.language.llm import OllamaClient
+        from glmap_tools.perception.backends import model_perception
 
-        settings = settings_from_args(args)
-        client = OllamaClient(
-            settings.model, host=settings.host, timeout=settings.timeout, vision=True
+        backend = model_perception(
+            args.perception, settings_from_args(args), args.detector, args.segmenter
         )
-        if args.perception == "mllm":
-            from glmap_tools.perception.grounding import GroundedSegmenter, MLLMGroundedPerception
-
-            if args.detector is None or args.segmenter is None:
-                raise InvalidInputError(
-                    "--perception mllm needs --detector FOLDER (GroundingDINO) and --segmenter "
-                    "FOLDER (SAM): local model folders; nothing is downloaded at run time."
-                )
-            grounded = GroundedSegmenter(args.detector, args.segmenter)
-            paper = MLLMGroundedPerception(client, grounded, prompts=settings.prompt_set())
-            return lambda item: paper(item.frame)
-        from glmap_tools.perception.mllm_naming import MLLMSegmentNamer
-
-        namer = MLLMSegmentNamer(client, prompts=settings.prompt_set())
-        return lambda item: namer(item.frame)
+        return lambda item: backend(item.frame)
     path = args.labels
     if path is None and args.folder is None:
         path = bundled_folder().with_name(f"{BUNDLED}.labels.json")

@@ -229,23 +229,11 @@ def perception_from_args(args: argparse.Namespace) -> Any:
     """
     if args.perception == "pending":
         return None
-    from glmap_tools.language.llm import OllamaClient
+    from glmap_tools.perception.backends import model_perception
 
-    settings = settings_from_args(args)
-    client = OllamaClient(settings.model, host=settings.host, timeout=settings.timeout, vision=True)
-    if args.perception == "mllm":
-        from glmap_tools.perception.grounding import GroundedSegmenter, MLLMGroundedPerception
-
-        if args.detector is None or args.segmenter is None:
-            raise InvalidInputError(
-                "--perception mllm needs --detector FOLDER (GroundingDINO) and --segmenter "
-                "FOLDER (SAM): local model folders; nothing is downloaded at run time."
-            )
-        grounded = GroundedSegmenter(args.detector, args.segmenter)
-        return MLLMGroundedPerception(client, grounded, prompts=settings.prompt_set())
-    from glmap_tools.perception.mllm_naming import MLLMSegmentNamer
-
-    return MLLMSegmentNamer(client, prompts=settings.prompt_set())
+    return model_perception(
+        args.perception, settings_from_args(args), args.detector, args.segmenter
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
