@@ -228,3 +228,44 @@ def test_a_tool_agent_episode_replays_to_the_same_tool_results_step_by_step(tmp_
     if not RECORDING:
         golden = json.loads((sc.CASSETTES / "agent_episode.result.json").read_text())
         assert {k: v for k, v in result.items() if k != "wall_s"} == golden
+
+
+def test_the_llm_tools_agent_runs_through_the_runner_and_survives_an_unknown_tool(
+    tmp_path, monkeypatch
+):
+    """A scripted stand-in asks for a tool that does not exist, then stops: the agent tells
+    it so, the episode ends, and the result carries turns and the prompt's hash."""
+    import asyncio
+
+    from agents.runner import LLM_ENV, open_session, run_episode
+    from glmap_tools.map import MapConfig
+    from glmap_tools.server import ServerConfig
+
+    def model(method, path, body):
+        turn = sum(m["role"] == "assistant" for m in body["messages"])
+        call = ("teleport", {"x": 1}) if turn == 0 else ("sim_step", {"action": "stop"})
+        return 200, chat_reply(body["model"], "", [call])
+
+    async def play():
+        config = ServerConfig(
+            maps_dir=tmp_path / "maps",
+            embedder="hashing",
+            map_config=MapConfig(voxel_size=0.04),
+            warm_up=False,
+        )
+        async with open_session(config) as session:
+            return await run_episode(
+                session, sc.AGENT_EPISODE, "llm-tools", seed=0, out_dir=tmp_path / "ep"
+            )
+
+    with ScriptedOllama(model) as server:
+        monkeypatch.setenv(LLM_ENV["host"], server.host)
+        monkeypatch.setenv(LLM_ENV["model"], "qwen3:0.6b")
+        result = asyncio.run(play())
+        second = server.requests[1][2]["messages"]
+    assert result.agent == "llm-tools" and result.turns == 2 and not result.success
+    assert result.tool_calls == 2  # sim_reset and the stop; the unknown tool never ran
+    assert result.prompts["tool_agent_system"].startswith("tool_agent_system@")
+    assert "there is no tool 'teleport'" in second[-1]["content"]
+    events = [json.loads(line) for line in (tmp_path / "ep" / "transcript.jsonl").open()]
+    assert [e["kind"] for e in events].count("llm_request") == 2
