@@ -125,3 +125,12 @@ def test_the_paired_rows_use_only_the_episodes_both_agents_finished() -> None:
     summary = summarize(records, ["a", "b"], resamples=200)
     assert summary.paired[("a", "b")]["success"].n == 1
     assert summary.to_json()["paired"][0]["success"]["mean"] == pytest.approx(100.0)
+
+
+def test_the_table_does_not_depend_on_the_order_results_were_read_in() -> None:
+    rng = np.random.default_rng(4)
+    episodes = {f"e{i:02d}": _record(bool(rng.random() < 0.4), 0.3, 1.0, 9) for i in range(20)}
+    shuffled = dict(reversed(list(episodes.items())))
+    a = summarize({"x": episodes}, ["x"], resamples=300)
+    b = summarize({"x": shuffled}, ["x"], resamples=300)
+    assert a.rows["x"]["success"] == b.rows["x"]["success"]

@@ -80,10 +80,11 @@ class Summary:
 
 
 def _values(records: Mapping[str, Mapping[str, Any]], key: str) -> dict[str, float]:
-    """episode id -> finite value of `key` (booleans as 0/1; null and inf left out)."""
+    """episode id -> finite value of `key` (booleans as 0/1; null and inf left out), in
+    episode-id order, so an interval does not depend on the order results were read in."""
     out = {}
-    for eid, r in records.items():
-        v = r.get(key)
+    for eid in sorted(records):
+        v = records[eid].get(key)
         if v is None:
             continue
         v = float(v)
