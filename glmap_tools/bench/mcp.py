@@ -105,7 +105,7 @@ def synthetic_map_file(path: Path, n: int, embedder: Embedder, seed: int = 0) ->
 
     Returns the seconds spent embedding the descriptions.
     """
-    from glmap_tools.map import GLMap, MapConfig, OccupancyGrid
+    from glmap_tools.map import GLMap
     from glmap_tools.map.store import MapStore
     from glmap_tools.map.units import InstanceUnit, RegionUnit
 
@@ -140,17 +140,7 @@ def synthetic_map_file(path: Path, n: int, embedder: Embedder, seed: int = 0) ->
         members = tuple(range(s + 1, min(s + 11, n + 1)))
         regions[next_id] = RegionUnit(next_id, text, emb, members, 1, 0, 0)
         next_id += 1
-    config = MapConfig()
-    glmap = GLMap(config, embedder=embedder)
-    glmap._restore(
-        instances=instances,
-        regions=regions,
-        occupancy=OccupancyGrid(config.cell_size),
-        structure=glmap.structure,
-        next_id=next_id,
-        floor_z=0.0,
-        trajectory=[],
-    )
+    glmap = GLMap.from_units(instances, regions, next_id, embedder=embedder)
     MapStore.create_from(path, glmap).close()
     return embed_s
 

@@ -137,7 +137,7 @@ def load_queries(path: str | Path | None = None) -> list[Query]:
 def scene_map(layout: Layout, embedder: Embedder, seed: int = 0) -> SceneMap:
     """The GLMap a perfect perception would build of `layout` (see the module docstring)."""
     from glmap_tools.gaussians.types import COVARIANCE_EPSILON, DEFAULT_OPACITY, GaussianSet
-    from glmap_tools.map import GLMap, MapConfig, OccupancyGrid
+    from glmap_tools.map import GLMap
     from glmap_tools.map.units import InstanceUnit, RegionUnit
 
     rng = np.random.default_rng(seed)
@@ -164,17 +164,7 @@ def scene_map(layout: Layout, embedder: Embedder, seed: int = 0) -> SceneMap:
         )
         layout_id[next_id] = r.id
         next_id += 1
-    config = MapConfig()
-    glmap = GLMap(config, embedder=embedder)
-    glmap._restore(
-        instances=instances,
-        regions=regions,
-        occupancy=OccupancyGrid(config.cell_size),
-        structure=glmap.structure,
-        next_id=next_id,
-        floor_z=0.0,
-        trajectory=[],
-    )
+    glmap = GLMap.from_units(instances, regions, next_id, embedder=embedder)
     return SceneMap(glmap, layout_id)
 
 

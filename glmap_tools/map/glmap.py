@@ -161,6 +161,33 @@ class GLMap:
         self.trajectory.append(plan.pose)
         self._matrix_cache.clear()
 
+    @classmethod
+    def from_units(
+        cls,
+        instances: dict[int, InstanceUnit],
+        regions: dict[int, RegionUnit],
+        next_id: int,
+        config: MapConfig | None = None,
+        embedder: Embedder | None = None,
+    ) -> GLMap:
+        """An in-memory map holding exactly these units (no frames, empty occupancy).
+
+        For benchmarks and evaluations that build maps from ground truth; the index grid
+        comes from the units' Gaussians as when a saved map is opened.
+        """
+        config = config or MapConfig()
+        glmap = cls(config, embedder=embedder)
+        glmap._restore(
+            instances=instances,
+            regions=regions,
+            occupancy=OccupancyGrid(config.cell_size),
+            structure=glmap.structure,
+            next_id=next_id,
+            floor_z=0.0,
+            trajectory=[],
+        )
+        return glmap
+
     def _restore(
         self,
         instances: dict[int, InstanceUnit],
