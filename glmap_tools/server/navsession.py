@@ -106,6 +106,17 @@ def active_sim(session: Session) -> simulator.SimEpisode:
     return sim
 
 
+def running(session: Session) -> tuple[simulator.SimEpisode, NavSession]:
+    """The session's episode and its navigation state, or raise if there is none or it ended."""
+    sim = active_sim(session)
+    nav = of(session)
+    if nav is None:
+        raise InvalidInputError("no simulator episode in this session; call sim_reset first.")
+    if sim.over:
+        raise InvalidInputError("the episode is over; call sim_reset to start another.")
+    return sim, nav
+
+
 def integrate(session: Session, sim: simulator.SimEpisode) -> str:
     """Add the latest frame to the map and to the navigation state; return the map update line."""
     frame, semantics = simulator.frame(sim)

@@ -195,11 +195,7 @@ def register(server: MCPServer) -> None:
             raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
 
         def run() -> list[TextContent | Image]:
-            sim = navsession.active_sim(target)
-            nav = navsession.of(target)
-            assert nav is not None
-            if sim.over:
-                raise InvalidInputError("the episode is over; call sim_reset to start another.")
+            sim, nav = navsession.running(target)
             if unit_id is not None:
                 with locked(target) as glmap:
                     unit = glmap.unit(unit_id)  # raises UnknownIdError with a suggestion
@@ -232,9 +228,7 @@ def register(server: MCPServer) -> None:
         target = session_of(ctx, session)
 
         def run() -> list[TextContent | Image]:
-            sim = navsession.active_sim(target)
-            if sim.over:
-                raise InvalidInputError("the episode is over; call sim_reset to start another.")
+            sim, _ = navsession.running(target)
             turns = round(2 * math.pi / sim.env.motion.turn_angle)
             frames, labels = [], []
             with locked(target):
@@ -275,11 +269,7 @@ def register(server: MCPServer) -> None:
         target = session_of(ctx, session)
 
         def run() -> list[TextContent | Image]:
-            sim = navsession.active_sim(target)
-            nav = navsession.of(target)
-            assert nav is not None
-            if sim.over:
-                raise InvalidInputError("the episode is over; call sim_reset to start another.")
+            sim, nav = navsession.running(target)
             decisions = []
             decision: Any = None
             agent = simulator.agent_pose(sim)
