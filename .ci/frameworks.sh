@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Idempotent: the venvs of the agent frameworks that pin mcp 1.x (glmap-mcp needs mcp 2.x), under
+# .ci/venvs/. tests/frameworks/ runs their python as a subprocess that starts .venv/bin/glmap-mcp
+# over stdio. Exact versions: the framework table in docs/frameworks/README.md is measured with them.
+# A venv is rebuilt only when its requirement line changes (about a minute each, pip cache cold).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+build() {  # NAME REQUIREMENT...
+  local dir=".ci/venvs/$1"
+  shift
+  if [ -x "$dir/bin/python" ] && [ "$(cat "$dir/requirements.txt" 2>/dev/null)" = "$*" ]; then
+    return
+  fi
+  rm -rf "$dir"
+  python3 -m venv "$dir"
+  # pip -q still prints one line per package for the machine's extra local indexes: drop them.
+  "$dir/bin/pip" install -q "$@" 2>&1 | { grep -vE "is ignored: it is neither|does not provide the extra" || true; }
+  echo "$*" >"$dir/requirements.txt"
+}
+
+build langchain langchain-mcp-adapters==0.3.2 langchain-core==1.8.3 mcp==1.30.0
+build smolagents "smolagents[mcp]==1.26.0" mcpadapt==0.1.19 mcp==1.30.0

@@ -1,0 +1,34 @@
+"""langchain-mcp-adapters 0.3.2 plays a short ObjectNav episode through glmap-mcp, both ways.
+
+It pins mcp 1.x, so it runs in its own venv (.ci/frameworks.sh) as run_langchain.py, talking
+to this venv's glmap-mcp over stdio.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.frameworks import episode
+from tests.frameworks.venvs import GLMAP_MCP, run_json
+
+
+def played(mode: str, maps_dir: str) -> dict:  # type: ignore[type-arg]
+    out = run_json("langchain", "run_langchain.py", mode, str(GLMAP_MCP), maps_dir)
+    assert out["answer"] == "episode over"
+    assert set(episode.TOOLS) <= set(out["tools"])
+    assert "episode" in out["tools"]["sim_reset"]  # optional arguments survive the schema
+    assert out["images"]["sim_reset"] >= 1  # the agent's view arrives as an image block
+    return out
+
+
+@pytest.mark.slow  # a fresh glmap-mcp for each of the seven calls
+def test_langchain_default_get_tools_keeps_the_episode_with_the_map_option(tmp_path):
+    out = played("per-call", str(tmp_path))
+    assert episode.problems([tuple(r) for r in out["replies"]]) == []
+    assert (tmp_path / "langchain-test.glmap").exists()
+
+
+@pytest.mark.slow  # starts glmap-mcp
+def test_langchain_explicit_session_plays_the_episode_on_one_server(tmp_path):
+    out = played("session", str(tmp_path))
+    assert episode.problems([tuple(r) for r in out["replies"]]) == []
