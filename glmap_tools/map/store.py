@@ -4,6 +4,10 @@ Every `GLMap.integrate` commits in one transaction; reopening reproduces the map
 The index grid is not stored: it is derived from the Gaussians on load, identically.
 Opening checks the whole file (store_check.py) and refuses an invalid one.
 
+A store may also carry *extras*: named JSON-text rows of the meta table (key `extra.<name>`)
+that a caller keeps beside the map, e.g. the MCP server's simulator episode. An extra can
+be staged to go into the next frame's transaction, so the two never disagree.
+
 Schema versions: 1 had no structure layer; 2 adds the `structure` table (one row per chunk
 of the structure background layer). A version-1 file opens as a map with an empty
 structure layer, and becomes version 2 in the transaction of its first new frame.
@@ -40,6 +44,7 @@ if TYPE_CHECKING:
 
 FORMAT = "glmap-tools map"
 SCHEMA_VERSION = 2
+EXTRA_PREFIX = "extra."
 __all__ = ["FORMAT", "SCHEMA_VERSION", "InvalidStoreError", "MapStore"]
 
 STRUCTURE_TABLE = """
@@ -94,6 +99,8 @@ class MapStore:
         self.config = config
         self.version = version
         self._state = state
+        self._staged: dict[str, str] = {}
+        self._seen = self._fingerprint()
 
     # ------------------------------------------------------------- open / create
     @classmethod
@@ -177,6 +184,60 @@ class MapStore:
 
     def close(self) -> None:
         self.conn.close()
+
+    # ------------------------------------------------------------- other writers
+    def _fingerprint(self) -> tuple[int, int]:
+        """(the file's inode, SQLite's data_version of this connection); -1 where unknown."""
+        try:
+            ino = os.stat(self.path).st_ino
+        except OSError:
+            ino = -1
+        try:
+            version = int(self.conn.execute("PRAGMA data_version").fetchone()[0])
+        except sqlite3.Error:
+            version = -1
+        return ino, version
+
+    def changed_elsewhere(self) -> bool:
+        """Whether another connection committed to the file, or replaced it, since this one
+        opened it or last called `mark_seen` (own commits do not count)."""
+        return self._fingerprint() != self._seen
+
+    def mark_seen(self) -> None:
+        """Take the file as it is now as the state `changed_elsewhere` compares with."""
+        self._seen = self._fingerprint()
+
+    # ------------------------------------------------------------- extras
+    def read_extra(self, name: str) -> str | None:
+        """The extra `name` as stored in the file now, or None."""
+        row = self.conn.execute(
+            "SELECT value FROM meta WHERE key = ?", (EXTRA_PREFIX + name,)
+        ).fetchone()
+        return None if row is None else str(row[0])
+
+    def stage_extra(self, name: str, value: str) -> None:
+        """Write the extra `name` in the transaction of the next `commit_frame`."""
+        self._staged[EXTRA_PREFIX + name] = value
+
+    def write_extra(self, name: str, value: str | None) -> None:
+        """Write (or, with None, delete) the extra `name` now, in its own transaction.
+
+        Raises:
+            StoreError: the write failed; the file is unchanged.
+        """
+        key = EXTRA_PREFIX + name
+        self._staged.pop(key, None)
+        try:
+            with self.conn:
+                if value is None:
+                    self.conn.execute("DELETE FROM meta WHERE key = ?", (key,))
+                else:
+                    self._write_meta({key: value})
+        except sqlite3.Error as exc:
+            raise StoreError(
+                f"could not write {name} to {str(self.path)!r}: {exc}; the file is unchanged. "
+                "Check disk space and permissions."
+            ) from exc
 
     # ------------------------------------------------------------- writes
     def _write_meta(self, items: dict[str, str]) -> None:
@@ -293,7 +354,10 @@ class MapStore:
                 self._write_meta(
                     {"next_id": str(plan.next_id), "floor_z": json.dumps(plan.floor_z)}
                 )
+                if self._staged:
+                    self._write_meta(self._staged)
             self.version = SCHEMA_VERSION
+            self._staged = {}
         except sqlite3.Error as exc:
             raise StoreError(
                 f"could not write frame {plan.frame_index} to {str(self.path)!r}: {exc}; the "

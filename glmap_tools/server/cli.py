@@ -3,6 +3,9 @@
 HTTP binds 127.0.0.1 unless --host is given, and a non-loopback --host needs a bearer
 token that every request must carry: from $GLMAP_MCP_TOKEN or --token-file (--token still
 works but shows the token in the process list, and warns).
+
+`--map NAME` is for clients that start a server process per tool call: every process
+works on the saved map NAME and its simulator episode (glmap_tools.server.persist).
 """
 
 from __future__ import annotations
@@ -63,6 +66,20 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help=f"saved maps folder (default {default_maps_dir()})",
     )
+    p.add_argument(
+        "--map",
+        metavar="NAME",
+        help="work on the saved map NAME (created empty if absent) and keep the simulator "
+        "episode in it, so processes started one per call share both; for clients that start "
+        "a server per call (docs/mcp.md)",
+    )
+    p.add_argument(
+        "--map-wait",
+        type=float,
+        default=10.0,
+        metavar="SECONDS",
+        help="how long a call waits while another process uses the --map map (default 10)",
+    )
     p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
     p.add_argument("--max-frame-mb", type=float, default=24.0, help="files per observed frame")
     p.add_argument(
@@ -121,7 +138,38 @@ def config_from_args(args: argparse.Namespace) -> ServerConfig:
         warm_up=not args.no_warm_up,
         compute_threads=args.threads or None,
         llm=settings_from_args(args),
+        map_name=args.map,
+        map_wait_s=args.map_wait,
     )
+
+
+def check_pinned_map(config: ServerConfig) -> None:
+    """Refuse at launch a --map file that is not a map or was made with other settings.
+
+    Reads only the file's meta table (milliseconds), so the handshake is not delayed.
+
+    Raises:
+        StoreError: see glmap_tools.server.persist.check_saved_map.
+    """
+    if config.map_name is None:
+        return
+    from glmap_tools.server.persist import check_saved_map
+    from glmap_tools.server.state import MAP_SUFFIX
+
+    path = config.maps_dir / f"{config.map_name}{MAP_SUFFIX}"
+    check_saved_map(path, config.map_name, config.map_config, config.embedder)
+
+
+def build(config: ServerConfig, perception: Any) -> Any:
+    """The server, its tool calls bracketed by the --map lock when --map is given."""
+    from glmap_tools.server.app import build_server
+
+    server = build_server(config, perception)
+    if config.map_name is not None:
+        from glmap_tools.server.persist import guard_calls
+
+        guard_calls(server)
+    return server
 
 
 class BearerAuth:
@@ -248,6 +296,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         token = read_token(args)
         config = config_from_args(args)
+        check_pinned_map(config)
         perception = perception_from_args(args)
     except GLMapError as exc:
         print(f"glmap-mcp: error: {exc}", file=sys.stderr)
@@ -259,9 +308,7 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 2
-        from glmap_tools.server.app import build_server
-
-        build_server(config, perception).run("stdio")
+        build(config, perception).run("stdio")
         return 0
     host = args.host or "127.0.0.1"
     if host not in LOOPBACK and not token:
@@ -272,10 +319,8 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    from glmap_tools.server.app import build_server
-
     serve_http(
-        build_server(config, perception),
+        build(config, perception),
         config,
         host,
         args.port,

@@ -54,6 +54,11 @@ class ServerConfig:
             process as it is); 1 keeps latency low and steady when calls overlap.
         llm: the language backends: text merger and f_S scorer (offline by default; "llm"
             uses an Ollama model, see docs/own_model.md).
+        map_name: `glmap-mcp --map NAME`: the saved map the default session is pinned to,
+            shared with every process started with the same name (see
+            glmap_tools.server.persist); None: the default session starts on a scratch map.
+        map_wait_s: how long a tool call waits for the map of `map_name` while another
+            process holds it, before failing.
     """
 
     maps_dir: Path = field(default_factory=default_maps_dir)
@@ -70,6 +75,8 @@ class ServerConfig:
     sim_max_steps: int = 500
     compute_threads: int | None = 1
     llm: LLMSettings = field(default_factory=LLMSettings)
+    map_name: str | None = None
+    map_wait_s: float = 10.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "maps_dir", Path(self.maps_dir).expanduser())
@@ -111,6 +118,15 @@ class ServerConfig:
         ):
             raise InvalidInputError(
                 f"compute_threads={self.compute_threads!r} must be an integer >= 1 or None."
+            )
+        if self.map_name is not None:
+            from glmap_tools.server.state import check_map_name
+
+            stem = check_map_name(self.map_name, what="--map name")
+            object.__setattr__(self, "map_name", stem)
+        if not (isinstance(self.map_wait_s, int | float) and 0 <= self.map_wait_s <= 3600):
+            raise InvalidInputError(
+                f"map_wait_s={self.map_wait_s!r} must be a number of seconds within 0..3600."
             )
         if self.file_roots is not None:
             roots = tuple(Path(r).expanduser().resolve() for r in self.file_roots)

@@ -17,7 +17,7 @@ import numpy as np
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
 from glmap_tools.server import simulator
-from glmap_tools.server.state import Session, locked
+from glmap_tools.server.state import PIN_KEY, Session, locked
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
@@ -118,21 +118,44 @@ def running(session: Session) -> tuple[simulator.SimEpisode, NavSession]:
 
 
 def integrate(session: Session, sim: simulator.SimEpisode) -> str:
-    """Add the latest frame to the map and to the navigation state; return the map update line."""
+    """Add the latest frame to the map and to the navigation state; return the map update line.
+
+    With `glmap-mcp --map` the episode record goes into the frame's transaction.
+    """
     frame, semantics = simulator.frame(sim)
     nav = of(session)
+    pin = session.extras.get(PIN_KEY)
     with locked(session) as glmap:
+        staged = pin.stage(session) if pin is not None else None
         summary = glmap.integrate(frame, semantics).summary()
+        if pin is not None:
+            pin.committed(staged)
         if nav is not None:
-            x, y, _ = simulator.agent_pose(sim)
-            nav.path.append((x, y))
-            if nav.state.egocentric is None:
-                from glmap_tools.nav import EgocentricValueMap
-
-                cell, reach = glmap.grid.cell_size, glmap.config.max_range
-                nav.state.egocentric = EgocentricValueMap(cell, reach)
-            nav.state.egocentric.add_frame(frame, nav.frame_score(semantics))
+            _follow(nav, sim, frame, semantics, glmap.grid.cell_size, glmap.config.max_range)
     return summary
+
+
+def follow(nav: NavSession, sim: simulator.SimEpisode, cell: float, reach: float) -> None:
+    """Add the latest frame to the navigation state only (replaying a kept episode)."""
+    frame, semantics = simulator.frame(sim)
+    _follow(nav, sim, frame, semantics, cell, reach)
+
+
+def _follow(
+    nav: NavSession,
+    sim: simulator.SimEpisode,
+    frame: Any,
+    semantics: FrameSemantics,
+    cell: float,
+    reach: float,
+) -> None:
+    x, y, _ = simulator.agent_pose(sim)
+    nav.path.append((x, y))
+    if nav.state.egocentric is None:
+        from glmap_tools.nav import EgocentricValueMap
+
+        nav.state.egocentric = EgocentricValueMap(cell, reach)
+    nav.state.egocentric.add_frame(frame, nav.frame_score(semantics))
 
 
 def agent_pose(session: Session, glmap: GLMap) -> tuple[float, float, float] | None:

@@ -74,6 +74,8 @@ class SimEpisode:
         over: whether the episode ended (stop or step limit).
         truncated: whether it ended by the step limit.
         collisions: steps of this episode that bumped into something.
+        started: (seed, goal) of the latest reset, None before one.
+        actions: the action numbers taken since it (with `started`, a replay of the episode).
     """
 
     task: str
@@ -86,6 +88,8 @@ class SimEpisode:
     over: bool = False
     truncated: bool = False
     collisions: int = 0
+    started: tuple[int, str | None] | None = None
+    actions: list[int] = field(default_factory=list)
     pool: list[tuple[str, tuple[int, ...], np.ndarray]] | None = None
 
     def run(self, fn: Any, *args: Any) -> Any:
@@ -192,6 +196,8 @@ def reset(sim: SimEpisode, seed: int, goal: str | None) -> None:
         sim.obs, sim.info = env.reset(seed=seed, options=options)
         sim.over = sim.truncated = False
         sim.collisions = 0
+        sim.started = (seed, goal)
+        sim.actions = []
 
     sim.run(run)
 
@@ -214,6 +220,7 @@ def step(sim: SimEpisode, action: str) -> None:
         sim.over = bool(terminated or truncated)
         sim.truncated = bool(truncated)
         sim.collisions += int(bool(sim.info["collided"]))
+        sim.actions.append(ACTIONS.index(action))
 
     sim.run(run)
 

@@ -7,6 +7,9 @@ A *session* is what one client works in. Its key comes from the transport:
 - the `Mcp-Session-Id` header of a stateful streamable-HTTP connection;
 - otherwise the server's *default* session (stdio and in-memory serve one client each).
 
+With `glmap-mcp --map NAME` the default session is pinned to the saved map NAME, shared
+with other processes through its file (glmap_tools.server.persist).
+
 Each session starts on its own in-memory scratch map. A saved (named) map is one `LiveMap`
 shared by every session that opened it, behind one lock, so concurrent sessions stay
 consistent: there is one map in memory and one store file, never two diverging copies.
@@ -44,6 +47,7 @@ MAP_SUFFIX = ".glmap"
 DROPPED_KEPT = 4096  # dropped session keys remembered, to tell their clients
 MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 DEFAULT_HANDLE = "default"
+PIN_KEY = "pin"  # Session.extras: the PinnedMap of a session pinned by --map
 
 
 @dataclass
@@ -156,6 +160,11 @@ class SessionRegistry:
         self._by_transport: dict[str, str] = {}
         self._named: dict[str, LiveMap] = {}
         self._dropped: OrderedDict[str, float] = OrderedDict()  # handles and transport ids
+        self.pin: Any = None  # the PinnedMap of --map, if given
+        if config.map_name is not None:
+            from glmap_tools.server.persist import PinnedMap
+
+            self.pin = PinnedMap(self, config.map_name)
         # The default session's map is made on first use: building a GLMap imports the
         # fusion code (scipy, numba), which the server's handshake must not wait for.
 
@@ -218,6 +227,9 @@ class SessionRegistry:
         """
         with self._lock:
             if name is None:
+                if self.pin is not None and self.pin.holds(session):
+                    self.pin.clear()  # --map: the pinned map itself starts anew
+                    return session.live
                 self._switch(session, self._scratch())
                 return session.live
             path = self.map_path(name)
@@ -359,11 +371,18 @@ class SessionRegistry:
                     session = self._create_session()
                     self._by_transport[transport_id] = session.handle
             else:
-                session = self._sessions.get(DEFAULT_HANDLE) or self._sessions.setdefault(
-                    DEFAULT_HANDLE, Session(DEFAULT_HANDLE, self._scratch())
-                )
+                session = self.default_session()
             session.last_used = time.monotonic()
-            return session
+        if session.handle == DEFAULT_HANDLE and self.pin is not None:
+            self.pin.ensure(session)  # outside self._lock: the pin takes it after its own
+        return session
+
+    def default_session(self) -> Session:
+        """The default session (made on first use, on a scratch map)."""
+        with self._lock:
+            return self._sessions.get(DEFAULT_HANDLE) or self._sessions.setdefault(
+                DEFAULT_HANDLE, Session(DEFAULT_HANDLE, self._scratch())
+            )
 
     def start_session(self) -> Session:
         """A new session with its own scratch map and a fresh unguessable handle."""

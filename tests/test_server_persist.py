@@ -1,0 +1,165 @@
+"""`glmap-mcp --map NAME`: per-call server processes share one saved map and one episode.
+
+Real processes over stdio with the SDK's own client, compared with one long-lived
+in-memory server given the same calls; plus the lock, and bad names and files.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import sqlite3
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mcp import Client
+from mcp.client.stdio import StdioServerParameters
+
+from glmap_tools.server import build_server
+from glmap_tools.server.cli import main
+from tests.test_server_fixtures import config
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+pytestmark = pytest.mark.anyio
+
+RESET = {"scene": 0, "seed": 3, "size": "160x120", "max_steps": 40}
+# What one call per process asks, in order; the first list is one process, and so on.
+CALLS: list[list[tuple[str, dict[str, Any]]]] = [
+    [("sim_reset", RESET)],
+    [("sim_step", {"action": "move_forward", "repeat": 3}), ("sim_step", {"action": "turn_left"})],
+    [
+        ("map_summary", {"include_image": False}),
+        ("find_instance", {"query": "sofa"}),
+        ("sim_step", {"action": "move_forward", "repeat": 2}),
+    ],
+]
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+def process(maps: Path, *extra: str) -> StdioServerParameters:
+    """A fresh `glmap-mcp --map ep` as a client that starts one per call would launch it."""
+    return StdioServerParameters(
+        command=sys.executable,
+        args=[
+            "-m",
+            "glmap_tools.server",
+            "--map",
+            "ep",
+            "--maps-dir",
+            str(maps),
+            "--embedder",
+            "hashing",
+            "--voxel-size",
+            "0.04",
+            "--no-warm-up",
+            *extra,
+        ],
+        env={k: v for k, v in os.environ.items() if k in ("PYTHONPATH", "PYOPENGL_PLATFORM")},
+    )
+
+
+def answer(result: Any) -> Any:
+    """The call's text (parsed if JSON), less the map's name: None in memory, 'ep' in a file."""
+    assert not result.is_error, result.content[0].text
+    text = result.content[0].text
+    if not text.startswith("{"):
+        return text
+    data = json.loads(text)
+    assert data.pop("map_name", "ep") in (None, "ep")
+    return data
+
+
+async def test_per_call_processes_continue_the_episode_one_long_lived_server_would(tmp_path):
+    long_lived = build_server(config(tmp_path / "one"))
+    expected = []
+    async with Client(long_lived) as client:
+        for batch in CALLS:
+            for name, args in batch:
+                expected.append(answer(await client.call_tool(name, args)))
+    got = []
+    for batch in CALLS:  # a fresh process for each batch
+        async with Client(process(tmp_path / "maps")) as client:
+            for name, args in batch:
+                got.append(answer(await client.call_tool(name, args)))
+    assert got == expected
+    last = got[-1]
+    assert last["steps"] == 6 and last["status"] == "running"
+    assert got[3]["summary"]["frames"] == 5  # the third process sees every frame so far
+
+
+async def test_a_second_process_waits_for_the_lock_then_says_the_map_is_busy(tmp_path):
+    maps = tmp_path / "maps"
+    async with Client(process(maps)) as client:
+        answer(await client.call_tool("sim_reset", RESET))
+    before = (maps / "ep.glmap").read_bytes()
+    fd = os.open(maps / ".ep.glmap.lock", os.O_RDWR)
+    fcntl.flock(fd, fcntl.LOCK_EX)  # as another glmap-mcp --map ep in a long call would
+    try:
+        async with Client(process(maps, "--map-wait", "0.3")) as client:
+            busy = await client.call_tool("sim_step", {"action": "turn_left"})
+    finally:
+        os.close(fd)
+    assert busy.is_error
+    text = busy.content[0].text
+    assert "'ep' is in use" in text and "--map-wait" in text
+    assert (maps / "ep.glmap").read_bytes() == before
+    async with Client(process(maps)) as client:  # free again: the episode goes on
+        assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 1
+
+
+def refused(argv: list[str], capsys: Any) -> str:
+    assert main(argv) == 2
+    return str(capsys.readouterr().err)
+
+
+def test_a_map_name_with_a_path_is_refused_before_anything_is_written(tmp_path, capsys):
+    for bad in ("../ep", "a/b", "~ep", ".."):
+        err = refused(["--map", bad, "--maps-dir", str(tmp_path / "maps")], capsys)
+        assert "bare name" in err and repr(bad) in err
+    assert not (tmp_path / "maps").exists()
+
+
+def test_a_corrupt_map_file_is_refused_and_left_as_it_is(tmp_path, capsys):
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    (maps / "ep.glmap").write_bytes(b"not a database at all" * 100)
+    err = refused(["--map", "ep", "--maps-dir", str(maps), "--embedder", "hashing"], capsys)
+    assert "ep.glmap is not a GLMap store" in err and "left as it is" in err
+    assert (maps / "ep.glmap").read_bytes() == b"not a database at all" * 100
+    other = maps / "other.glmap"
+    with sqlite3.connect(other) as conn:
+        conn.execute("CREATE TABLE meta (key TEXT, value TEXT)")
+    err = refused(["--map", "other", "--maps-dir", str(maps), "--embedder", "hashing"], capsys)
+    assert "not a GLMap store" in err
+
+
+async def test_a_map_made_with_another_embedder_or_voxel_size_is_refused(tmp_path, capsys):
+    maps = tmp_path / "maps"
+    async with Client(process(maps)) as client:  # hashing embedder, 4 cm voxels
+        answer(await client.call_tool("sim_reset", RESET))
+    before = (maps / "ep.glmap").read_bytes()
+    err = refused(["--map", "ep", "--maps-dir", str(maps), "--voxel-size", "0.04"], capsys)
+    assert "--embedder hashing" in err and "--embedder minilm" in err
+    err = refused(["--map", "ep", "--maps-dir", str(maps), "--embedder", "hashing"], capsys)
+    assert "voxel_size=0.04" in err and "--voxel-size" in err
+    assert (maps / "ep.glmap").read_bytes() == before
+
+
+async def test_sim_reset_without_keep_map_starts_the_saved_map_anew(tmp_path):
+    maps = tmp_path / "maps"
+    for _ in range(2):
+        async with Client(process(maps)) as client:
+            answer(await client.call_tool("sim_reset", {**RESET, "seed": 4}))
+            summary = answer(await client.call_tool("map_summary", {"include_image": False}))
+            assert summary["summary"]["frames"] == 1
+    async with Client(process(maps)) as client:
+        answer(await client.call_tool("sim_reset", {**RESET, "keep_map": True}))
+        summary = answer(await client.call_tool("map_summary", {"include_image": False}))
+        assert summary["summary"]["frames"] == 2
