@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import anyio
 import pytest
 from mcp import Client
 from mcp.client.stdio import StdioServerParameters
@@ -114,6 +115,27 @@ async def test_a_second_process_waits_for_the_lock_then_says_the_map_is_busy(tmp
         assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 1
 
 
+async def test_two_processes_at_once_take_turns_and_lose_no_step(tmp_path):
+    maps = tmp_path / "maps"
+    async with Client(process(maps)) as client:
+        answer(await client.call_tool("sim_reset", RESET))
+    done: list[int] = []
+
+    async def turn() -> None:
+        async with Client(process(maps, "--map-wait", "120")) as client:
+            got = answer(await client.call_tool("sim_step", {"action": "turn_left", "repeat": 2}))
+            done.append(got["steps"])
+
+    async with anyio.create_task_group() as group:
+        group.start_soon(turn)
+        group.start_soon(turn)
+    assert sorted(done) == [2, 4]  # one after the other, the second continuing the first
+    async with Client(process(maps)) as client:
+        summary = answer(await client.call_tool("map_summary", {"include_image": False}))
+        status = answer(await client.call_tool("sim_step", {"action": "turn_right"}))
+    assert summary["summary"]["frames"] == 5 and status["steps"] == 5
+
+
 def refused(argv: list[str], capsys: Any) -> str:
     assert main(argv) == 2
     return str(capsys.readouterr().err)
@@ -163,3 +185,10 @@ async def test_sim_reset_without_keep_map_starts_the_saved_map_anew(tmp_path):
         answer(await client.call_tool("sim_reset", {**RESET, "keep_map": True}))
         summary = answer(await client.call_tool("map_summary", {"include_image": False}))
         assert summary["summary"]["frames"] == 2
+
+
+def test_the_launch_check_knows_the_store_format():
+    from glmap_tools.map.store import FORMAT
+    from glmap_tools.server.persist import MAP_FORMAT
+
+    assert MAP_FORMAT == FORMAT

@@ -29,7 +29,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from glmap_tools.errors import GLMapError, StoreError
-from glmap_tools.server import navsession, simulator
 from glmap_tools.server.state import MAP_SUFFIX, PIN_KEY, Session, check_map_name
 
 if TYPE_CHECKING:
@@ -37,6 +36,10 @@ if TYPE_CHECKING:
     from glmap_tools.server.state import LiveMap, SessionRegistry
 
 log = logging.getLogger(__name__)
+
+# This module is imported before the handshake: the map, store and simulator modules
+# (numpy, scipy, numba) are imported inside the functions that need them.
+MAP_FORMAT = "glmap-tools map"  # glmap_tools.map.store.FORMAT (a test holds them equal)
 
 EPISODE = "sim_episode"  # the store extra holding the episode record
 RECORD_FORMAT = "glmap-tools episode"
@@ -113,8 +116,6 @@ def check_saved_map(path: Path, name: str, config: MapConfig, embedder: str) -> 
     Raises:
         StoreError: not a GLMap store, or built with another embedder or map settings.
     """
-    from glmap_tools.map.store import FORMAT
-
     if not path.exists():
         return
     if not path.is_file():
@@ -130,7 +131,7 @@ def check_saved_map(path: Path, name: str, config: MapConfig, embedder: str) -> 
             f"--map {name!r}: {path.name} is not a GLMap store ({exc}); it was left as it is. "
             "Move it away or choose another --map name."
         ) from None
-    if meta.get("format") != FORMAT:
+    if meta.get("format") != MAP_FORMAT:
         raise StoreError(
             f"--map {name!r}: {path.name} is an SQLite file but not a GLMap store; it was "
             "left as it is. Move it away or choose another --map name."
@@ -275,6 +276,8 @@ class PinnedMap:
         store.mark_seen()
         text = store.read_extra(EPISODE)
         if text is not None and text != self.record:
+            from glmap_tools.server import navsession, simulator
+
             log.info("continuing the simulator episode of map %r", self.name)
             try:
                 restore_episode(session, text, registry)
@@ -335,6 +338,8 @@ class PinnedMap:
 
 def episode_record(session: Session) -> str | None:
     """The session's simulator episode as record text (JSON), or None without one."""
+    from glmap_tools.server import navsession, simulator
+
     sim = session.extras.get(simulator.SIM_KEY)
     if sim is None or sim.started is None:
         return None
@@ -414,6 +419,8 @@ def restore_episode(session: Session, text: str, registry: SessionRegistry) -> N
     Raises:
         StoreError: the record cannot be read or replayed.
     """
+    from glmap_tools.server import navsession, simulator
+
     try:
         rec = json.loads(text)
         if rec.get("format") != RECORD_FORMAT or rec.get("version") != RECORD_VERSION:
