@@ -192,3 +192,68 @@ def test_the_launch_check_knows_the_store_format():
     from glmap_tools.server.persist import MAP_FORMAT
 
     assert MAP_FORMAT == FORMAT
+
+
+def kept_episode(path: Path) -> dict[str, Any]:
+    """The episode record a --map file keeps (navigator memory included)."""
+    with sqlite3.connect(path) as conn:
+        (text,) = conn.execute("SELECT value FROM meta WHERE key = 'extra.sim_episode'").fetchone()
+    return dict(json.loads(text))
+
+
+async def test_a_benchmark_episode_and_the_navigator_memory_go_on_in_the_next_server(tmp_path):
+    start = {"episode": "tune/objectnav/s00-000", "size": "160x120"}
+    calls = [
+        ("sim_reset", start),
+        ("nav_step", {"actions": 2}),
+        ("sim_step", {"action": "turn_left"}),
+        ("nav_step", {"actions": 1, "policy": "egocentric"}),
+    ]
+    expected = []
+    async with Client(build_server(config(tmp_path / "one", map_name="ep"))) as client:
+        for name, args in calls:
+            expected.append(answer(await client.call_tool(name, args)))
+    got = []
+    for name, args in calls:  # in memory, a fresh server per call on the same saved map
+        async with Client(build_server(config(tmp_path, map_name="ep"))) as client:
+            got.append(answer(await client.call_tool(name, args)))
+    assert got == expected
+    assert got[-1]["episode"] == "tune/objectnav/s00-000" and got[-1]["steps"] == 4
+    kept = kept_episode(tmp_path / "maps" / "ep.glmap")
+    assert kept == kept_episode(tmp_path / "one" / "maps" / "ep.glmap")
+    assert kept["actions"] and kept["nav"]["steps"] >= 3 and kept["nav"]["last_waypoint"]
+
+
+def test_the_navigator_memory_survives_its_json_form():
+    from glmap_tools.nav import NavState
+    from glmap_tools.nav.waypoint import Waypoint
+    from glmap_tools.server.persist import apply_memory, nav_memory
+
+    state = NavState(
+        avoid=[(1.0, 2.5)],
+        rejected_units={4, 9},
+        blocked={(3, -2), (0, 7)},
+        blocked_at={(3, -2): 5, (0, 7): 6},
+        last_waypoint=Waypoint((0.5, -1.25), "frontier", None, 0.3, "the nearest frontier"),
+        last_action="turn_left",
+        last_xy=(0.1, 0.2),
+        last_heading=1.5,
+        turns_in_place=2,
+        since_progress=3,
+        steps=7,
+    )
+    again = NavState()
+    apply_memory(again, json.loads(json.dumps(nav_memory(state))))
+    assert again == state
+    apply_memory(again, json.loads(json.dumps(nav_memory(NavState()))))
+    assert again == NavState() and again.best_distance == float("inf")
+
+
+async def test_a_map_file_spoilt_after_launch_fails_the_call_and_is_left_as_it_is(tmp_path):
+    (tmp_path / "maps").mkdir()
+    spoilt = tmp_path / "maps" / "ep.glmap"
+    spoilt.write_bytes(b"SQLite format 3\x00" + b"\xff" * 2000)
+    async with Client(build_server(config(tmp_path, map_name="ep"))) as client:
+        result = await client.call_tool("map_summary", {"include_image": False})
+    assert result.is_error and "ep.glmap is not a GLMap store" in result.content[0].text
+    assert spoilt.read_bytes() == b"SQLite format 3\x00" + b"\xff" * 2000

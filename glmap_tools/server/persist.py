@@ -230,16 +230,38 @@ class PinnedMap:
             if self._depth > 0:
                 return
             try:
-                session = self.registry.default_session()
-                if self.holds(session):
-                    text = episode_record(session)
-                    if text is not None and text != self.record:
-                        assert self.live is not None and self.live.glmap.store is not None
-                        with self.live.lock:
-                            self.live.glmap.store.write_extra(EPISODE, text)
-                        self.record = text
+                self._write_record()
             finally:
                 self.lock.release()
+
+    def flush(self) -> None:
+        """Write the episode record if it changed since a call's end (at the server's end).
+
+        Calls of a server without `guard_calls` (in memory) end without `exit`.
+        """
+        with self._mutex:
+            if self._depth or self.live is None:
+                return
+            try:
+                self.lock.acquire()
+            except StoreError as exc:
+                log.warning("glmap-mcp: the episode's last changes were not kept: %s", exc)
+                return
+            try:
+                self._write_record()
+            finally:
+                self.lock.release()
+
+    def _write_record(self) -> None:
+        session = self.registry.default_session()
+        if not self.holds(session):
+            return
+        text = episode_record(session)
+        if text is not None and text != self.record:
+            assert self.live is not None and self.live.glmap.store is not None
+            with self.live.lock:
+                self.live.glmap.store.write_extra(EPISODE, text)
+            self.record = text
 
     def ensure(self, session: Session) -> None:
         """Make sure `session` (the default one) is on the map; for calls outside a scope."""

@@ -439,6 +439,8 @@ class SessionRegistry:
 
     def close(self) -> None:
         """Close every session and map (lifespan exit)."""
+        if self.pin is not None:
+            self.pin.flush()
         with self._lock:
             for session in list(self._sessions.values()):
                 self._close_session(session)
