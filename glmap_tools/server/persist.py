@@ -242,6 +242,9 @@ class PinnedMap:
         with self._mutex:
             if self._depth or self.live is None:
                 return
+            session = self.registry.default_session()
+            if not self.holds(session) or episode_record(session) in (None, self.record):
+                return  # nothing to write: do not wait for the lock on the way out
             try:
                 self.lock.acquire()
             except StoreError as exc:
