@@ -227,7 +227,7 @@ async def test_a_benchmark_episode_and_the_navigator_memory_go_on_in_the_next_se
 def test_the_navigator_memory_survives_its_json_form():
     from glmap_tools.nav import NavState
     from glmap_tools.nav.waypoint import Waypoint
-    from glmap_tools.server.persist import apply_memory, nav_memory
+    from glmap_tools.server.episode_record import apply_memory, nav_memory
 
     state = NavState(
         avoid=[(1.0, 2.5)],
@@ -257,3 +257,16 @@ async def test_a_map_file_spoilt_after_launch_fails_the_call_and_is_left_as_it_i
         result = await client.call_tool("map_summary", {"include_image": False})
     assert result.is_error and "ep.glmap is not a GLMap store" in result.content[0].text
     assert spoilt.read_bytes() == b"SQLite format 3\x00" + b"\xff" * 2000
+
+
+async def test_an_unreadable_episode_record_leaves_the_map_usable_and_asks_for_sim_reset(tmp_path):
+    async with Client(build_server(config(tmp_path, map_name="ep"))) as client:
+        answer(await client.call_tool("sim_reset", RESET))
+    with sqlite3.connect(tmp_path / "maps" / "ep.glmap") as conn:
+        conn.execute("UPDATE meta SET value = '{\"format\": 3' WHERE key = 'extra.sim_episode'")
+    async with Client(build_server(config(tmp_path, map_name="ep"))) as client:
+        step = await client.call_tool("sim_step", {"action": "turn_left"})
+        assert step.is_error and "call sim_reset" in step.content[0].text
+        summary = answer(await client.call_tool("map_summary", {"include_image": False}))
+        assert summary["summary"]["frames"] == 1
+        assert answer(await client.call_tool("sim_reset", RESET))["steps"] == 0
