@@ -31,6 +31,7 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError, NoMatchError
 from glmap_tools.map.occupancy import FREE
+from glmap_tools.sqa.stand import front_stand_point
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
@@ -111,6 +112,7 @@ class Situation:
         low_confidence: True when the best evidence is weak (still a result).
         location_text, facing_text: the phrases scored (the whole text for an LLM scorer).
         notes: how the pose was chosen.
+        anchor_id: the unit l_a was placed at; facing_id: the unit l_o is on (or None).
     """
 
     x: float
@@ -127,6 +129,8 @@ class Situation:
     location_text: str
     facing_text: str
     notes: list[str] = field(default_factory=list)
+    anchor_id: int | None = None
+    facing_id: int | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """A compact JSON-ready summary (no heat maps)."""
@@ -255,6 +259,7 @@ def situate(
     *,
     split_text: bool | None = None,
     sigma: float = SIGMA,
+    front_side: bool = True,
 ) -> Situation:
     """Locate the situation `text` in `glmap`.
 
@@ -265,6 +270,8 @@ def situate(
         split_text: score the location and facing phrases separately; default True for
             the embedding scorer and False for any other (an LLM reads the whole text).
         sigma: Eq. 7 bandwidth (m).
+        front_side: stand on the anchor object's accessible side (`glmap_tools.sqa.stand`);
+            False: the free cell by the anchor nearest what is faced (the earlier rule).
 
     Raises:
         InvalidInputError: empty or overlong text, or an empty map.
@@ -330,6 +337,7 @@ def situate(
         )
         peak_o = h_o.argmax_xy()
     anchors = _top(r_units, r_scores)
+    facing_id = _top(instances, p_o, 1)[0].unit_id if peak_o is not None else None
     if h_r.empty or best_r < MIN_SCORE:
         if peak_o is None:
             raise NoMatchError(f"nothing in the map tells where {text!r} is.")
@@ -358,8 +366,12 @@ def situate(
             peak_r = _centroid(glmap, pair[0])
             if pair[1] is not None:
                 peak_o = _centroid(glmap, pair[1])
+                facing_id = pair[1]
             notes.append("pose from the best anchor/facing pair (closest together on ties)")
-    x, y = _stand_point(glmap, peak_r, anchor_ids, peak_o, notes)
+    stand = None
+    if front_side and anchor_ids and anchor_ids[0] in glmap.instances:
+        stand = front_stand_point(glmap, anchor_ids[:1], notes)
+    x, y = stand or _stand_point(glmap, peak_r, anchor_ids, peak_o, notes)
     if peak_o is not None and math.hypot(peak_o[0] - x, peak_o[1] - y) > 1e-6:
         heading = math.atan2(peak_o[1] - y, peak_o[0] - x)
     else:
@@ -381,4 +393,6 @@ def situate(
         location_text=location,
         facing_text=facing,
         notes=notes,
+        anchor_id=anchor_ids[0] if anchor_ids else None,
+        facing_id=facing_id,
     )
