@@ -2,26 +2,20 @@
 
 from __future__ import annotations
 
+import inspect
 import logging
-from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
+from contextlib import asynccontextmanager, contextmanager
 from typing import Any
 
-from mcp.server.mcpserver import Context, MCPServer
+from mcp.server.mcpserver import Context, Image, MCPServer
+from mcp.server.mcpserver.exceptions import ToolError
 from mcp.types import CallToolResult, InputRequiredResult, TextContent, Tool
+from pydantic import BaseModel, ValidationError
 
 from glmap_tools import __version__
-from glmap_tools.server import (
-    resources,
-    tools_export,
-    tools_map,
-    tools_nav,
-    tools_perception,
-    tools_sim,
-    tools_sqa,
-    tools_store,
-    tools_view,
-)
+from glmap_tools.errors import GLMapError
+from glmap_tools.server import resources
 from glmap_tools.server.background import (
     EMBEDDER,
     KERNELS,
@@ -32,15 +26,20 @@ from glmap_tools.server.background import (
     warm_kernels,
 )
 from glmap_tools.server.config import ServerConfig
+from glmap_tools.server.inputs import tidy_arguments, validation_message
 from glmap_tools.server.results import (
+    ImageResult,
     compact_description,
+    compact_json,
     compact_schema,
     compact_text,
+    pictures_of,
     strip_descriptions,
 )
-from glmap_tools.server.runtime import AppState, PerceptionBackend
+from glmap_tools.server.runtime import AppState, PerceptionBackend, ToolSpec
 from glmap_tools.server.state import SessionRegistry
 from glmap_tools.server.threads import limited_threads
+from glmap_tools.toolset.catalog import TOOLS
 
 logger = logging.getLogger(__name__)
 
@@ -69,6 +68,11 @@ KERNEL_TOOLS = (
 )
 
 
+def needed_tasks(name: str) -> tuple[str, ...]:
+    """The start-up tasks a call of tool `name` waits for."""
+    return (EMBEDDER, KERNELS) if name in KERNEL_TOOLS else (EMBEDDER,)
+
+
 class GLMapServer(MCPServer[AppState]):
     """MCPServer with a lean tools/list and calls that wait for the start-up work.
 
@@ -86,33 +90,7 @@ class GLMapServer(MCPServer[AppState]):
     background: Background
 
     async def list_tools(self) -> list[Tool]:
-        tools = await super().list_tools()
-        seen: dict[str, str] = {}  # $defs name -> the first tool that describes it
-        said: set[tuple[str, str]] = set()  # (argument, description) already given
-        out = []
-        for t in tools:
-            schema = compact_schema(t.input_schema)
-            for arg, prop in schema.get("properties", {}).items():
-                text = prop.get("description")
-                if text is not None and (arg, text) in said:
-                    del prop["description"]  # described in an earlier tool
-                elif text is not None:
-                    said.add((arg, text))
-            for name, model in schema.get("$defs", {}).items():
-                if name in seen:
-                    schema["$defs"][name] = {
-                        **strip_descriptions(model),
-                        "description": f"as in {seen[name]}",
-                    }
-                else:
-                    seen[name] = t.name
-            update = {
-                "description": compact_description(t.description or ""),
-                "input_schema": schema,
-                "output_schema": None,
-            }
-            out.append(t.model_copy(update=update))
-        return out
+        return lean_tools(await super().list_tools())
 
     async def call_tool(
         self,
@@ -120,8 +98,19 @@ class GLMapServer(MCPServer[AppState]):
         arguments: dict[str, Any],
         context: Context[AppState, Any] | None = None,
     ) -> CallToolResult | InputRequiredResult:
-        needs = (EMBEDDER, KERNELS) if name in KERNEL_TOOLS else (EMBEDDER,)
-        pending = self.background.pending(needs)
+        tool = self._tool_manager.get_tool(name)
+        if tool is not None:  # unknown names: the SDK's error
+            try:
+                arguments = tidy_arguments(
+                    name, arguments, list(tool.fn_metadata.arg_model.model_fields)
+                )
+                tool.fn_metadata.validate_arguments(arguments)
+            except (GLMapError, ValidationError) as exc:
+                text = (
+                    validation_message(name, exc) if isinstance(exc, ValidationError) else str(exc)
+                )
+                return CallToolResult(content=[TextContent(type="text", text=text)], is_error=True)
+        pending = self.background.pending(needed_tasks(name))
         if pending:
             await self._wait_for(name, pending, context)
         failed = self.background.failure(EMBEDDER)  # kernels that failed compile on use
@@ -154,6 +143,121 @@ class GLMapServer(MCPServer[AppState]):
             await context.report_progress(1, None, f"{what}: done")
 
 
+def lean_tools(tools: list[Tool]) -> list[Tool]:
+    """The tools/list a model reads (see GLMapServer): compact descriptions and schemas,
+    a shared model or argument description given once, no output schemas."""
+    seen: dict[str, str] = {}  # $defs name -> the first tool that describes it
+    said: set[tuple[str, str]] = set()  # (argument, description) already given
+    out = []
+    for t in tools:
+        schema = compact_schema(t.input_schema)
+        for arg, prop in schema.get("properties", {}).items():
+            text = prop.get("description")
+            if text is not None and (arg, text) in said:
+                del prop["description"]  # described in an earlier tool
+            elif text is not None:
+                said.add((arg, text))
+        for name, model in schema.get("$defs", {}).items():
+            if name in seen:
+                schema["$defs"][name] = {
+                    **strip_descriptions(model),
+                    "description": f"as in {seen[name]}",
+                }
+            else:
+                seen[name] = t.name
+        update = {
+            "description": compact_description(t.description or ""),
+            "input_schema": schema,
+            "output_schema": None,
+        }
+        out.append(t.model_copy(update=update))
+    return out
+
+
+def mcp_result(result: Any) -> Any:
+    """A tool function's result as the MCP server returns it: an ImageResult as text and
+    image blocks; a pydantic result with images as structured content plus the images;
+    anything else as is (the SDK makes it structured content)."""
+    if isinstance(result, ImageResult):
+        texts = [TextContent(type="text", text=t) for t in result.texts()]
+        images = [Image(data=p.data, format=p.format).to_image_content() for p in result.images]
+        return CallToolResult(content=[*texts, *images])
+    pictures = pictures_of(result)
+    if pictures and isinstance(result, BaseModel):
+        data = result.model_dump(mode="json", by_alias=True)
+        images = [Image(data=p.data, format=p.format).to_image_content() for p in pictures]
+        return CallToolResult(
+            content=[TextContent(type="text", text=compact_json(data)), *images],
+            structured_content=data,
+        )
+    return result
+
+
+def mcp_tool(spec: ToolSpec) -> Callable[..., Awaitable[Any]]:
+    """`spec`'s function as the MCP server registers it: the same name, description and
+    parameters; a GLMapError becomes a tool error carrying its message for the model (other
+    exceptions stay crashes: the SDK logs them and the model sees a generic error)."""
+    fn = spec.fn
+    signature = inspect.signature(fn)
+    returns = CallToolResult if signature.return_annotation is ImageResult else None
+
+    async def call(*args: Any, **kwargs: Any) -> Any:
+        try:
+            result = await fn(*args, **kwargs)
+        except GLMapError as exc:
+            raise ToolError(str(exc)) from exc
+        return mcp_result(result)
+
+    call.__name__ = call.__qualname__ = fn.__name__
+    call.__module__ = fn.__module__
+    call.__doc__ = fn.__doc__
+    if returns is not None:
+        signature = signature.replace(return_annotation=returns)
+    call.__signature__ = signature  # type: ignore[attr-defined]
+    call.__annotations__ = {**fn.__annotations__, "return": signature.return_annotation}
+    return call
+
+
+def add_tools(server: MCPServer, tools: tuple[ToolSpec, ...] = TOOLS) -> None:
+    """Register `tools` (default: all) on `server`."""
+    for spec in tools:
+        server.add_tool(mcp_tool(spec), name=spec.name, annotations=spec.annotations)
+
+
+@contextmanager
+def opened_state(
+    config: ServerConfig, perception: PerceptionBackend | None, background: Background
+) -> Iterator[AppState]:
+    """The app state (embedder, sessions) for `config`, closed on exit.
+
+    The MiniLM embedder loads on a background task unless it is the hashing one; the
+    kernels warm up in the background when `config.warm_up`.
+    """
+    config.maps_dir.mkdir(parents=True, exist_ok=True)
+    with limited_threads(config.compute_threads):
+        embedder: Any
+        if config.embedder == "hashing":
+            embedder = load_embedder("hashing", None)
+        else:
+            from glmap_tools.language.embed import MiniLMEmbedder
+
+            task = background.start(
+                EMBEDDER, lambda: load_embedder(config.embedder, config.compute_threads)
+            )
+            embedder = BackgroundEmbedder(
+                task, MiniLMEmbedder.name, MiniLMEmbedder.dim, MiniLMEmbedder.default_tau_s
+            )
+        if config.warm_up:
+            background.start(KERNELS, warm_kernels)
+        registry = SessionRegistry(config, embedder)
+        state = AppState(config, embedder, registry, perception)
+        state.extras["background"] = background
+        try:
+            yield state
+        finally:
+            registry.close()
+
+
 def build_server(
     config: ServerConfig | None = None, perception: PerceptionBackend | None = None
 ) -> GLMapServer:
@@ -176,29 +280,8 @@ def build_server(
 
     @asynccontextmanager
     async def lifespan(_: MCPServer[AppState]) -> AsyncIterator[AppState]:
-        config.maps_dir.mkdir(parents=True, exist_ok=True)
-        with limited_threads(config.compute_threads):
-            embedder: Any
-            if config.embedder == "hashing":
-                embedder = load_embedder("hashing", None)
-            else:
-                from glmap_tools.language.embed import MiniLMEmbedder
-
-                task = background.start(
-                    EMBEDDER, lambda: load_embedder(config.embedder, config.compute_threads)
-                )
-                embedder = BackgroundEmbedder(
-                    task, MiniLMEmbedder.name, MiniLMEmbedder.dim, MiniLMEmbedder.default_tau_s
-                )
-            if config.warm_up:
-                background.start(KERNELS, warm_kernels)
-            registry = SessionRegistry(config, embedder)
-            state = AppState(config, embedder, registry, perception)
-            state.extras["background"] = background
-            try:
-                yield state
-            finally:
-                registry.close()
+        with opened_state(config, perception, background) as state:
+            yield state
 
     server = GLMapServer(
         "glmap",
@@ -209,13 +292,6 @@ def build_server(
         log_level="WARNING",
     )
     server.background = background
-    tools_map.register(server)
-    tools_perception.register(server)
-    tools_store.register(server)
-    tools_view.register(server)
-    tools_export.register(server)
-    tools_sim.register(server)
-    tools_nav.register(server)
-    tools_sqa.register(server)
+    add_tools(server)
     resources.register(server, config)
     return server

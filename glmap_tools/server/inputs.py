@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import base64
 import binascii
+import difflib
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Intrinsics, Pose
@@ -30,6 +32,23 @@ from glmap_tools.server.images import decode_depth, decode_mask, decode_rgb
 # Per frame, at most this many objects and groups (see docs/mcp.md, "Limits").
 MAX_OBJECTS = 64
 MAX_GROUPS = 16
+
+MAX_HANDLE = 64
+
+
+def _handle(value: str) -> str:
+    if len(value) > MAX_HANDLE:
+        raise ValueError(
+            f"a session handle has at most {MAX_HANDLE} characters; pass the one new_map returned"
+        )
+    return value
+
+
+SessionArg = Annotated[
+    str,
+    AfterValidator(_handle),
+    Field(description="handle from new_map; only on shared stateless HTTP servers"),
+]
 
 
 class FileInput(BaseModel):
@@ -303,3 +322,52 @@ def embed_ahead(embedder: Embedder, semantics: FrameSemantics) -> None:
     pieces = [p for t in texts for p in merger.texts_to_embed([t])]
     if texts:
         embedder.embed(list(dict.fromkeys(texts + pieces)))
+
+
+# ---------------------------------------------------------------------- arguments
+
+
+def _key(name: str) -> str:
+    return name.replace("-", "").replace("_", "").lower()
+
+
+def tidy_arguments(tool: str, arguments: Mapping[str, Any], names: Sequence[str]) -> dict[str, Any]:
+    """The arguments of a call as frameworks send them, made unambiguous.
+
+    A null is an omitted argument (its default applies; a required one is reported
+    missing). A name that differs from a parameter only in case, '-' or '_' (topK, top-k)
+    is that parameter. Any other unknown name is refused. Strings for numbers are left to
+    validation, which accepts the unambiguous ones ("5" for an integer).
+
+    Raises:
+        InvalidInputError: an unknown argument, or two names for one parameter.
+    """
+    by_key = {_key(n): n for n in names}
+    out: dict[str, Any] = {}
+    for raw, value in arguments.items():
+        name = raw if raw in names else by_key.get(_key(raw))
+        if name is None:
+            close = difflib.get_close_matches(raw, list(names), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise InvalidInputError(
+                f"{tool} has no argument {raw!r}{hint}; its arguments are {', '.join(names)}."
+            )
+        if name in out:
+            raise InvalidInputError(f"{tool}: {name!r} is given twice (as {raw!r}); give it once.")
+        if value is not None:
+            out[name] = value
+    return out
+
+
+def validation_message(tool: str, exc: ValidationError) -> str:
+    """A pydantic validation error as one line per bad argument: where, what, the value."""
+    lines = []
+    for err in exc.errors(include_url=False):
+        where = ".".join(str(p) for p in err["loc"]) or "arguments"
+        got = err.get("input")
+        shown = repr(got) if isinstance(got, str | int | float | bool) else type(got).__name__
+        if err["type"] == "missing":
+            lines.append(f"{where}: required, but not given")
+        else:
+            lines.append(f"{where}: {err['msg']} (got {shown[:80]})")
+    return f"{tool}: invalid arguments; " + "; ".join(lines)

@@ -4,13 +4,18 @@ results, descriptions and schemas that a model reads."""
 from __future__ import annotations
 
 import inspect
+import io
 import json
 import re
-from typing import Any
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import BaseModel, Field
 
 from glmap_tools.map.report import MapSummary, UnitInfo, UpdateReport
+
+if TYPE_CHECKING:
+    from PIL.Image import Image as PILImage
 
 _BARE = re.compile(r"[A-Za-z0-9_./:+-]+")
 
@@ -95,7 +100,64 @@ class Exported(SessionInfo):
     bytes: int = Field(description="size of the file")
 
 
+class Picture(BaseModel):
+    """An image a tool returns: the PNG or JPEG file's bytes."""
+
+    format: Literal["png", "jpeg"]
+    data: bytes
+
+    @property
+    def mime_type(self) -> str:
+        return f"image/{self.format}"
+
+    def to_pil(self) -> PILImage:
+        """The image as a PIL image (RGB)."""
+        from PIL import Image
+
+        return Image.open(io.BytesIO(self.data)).convert("RGB")
+
+
+class ImageResult(BaseModel):
+    """A result shown as text blocks and images: `data` as compact JSON, then `notes`,
+    then `images` (render_view, map_summary, the simulator and navigation tools)."""
+
+    data: dict[str, Any] | None = None
+    notes: list[str] = Field(default_factory=list)
+    images: list[Picture] = Field(default_factory=list)
+
+    def texts(self) -> list[str]:
+        """The text blocks, in order."""
+        head = [compact_json(self.data)] if self.data is not None else []
+        return head + self.notes
+
+    def __str__(self) -> str:
+        return as_text(self)
+
+
+def pictures_of(result: object) -> list[Picture]:
+    """The images that go with a tool result (none for most)."""
+    if isinstance(result, ImageResult):
+        return list(result.images)
+    sheet = getattr(result, "sheet", None)
+    return [sheet] if isinstance(sheet, Picture) else []
+
+
+def as_text(result: object) -> str:
+    """The text a model reads for a tool result, the same through MCP and in process."""
+    if isinstance(result, ImageResult):
+        return "\n".join(result.texts())
+    if isinstance(result, BaseModel):
+        return compact_text(result.model_dump(mode="json", by_alias=True))
+    return str(result)
+
+
 # ---------------------------------------------------------------------- what a model reads
+
+
+def compact_json(data: Mapping[str, Any]) -> str:
+    """JSON without whitespace (a model pays for every byte)."""
+    return json.dumps(data, separators=(",", ":"), ensure_ascii=False)
+
 
 DECIMALS = 3  # millimetres; scores to 0.001
 

@@ -2,18 +2,17 @@
 
 from __future__ import annotations
 
-import functools
-import json
-from collections.abc import Awaitable, Callable, Mapping
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import anyio.to_thread
 from mcp.server.mcpserver import Context
-from mcp.server.mcpserver.exceptions import ToolError
+from mcp.types import ToolAnnotations
+from pydantic import PrivateAttr
 
-from glmap_tools.errors import GLMapError
 from glmap_tools.server.config import ServerConfig
+from glmap_tools.server.results import compact_json as compact_json  # re-exported
 from glmap_tools.server.state import Session, SessionRegistry
 
 if TYPE_CHECKING:
@@ -21,7 +20,6 @@ if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
     from glmap_tools.perception.semantics import FrameSemantics
 
-P = ParamSpec("P")
 T = TypeVar("T")
 
 PerceptionBackend = Callable[["RGBDFrame"], "FrameSemantics"]
@@ -48,8 +46,61 @@ class AppState:
     extras: dict[str, Any] = field(default_factory=dict)
 
 
+ProgressCallback = Callable[[float, "float | None", "str | None"], None]
+
+
+class LocalContext(Context):
+    """The Context of an in-process call (glmap_tools.toolset): the app state, no transport.
+
+    Progress goes to an optional callback `(progress, total, message)`.
+    """
+
+    _state: AppState = PrivateAttr()
+    _on_progress: ProgressCallback | None = PrivateAttr(default=None)
+
+    def __init__(self, state: AppState, on_progress: ProgressCallback | None = None) -> None:
+        super().__init__()
+        self._state = state
+        self._on_progress = on_progress
+
+    @property
+    def state(self) -> AppState:
+        return self._state
+
+    async def report_progress(
+        self, progress: float, total: float | None = None, message: str | None = None
+    ) -> None:
+        if self._on_progress is not None:
+            self._on_progress(progress, total, message)
+
+
+@dataclass(frozen=True)
+class ToolSpec:
+    """One tool: an async function over a map session, and its MCP tool annotations.
+
+    The function takes a `ctx: Context` (an MCP request's, or a `LocalContext`) and returns
+    a pydantic result or an `ImageResult`; both faces (the MCP server and
+    glmap_tools.toolset) are built from these.
+    """
+
+    fn: Callable[..., Awaitable[Any]]
+    annotations: ToolAnnotations
+
+    @property
+    def name(self) -> str:
+        return self.fn.__name__
+
+
+READ_ONLY = ToolAnnotations(read_only_hint=True)
+ADDS = ToolAnnotations(destructive_hint=False)  # adds to the map, replaces nothing
+REPLACES = ToolAnnotations(idempotent_hint=True)  # overwrites; the same call twice = once
+DROPS = ToolAnnotations()  # may drop the current map (destructive, not idempotent)
+
+
 def app_state(ctx: Context) -> AppState:
-    """The lifespan state of the server handling this request."""
+    """The lifespan state of the server handling this request (or of an in-process call)."""
+    if isinstance(ctx, LocalContext):
+        return ctx.state
     state = ctx.request_context.lifespan_context
     assert isinstance(state, AppState), "build the server with build_server()"
     return state
@@ -57,6 +108,8 @@ def app_state(ctx: Context) -> AppState:
 
 def transport_session_id(ctx: Context) -> tuple[str | None, bool]:
     """(the Mcp-Session-Id of a stateful HTTP connection or None, whether the call is HTTP)."""
+    if isinstance(ctx, LocalContext):
+        return None, False
     try:
         headers = ctx.headers
     except (ValueError, AttributeError):
@@ -69,7 +122,7 @@ def transport_session_id(ctx: Context) -> tuple[str | None, bool]:
 def session_of(ctx: Context, handle: str | None) -> Session:
     """The session this call works in (see glmap_tools.server.state)."""
     transport_id, _ = transport_session_id(ctx)
-    return app_state(ctx).registry.resolve(handle, transport_id)
+    return app_state(ctx).registry.resolve(handle or None, transport_id)
 
 
 def session_for_new_map(ctx: Context, handle: str | None) -> Session:
@@ -80,6 +133,7 @@ def session_for_new_map(ctx: Context, handle: str | None) -> Session:
     """
     transport_id, is_http = transport_session_id(ctx)
     registry = app_state(ctx).registry
+    handle = handle or None
     if handle is None and is_http and transport_id is None:
         return registry.start_session()
     return registry.resolve(handle, transport_id, restart=True)
@@ -88,24 +142,3 @@ def session_for_new_map(ctx: Context, handle: str | None) -> Session:
 async def in_thread(fn: Callable[[], T]) -> T:
     """Run blocking map work on a worker thread, off the event loop."""
     return await anyio.to_thread.run_sync(fn)
-
-
-def tool_errors(fn: Callable[P, Awaitable[T]]) -> Callable[P, Awaitable[T]]:
-    """Report GLMapError as an MCP tool error (is_error) carrying its message for the model.
-
-    Other exceptions stay crashes: the SDK logs them and the model sees a generic error.
-    """
-
-    @functools.wraps(fn)
-    async def wrapper(*args: P.args, **kwargs: P.kwargs) -> T:
-        try:
-            return await fn(*args, **kwargs)
-        except GLMapError as exc:
-            raise ToolError(str(exc)) from exc
-
-    return wrapper
-
-
-def compact_json(data: Mapping[str, Any]) -> str:
-    """JSON without whitespace (a model pays for every byte)."""
-    return json.dumps(data, separators=(",", ":"), ensure_ascii=False)

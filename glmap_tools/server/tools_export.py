@@ -8,25 +8,19 @@ __future__ import annotations` here: the SDK reads these signatures at runtime.
 from pathlib import Path
 from typing import Annotated
 
-from mcp.server.mcpserver import Context, MCPServer
-from mcp.types import ToolAnnotations
+from mcp.server.mcpserver import Context
 from pydantic import Field
 
 from glmap_tools.errors import InvalidInputError, StoreError
+from glmap_tools.server.inputs import SessionArg
 from glmap_tools.server.results import Exported
-from glmap_tools.server.runtime import app_state, in_thread, session_of, tool_errors
+from glmap_tools.server.runtime import REPLACES, ToolSpec, app_state, in_thread, session_of
 from glmap_tools.server.state import check_map_name, locked
-from glmap_tools.server.tools_map import SessionArg
 from glmap_tools.server.views import EMPTY_MAP
 
 PLY_SUFFIX = ".ply"
 ExportName = Annotated[
-    str,
-    Field(
-        min_length=1,
-        max_length=70,
-        description="letters, digits, '-' or '_'",
-    ),
+    str, Field(min_length=1, max_length=70, description="letters, digits, '-' or '_'")
 ]
 
 
@@ -54,61 +48,57 @@ def _reason(exc: StoreError) -> str:
     return "write failed"
 
 
-def register(server: MCPServer) -> None:
-    """Add export_ply to `server`."""
+async def export_ply(
+    name: ExportName,
+    ctx: Context,
+    unit_id: Annotated[int | None, Field(ge=1, le=2**62, description="omit: whole map")] = None,
+    overwrite: bool = False,
+    session: SessionArg = "",
+) -> Exported:
+    """Write the 3D Gaussians of the map, an instance or a region as a 3DGS '<name>.ply'
+    (overwrite: replace one)."""
+    state = app_state(ctx)
+    target = session_of(ctx, session)
+    path = export_path(state.config.maps_dir, name)
 
-    @server.tool(annotations=ToolAnnotations(destructive_hint=True, idempotent_hint=True))
-    @tool_errors
-    async def export_ply(
-        name: ExportName,
-        ctx: Context,
-        unit_id: Annotated[
-            int | None,
-            Field(ge=1, le=2**62, description="omit for the whole map"),
-        ] = None,
-        overwrite: Annotated[
-            bool, Field(description="replace an existing export of this name")
-        ] = False,
-        session: SessionArg = None,
-    ) -> Exported:
-        """Write the 3D Gaussians of the map, an instance or a region as a 3DGS '<name>.ply'."""
-        state = app_state(ctx)
-        target = session_of(ctx, session)
-        path = export_path(state.config.maps_dir, name)
-
-        def run() -> Exported:
-            with locked(target) as glmap:
-                if not glmap.instances:
-                    raise InvalidInputError(EMPTY_MAP)
-                if unit_id is not None:
-                    glmap.unit(unit_id)  # an unknown id raises, naming the closest
-                if path.is_dir():
-                    raise StoreError(
-                        f"{path.name!r} in the maps folder is a folder; choose another name."
-                    )
-                if path.exists() and not overwrite:
-                    raise StoreError(
-                        f"an export named {path.name!r} already exists; pass overwrite=true "
-                        "to replace it, or choose another name."
-                    )
-                path.parent.mkdir(parents=True, exist_ok=True)
-                from glmap_tools.views import export_ply as write_export
-
-                try:
-                    result = write_export(glmap, path, unit_id)
-                except StoreError as exc:  # its message names the absolute path: show the name
-                    raise StoreError(
-                        f"could not write {path.name!r} in the maps folder ({_reason(exc)}); "
-                        "check that the folder is writable and has space."
-                    ) from exc
-                return Exported(
-                    session=target.handle,
-                    map_name=target.live.name,
-                    file=path.name,
-                    what=result.what,
-                    gaussians=result.gaussians,
-                    instance_ids=list(result.instance_ids),
-                    bytes=path.stat().st_size,
+    def run() -> Exported:
+        with locked(target) as glmap:
+            if not glmap.instances:
+                raise InvalidInputError(EMPTY_MAP)
+            if unit_id is not None:
+                glmap.unit(unit_id)  # an unknown id raises, naming the closest
+            if path.is_dir():
+                raise StoreError(
+                    f"{path.name!r} in the maps folder is a folder; choose another name."
                 )
+            if path.exists() and not overwrite:
+                raise StoreError(
+                    f"an export named {path.name!r} already exists; pass overwrite=true "
+                    "to replace it, or choose another name."
+                )
+            path.parent.mkdir(parents=True, exist_ok=True)
+            from glmap_tools.views import export_ply as write_export
 
-        return await in_thread(run)
+            try:
+                result = write_export(glmap, path, unit_id)
+            except StoreError as exc:  # its message names the absolute path: show the name
+                raise StoreError(
+                    f"could not write {path.name!r} in the maps folder ({_reason(exc)}); "
+                    "check that the folder is writable and has space."
+                ) from exc
+            return Exported(
+                session=target.handle,
+                map_name=target.live.name,
+                file=path.name,
+                what=result.what,
+                gaussians=result.gaussians,
+                instance_ids=list(result.instance_ids),
+                bytes=path.stat().st_size,
+            )
+
+    return await in_thread(run)
+
+
+TOOLS = [
+    ToolSpec(export_ply, REPLACES),
+]

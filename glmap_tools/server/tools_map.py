@@ -5,8 +5,7 @@ No `from __future__ import annotations` here: the SDK reads these signatures at 
 
 from typing import Annotated
 
-from mcp.server.mcpserver import Context, Image, MCPServer
-from mcp.types import TextContent, ToolAnnotations
+from mcp.server.mcpserver import Context
 from pydantic import BaseModel, Field
 
 from glmap_tools.map import FREE, OBSTACLE
@@ -17,40 +16,38 @@ from glmap_tools.server.inputs import (
     FileInput,
     IntrinsicsInput,
     PoseInput,
+    SessionArg,
     decode_frame,
     embed_ahead,
 )
 from glmap_tools.server.navsession import from_agent
-from glmap_tools.server.results import Hits, MapInfo, ObserveResult, UnitsAt
+from glmap_tools.server.results import (
+    Hits,
+    ImageResult,
+    MapInfo,
+    ObserveResult,
+    Picture,
+    UnitsAt,
+)
 from glmap_tools.server.runtime import (
+    ADDS,
+    READ_ONLY,
+    ToolSpec,
     app_state,
-    compact_json,
     in_thread,
     session_of,
-    tool_errors,
 )
 from glmap_tools.server.state import locked
 from glmap_tools.server.views import describe_topdown, topdown
 from glmap_tools.views import TopDownImage
 
-READ_ONLY = ToolAnnotations(read_only_hint=True, open_world_hint=False)
-SessionArg = Annotated[
-    str | None,
-    Field(
-        max_length=64,
-        description="see new_map (shared stateless HTTP servers only)",
-    ),
-]
+# Bounds a model cannot plausibly hit are checked but not advertised (see compact_schema).
 Query = Annotated[
-    str,
-    Field(
-        min_length=1,
-        max_length=500,
-        description="what to look for, in words",
-    ),
+    str, Field(min_length=1, max_length=500, description="what to look for, in words")
 ]
 TopK = Annotated[int, Field(ge=1, le=50, description="hits to return")]
-UnitId = Annotated[int, Field(ge=1, le=2**62, description="an instance or region id")]
+UnitId = Annotated[int, Field(ge=1, le=2**62, description="instance or region id")]
+Metres = Annotated[float, Field(ge=-1e4, le=1e4)]
 OCCUPANCY_NAMES = {FREE: "free", OBSTACLE: "obstacle"}
 
 
@@ -86,171 +83,158 @@ def resource_uris(handle: str) -> list[str]:
     ]
 
 
-def register(server: MCPServer) -> None:
-    """Add the map tools to `server`."""
+async def observe_frame(
+    rgb: Annotated[FileInput, Field(description="colour image, PNG or JPEG")],
+    depth: Annotated[FileInput, Field(description="16-bit PNG (raw units) or .npy (metres)")],
+    intrinsics: IntrinsicsInput,
+    pose: PoseInput,
+    ctx: Context,
+    depth_scale: Annotated[
+        float, Field(gt=0, le=1e6, description="raw depth units per metre")
+    ] = 1000.0,
+    annotations: Annotated[
+        AnnotationInput | None, Field(description="omit: segments come back pending")
+    ] = None,
+    session: SessionArg = "",
+) -> ObserveResult:
+    """Add a posed RGB-D frame: annotated objects become or merge into instances.
 
-    @server.tool(annotations=ToolAnnotations(destructive_hint=False, idempotent_hint=False))
-    @tool_errors
-    async def observe_frame(
-        rgb: Annotated[FileInput, Field(description="colour image, PNG or JPEG")],
-        depth: Annotated[
-            FileInput,
-            Field(description="depth: 16-bit PNG of raw units, or .npy (float metres)"),
-        ],
-        intrinsics: IntrinsicsInput,
-        pose: Annotated[PoseInput, Field(description="where the camera was")],
-        ctx: Context,
-        depth_scale: Annotated[
-            float,
-            Field(gt=0, le=1e6, description="raw depth units per metre (1000 = millimetres)"),
-        ] = 1000.0,
-        annotations: Annotated[
-            AnnotationInput | None,
-            Field(description="mask + labels; omit: segments come back pending"),
-        ] = None,
-        session: SessionArg = None,
-    ) -> ObserveResult:
-        """Add a posed RGB-D frame: its annotated objects become or merge into instances.
+    Files: base64 or an absolute path. Without annotations the segments come back pending,
+    to name with label_segments. Returns the ids added or merged; a rejected input changes
+    nothing.
+    """
+    state = app_state(ctx)
+    target = session_of(ctx, session)
+    await ctx.report_progress(0, 3, "decoding the frame")
+    frame, semantics = await in_thread(
+        lambda: decode_frame(rgb, depth, depth_scale, intrinsics, pose, annotations, state.config)
+    )
+    if semantics is None:
+        if state.perception is None:  # geometry now, segments pending for label_segments
+            pending = await tools_perception.observe_unannotated(state, target, frame)
+            return pending  # type: ignore[return-value]  # the SDK checks it as ObserveResult
+        perceive = state.perception
+        semantics = await in_thread(lambda: perceive(frame))
+    await ctx.report_progress(1, 3, f"fusing {len(semantics.objects)} objects")
+    await in_thread(lambda: embed_ahead(state.embedder, semantics))  # outside the lock
 
-        Without annotations its segments come back pending: name them with label_segments.
-
-        Files go as base64 or a local path. Returns the ids added or merged; nothing changes
-        if any input is rejected.
-        """
-        state = app_state(ctx)
-        target = session_of(ctx, session)
-        await ctx.report_progress(0, 3, "decoding the frame")
-        frame, semantics = await in_thread(
-            lambda: decode_frame(
-                rgb, depth, depth_scale, intrinsics, pose, annotations, state.config
-            )
+    def integrate() -> ObserveResult:
+        with locked(target) as glmap:
+            report = glmap.integrate(frame, semantics)
+            name = target.live.name
+        return ObserveResult(
+            session=target.handle, map_name=name, summary=report.summary(), report=report
         )
-        if semantics is None:
-            if state.perception is None:  # geometry now, segments pending for label_segments
-                pending = await tools_perception.observe_unannotated(state, target, frame)
-                return pending  # type: ignore[return-value]  # the SDK checks it as ObserveResult
-            perceive = state.perception
-            semantics = await in_thread(lambda: perceive(frame))
-        await ctx.report_progress(1, 3, f"fusing {len(semantics.objects)} objects")
-        await in_thread(lambda: embed_ahead(state.embedder, semantics))  # outside the lock
 
-        def integrate() -> ObserveResult:
-            with locked(target) as glmap:
-                report = glmap.integrate(frame, semantics)
-                name = target.live.name
-            return ObserveResult(
-                session=target.handle, map_name=name, summary=report.summary(), report=report
+    result = await in_thread(integrate)
+    await ctx.report_progress(3, 3, "done")
+    return result
+
+
+async def find_instance(
+    query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = ""
+) -> AgentHits:
+    """Find objects by description, e.g. 'something to sit on', best first.
+
+    Hits: id, description, score, match (false: nothing mapped fits), centroid, bounds (m).
+    """
+    target = session_of(ctx, session)
+
+    def run() -> AgentHits:
+        with locked(target) as glmap:
+            hits = glmap.find_instances(query, top_k)
+        return AgentHits(
+            query=query,
+            hits=hits,
+            from_agent=[FromAgent(**d) for d in from_agent(target, hits)],
+        )
+
+    return await in_thread(run)
+
+
+async def find_region(
+    query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = ""
+) -> Hits:
+    """Find regions (described groups of objects, e.g. 'the dining area'), best first."""
+    target = session_of(ctx, session)
+
+    def run() -> Hits:
+        with locked(target) as glmap:
+            return Hits(query=query, hits=glmap.find_regions(query, top_k))
+
+    return await in_thread(run)
+
+
+async def what_is_at(
+    x: Metres,
+    y: Metres,
+    ctx: Context,
+    radius: Annotated[float, Field(ge=0, le=5)] = 0.25,
+    session: SessionArg = "",
+) -> AgentUnitsAt:
+    """Units within radius of world (x, y) on the floor plan (metres), nearest first, and
+    whether (x, y) is free."""
+    target = session_of(ctx, session)
+
+    def run() -> AgentUnitsAt:
+        with locked(target) as glmap:
+            units = glmap.units_at(x, y, radius)
+            occ = OCCUPANCY_NAMES.get(glmap.occupancy.state_at(x, y), "unknown")
+        return AgentUnitsAt(
+            x=x,
+            y=y,
+            radius=radius,
+            occupancy=occ,
+            units=units,
+            from_agent=[FromAgent(**d) for d in from_agent(target, units)],
+        )
+
+    return await in_thread(run)
+
+
+async def describe_unit(id: UnitId, ctx: Context, session: SessionArg = "") -> UnitInfo:
+    """Everything the map knows about one instance or region, by id."""
+    target = session_of(ctx, session)
+
+    def run() -> UnitInfo:
+        with locked(target) as glmap:
+            return glmap.unit_details(id)
+
+    return await in_thread(run)
+
+
+async def map_summary(
+    ctx: Context,
+    include_image: bool = True,
+    session: SessionArg = "",
+) -> ImageResult:
+    """Counts and extent of the map, and a labelled top-down image (ticks in metres)."""
+    target = session_of(ctx, session)
+
+    def run() -> tuple[MapInfo, TopDownImage | None, bytes | None]:
+        with locked(target) as glmap:
+            info = MapInfo(
+                session=target.handle,
+                map_name=target.live.name,
+                summary=glmap.summary(),
+                resources=resource_uris(target.handle),
             )
+            image = topdown(glmap) if include_image else None
+        return info, image, image.to_png() if image is not None else None
 
-        result = await in_thread(integrate)
-        await ctx.report_progress(3, 3, "done")
-        return result
+    info, image, png = await in_thread(run)
+    return ImageResult(
+        data=info.model_dump(mode="json"),
+        notes=[describe_topdown(image)] if include_image else [],
+        images=[Picture(format="png", data=png)] if png is not None else [],
+    )
 
-    @server.tool(annotations=READ_ONLY)
-    @tool_errors
-    async def find_instance(
-        query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = None
-    ) -> AgentHits:
-        """Find objects by description, e.g. 'something to sit on'.
 
-        Hits: id, description, score, match (false: no such object mapped yet), centroid and
-        bounds (m, z up).
-        """
-        target = session_of(ctx, session)
-
-        def run() -> AgentHits:
-            with locked(target) as glmap:
-                hits = glmap.find_instances(query, top_k)
-            return AgentHits(
-                query=query,
-                hits=hits,
-                from_agent=[FromAgent(**d) for d in from_agent(target, hits)],
-            )
-
-        return await in_thread(run)
-
-    @server.tool(annotations=READ_ONLY)
-    @tool_errors
-    async def find_region(
-        query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = None
-    ) -> Hits:
-        """Find regions (described groups of objects, e.g. 'the dining area') by description."""
-        target = session_of(ctx, session)
-
-        def run() -> Hits:
-            with locked(target) as glmap:
-                return Hits(query=query, hits=glmap.find_regions(query, top_k))
-
-        return await in_thread(run)
-
-    @server.tool(annotations=READ_ONLY)
-    @tool_errors
-    async def what_is_at(
-        x: Annotated[float, Field(ge=-1e4, le=1e4, description="world x (metres)")],
-        y: Annotated[float, Field(ge=-1e4, le=1e4, description="world y (metres)")],
-        ctx: Context,
-        radius: Annotated[
-            float, Field(ge=0, le=5, description="search radius on the floor plan (metres)")
-        ] = 0.25,
-        session: SessionArg = None,
-    ) -> AgentUnitsAt:
-        """Instances and regions on the floor plan near (x, y), nearest first; is (x, y) free?"""
-        target = session_of(ctx, session)
-
-        def run() -> AgentUnitsAt:
-            with locked(target) as glmap:
-                units = glmap.units_at(x, y, radius)
-                occ = OCCUPANCY_NAMES.get(glmap.occupancy.state_at(x, y), "unknown")
-            return AgentUnitsAt(
-                x=x,
-                y=y,
-                radius=radius,
-                occupancy=occ,
-                units=units,
-                from_agent=[FromAgent(**d) for d in from_agent(target, units)],
-            )
-
-        return await in_thread(run)
-
-    @server.tool(annotations=READ_ONLY)
-    @tool_errors
-    async def describe_unit(id: UnitId, ctx: Context, session: SessionArg = None) -> UnitInfo:
-        """Everything the map knows about one instance or region, by id."""
-        target = session_of(ctx, session)
-
-        def run() -> UnitInfo:
-            with locked(target) as glmap:
-                return glmap.unit_details(id)
-
-        return await in_thread(run)
-
-    @server.tool(annotations=READ_ONLY)
-    @tool_errors
-    async def map_summary(
-        ctx: Context,
-        include_image: Annotated[bool, Field(description="attach the top-down map image")] = True,
-        session: SessionArg = None,
-    ) -> list[TextContent | Image]:
-        """Counts and extent of the map, and a labelled top-down image (ticks in metres)."""
-        target = session_of(ctx, session)
-
-        def run() -> tuple[MapInfo, TopDownImage | None, bytes | None]:
-            with locked(target) as glmap:
-                info = MapInfo(
-                    session=target.handle,
-                    map_name=target.live.name,
-                    summary=glmap.summary(),
-                    resources=resource_uris(target.handle),
-                )
-                image = topdown(glmap) if include_image else None
-            return info, image, image.to_png() if image is not None else None
-
-        info, image, png = await in_thread(run)
-        content: list[TextContent | Image] = [
-            TextContent(type="text", text=compact_json(info.model_dump(mode="json")))
-        ]
-        if include_image:
-            content.append(TextContent(type="text", text=describe_topdown(image)))
-        if png is not None:
-            content.append(Image(data=png, format="png"))
-        return content
+TOOLS = [
+    ToolSpec(observe_frame, ADDS),
+    ToolSpec(find_instance, READ_ONLY),
+    ToolSpec(find_region, READ_ONLY),
+    ToolSpec(what_is_at, READ_ONLY),
+    ToolSpec(describe_unit, READ_ONLY),
+    ToolSpec(map_summary, READ_ONLY),
+]

@@ -9,22 +9,21 @@ import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from mcp.server.mcpserver import Context, Image, MCPServer
-from mcp.types import TextContent, ToolAnnotations
+from mcp.server.mcpserver import Context
 from pydantic import Field
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.server import navsession, simulator
+from glmap_tools.server.inputs import SessionArg
 from glmap_tools.server.navdraw import contact_sheet, jpeg, nav_image
-from glmap_tools.server.runtime import compact_json, in_thread, session_of, tool_errors
+from glmap_tools.server.results import ImageResult, Picture
+from glmap_tools.server.runtime import ADDS, READ_ONLY, ToolSpec, in_thread, session_of
 from glmap_tools.server.state import Session, locked
-from glmap_tools.server.tools_map import READ_ONLY, SessionArg
 
 Units = Literal["both", "instances", "regions"]
 Policy = Literal["glmap", "glmap-instance", "glmap-region", "egocentric", "frontier"]
 POLICY_OF_UNITS = {"both": "glmap", "instances": "glmap-instance", "regions": "glmap-region"}
-ACTING = ToolAnnotations(destructive_hint=False, open_world_hint=False)
-Goal = Annotated[str, Field(max_length=256, description="what to find; default: the episode goal")]
+Goal = Annotated[str, Field(max_length=256, description="what to find; omit: the episode's")]
 
 
 def _goal(session: Session, goal: str) -> str:
@@ -105,197 +104,193 @@ def _nav_png(session: Session, decision: Any, agent: tuple[float, float, float])
     return image.to_png()
 
 
-def register(server: MCPServer) -> None:
-    """Add the navigation tools to `server`."""
+async def value_map(
+    ctx: Context, goal: Goal = "", units: Units = "both", session: SessionArg = ""
+) -> ImageResult:
+    """Where the goal likely is: the value map (paper Eq. 7) over the top-down map, from
+    instance and/or region units.
 
-    @server.tool(annotations=READ_ONLY)
-    @tool_errors
-    async def value_map(
-        ctx: Context, goal: Goal = "", units: Units = "both", session: SessionArg = None
-    ) -> list[TextContent | Image]:
-        """Where the goal likely is: the value map (paper Eq. 7) over the top-down map.
+    With frontiers, the chosen waypoint and its path; go there with navigate_to.
+    """
+    target = session_of(ctx, session)
 
-        With frontiers, the chosen waypoint and its path; go there with navigate_to.
-        """
-        target = session_of(ctx, session)
+    def run() -> ImageResult:
+        wanted = _goal(target, goal)
+        decision, agent = _decide(target, wanted, POLICY_OF_UNITS[units])
+        top = decision.value.top_cells(5) if decision.value is not None else []
+        info = {
+            "goal": wanted,
+            "units": units,
+            "agent": [round(agent[0], 2), round(agent[1], 2), round(math.degrees(agent[2]))],
+            "waypoint": _waypoint(decision, agent),
+            "matched_unit": decision.matched_unit,
+            "top_cells": [[round(x, 2), round(y, 2), round(v, 3)] for x, y, v in top],
+            "frontiers": len(decision.frontiers),
+        }
+        png = _nav_png(target, decision, agent)
+        return ImageResult(data=info, images=[Picture(format="png", data=png)])
 
-        def run() -> list[TextContent | Image]:
-            wanted = _goal(target, goal)
-            decision, agent = _decide(target, wanted, POLICY_OF_UNITS[units])
-            top = decision.value.top_cells(5) if decision.value is not None else []
-            info = {
-                "goal": wanted,
-                "units": units,
-                "agent": [round(agent[0], 2), round(agent[1], 2), round(math.degrees(agent[2]))],
-                "waypoint": _waypoint(decision, agent),
-                "matched_unit": decision.matched_unit,
-                "top_cells": [[round(x, 2), round(y, 2), round(v, 3)] for x, y, v in top],
-                "frontiers": len(decision.frontiers),
-            }
-            return [
-                TextContent(type="text", text=compact_json(info)),
-                Image(data=_nav_png(target, decision, agent), format="png"),
-            ]
+    return await in_thread(run)
 
-        return await in_thread(run)
 
-    @server.tool(annotations=READ_ONLY)
-    @tool_errors
-    async def frontiers(
-        ctx: Context,
-        top_k: Annotated[int, Field(ge=1, le=50, description="nearest first")] = 8,
-        session: SessionArg = None,
-    ) -> list[TextContent]:
-        """Reachable edges of explored free space: point, size, path length, bearing (+ = left)."""
-        from glmap_tools.nav import NavConfig
-        from glmap_tools.nav import frontiers as find_frontiers
+async def frontiers(
+    ctx: Context,
+    top_k: Annotated[int, Field(ge=1, le=50)] = 8,
+    session: SessionArg = "",
+) -> ImageResult:
+    """The top_k nearest reachable edges of explored free space: point, size, path length,
+    bearing (+ = left)."""
+    from glmap_tools.nav import NavConfig
+    from glmap_tools.nav import frontiers as find_frontiers
 
-        target = session_of(ctx, session)
+    target = session_of(ctx, session)
 
-        def run() -> list[TextContent]:
-            agent = _agent(target)
-            nav = navsession.of(target)
-            config = nav.config if nav is not None else NavConfig()
+    def run() -> ImageResult:
+        agent = _agent(target)
+        nav = navsession.of(target)
+        config = nav.config if nav is not None else NavConfig()
+        with locked(target) as glmap:
+            occ = navsession.window(glmap, config)
+        field = navsession.agent_distances(occ, agent, config)
+        found = find_frontiers(occ, agent[:2], config.agent_radius, config.min_frontier_size, field)
+        rows = []
+        for f in found[:top_k]:
+            row = {"xy": [round(float(v), 2) for v in f.target], "cells": int(f.size)}
+            row["path_m"] = round(float(f.distance), 2) if math.isfinite(f.distance) else None
+            row.update(navsession.relative(agent, f.target))
+            rows.append(row)
+        info = {"agent": [round(agent[0], 2), round(agent[1], 2)], "frontiers": rows}
+        info["total"] = len(found)
+        return ImageResult(data=info)
+
+    return await in_thread(run)
+
+
+async def navigate_to(
+    ctx: Context,
+    x: Annotated[float | None, Field(ge=-1e4, le=1e4)] = None,
+    y: Annotated[float | None, Field(ge=-1e4, le=1e4)] = None,
+    unit_id: Annotated[int | None, Field(ge=1, le=2**62)] = None,
+    max_steps: Annotated[int, Field(ge=1, le=500)] = 100,
+    session: SessionArg = "",
+) -> ImageResult:
+    """Walk (simulator) to world (x, y) or next to unit_id, replanning on every frame, in at
+    most max_steps actions.
+
+    Every frame goes into the map; the episode goes on (stop with sim_step).
+    """
+    target = session_of(ctx, session)
+    if (unit_id is None) == (x is None or y is None) or (x is None) != (y is None):
+        raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
+
+    def run() -> ImageResult:
+        sim, nav = navsession.running(target)
+        if unit_id is not None:
             with locked(target) as glmap:
-                occ = navsession.window(glmap, config)
-            field = navsession.agent_distances(occ, agent, config)
-            found = find_frontiers(
-                occ, agent[:2], config.agent_radius, config.min_frontier_size, field
+                unit = glmap.unit(unit_id)  # raises UnknownIdError with a suggestion
+                ids = list(getattr(unit, "instance_ids", None) or [unit_id])
+                cells = sorted(set().union(*(glmap.grid.cells_of_unit(i) for i in ids)))
+                centroid = glmap.unit_details(unit_id).centroid
+            goal = navsession.Target(
+                (float(centroid[0]), float(centroid[1])),
+                np.array(cells, np.int64).reshape(-1, 2),
+                nav.config.stop_distance,
             )
-            rows = []
-            for f in found[:top_k]:
-                row = {"xy": [round(float(v), 2) for v in f.target], "cells": int(f.size)}
-                row["path_m"] = round(float(f.distance), 2) if math.isfinite(f.distance) else None
-                row.update(navsession.relative(agent, f.target))
-                rows.append(row)
-            info = {"agent": [round(agent[0], 2), round(agent[1], 2)], "frontiers": rows}
-            info["total"] = len(found)
-            return [TextContent(type="text", text=compact_json(info))]
+        else:
+            point = (float(x), float(y))  # type: ignore[arg-type]
+            goal = navsession.Target(point, None, nav.config.forward_step)
+        with locked(target):
+            walk = navsession.walk_to(target, sim, goal, max_steps, nav.config)
+        info = {"outcome": walk.pop("outcome"), **walk, **simulator.status(sim)}
+        info.pop("camera_pose", None)
+        return ImageResult(data=info, images=[Picture(format="jpeg", data=jpeg(sim.obs["rgb"]))])
 
-        return await in_thread(run)
+    return await in_thread(run)
 
-    @server.tool(annotations=ACTING)
-    @tool_errors
-    async def navigate_to(
-        ctx: Context,
-        x: Annotated[float | None, Field(ge=-1e4, le=1e4, description="world x (m)")] = None,
-        y: Annotated[float | None, Field(ge=-1e4, le=1e4, description="world y (m)")] = None,
-        unit_id: Annotated[
-            int | None, Field(ge=1, le=2**62, description="or go next to this unit")
-        ] = None,
-        max_steps: Annotated[int, Field(ge=1, le=500, description="action budget")] = 100,
-        session: SessionArg = None,
-    ) -> list[TextContent | Image]:
-        """Walk (simulator) to (x, y) or next to a unit, replanning on every frame.
 
-        Every frame goes into the map; the episode goes on (stop with sim_step).
-        """
-        target = session_of(ctx, session)
-        if (unit_id is None) == (x is None or y is None) or (x is None) != (y is None):
-            raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
+async def look_around(ctx: Context, session: SessionArg = "") -> ImageResult:
+    """Turn a full circle in place (simulator), adding every frame to the map."""
+    target = session_of(ctx, session)
 
-        def run() -> list[TextContent | Image]:
-            sim, nav = navsession.running(target)
-            if unit_id is not None:
-                with locked(target) as glmap:
-                    unit = glmap.unit(unit_id)  # raises UnknownIdError with a suggestion
-                    ids = list(getattr(unit, "instance_ids", None) or [unit_id])
-                    cells = sorted(set().union(*(glmap.grid.cells_of_unit(i) for i in ids)))
-                    centroid = glmap.unit_details(unit_id).centroid
-                goal = navsession.Target(
-                    (float(centroid[0]), float(centroid[1])),
-                    np.array(cells, np.int64).reshape(-1, 2),
-                    nav.config.stop_distance,
+    def run() -> ImageResult:
+        sim, _ = navsession.running(target)
+        turns = round(2 * math.pi / sim.env.motion.turn_angle)
+        frames, labels = [], []
+        with locked(target):
+            for _ in range(turns):
+                simulator.step(sim, "turn_left")
+                navsession.integrate(target, sim)
+                frames.append(sim.obs["rgb"])
+                heading = math.degrees(simulator.agent_pose(sim)[2])
+                labels.append(f"step {sim.info['steps']}  {heading:.0f} deg")
+                if sim.over:
+                    break
+        info = simulator.status(sim)
+        info.pop("camera_pose", None)
+        with locked(target) as glmap:
+            info["map"] = glmap.summary().model_dump(include={"instances", "regions"})
+        sheet = contact_sheet(frames, labels, cols=4)
+        return ImageResult(data=info, images=[Picture(format="jpeg", data=jpeg(sheet))])
+
+    return await in_thread(run)
+
+
+async def nav_step(
+    ctx: Context,
+    policy: Policy = "glmap",
+    actions: Annotated[int, Field(ge=1, le=50)] = 1,
+    images: bool = False,
+    session: SessionArg = "",
+) -> ImageResult:
+    """Let a navigation policy take `actions` steps (simulator): decide, act, integrate; images:
+    attach the view and the value map.
+
+    glmap* = value map over both/instance/region units; egocentric = VLFM-like; frontier =
+    nearest frontier.
+    """
+    target = session_of(ctx, session)
+
+    def run() -> ImageResult:
+        sim, nav = navsession.running(target)
+        decisions = []
+        decision: Any = None
+        agent = simulator.agent_pose(sim)
+        with locked(target):
+            for _ in range(actions):
+                decision, agent = _decide(target, nav.goal, policy)
+                simulator.step(sim, decision.action)
+                navsession.integrate(target, sim)
+                after = simulator.agent_pose(sim)
+                decisions.append(
+                    {
+                        "step": int(sim.info["steps"]),
+                        "action": decision.action,
+                        "position": [round(after[0], 3), round(after[1], 3)],
+                        "heading_deg": round(math.degrees(after[2]), 1),
+                        "waypoint": _waypoint(decision, agent),
+                    }
                 )
-            else:
-                point = (float(x), float(y))  # type: ignore[arg-type]
-                goal = navsession.Target(point, None, nav.config.forward_step)
-            with locked(target):
-                walk = navsession.walk_to(target, sim, goal, max_steps, nav.config)
-            info = {"outcome": walk.pop("outcome"), **walk, **simulator.status(sim)}
-            info.pop("camera_pose", None)
-            return [
-                TextContent(type="text", text=compact_json(info)),
-                Image(data=jpeg(sim.obs["rgb"]), format="jpeg"),
+                if sim.over:
+                    break
+        info = {"decisions": decisions, **simulator.status(sim)}
+        info.pop("camera_pose", None)
+        pictures = (
+            [
+                Picture(format="jpeg", data=jpeg(sim.obs["rgb"])),
+                Picture(format="png", data=_nav_png(target, decision, agent)),
             ]
+            if images
+            else []
+        )
+        return ImageResult(data=info, images=pictures)
 
-        return await in_thread(run)
+    return await in_thread(run)
 
-    @server.tool(annotations=ACTING)
-    @tool_errors
-    async def look_around(ctx: Context, session: SessionArg = None) -> list[TextContent | Image]:
-        """Turn a full circle in place (simulator), adding every frame to the map."""
-        target = session_of(ctx, session)
 
-        def run() -> list[TextContent | Image]:
-            sim, _ = navsession.running(target)
-            turns = round(2 * math.pi / sim.env.motion.turn_angle)
-            frames, labels = [], []
-            with locked(target):
-                for _ in range(turns):
-                    simulator.step(sim, "turn_left")
-                    navsession.integrate(target, sim)
-                    frames.append(sim.obs["rgb"])
-                    heading = math.degrees(simulator.agent_pose(sim)[2])
-                    labels.append(f"step {sim.info['steps']}  {heading:.0f} deg")
-                    if sim.over:
-                        break
-            info = simulator.status(sim)
-            info.pop("camera_pose", None)
-            with locked(target) as glmap:
-                info["map"] = glmap.summary().model_dump(include={"instances", "regions"})
-            sheet = contact_sheet(frames, labels, cols=4)
-            return [
-                TextContent(type="text", text=compact_json(info)),
-                Image(data=jpeg(sheet), format="jpeg"),
-            ]
-
-        return await in_thread(run)
-
-    @server.tool(annotations=ACTING)
-    @tool_errors
-    async def nav_step(
-        ctx: Context,
-        policy: Policy = "glmap",
-        actions: Annotated[int, Field(ge=1, le=50, description="steps, replanning each")] = 1,
-        images: Annotated[bool, Field(description="attach the view and the value map")] = False,
-        session: SessionArg = None,
-    ) -> list[TextContent | Image]:
-        """Let a navigation policy act (simulator): decide, act, integrate.
-
-        glmap* = value map over both/instance/region units; egocentric = VLFM-like; frontier =
-        nearest frontier.
-        """
-        target = session_of(ctx, session)
-
-        def run() -> list[TextContent | Image]:
-            sim, nav = navsession.running(target)
-            decisions = []
-            decision: Any = None
-            agent = simulator.agent_pose(sim)
-            with locked(target):
-                for _ in range(actions):
-                    decision, agent = _decide(target, nav.goal, policy)
-                    simulator.step(sim, decision.action)
-                    navsession.integrate(target, sim)
-                    after = simulator.agent_pose(sim)
-                    decisions.append(
-                        {
-                            "step": int(sim.info["steps"]),
-                            "action": decision.action,
-                            "position": [round(after[0], 3), round(after[1], 3)],
-                            "heading_deg": round(math.degrees(after[2]), 1),
-                            "waypoint": _waypoint(decision, agent),
-                        }
-                    )
-                    if sim.over:
-                        break
-            info = {"decisions": decisions, **simulator.status(sim)}
-            info.pop("camera_pose", None)
-            content: list[TextContent | Image] = [TextContent(type="text", text=compact_json(info))]
-            if images:
-                content.append(Image(data=jpeg(sim.obs["rgb"]), format="jpeg"))
-                content.append(Image(data=_nav_png(target, decision, agent), format="png"))
-            return content
-
-        return await in_thread(run)
+TOOLS = [
+    ToolSpec(value_map, READ_ONLY),
+    ToolSpec(frontiers, READ_ONLY),
+    ToolSpec(navigate_to, ADDS),
+    ToolSpec(look_around, ADDS),
+    ToolSpec(nav_step, ADDS),
+]

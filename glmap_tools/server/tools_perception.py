@@ -11,8 +11,7 @@ No `from __future__ import annotations` here: the SDK reads these signatures at 
 import io
 from typing import TYPE_CHECKING, Annotated
 
-from mcp.server.mcpserver import Context, Image, MCPServer
-from mcp.types import CallToolResult, TextContent, ToolAnnotations
+from mcp.server.mcpserver import Context
 from pydantic import BaseModel, ConfigDict, Field
 
 from glmap_tools.geometry.frame import RGBDFrame
@@ -25,9 +24,9 @@ from glmap_tools.perception.labelling import (
 )
 from glmap_tools.perception.pending import PendingFrames
 from glmap_tools.perception.semantics import FrameSemantics
-from glmap_tools.server.inputs import MAX_GROUPS, MAX_OBJECTS
-from glmap_tools.server.results import ObserveResult
-from glmap_tools.server.runtime import AppState, compact_json, in_thread, session_of, tool_errors
+from glmap_tools.server.inputs import MAX_GROUPS, MAX_OBJECTS, SessionArg
+from glmap_tools.server.results import ObserveResult, Picture
+from glmap_tools.server.runtime import ADDS, AppState, ToolSpec, app_state, in_thread, session_of
 from glmap_tools.server.state import Session, locked
 
 if TYPE_CHECKING:
@@ -59,6 +58,7 @@ class PendingObserveResult(ObserveResult):
     """Geometry and occupancy added; the segments wait for names."""
 
     pending: PendingSegments | None = Field(description="null: no segment found")
+    sheet: Picture | None = Field(default=None, exclude=True)  # the numbered segments
 
 
 class LabelInput(BaseModel):
@@ -106,7 +106,9 @@ def _sheet_png(frame: RGBDFrame, segments: "list[Segment]") -> bytes:
     return buffer.getvalue()
 
 
-async def observe_unannotated(state: AppState, target: Session, frame: RGBDFrame) -> CallToolResult:
+async def observe_unannotated(
+    state: AppState, target: Session, frame: RGBDFrame
+) -> PendingObserveResult:
     """Integrate `frame` as geometry, park its segments, return them with a contact sheet."""
     from glmap_tools.perception.geometric import segment_frame  # scipy: off the handshake
 
@@ -135,63 +137,55 @@ async def observe_unannotated(state: AppState, target: Session, frame: RGBDFrame
         )
 
     result = await in_thread(integrate)
-    data = result.model_dump(mode="json")
-    content: list = [TextContent(type="text", text=compact_json(data))]
     if segments:
         png = await in_thread(lambda: _sheet_png(frame, segments))
-        content.append(Image(data=png, format="png").to_image_content())
-    return CallToolResult(content=content, structured_content=data)
+        result.sheet = Picture(format="png", data=png)
+    return result
 
 
-def register(server: MCPServer) -> None:
-    """Add label_segments to `server`."""
+async def label_segments(
+    frame: Annotated[str, Field(max_length=32, description="pending.frame of observe_frame")],
+    labels: Annotated[list[LabelInput], Field(max_length=MAX_OBJECTS)],
+    ctx: Context,
+    groups: Annotated[list[GroupInput], Field(max_length=MAX_GROUPS)] = [],  # noqa: B006
+    session: SessionArg = "",
+) -> ObserveResult:
+    """Name a pending frame's segments: named ones become instances, groups regions.
 
-    @server.tool(annotations=ToolAnnotations(destructive_hint=False, idempotent_hint=False))
-    @tool_errors
-    async def label_segments(
-        frame: Annotated[
-            str, Field(max_length=32, description="pending frame id from observe_frame")
-        ],
-        labels: Annotated[list[LabelInput], Field(max_length=MAX_OBJECTS)],
-        ctx: Context,
-        groups: Annotated[list[GroupInput] | None, Field(max_length=MAX_GROUPS)] = None,
-        session: Annotated[str | None, Field(max_length=64)] = None,
-    ) -> ObserveResult:
-        """Name a pending frame's segments: named ones become instances, groups regions.
+    Unlisted segments are ignored; nothing changes if an entry is rejected.
+    """
+    state = app_state(ctx)
+    target = session_of(ctx, session)
+    store = pending_frames(state)
 
-        Unlisted segments are ignored; nothing changes if an entry is rejected.
-        """
-        from glmap_tools.server.runtime import app_state
-
-        state = app_state(ctx)
-        target = session_of(ctx, session)
-        store = pending_frames(state)
-
-        def run() -> ObserveResult:
-            with locked(target) as glmap:
-                pending = store.get(target.handle, frame, glmap)
-                semantics = semantics_from_labels(
-                    pending.segments,
-                    [SegmentLabel(tuple(e.segments), e.label, e.description) for e in labels],
-                    [SegmentGroup(tuple(g.members), g.description) for g in groups or ()],
-                )
-                if semantics.objects:
-                    covered = semantics.objects[0].mask.copy()
-                    for obj in semantics.objects[1:]:
-                        covered |= obj.mask
-                    report = glmap.integrate(
-                        pending.masked_frame(covered), semantics, pending.frame_index
-                    )
-                    summary = report.summary()
-                else:
-                    from glmap_tools.map.report import UpdateReport
-
-                    report = UpdateReport(frame_index=pending.frame_index)
-                    summary = "every segment ignored: nothing added"
-                store.remove(target.handle, frame)
-                name = target.live.name
-            return ObserveResult(
-                session=target.handle, map_name=name, summary=summary, report=report
+    def run() -> ObserveResult:
+        with locked(target) as glmap:
+            pending = store.get(target.handle, frame, glmap)
+            semantics = semantics_from_labels(
+                pending.segments,
+                [SegmentLabel(tuple(e.segments), e.label, e.description) for e in labels],
+                [SegmentGroup(tuple(g.members), g.description) for g in groups],
             )
+            if semantics.objects:
+                covered = semantics.objects[0].mask.copy()
+                for obj in semantics.objects[1:]:
+                    covered |= obj.mask
+                report = glmap.integrate(
+                    pending.masked_frame(covered), semantics, pending.frame_index
+                )
+                summary = report.summary()
+            else:
+                from glmap_tools.map.report import UpdateReport
 
-        return await in_thread(run)
+                report = UpdateReport(frame_index=pending.frame_index)
+                summary = "every segment ignored: nothing added"
+            store.remove(target.handle, frame)
+            name = target.live.name
+        return ObserveResult(session=target.handle, map_name=name, summary=summary, report=report)
+
+    return await in_thread(run)
+
+
+TOOLS = [
+    ToolSpec(label_segments, ADDS),
+]

@@ -5,13 +5,13 @@ No `from __future__ import annotations` here: the SDK reads these signatures at 
 
 from typing import Annotated, Any
 
-from mcp.server.mcpserver import Context, Image, MCPServer
-from mcp.types import TextContent
+from mcp.server.mcpserver import Context
 from pydantic import Field
 
-from glmap_tools.server.runtime import compact_json, in_thread, session_of, tool_errors
+from glmap_tools.server.inputs import SessionArg
+from glmap_tools.server.results import ImageResult, Picture
+from glmap_tools.server.runtime import READ_ONLY, ToolSpec, in_thread, session_of
 from glmap_tools.server.state import locked
-from glmap_tools.server.tools_map import READ_ONLY, SessionArg
 from glmap_tools.views.common import encode_png
 
 MAX_SITUATION = 512
@@ -49,46 +49,42 @@ def locate(glmap: Any, situation: str, question: str = "") -> tuple[dict[str, An
     return info, images
 
 
-def register(server: MCPServer) -> None:
-    """Add locate_situation to `server`."""
+async def locate_situation(
+    ctx: Context,
+    situation: Annotated[
+        str,
+        Field(
+            min_length=1,
+            max_length=MAX_SITUATION,
+            description="where you are, e.g. 'sitting on the bed, facing the window'",
+        ),
+    ],
+    question: Annotated[str, Field(max_length=MAX_SITUATION)] = "",
+    session: SessionArg = "",
+) -> ImageResult:
+    """Situated QA (paper 3.2): locate a situation text in the map and show it.
 
-    @server.tool(annotations=READ_ONLY)
-    @tool_errors
-    async def locate_situation(
-        ctx: Context,
-        situation: Annotated[
-            str,
-            Field(
-                min_length=1,
-                max_length=MAX_SITUATION,
-                description="where you are, e.g. 'sitting on the bed, facing the window'",
-            ),
-        ],
-        question: Annotated[
-            str, Field(max_length=MAX_SITUATION, description="optional: answer it from the map")
-        ] = "",
-        session: SessionArg = None,
-    ) -> list[TextContent | Image]:
-        """Situated QA (paper 3.2): locate a situation text in the map and show it.
+    Returns the pose and its confidence, the units around (distance, bearing), a heat map
+    and four captioned views; with a question, map_answer answers it from the map.
+    """
+    target = session_of(ctx, session)
 
-        Returns the pose and its confidence, the units around (distance, bearing), a heat map
-        and four captioned views; map_answer answers a given question from the map.
-        """
-        target = session_of(ctx, session)
+    def run() -> ImageResult:
+        with locked(target) as glmap:
+            info, images = locate(glmap, situation, question)
+        sit = info["situation"]
+        note = (
+            f"At ({sit['x']}, {sit['y']}) facing {sit['heading_deg']} deg"
+            f"{' (low confidence)' if sit['low_confidence'] else ''}. "
+            "Images: heat map, then views front|left / back|right."
+        )
+        return ImageResult(
+            data=info, notes=[note], images=[Picture(format="png", data=png) for png in images]
+        )
 
-        def run() -> list[TextContent | Image]:
-            with locked(target) as glmap:
-                info, images = locate(glmap, situation, question)
-            sit = info["situation"]
-            note = (
-                f"At ({sit['x']}, {sit['y']}) facing {sit['heading_deg']} deg"
-                f"{' (low confidence)' if sit['low_confidence'] else ''}. "
-                "Images: heat map, then views front|left / back|right."
-            )
-            return [
-                TextContent(type="text", text=compact_json(info)),
-                TextContent(type="text", text=note),
-                *(Image(data=png, format="png") for png in images),
-            ]
+    return await in_thread(run)
 
-        return await in_thread(run)
+
+TOOLS = [
+    ToolSpec(locate_situation, READ_ONLY),
+]

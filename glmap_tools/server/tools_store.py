@@ -6,28 +6,26 @@ No `from __future__ import annotations` here: the SDK reads these signatures at 
 import datetime as dt
 from typing import Annotated
 
-from mcp.server.mcpserver import Context, MCPServer
-from mcp.types import ToolAnnotations
+from mcp.server.mcpserver import Context
 from pydantic import Field
 
+from glmap_tools.server.inputs import SessionArg
 from glmap_tools.server.results import MapEntry, MapInfo, MapList, SavedMap
 from glmap_tools.server.runtime import (
+    DROPS,
+    READ_ONLY,
+    REPLACES,
+    ToolSpec,
     app_state,
     in_thread,
     session_for_new_map,
     session_of,
-    tool_errors,
 )
 from glmap_tools.server.state import Session, locked, saved_maps
-from glmap_tools.server.tools_map import READ_ONLY, SessionArg, resource_uris
+from glmap_tools.server.tools_map import resource_uris
 
 MapName = Annotated[
-    str,
-    Field(
-        min_length=1,
-        max_length=70,
-        description="letters, digits, '-' or '_'",
-    ),
+    str, Field(min_length=1, max_length=70, description="letters, digits, '-' or '_'")
 ]
 
 
@@ -41,94 +39,88 @@ def _info(session: Session) -> MapInfo:
         )
 
 
-def register(server: MCPServer) -> None:
-    """Add the map-store tools to `server`."""
+async def new_map(
+    ctx: Context,
+    name: Annotated[
+        str, Field(max_length=70, description="save under this name; omit: scratch map")
+    ] = "",
+    session: SessionArg = "",
+) -> MapInfo:
+    """Start an empty map (the current one is dropped unless saved).
 
-    @server.tool(annotations=ToolAnnotations(destructive_hint=True, idempotent_hint=False))
-    @tool_errors
-    async def new_map(
-        ctx: Context,
-        name: Annotated[
-            str | None,
-            Field(
-                max_length=70,
-                description="save under this name from the start; omit for a scratch map",
-            ),
-        ] = None,
-        session: SessionArg = None,
-    ) -> MapInfo:
-        """Start an empty map (the current one is dropped unless saved).
+    On a stateless HTTP server shared by several clients this starts your own session:
+    pass the returned `session` handle to later calls.
+    """
+    target = session_for_new_map(ctx, session)
+    registry = app_state(ctx).registry
 
-        On a stateless HTTP server shared by several clients this starts your own session:
-        pass the returned handle as `session` to later calls.
-        """
-        target = session_for_new_map(ctx, session)
-        registry = app_state(ctx).registry
+    def run() -> MapInfo:
+        registry.new_map(target, name or None)
+        return _info(target)
 
-        def run() -> MapInfo:
-            registry.new_map(target, name)
-            return _info(target)
+    return await in_thread(run)
 
-        return await in_thread(run)
 
-    @server.tool(annotations=ToolAnnotations(destructive_hint=True, idempotent_hint=True))
-    @tool_errors
-    async def save_map(
-        name: MapName,
-        ctx: Context,
-        overwrite: Annotated[
-            bool, Field(description="replace an existing saved map of this name")
-        ] = False,
-        session: SessionArg = None,
-    ) -> SavedMap:
-        """Save the map under a name; later frames are committed to it too."""
-        target = session_of(ctx, session)
-        registry = app_state(ctx).registry
+async def save_map(
+    name: MapName,
+    ctx: Context,
+    overwrite: bool = False,
+    session: SessionArg = "",
+) -> SavedMap:
+    """Save the map under a name (overwrite: replace one); later frames are committed too."""
+    target = session_of(ctx, session)
+    registry = app_state(ctx).registry
 
-        def run() -> SavedMap:
-            live, written = registry.save_map(target, name, overwrite)
-            path = registry.map_path(live.name or name)
-            return SavedMap(
-                session=target.handle,
-                map_name=live.name,
-                written=written,
-                bytes=path.stat().st_size,
-            )
+    def run() -> SavedMap:
+        live, written = registry.save_map(target, name, overwrite)
+        path = registry.map_path(live.name or name)
+        return SavedMap(
+            session=target.handle,
+            map_name=live.name,
+            written=written,
+            bytes=path.stat().st_size,
+        )
 
-        return await in_thread(run)
+    return await in_thread(run)
 
-    @server.tool(annotations=ToolAnnotations(destructive_hint=True, idempotent_hint=True))
-    @tool_errors
-    async def load_map(name: MapName, ctx: Context, session: SessionArg = None) -> MapInfo:
-        """Open a saved map (the current one is dropped unless saved); sessions share it."""
-        target = session_for_new_map(ctx, session)
-        registry = app_state(ctx).registry
 
-        def run() -> MapInfo:
-            registry.load_map(target, name)
-            return _info(target)
+async def load_map(name: MapName, ctx: Context, session: SessionArg = "") -> MapInfo:
+    """Open a saved map (the current one is dropped unless saved); sessions share it."""
+    target = session_for_new_map(ctx, session)
+    registry = app_state(ctx).registry
 
-        return await in_thread(run)
+    def run() -> MapInfo:
+        registry.load_map(target, name)
+        return _info(target)
 
-    @server.tool(annotations=READ_ONLY)
-    @tool_errors
-    async def list_maps(ctx: Context) -> MapList:
-        """List the saved maps (open one with load_map)."""
-        registry = app_state(ctx).registry
+    return await in_thread(run)
 
-        def run() -> MapList:
-            open_names = registry.open_names()
-            entries = []
-            for name, stat in sorted(saved_maps(registry.maps_dir).items()):
-                modified = dt.datetime.fromtimestamp(stat.st_mtime, dt.UTC)
-                entries.append(
-                    MapEntry(
-                        name=name,
-                        bytes=stat.st_size,
-                        modified=modified.isoformat(timespec="seconds"),
-                        open=name in open_names,
-                    )
+
+async def list_maps(ctx: Context) -> MapList:
+    """List the saved maps (open one with load_map)."""
+    registry = app_state(ctx).registry
+
+    def run() -> MapList:
+        open_names = registry.open_names()
+        entries = []
+        for name, stat in sorted(saved_maps(registry.maps_dir).items()):
+            modified = dt.datetime.fromtimestamp(stat.st_mtime, dt.UTC)
+            entries.append(
+                MapEntry(
+                    name=name,
+                    bytes=stat.st_size,
+                    modified=modified.isoformat(timespec="seconds"),
+                    open=name in open_names,
                 )
-            return MapList(maps=entries)
+            )
+        return MapList(maps=entries)
 
-        return await in_thread(run)
+    return await in_thread(run)
+
+
+TOOLS = [
+    ToolSpec(new_map, DROPS),
+    ToolSpec(save_map, REPLACES),
+    ToolSpec(load_map, REPLACES),
+    ToolSpec(list_maps, READ_ONLY),
+]
