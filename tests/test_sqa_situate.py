@@ -89,3 +89,58 @@ def test_an_empty_map_and_an_empty_text_are_refused():
     g = GLMap(MapConfig(), embedder=HashingEmbedder())
     with pytest.raises(InvalidInputError, match="situation text is empty"):
         situate(g, "  ")
+
+
+# A dresser with its back to a wall (north, y = 2) and a plant east of it by the same wall:
+# one stands in front of the dresser (south), not at its east end nearest the plant.
+WALL_TEXTS = {1: ("dresser", "a brown dresser"), 2: ("plant", "a potted plant")}
+
+
+@pytest.fixture(scope="module")
+def wall_map():
+    boxes = [
+        *scenes.floor(),
+        scenes.Box((-3.0, 2.0, 0.0), (3.0, 2.2, 2.2), (0.9, 0.9, 0.85), 0),
+        scenes.Box((-0.6, 1.5, 0.0), (0.6, 1.98, 0.9), (0.5, 0.3, 0.2), 1),
+        scenes.Box((2.3, 1.5, 0.0), (2.7, 1.9, 1.0), (0.2, 0.6, 0.2), 2),
+    ]
+    g = GLMap(MapConfig(floor_z=0.0, voxel_size=0.04), embedder=HashingEmbedder())
+    for eye, target in (
+        ((0.0, -1.5, 1.5), (0.0, 1.5, 0.3)),
+        ((-2.2, -0.8, 1.5), (0.0, 1.5, 0.3)),
+        ((2.2, -0.8, 1.5), (0.5, 1.5, 0.3)),
+        ((2.0, -1.0, 1.5), (2.5, 1.7, 0.3)),
+    ):
+        frame, ids = scenes.view(boxes, eye, target, 320, 240)
+        g.integrate(frame, scenes.semantics(ids, WALL_TEXTS))
+    return g
+
+
+def test_one_stands_in_front_of_an_object_with_its_back_to_a_wall(wall_map):
+    s = situate(wall_map, "I am standing next to the dresser, facing the plant.")
+    assert s.anchor_id is not None and wall_map.instances[s.anchor_id].label == "dresser"
+    assert s.facing_id is not None and wall_map.instances[s.facing_id].label == "plant"
+    # In front of the dresser's front face (y = 1.5), within the 0.3-1.0 m band, not at its end.
+    assert 0.4 <= s.y <= 1.3, (s.x, s.y, s.notes)
+    assert abs(s.x) <= 1.0, (s.x, s.y, s.notes)
+    assert abs(_bearing(s, (2.5, 1.7))) <= 20.0
+    assert any("front-side probabilities" in n for n in s.notes)
+
+
+def test_the_front_side_rule_can_be_switched_off(wall_map):
+    s = situate(wall_map, "I am standing next to the dresser, facing the plant.", front_side=False)
+    assert not any("front-side probabilities" in n for n in s.notes)
+
+
+def test_the_footprint_fit_finds_a_rotated_rectangle():
+    from glmap_tools.sqa.stand import fit_footprint
+
+    rng = np.random.default_rng(0)
+    local = rng.uniform([-1.0, -0.3], [1.0, 0.3], size=(400, 2))
+    a = math.radians(30)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    fp = fit_footprint(local @ rot.T + [2.0, 1.0])
+    assert fp is not None
+    assert np.allclose(sorted(fp.half), [0.3, 1.0], atol=0.06)
+    assert np.allclose(fp.centre, [2.0, 1.0], atol=0.05)
+    assert fit_footprint(np.zeros((3, 2))) is None
