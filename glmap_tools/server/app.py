@@ -39,7 +39,6 @@ from glmap_tools.server.results import (
 from glmap_tools.server.runtime import AppState, PerceptionBackend, ToolSpec
 from glmap_tools.server.state import SessionRegistry
 from glmap_tools.server.threads import limited_threads
-from glmap_tools.toolset.catalog import TOOLS
 
 logger = logging.getLogger(__name__)
 
@@ -218,8 +217,12 @@ def mcp_tool(spec: ToolSpec) -> Callable[..., Awaitable[Any]]:
     return call
 
 
-def add_tools(server: MCPServer, tools: tuple[ToolSpec, ...] = TOOLS) -> None:
-    """Register `tools` (default: all) on `server`."""
+def add_tools(server: MCPServer, tools: tuple[ToolSpec, ...] | None = None) -> None:
+    """Register `tools` (default: all, glmap_tools.toolset.catalog) on `server`."""
+    if tools is None:
+        from glmap_tools.toolset.catalog import TOOLS  # imports the tools modules
+
+        tools = TOOLS
     for spec in tools:
         server.add_tool(mcp_tool(spec), name=spec.name, annotations=spec.annotations)
 

@@ -214,9 +214,10 @@ class Toolset:
     def docstring(self, name: str) -> str:
         """The description, then a Google-style Args section (what ollama, smolagents and
         pydantic-ai read): each argument's description, and its default when it has one."""
-        lines = [self.description(name), "", "Args:"]
-        for arg in self.input_schema(name).get("properties", {}):
-            lines.append(f"    {arg}: {self.arg_text(name, arg)}")
+        args = list(self.input_schema(name).get("properties", {}))
+        lines = [self.description(name)]
+        if args:
+            lines += ["", "Args:", *(f"    {a}: {self.arg_text(name, a)}" for a in args)]
         return "\n".join(lines)
 
     def arg_text(self, name: str, arg: str) -> str:
