@@ -70,3 +70,18 @@ def test_compact_text_and_schema_drop_nothing_a_reader_needs():
             "id": {"type": "integer", "minimum": 1},
         }
     }
+
+
+async def test_tools_list_fits_the_12_kb_budget(tmp_path):
+    from glmap_tools.bench.tokens import TOOLS_LIST_TARGET_BYTES, compact
+
+    async with Client(build_server(config(tmp_path))) as client:
+        tools = (await client.list_tools()).tools
+    sent = {"tools": [t.model_dump(mode="json", by_alias=True, exclude_none=True) for t in tools]}
+    assert len(tools) == 21
+    assert compact(sent) <= TOOLS_LIST_TARGET_BYTES
+
+
+def test_limits_are_checked_but_not_listed():
+    schema = {"type": "string", "maxLength": 64, "items": {"maximum": 1e4, "minimum": 1}}
+    assert compact_schema(schema) == {"type": "string", "items": {"minimum": 1}}

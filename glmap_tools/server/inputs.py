@@ -55,25 +55,19 @@ class FileInput(BaseModel):
     """A file given by value (base64) or by reference (a local path); exactly one of the two."""
 
     model_config = ConfigDict(extra="forbid")
-    base64: str | None = Field(
-        default=None,
-        description="the file, base64-encoded",
-    )
-    path: str | None = Field(default=None, description="absolute local path")
+    base64: str | None = None
+    path: str | None = None
 
 
 class IntrinsicsInput(BaseModel):
     """Pinhole intrinsics in pixels (fx, fy, cx, cy), or a horizontal field of view."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-    fx: float | None = Field(default=None, description="focal length x (pixels)")
-    fy: float | None = Field(default=None, description="focal length y (pixels)")
-    cx: float | None = Field(default=None, description="principal point x (pixels)")
-    cy: float | None = Field(default=None, description="principal point y (pixels)")
-    hfov_deg: float | None = Field(
-        default=None,
-        description=f"horizontal field of view (degrees, <= {MAX_FOV_DEG:g}), instead of fx..cy",
-    )
+    fx: float | None = None
+    fy: float | None = None
+    cx: float | None = None
+    cy: float | None = None
+    hfov_deg: float | None = Field(default=None, description=f"<= {MAX_FOV_DEG:g}")
 
 
 class PoseInput(BaseModel):
@@ -86,7 +80,7 @@ class PoseInput(BaseModel):
     )
     camera: Literal["opencv", "opengl"] = Field(
         default="opencv",
-        description="opencv: x right, y down, z forward; opengl: y up, looks down -z",
+        description="opencv: x right, y down, z ahead; opengl: y up, -z ahead",
     )
     world_up: Literal["z", "y", "-y", "x", "-x", "-z"] = Field(
         default="z", description="world up axis (y in Habitat, glTF)"
@@ -97,33 +91,25 @@ class ObjectAnnotation(BaseModel):
     """One object of the frame: its value in the mask and its words."""
 
     model_config = ConfigDict(extra="forbid")
-    id: int = Field(ge=1, le=65535, description="the object's pixel value in the mask")
-    label: str = Field(default="", max_length=200, description="short category, e.g. 'chair'")
-    description: str = Field(
-        default="",
-        max_length=MAX_DESCRIPTION_CHARS,
-        description="open-vocabulary description",
-    )
+    id: int = Field(ge=1, le=65535, description="its value in the mask")
+    label: str = Field(default="", max_length=200, description="e.g. 'chair'")
+    description: str = Field(default="", max_length=MAX_DESCRIPTION_CHARS)
 
 
 class GroupAnnotation(BaseModel):
     """One region of the frame: a described group of objects."""
 
     model_config = ConfigDict(extra="forbid")
-    id: int = Field(ge=0, le=65535, description="the group's id within this frame")
-    description: str = Field(
-        max_length=MAX_DESCRIPTION_CHARS, description="e.g. 'dining area: table, chairs'"
-    )
-    members: list[int] = Field(max_length=MAX_OBJECTS, description="object ids of this frame")
+    id: int = Field(ge=0, le=65535)
+    description: str = Field(max_length=MAX_DESCRIPTION_CHARS, description="e.g. 'dining area'")
+    members: list[int] = Field(max_length=MAX_OBJECTS, description="object ids")
 
 
 class AnnotationInput(BaseModel):
     """Instance masks and labels for the frame (the simulator's or your detector's output)."""
 
     model_config = ConfigDict(extra="forbid")
-    mask: FileInput = Field(
-        description="object id per pixel (0 = none): 8/16-bit PNG or .npy, depth-sized"
-    )
+    mask: FileInput = Field(description="object id per pixel (0 = none), PNG or .npy")
     objects: list[ObjectAnnotation] = Field(max_length=MAX_OBJECTS)
     groups: list[GroupAnnotation] = Field(default_factory=list, max_length=MAX_GROUPS)
 

@@ -217,12 +217,17 @@ def compact_description(text: str) -> str:
     return "\n".join(" ".join(p.split()) for p in paragraphs if p.strip())
 
 
+BOUNDS = ("maximum", "minimum")
+FAR = 10_000  # bounds this far out (world metres, pixel ids, scales) are no guide to a model
+
+
 def compact_schema(schema: Any, in_properties: bool = False) -> Any:
     """A JSON schema without pydantic's titles, `additionalProperties: false` (the server
     still refuses unknown fields, naming them), model docstrings in `$defs` (their fields
-    are described), integer bounds past 2^53 (no JSON client can reach them) and defaults
-    that are empty or false (what leaving an argument out means anyway), and with
-    optional-or-null as just optional.
+    are described), length and item limits and bounds of 10^4 or more (still checked, with
+    an error naming the limit, but no guide to calling a tool right) and defaults that are
+    empty or false (what leaving an argument out means anyway), and with optional-or-null
+    as just optional.
 
     `{"anyOf": [X, {"type": "null"}], "default": null}` becomes X: leaving the argument out
     means the same, and weaker adapters handle a plain type better than a nullable union.
@@ -239,7 +244,8 @@ def compact_schema(schema: Any, in_properties: bool = False) -> Any:
         if (
             (key == "title" and isinstance(value, str))
             or (key == "additionalProperties" and value is False)
-            or (key in ("maximum", "minimum") and isinstance(value, int) and abs(value) > 2**53)
+            or key in ("maxLength", "maxItems")
+            or (key in BOUNDS and isinstance(value, int | float) and abs(value) >= FAR)
             or (key == "default" and (value == "" or value is False))
         ):
             continue
@@ -253,10 +259,11 @@ def compact_schema(schema: Any, in_properties: bool = False) -> Any:
         isinstance(options, list)
         and len(options) == 2
         and {"type": "null"} in options
-        and out.get("default", 0) is None
+        and out.get("default") is None
     ):
         (kept,) = [o for o in options if o != {"type": "null"}]
-        del out["anyOf"], out["default"]
+        del out["anyOf"]
+        out.pop("default", None)
         out = {**kept, **out}
     return out
 

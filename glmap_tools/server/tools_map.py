@@ -86,7 +86,9 @@ def resource_uris(handle: str) -> list[str]:
 async def observe_frame(
     rgb: Annotated[FileInput, Field(description="colour image, PNG or JPEG")],
     depth: Annotated[FileInput, Field(description="16-bit PNG (raw units) or .npy (metres)")],
-    intrinsics: IntrinsicsInput,
+    intrinsics: Annotated[
+        IntrinsicsInput, Field(description="pixels: fx, fy, cx, cy; or hfov_deg (degrees)")
+    ],
     pose: PoseInput,
     ctx: Context,
     depth_scale: Annotated[
@@ -97,12 +99,9 @@ async def observe_frame(
     ] = None,
     session: SessionArg = "",
 ) -> ObserveResult:
-    """Add a posed RGB-D frame: annotated objects become or merge into instances.
-
-    Files: base64 or an absolute path. Without annotations the segments come back pending,
-    to name with label_segments. Returns the ids added or merged; a rejected input changes
-    nothing.
-    """
+    """Add a posed RGB-D frame (files: base64 or absolute path): annotated objects become
+    or merge into instances; without annotations, segments come back pending for
+    label_segments. A rejected input changes nothing."""
     state = app_state(ctx)
     target = session_of(ctx, session)
     await ctx.report_progress(0, 3, "decoding the frame")

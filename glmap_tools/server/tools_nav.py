@@ -107,11 +107,8 @@ def _nav_png(session: Session, decision: Any, agent: tuple[float, float, float])
 async def value_map(
     ctx: Context, goal: Goal = "", units: Units = "both", session: SessionArg = ""
 ) -> ImageResult:
-    """Where the goal likely is: the value map (paper Eq. 7) over the top-down map, from
-    instance and/or region units.
-
-    With frontiers, the chosen waypoint and its path; go there with navigate_to.
-    """
+    """Where the goal likely is: the value map (paper Eq. 7) from instance and/or region
+    units, with frontiers, the chosen waypoint and its path (go with navigate_to)."""
     target = session_of(ctx, session)
 
     def run() -> ImageResult:
@@ -174,11 +171,8 @@ async def navigate_to(
     max_steps: Annotated[int, Field(ge=1, le=500)] = 100,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Walk (simulator) to world (x, y) or next to unit_id, replanning on every frame, in at
-    most max_steps actions.
-
-    Every frame goes into the map; the episode goes on (stop with sim_step).
-    """
+    """Walk (simulator) to world (x, y) or next to unit_id in at most max_steps actions,
+    replanning each frame; frames go into the map; stop with sim_step."""
     target = session_of(ctx, session)
     if (unit_id is None) == (x is None or y is None) or (x is None) != (y is None):
         raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
@@ -242,12 +236,9 @@ async def nav_step(
     images: bool = False,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Let a navigation policy take `actions` steps (simulator): decide, act, integrate; images:
-    attach the view and the value map.
-
-    glmap* = value map over both/instance/region units; egocentric = VLFM-like; frontier =
-    nearest frontier.
-    """
+    """Let a policy take `actions` steps (simulator), replanning each: glmap* = value map
+    of both/instance/region units, egocentric = VLFM-like, frontier = nearest frontier.
+    images: attach the view and the value map."""
     target = session_of(ctx, session)
 
     def run() -> ImageResult:

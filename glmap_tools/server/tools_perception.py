@@ -66,7 +66,7 @@ class LabelInput(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     segments: list[SegmentId] = Field(min_length=1, max_length=MAX_OBJECTS)
-    label: str = Field(max_length=200, description=f"short category, or {IGNORE!r}")
+    label: str = Field(max_length=200, description=f"category, or {IGNORE!r}")
     description: str = Field(default="", max_length=MAX_DESCRIPTION_CHARS)
 
 
@@ -150,10 +150,8 @@ async def label_segments(
     groups: Annotated[list[GroupInput], Field(max_length=MAX_GROUPS)] = [],  # noqa: B006
     session: SessionArg = "",
 ) -> ObserveResult:
-    """Name a pending frame's segments: named ones become instances, groups regions.
-
-    Unlisted segments are ignored; nothing changes if an entry is rejected.
-    """
+    """Name a pending frame's segments: labelled ones become instances, groups regions;
+    unlisted ones are ignored. A rejected entry changes nothing."""
     state = app_state(ctx)
     target = session_of(ctx, session)
     store = pending_frames(state)

@@ -53,12 +53,9 @@ async def sim_reset(
     keep_map: bool = False,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Start a navigation episode and show the agent's view: generated apartment `scene`
-    and episode `seed`, or a benchmark `episode` id.
-
-    objectnav: find any object of the goal category; instnav: the one described object.
-    Its frames go into a fresh map (keep_map: the current one).
-    """
+    """Start a simulator episode (apartment `scene`, episode `seed`, or a benchmark
+    `episode` id) and show the agent's view. objectnav: reach any object of the goal's
+    category; instnav: the described one. Frames go into a new map (keep_map: current)."""
     state = app_state(ctx)
     target = session_of(ctx, session)
     wh = tuple(int(v) for v in size.split("x")) if size else state.config.sim_size
@@ -104,11 +101,8 @@ async def sim_step(
     repeat: Annotated[int, Field(ge=1, le=20)] = 1,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Act in the simulator `repeat` times: move 0.25 m, turn 30 deg, or stop (success: goal
-    within 1 m); each frame goes into the map.
-
-    Returns the view, pose, collisions and, once the episode ends, success and SPL.
-    """
+    """Act `repeat` times: move 0.25 m, turn 30 deg, or stop (success: goal within 1 m);
+    frames go into the map. Returns the view, pose, collisions; at the end success, SPL."""
     target = session_of(ctx, session)
     sim = target.extras.get(SIM_KEY)
     if sim is None:

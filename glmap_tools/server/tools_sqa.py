@@ -62,11 +62,9 @@ async def locate_situation(
     question: Annotated[str, Field(max_length=MAX_SITUATION)] = "",
     session: SessionArg = "",
 ) -> ImageResult:
-    """Situated QA (paper 3.2): locate a situation text in the map and show it.
-
-    Returns the pose and its confidence, the units around (distance, bearing), a heat map
-    and four captioned views; with a question, map_answer answers it from the map.
-    """
+    """Situated QA: locate a situation text in the map. Returns the pose, its confidence,
+    the units around (distance, bearing), a heat map and 4 views; map_answer answers the
+    question from the map."""
     target = session_of(ctx, session)
 
     def run() -> ImageResult:

@@ -46,11 +46,8 @@ async def new_map(
     ] = "",
     session: SessionArg = "",
 ) -> MapInfo:
-    """Start an empty map (the current one is dropped unless saved).
-
-    On a stateless HTTP server shared by several clients this starts your own session:
-    pass the returned `session` handle to later calls.
-    """
+    """Start an empty map (the current one is dropped unless saved). On a shared stateless
+    HTTP server this starts your own session: pass its handle as `session` later."""
     target = session_for_new_map(ctx, session)
     registry = app_state(ctx).registry
 

@@ -50,13 +50,9 @@ async def render_view(
     height: Side = 0,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Render the map's 3D Gaussians: target instance or region (unit_id), the whole map,
-    a camera pose, or 'situated': front/left/back/right views from world (x, y) facing
-    heading_deg.
-
-    A unit is seen from the agent's eye height, from the side that shows most of it. Width
-    and height: pixels (32-1024; 0 = server default).
-    """
+    """Render the map's 3D Gaussians: an instance or region (unit_id, seen from eye height
+    and its most visible side), the map, a camera pose, or 'situated': 4 views from world
+    (x, y) facing heading_deg. Width, height: 32-1024 px (0: default)."""
     state = app_state(ctx)
     target_session = session_of(ctx, session)
     w0, h0 = state.config.render_size
