@@ -180,3 +180,26 @@ def test_pydantic_ai_takes_the_plain_functions_too(toolset):
 def test_an_unknown_tool_name_lists_the_tools(tmp_path):
     with pytest.raises(Exception, match="no tool 'find_object'; the tools are observe_frame"):
         Toolset(config(tmp_path), tools=["find_object"])
+
+
+def test_langchain_tools_return_the_text_and_the_result_as_artifact(toolset):
+    pytest.importorskip("langchain_core")
+    tools = {t.name: t for t in toolset.as_langchain_tools()}
+    call = {"type": "tool_call", "id": "1", "name": "find_instance", "args": {"query": "chair"}}
+    message = tools["find_instance"].invoke(call)
+    assert message.content.startswith("query: chair") and message.artifact.query == "chair"
+    bad = tools["find_instance"].invoke({**call, "args": {"query": "chair", "top_k": 0}})
+    assert "top_k: Input should be greater than or equal to 1" in bad.content
+
+
+def test_smolagents_tools_mark_optional_arguments_nullable_and_return_text(toolset):
+    pytest.importorskip("smolagents")
+    tools = {t.name: t for t in toolset.as_smolagents_tools()}
+    find = tools["find_instance"]
+    assert find.inputs["top_k"] == {
+        "type": "integer",
+        "description": "hits to return (default 5)",
+        "nullable": True,
+    }
+    assert "nullable" not in find.inputs["query"]
+    assert find(query="chair", top_k=2).startswith("query: chair")
