@@ -113,7 +113,7 @@ REFUSED = [
     ("find_instance", {"query": "c", "tpo_k": 3}, "no argument 'tpo_k' (did you mean 'top_k'?)"),
     ("find_instance", {"query": "c", "top_k": 3, "topK": 4}, "'top_k' is given twice"),
     ("what_is_at", {"x": [1], "y": 0}, "x: Input should be a valid number"),
-    ("render_view", {"target": "map", "width": 8}, "width=8: give 32 to 1024 pixels"),
+    ("render_view", {"target": "map", "width": 8}, "width=8: give 0 (the default) or"),
     ("new_map", {"session": "s" * 65}, "session: Value error, a session handle has at most 64"),
 ]
 

@@ -47,7 +47,7 @@ def _handle(value: str) -> str:
 SessionArg = Annotated[
     str,
     AfterValidator(_handle),
-    Field(description="handle from new_map; only on shared stateless HTTP servers"),
+    Field(description="from new_map; shared stateless HTTP servers only"),
 ]
 
 

@@ -107,8 +107,8 @@ def _nav_png(session: Session, decision: Any, agent: tuple[float, float, float])
 async def value_map(
     ctx: Context, goal: Goal = "", units: Units = "both", session: SessionArg = ""
 ) -> ImageResult:
-    """Where the goal likely is: the value map (paper Eq. 7) from instance and/or region
-    units, with frontiers, the chosen waypoint and its path (go with navigate_to)."""
+    """Where the goal likely is: the value map (paper Eq. 7) of the chosen units, frontiers,
+    the waypoint and its path (go with navigate_to)."""
     target = session_of(ctx, session)
 
     def run() -> ImageResult:

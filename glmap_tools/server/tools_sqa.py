@@ -62,9 +62,8 @@ async def locate_situation(
     question: Annotated[str, Field(max_length=MAX_SITUATION)] = "",
     session: SessionArg = "",
 ) -> ImageResult:
-    """Situated QA: locate a situation text in the map. Returns the pose, its confidence,
-    the units around (distance, bearing), a heat map and 4 views; map_answer answers the
-    question from the map."""
+    """Situated QA: locate a situation text in the map: pose, confidence, units around
+    (distance, bearing), a heat map and 4 views; map_answer answers the question."""
     target = session_of(ctx, session)
 
     def run() -> ImageResult:

@@ -15,16 +15,19 @@ from glmap_tools.server.state import locked
 from glmap_tools.server.views import Rendered, ViewRequest, check_request, render_request
 
 Target = Literal["instance", "region", "map", "pose", "situated"]
-Side = Annotated[int, Field(ge=0, le=1024)]
-MIN_SIDE = 32
+Side = int  # checked by _side (0 or 32..1024)
+MIN_SIDE, MAX_SIDE = 32, 1024
 
 
 def _side(value: int, name: str) -> int:
     """An image side: 0 (the server's default) or 32..1024 pixels."""
-    if 0 < value < MIN_SIDE:
+    if value != 0 and not MIN_SIDE <= value <= MAX_SIDE:
         from glmap_tools.errors import InvalidInputError
 
-        raise InvalidInputError(f"{name}={value}: give 32 to 1024 pixels, or 0 for the default.")
+        raise InvalidInputError(
+            f"{name}={value}: give 0 (the default) or a side greater than or equal to "
+            f"{MIN_SIDE} and less than or equal to {MAX_SIDE} pixels."
+        )
     return value
 
 
