@@ -203,3 +203,37 @@ def test_smolagents_tools_mark_optional_arguments_nullable_and_return_text(tools
     }
     assert "nullable" not in find.inputs["query"]
     assert find(query="chair", top_k=2).startswith("query: chair")
+
+
+# The fewest arguments each tool takes: its required ones (issue 13.4).
+REQUIRED_ONLY = {
+    "find_instance": {"query": "chair"},
+    "find_region": {"query": "dining"},
+    "what_is_at": {"x": 0, "y": 0},
+    "describe_unit": {"id": 1},
+    "label_segments": {"frame": "nope", "labels": []},
+    "save_map": {"name": "kept"},
+    "load_map": {"name": "kept"},
+    "render_view": {"target": "map"},
+    "export_ply": {"name": "kept"},
+    "sim_step": {"action": "turn_left"},
+    "locate_situation": {"situation": "facing the table"},
+}
+
+
+def test_every_tool_runs_with_only_its_required_arguments(toolset):
+    from glmap_tools.errors import GLMapError
+
+    toolset.call("observe_frame", {k: v for k, v in frame_args().items() if k != "annotations"})
+    toolset.call("observe_frame", frame_args())
+    refused = {}
+    for name in [n for n in TOOL_NAMES if n != "new_map"] + ["new_map"]:  # new_map empties
+        required = toolset.input_schema(name).get("required", [])
+        args = frame_args() if name == "observe_frame" else REQUIRED_ONLY.get(name, {})
+        assert sorted(args) == sorted(required) or name == "observe_frame", name
+        try:
+            toolset.call(name, args)
+        except GLMapError as exc:  # a clear refusal, never a crash
+            refused[name] = str(exc)
+    assert set(refused) == {"label_segments", "navigate_to"}, refused
+    assert "give either x and y, or unit_id" in refused["navigate_to"]
