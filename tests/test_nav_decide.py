@@ -17,6 +17,7 @@ from glmap_tools.nav import (
     EmbeddingScorer,
     NavConfig,
     NavState,
+    UnitText,
     decide,
     value_map,
 )
@@ -155,3 +156,50 @@ def test_a_forward_move_that_goes_nowhere_marks_an_obstacle_and_the_waypoint_is_
     assert chosen.count(given_up) >= config.stuck_steps
     assert d.waypoint.xy is not None
     assert math.dist(d.waypoint.xy, given_up) > config.stop_distance
+
+
+def test_a_category_goal_matches_only_units_that_name_it_better_than_any_other_label() -> None:
+    """'cabinet' vs 'a white kitchen cabinet': closer to its own label than to the goal."""
+    embedder = HashingEmbedder()
+    scorer = EmbeddingScorer(embedder)
+    texts = {
+        "kitchen cabinet": "a white kitchen cabinet with steel handles",
+        "cabinet": "a tall cabinet with two doors",
+        "picture": "a framed picture in purple tones",
+    }
+    units = [
+        UnitText(k, "instance", t, np.asarray(embedder.embed([t])[0]), 3, label)
+        for k, (label, t) in enumerate(texts.items())
+    ]
+    margins = scorer.category_margins("cabinet", units)
+    assert margins[0] < 0.0 < margins[1]  # the kitchen cabinet names its own label better
+    assert margins[2] < 0.0
+    # No other label to compete with: no evidence against the goal.
+    assert np.isinf(scorer.category_margins("cabinet", units[1:2])).all()
+
+
+def test_a_forward_move_cut_short_part_way_also_marks_an_obstacle(built: GLMap) -> None:
+    """The simulator stops a move at the last free point: 0.1 m of a 0.25 m step is a bump."""
+    config = NavConfig(stop_threshold=0.5, min_observations=1, initial_spin=0)
+    probe = decide(built, (0.0, 0.0), 0.0, "a bathtub", state=NavState(), config=config)
+    ahead = probe.plan.path[min(len(probe.plan.path) - 1, 6)]
+    heading = math.atan2(ahead[1], ahead[0])
+    state = NavState()
+    first = decide(built, (0.0, 0.0), heading, "a bathtub", state=state, config=config)
+    assert first.action == "move_forward"
+    short = (0.1 * math.cos(heading), 0.1 * math.sin(heading))
+    decide(built, short, heading, "a bathtub", state=state, config=config)
+    assert state.blocked  # the cell just ahead of where the move ended
+    # A full step is no bump.
+    state = NavState()
+    decide(built, (0.0, 0.0), heading, "a bathtub", state=state, config=config)
+    full = (0.25 * math.cos(heading), 0.25 * math.sin(heading))
+    decide(built, full, heading, "a bathtub", state=state, config=config)
+    assert not state.blocked
+
+
+def test_objectnav_settings_check_the_category_and_instnav_settings_do_not() -> None:
+    assert NavConfig.for_task("objectnav").category_margin == 0.0
+    assert NavConfig.for_task("instnav").category_margin is None
+    with pytest.raises(InvalidInputError, match="category_threshold"):
+        NavConfig(category_threshold=1.5)

@@ -54,6 +54,9 @@ def run_episode(
     t_integrate: list[float] = []
     t_decide: list[float] = []
     t_wall: list[float] = []
+    goal_ids = set(be.episode.goal_object_ids)
+    first_seen: int | None = None
+    collisions = 0
     try:
         obs, info = env.reset(seed=0, options={"episode": be.episode})
         glmap = GLMap(MapConfig(), embedder=embedder())
@@ -62,6 +65,8 @@ def run_episode(
         while True:
             frame = RGBDFrame(obs["rgb"], obs["depth"], intr, Pose(obs["pose"].astype(np.float64)))
             sem = semantics_from_annotation(info["instance_mask"], info["annotation"])
+            if first_seen is None and goal_ids & {o["id"] for o in info["annotation"]["objects"]}:
+                first_seen = int(info["steps"])
             w0 = time.perf_counter()
             t0 = time.process_time()
             glmap.integrate(frame, sem)
@@ -84,6 +89,7 @@ def run_episode(
             t_integrate.append((t1 - t0) * 1000)
             t_decide.append((t2 - t1) * 1000)
             t_render.append((t3 - t2) * 1000)
+            collisions += bool(info["collided"])
             if term or trunc:
                 break
     finally:
@@ -96,8 +102,15 @@ def run_episode(
         "steps": int(info["steps"]),
         "distance_to_goal": float(info["distance_to_goal"]),
         "matched": d.matched_unit,
+        "matched_text": glmap.instances[d.matched_unit].text
+        if d.matched_unit in glmap.instances
+        else "",
         "last": d.waypoint.reason,
+        "last_action": d.action,
+        "collisions": collisions,
+        "goal_first_seen": first_seen,
     }
+    out["outcome"] = outcome(out, max_steps)
     if timings:
         out["timings"] = {
             "render": t_render,
@@ -108,26 +121,81 @@ def run_episode(
     return out
 
 
-def closed_loop(task: str, indices: Sequence[int], policies: Sequence[str]) -> int:
-    """Print each episode's outcome and the success rate per policy (tune split only)."""
-    episodes = load_split("tune", task)
+def outcome(r: dict[str, Any], max_steps: int) -> str:
+    """A failure class for a finished episode (diagnosis on the tune split)."""
+    if r["success"]:
+        return "success"
+    if r["last_action"] == "stop" and r["steps"] < max_steps:
+        return "false stop" if r["matched"] is not None else "gave up"
+    if r["goal_first_seen"] is None:
+        return "timeout, goal never seen"
+    return "timeout, goal seen"
+
+
+def _run_one(args: tuple[str, int, str, int]) -> dict[str, Any]:
+    task, k, policy, max_steps = args
+    os.nice(10)
+    r = run_episode(load_split("tune", task)[k], policy, max_steps=max_steps)
+    r["policy"], r["index"] = policy, k
+    return r
+
+
+def tune_eval(
+    task: str,
+    indices: Sequence[int],
+    policies: Sequence[str],
+    workers: int = 2,
+    max_steps: int = 500,
+) -> list[dict[str, Any]]:
+    """Run every policy on the tune episodes `indices` with `workers` processes (<= 2 here)."""
+    import multiprocessing as mp
+
+    jobs = [(task, k, p, max_steps) for p in policies for k in indices]
+    if workers <= 1:
+        return [_run_one(j) for j in jobs]
+    with mp.get_context("spawn").Pool(workers) as pool:
+        return list(pool.imap(_run_one, jobs))
+
+
+def closed_loop(
+    task: str,
+    indices: Sequence[int],
+    policies: Sequence[str],
+    workers: int = 1,
+    out: str | None = None,
+    max_steps: int = 500,
+) -> int:
+    """Print each episode's outcome and SR / SPL / failure classes per policy (tune split only)."""
+    import json
+    from collections import Counter
+
+    results = tune_eval(task, indices, policies, workers, max_steps)
+    for r in results:
+        print(
+            f"{r['policy']:15s} {r['episode']} {r['goal'][:40]!r}: {r['outcome']}, spl "
+            f"{r['spl']:.2f} steps {r['steps']} left {r['distance_to_goal']:.2f} m, "
+            f"collisions {r['collisions']}, goal seen at {r['goal_first_seen']}; "
+            f"matched {r['matched_text'][:50]!r}; {r['last']}",
+            flush=True,
+        )
     for policy in policies:
-        results = [run_episode(episodes[k], policy) for k in indices]
-        for r in results:
-            print(
-                f"{policy:15s} {r['episode']} {r['goal'][:40]!r}: success {r['success']} spl "
-                f"{r['spl']:.2f} steps {r['steps']} left {r['distance_to_goal']:.2f} m; "
-                f"{r['last']}",
-                flush=True,
-            )
-        sr = np.mean([r["success"] for r in results])
-        spl = np.mean([r["spl"] for r in results])
-        print(f"{policy}: SR {sr:.2f}, SPL {spl:.2f} over {len(results)} tune episodes", flush=True)
+        rows = [r for r in results if r["policy"] == policy]
+        sr = np.mean([r["success"] for r in rows])
+        spl = np.mean([r["spl"] for r in rows])
+        classes = Counter(r["outcome"] for r in rows)
+        print(
+            f"{policy}: SR {sr:.3f}, SPL {spl:.3f} over {len(rows)} tune episodes; "
+            + ", ".join(f"{k} {v}" for k, v in sorted(classes.items())),
+            flush=True,
+        )
+    if out:
+        with open(out, "w") as f:
+            json.dump(results, f, indent=1, default=float)
     return 0
 
 
-def calibration_pairs() -> list[tuple[str, float, bool, int]]:
-    """(task, cosine, is a goal object, observations) for every tune goal x mapped instance.
+def calibration_pairs() -> list[tuple[str, float, bool, int, float]]:
+    """(task, cosine, is a goal object, observations, category margin) per tune goal x instance.
 
     One map per tune scene from `sim.tour` at 320x240; map instances are matched to layout
     objects by `sim.map_eval.evaluate_instances`; instances matched to no object are left
@@ -136,7 +204,7 @@ def calibration_pairs() -> list[tuple[str, float, bool, int]]:
     from glmap_tools.sim.map_eval import build_map_from_tour, evaluate_instances
 
     scorer = EmbeddingScorer(embedder(), floor=0.0)
-    pairs: list[tuple[str, float, bool, int]] = []
+    pairs: list[tuple[str, float, bool, int, float]] = []
     maps: dict[str, Any] = {}
     for task in ("objectnav", "instnav"):
         goals: dict[str, dict[str, set[int]]] = {}
@@ -153,10 +221,12 @@ def calibration_pairs() -> list[tuple[str, float, bool, int]]:
             glmap, ev = maps[path]
             units = map_units(glmap, "instances")
             for goal, ids in by_goal.items():
-                for u, c in zip(units, scorer.cosines(goal, units), strict=True):
+                cos = scorer.cosines(goal, units)
+                margin = scorer.category_margins(goal, units)
+                for u, c, m in zip(units, cos, margin, strict=True):
                     obj = ev.matched.get(u.unit_id)
                     if obj is not None:
-                        pairs.append((task, float(c), obj in ids, u.observations))
+                        pairs.append((task, float(c), obj in ids, u.observations, float(m)))
     return pairs
 
 
@@ -169,6 +239,7 @@ def calibrate() -> int:
         cos = np.array([p[1] for p in rows])
         pos = np.array([p[2] for p in rows])
         obs = np.array([p[3] for p in rows])
+        margin = np.array([p[4] for p in rows])
         neg = cos[~pos]
         print(
             f"{task}: {int(pos.sum())} goal-instance pairs, {int((~pos).sum())} others; "
@@ -184,4 +255,14 @@ def calibrate() -> int:
                     f"s>={s:.2f}: P {tp / max(tp + fp, 1):.2f} R {tp / max(pos.sum(), 1):.2f}"
                 )
             print(f"  min_observations {min_obs}: " + " | ".join(cells))
+        for m in (0.0, 0.03):
+            cells = []
+            for t_cos in np.arange(0.30, 0.75, 0.05):
+                sel = (cos >= t_cos) & (obs >= 2) & (margin >= m)
+                tp, fp = int((sel & pos).sum()), int((sel & ~pos).sum())
+                s = (t_cos - floor) / (1 - floor)
+                cells.append(
+                    f"s>={s:.2f}: P {tp / max(tp + fp, 1):.2f} R {tp / max(pos.sum(), 1):.2f}"
+                )
+            print(f"  category margin >= {m} (2 observations): " + " | ".join(cells))
     return 0

@@ -180,6 +180,13 @@ def agent_step(report: Report, steps: int) -> None:
     )
 
 
+def _indices(text: str) -> list[int]:
+    """'0,25,50' or 'a:b:k' (range(a, b, k)) -> episode indices of the tune split."""
+    if ":" in text:
+        return list(range(*[int(v) for v in text.split(":")]))
+    return [int(k) for k in text.split(",")]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench nav-core")
     parser.add_argument("--repeat", type=int, default=30, help="timing repetitions")
@@ -187,10 +194,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-sim", action="store_true", help="skip the simulator step")
     parser.add_argument("--calibrate", action="store_true", help="stop-threshold calibration")
     parser.add_argument(
-        "--episodes", default="", help="closed loop on tune episodes instead, e.g. 0,25,50"
+        "--episodes", default="", help="closed loop on tune episodes instead: 0,25,50 or 0:100:4"
     )
     parser.add_argument("--task", default="objectnav", choices=("objectnav", "instnav"))
     parser.add_argument("--policies", default="glmap,frontier", help="comma-separated")
+    parser.add_argument("--workers", type=int, default=1, help="closed loop: processes (<= 2)")
+    parser.add_argument("--out", default=None, help="closed loop: per-episode JSON file")
+    parser.add_argument("--max-steps", type=int, default=500, help="closed loop: step limit")
     args = parser.parse_args(argv)
     if args.calibrate:
         from glmap_tools.bench._nav_loop import calibrate
@@ -199,8 +209,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.episodes:
         from glmap_tools.bench._nav_loop import closed_loop
 
-        indices = [int(k) for k in args.episodes.split(",")]
-        return closed_loop(args.task, indices, args.policies.split(","))
+        indices = _indices(args.episodes)
+        policies = args.policies.split(",")
+        return closed_loop(args.task, indices, policies, args.workers, args.out, args.max_steps)
     report = Report("bench nav-core")
     for stride in sorted({1, NavConfig().plan_stride}):
         time_nav_part(report, args.repeat, stride)

@@ -10,6 +10,13 @@ from glmap_tools.errors import InvalidInputError, did_you_mean
 # Calibrated on the tune split (scene seeds 1000-1003), see nav/design.md: the score s_u at
 # which an instance counts as the goal, per task (category names vs full descriptions).
 STOP_THRESHOLDS = {"objectnav": 0.56, "instnav": 0.75}
+# ObjectNav goals are category names: a match must also name the goal better than any other
+# label in the map (margin in cosine; None = no such check). See nav/design.md.
+CATEGORY_MARGINS: dict[str, float | None] = {"objectnav": 0.0, "instnav": None}
+# With the margin check, a lower score suffices: tune layout texts of every goal category
+# (picture: cos 0.49-0.52, below the 0.65 of STOP_THRESHOLDS) are then all matched and no
+# other category is (cos >= 0.45 and margin >= 0: 100 % precision and recall on s00-s03).
+CATEGORY_STOP_THRESHOLD = 0.31
 POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
 ACTIONS = ("move_forward", "turn_left", "turn_right", "stop")
 
@@ -26,6 +33,9 @@ class NavConfig:
         value_sigma: bandwidth sigma (m) of the Gaussian kernel K_sigma of Eq. 7.
         stop_threshold: score s_u in [0, 1] at which an instance matches the goal.
         min_observations: frames that must have observed a matching instance.
+        category_margin: when set, a matching instance's cosine with the goal must exceed
+            its cosine with every other label of the map by this much (category goals).
+        category_threshold: the score s_u that suffices when the margin check applies.
         stop_distance: metres from the matched unit's cells where the agent stops (kept below
             success_radius so footprint error in the map does not cost the episode).
         min_frontier_size: frontier clusters with fewer cells are dropped.
@@ -45,6 +55,8 @@ class NavConfig:
     value_sigma: float = 0.5
     stop_threshold: float = 0.56
     min_observations: int = 2
+    category_margin: float | None = None
+    category_threshold: float = CATEGORY_STOP_THRESHOLD
     stop_distance: float = 0.75
     min_frontier_size: int = 5
     lookahead: float = 0.5
@@ -69,6 +81,11 @@ class NavConfig:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise InvalidInputError(f"NavConfig.{name}={value!r} must be a positive number.")
+        if not 0.0 <= self.category_threshold <= 1.0:
+            raise InvalidInputError(
+                f"NavConfig.category_threshold={self.category_threshold!r} must be a score "
+                "in [0, 1]."
+            )
         if not 0.0 <= self.stop_threshold <= 1.0:
             raise InvalidInputError(
                 f"NavConfig.stop_threshold={self.stop_threshold!r} must be a score in [0, 1]."
@@ -92,6 +109,10 @@ class NavConfig:
             raise InvalidInputError(
                 f"NavConfig.initial_spin={self.initial_spin!r} must be an integer >= 0."
             )
+        if self.category_margin is not None and not math.isfinite(self.category_margin):
+            raise InvalidInputError(
+                f"NavConfig.category_margin={self.category_margin!r} must be finite or None."
+            )
         if self.window_margin < 0:
             raise InvalidInputError(f"NavConfig.window_margin={self.window_margin!r} must be >= 0.")
 
@@ -103,7 +124,11 @@ class NavConfig:
                 f"unknown task {task!r}.{did_you_mean(task, STOP_THRESHOLDS)} "
                 f"Choose from {sorted(STOP_THRESHOLDS)}."
             )
-        values: dict[str, object] = {"stop_threshold": STOP_THRESHOLDS[task], **overrides}
+        values: dict[str, object] = {
+            "stop_threshold": STOP_THRESHOLDS[task],
+            "category_margin": CATEGORY_MARGINS[task],
+            **overrides,
+        }
         return cls(**values)  # type: ignore[arg-type]
 
     @property

@@ -39,7 +39,8 @@ if TYPE_CHECKING:
 
 POLICY_UNITS = {"glmap": "both", "glmap-instance": "instances", "glmap-region": "regions"}
 PROGRESS = 0.25  # metres of progress toward the waypoint that reset the stuck counter
-BUMP_MOVE = 0.02  # metres: a move_forward that moved less than this hit something
+BUMP_MOVE = 0.02  # metres: a move_forward that moved less than this did not move
+SHORT_MOVE = 0.0125  # metres: a move_forward this much short of a full step was stopped
 TURNS = {"turn_left": "turn_right", "turn_right": "turn_left"}  # each turn and its opposite
 
 
@@ -102,12 +103,13 @@ class NavDecision:
 def _bump(
     state: NavState, agent_xy: tuple[float, float], heading: float, config: NavConfig, s: float
 ) -> None:
-    """After a forward move that did not move, remember the cell just ahead as blocked.
+    """After a forward move that was stopped short, remember the cell just ahead as blocked.
 
-    The simulator stops the centre where its inflated free space ends, so the obstacle is
-    about one agent radius ahead. One cell, inflated like any obstacle, turns the agent
-    aside; marking the whole front would seal doorways whose frame the agent grazed. The
-    memory fades after `config.bump_memory` steps, so a wrong guess does not last.
+    The simulator stops the centre where its inflated free space ends (on the spot, or part
+    way along the step), so the obstacle is about one agent radius ahead. One cell,
+    inflated like any obstacle, turns the agent aside; marking the whole front would seal
+    doorways whose frame the agent grazed. The memory fades after `config.bump_memory`
+    steps, so a wrong guess does not last.
     """
     for cell in [c for c, k in state.blocked_at.items() if state.steps - k > config.bump_memory]:
         state.blocked.discard(cell)
@@ -116,7 +118,8 @@ def _bump(
         state.blocked_at.setdefault(cell, state.steps)
     if state.last_action != "move_forward" or state.last_xy is None:
         return
-    if math.hypot(agent_xy[0] - state.last_xy[0], agent_xy[1] - state.last_xy[1]) >= BUMP_MOVE:
+    moved = math.hypot(agent_xy[0] - state.last_xy[0], agent_xy[1] - state.last_xy[1])
+    if moved >= config.forward_step - SHORT_MOVE:
         return
     t = config.agent_radius + s / 2
     x, y = agent_xy[0] + t * math.cos(heading), agent_xy[1] + t * math.sin(heading)
@@ -155,15 +158,38 @@ def _surroundings(
 
 
 def find_goal_match(
-    glmap: GLMap, units: list[UnitText], scores: np.ndarray, state: NavState, config: NavConfig
+    glmap: GLMap,
+    units: list[UnitText],
+    scores: np.ndarray,
+    state: NavState,
+    config: NavConfig,
+    scorer: Scorer | None = None,
+    goal: str = "",
 ) -> GoalMatch | None:
-    """The best-scoring instance at or above the stop threshold with enough observations."""
+    """The best-scoring instance at or above the stop threshold with enough observations.
+
+    With `config.category_margin` set and a scorer that has `category_margins`, a candidate
+    must instead score `config.category_threshold` and be closer to the goal than to any
+    other label of the map by that margin (a category goal: "cabinet", not "kitchen cabinet").
+    """
+    margins = getattr(scorer, "category_margins", None)
+    by_category = config.category_margin is not None and margins is not None
+    threshold = config.category_threshold if by_category else config.stop_threshold
+    cand = [
+        (u, float(s))
+        for u, s in zip(units, scores, strict=True)
+        if u.kind == "instance"
+        and u.unit_id not in state.rejected_units
+        and s >= threshold
+        and u.observations >= config.min_observations
+    ]
+    if cand and by_category:
+        assert margins is not None and config.category_margin is not None
+        vocabulary = [u.label for u in units if u.kind == "instance"]
+        m = margins(goal, [u for u, _ in cand], vocabulary)
+        cand = [c for c, v in zip(cand, m, strict=True) if v >= config.category_margin]
     best: GoalMatch | None = None
-    for u, s in zip(units, scores, strict=True):
-        if u.kind != "instance" or u.unit_id in state.rejected_units:
-            continue
-        if s < config.stop_threshold or u.observations < config.min_observations:
-            continue
+    for u, s in cand:
         if best is None or s > best.score:
             best = GoalMatch(
                 u.unit_id, float(s), u.observations, unit_cell_array(glmap.grid, u.unit_id)
@@ -247,7 +273,7 @@ def decide(
 
     units = map_units(glmap, "instances" if policy not in ("glmap", "glmap-region") else "both")
     scores = scorer.score(goal, units) if units else np.zeros(0)
-    match = find_goal_match(glmap, units, scores, state, config)
+    match = find_goal_match(glmap, units, scores, state, config, scorer, goal)
     by_id = {u.unit_id: float(v) for u, v in zip(units, scores, strict=True)}
 
     value: ValueMap | None = None

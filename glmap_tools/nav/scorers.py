@@ -28,6 +28,7 @@ class UnitText:
         text: the unit's description buffer T_o / T_r.
         embedding: [D] unit vector of the text, or None (the scorer embeds `text`).
         observations: frames that observed the unit.
+        label: the unit's short category label (instances; '' when unknown).
     """
 
     unit_id: int
@@ -35,6 +36,7 @@ class UnitText:
     text: str
     embedding: np.ndarray | None = None  # [D]
     observations: int = 1
+    label: str = ""
 
 
 class Scorer(Protocol):
@@ -69,7 +71,7 @@ def map_units(glmap: GLMap, units: str = "both") -> list[UnitText]:
         ids, matrix = glmap.instance_matrix()
         for k, uid in enumerate(ids.tolist()):
             u = glmap.instances[uid]
-            out.append(UnitText(uid, "instance", u.text, matrix[k], u.observations))
+            out.append(UnitText(uid, "instance", u.text, matrix[k], u.observations, u.label))
     if "region" in kinds:
         ids, matrix = glmap.region_matrix()
         for k, uid in enumerate(ids.tolist()):
@@ -104,6 +106,7 @@ class EmbeddingScorer:
         if not -1.0 <= self.floor < 1.0:
             raise InvalidInputError(f"floor={self.floor!r} must be a cosine in [-1, 1).")
         self._goal_cache: dict[str, np.ndarray] = {}
+        self._label_cache: dict[str, np.ndarray] = {}
 
     @staticmethod
     def goal_phrase(goal: str) -> str:
@@ -142,6 +145,44 @@ class EmbeddingScorer:
         matrix = np.stack(rows)
         norms = np.linalg.norm(matrix, axis=1) * max(float(np.linalg.norm(q)), 1e-12)
         return (matrix @ q) / np.maximum(norms, 1e-12)
+
+    def category_margins(
+        self, goal: str, units: Sequence[UnitText], labels: Sequence[str] | None = None
+    ) -> np.ndarray:
+        """[N] cosine of each unit with the goal minus its best cosine with another category.
+
+        The other categories are `labels` (default: the labels of `units`; pass every label
+        of the map: its own vocabulary), embedded as noun phrases like the goal. A unit whose
+        text is closer to some other label than to the goal ("a kitchen cabinet ..." for the
+        goal "cabinet") gets a negative margin, whatever its absolute cosine; with no
+        competing label every margin is +inf.
+        """
+        if not units:
+            return np.zeros(0)
+        own = self.goal_phrase(goal).lower()
+        names = [u.label for u in units] if labels is None else list(labels)
+        phrases = sorted({self.goal_phrase(n).lower() for n in names if n.strip()})
+        phrases = [p for p in phrases if p != own]
+        cos = self.cosines(goal, units)
+        if not phrases:
+            return np.full(len(units), np.inf)
+        missing = [p for p in phrases if p not in self._label_cache]
+        if missing:
+            for p, v in zip(missing, self.embedder.embed(missing), strict=True):
+                v = np.asarray(v, dtype=np.float32)
+                self._label_cache[p] = v / max(float(np.linalg.norm(v)), 1e-12)
+        vocab = np.stack([self._label_cache[p] for p in phrases])  # [L, D]
+        missing_units = [u.text for u in units if u.embedding is None]
+        embedded = iter(self.embedder.embed(missing_units) if missing_units else [])
+        rows = np.stack(
+            [
+                np.asarray(u.embedding if u.embedding is not None else next(embedded), np.float32)
+                for u in units
+            ]
+        )
+        rows /= np.maximum(np.linalg.norm(rows, axis=1, keepdims=True), 1e-12)
+        other = (rows @ vocab.T).max(axis=1)
+        return (cos - other).astype(np.float64)
 
     def score(self, goal: str, units: Sequence[UnitText]) -> np.ndarray:
         """[N] scores in [0, 1] (see the class docstring)."""
