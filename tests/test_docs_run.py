@@ -17,7 +17,10 @@ Slow commands (a minute or more on two busy cores: a demo episode, a MiniLM map 
 tour, a benchmark; `SLOW`) and blocks preceded by `<!-- docs-test: slow -->` are only checked
 by default: python compiles, `glmap` arguments parse, other commands answer --help.
 `GLMAP_DOCS_SLOW=1` runs them all. Any other marker, e.g. `<!-- docs-test: live-ollama -->`,
-names what the block needs that a test machine lacks, and the block is not run.
+names what the block needs that a test machine lacks, and the block is not run; except
+`<!-- docs-test: venv NAME -->`: a python block run by the framework venv .ci/venvs/NAME
+(`bash .ci/frameworks.sh` builds them; GLMAP_FRAMEWORK_VENVS=0 skips such blocks), with this
+venv's `glmap-mcp` first on PATH.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ import pytest
 from glmap_tools import cli
 
 REPO = Path(__file__).resolve().parents[1]
-DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+DOCS = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
 RUN_SLOW = os.environ.get("GLMAP_DOCS_SLOW") == "1"
 MARKER = re.compile(r"<!--\s*docs-test:\s*(?P<what>[\w-]+)\s*(?P<arg>\S*)\s*-->")
 FENCE = re.compile(r"^```(?P<lang>[\w.+-]*)\s*$")
@@ -47,6 +50,7 @@ FENCE = re.compile(r"^```(?P<lang>[\w.+-]*)\s*$")
 NOT_RUN = {
     "bash .ci/setup": "sets up the environment this test runs in",
     "bash .ci/run": "is the whole CI job, this test included",
+    "bash .ci/frameworks.sh": "builds the framework venvs (CI runs it before the tests)",
     "glmap-mcp": "starts a server that runs until stopped (tests/test_server_transports.py)",
     "python -m glmap_tools.server": "starts a server (tests/test_server_transports.py)",
     "python -m pytest": "is the test suite itself",
@@ -75,6 +79,7 @@ class Block:
     slow: bool
     file: str | None
     needs: str | None  # what the block needs that a test machine lacks (not run)
+    venv: str | None = None  # the framework venv that runs the block
 
     def __str__(self) -> str:
         return f"{self.doc}:{self.line} ({self.lang or 'no language'})"
@@ -104,7 +109,10 @@ def blocks(path: Path) -> list[Block]:
                 text="\n".join(body) + "\n",
                 slow=bool(marker and marker["what"] == "slow"),
                 file=marker["arg"] if marker and marker["what"] == "file" else None,
-                needs=marker["what"] if marker and marker["what"] not in ("slow", "file") else None,
+                needs=marker["what"]
+                if marker and marker["what"] not in ("slow", "file", "venv")
+                else None,
+                venv=marker["arg"] if marker and marker["what"] == "venv" else None,
             )
         )
         i += 1
@@ -179,11 +187,18 @@ def run_python(block: Block, cwd: Path) -> None:
     compile(block.text, str(block), "exec")
     if block.slow and not RUN_SLOW:
         return
+    python = sys.executable
+    if block.venv is not None:
+        if os.environ.get("GLMAP_FRAMEWORK_VENVS") == "0":
+            return
+        python = str(REPO / ".ci" / "venvs" / block.venv / "bin" / "python")
+        assert Path(python).exists(), f"{block} needs {python}: run bash .ci/frameworks.sh"
     script = cwd / f"block_{block.line}.py"
     script.write_text(block.text, encoding="utf-8")
     env = dict(os.environ, PYTHONPATH=str(REPO), PYOPENGL_PLATFORM="egl", HF_HUB_OFFLINE="1")
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"  # glmap-mcp
     done = subprocess.run(
-        [sys.executable, str(script)], cwd=cwd, env=env, capture_output=True, text=True, timeout=900
+        [python, str(script)], cwd=cwd, env=env, capture_output=True, text=True, timeout=900
     )
     assert done.returncode == 0, f"{block} failed:\n{done.stdout[-2000:]}\n{done.stderr[-3000:]}"
 
@@ -200,7 +215,7 @@ def check_json(block: Block, cwd: Path) -> None:
         (cwd / block.file).write_text(block.text, encoding="utf-8")
 
 
-@pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.name)
+@pytest.mark.parametrize("doc", DOCS, ids=lambda p: str(p.relative_to(REPO)))
 def test_every_code_block_of_the_document_runs(doc, tmp_path):
     for entry in REPO.iterdir():
         if entry.name not in (".git", "out") and not entry.name.startswith("."):
@@ -208,6 +223,7 @@ def test_every_code_block_of_the_document_runs(doc, tmp_path):
     for block in blocks(doc):
         if block.needs:
             continue
+        assert block.venv is None or block.lang == "python", f"{block}: venv marks python only"
         if block.lang == "json":
             check_json(block, tmp_path)
         elif block.lang == "python":
