@@ -270,3 +270,31 @@ async def test_an_unreadable_episode_record_leaves_the_map_usable_and_asks_for_s
         summary = answer(await client.call_tool("map_summary", {"include_image": False}))
         assert summary["summary"]["frames"] == 1
         assert answer(await client.call_tool("sim_reset", RESET))["steps"] == 0
+
+
+def test_a_map_another_process_wrote_to_refuses_a_stale_frame_until_read_again(tmp_path):
+    from glmap_tools import synthetic as scenes
+    from glmap_tools.errors import StoreError
+    from glmap_tools.language.embed import HashingEmbedder
+    from glmap_tools.map import GLMap, MapConfig
+
+    path = tmp_path / "room.glmap"
+    texts = {1: ("table", "a brown wooden dining table")}
+    boxes = scenes.floor() + scenes.table(0.0, 0.0, 1)
+    frames = [
+        scenes.view(boxes, eye, (0.0, 0.0, 0.4)) for eye in [(0.3, -3.0, 1.4), (-2.5, -1.5, 1.4)]
+    ]
+    first = GLMap.open(path, MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    second = GLMap.open(path, embedder=HashingEmbedder())  # as a second server would
+    frame, ids = frames[0]
+    first.integrate(frame, scenes.semantics(ids, texts, []))
+    frame, ids = frames[1]
+    with pytest.raises(StoreError, match="changed by another process"):
+        second.integrate(frame, scenes.semantics(ids, texts, []))
+    assert len(second.trajectory) == 0  # nothing changed in memory either
+    second.close()
+    second = GLMap.open(path, embedder=HashingEmbedder())
+    second.integrate(frame, scenes.semantics(ids, texts, []))
+    assert len(GLMap.open(path, embedder=HashingEmbedder()).trajectory) == 2
+    first.close()
+    second.close()

@@ -207,6 +207,13 @@ class MapStore:
         """Take the file as it is now as the state `changed_elsewhere` compares with."""
         self._seen = self._fingerprint()
 
+    def _changed(self, frame_index: int) -> StoreError:
+        return StoreError(
+            f"{str(self.path)!r} was changed by another process since this map was read, so "
+            f"frame {frame_index} was not written (the two maps would mix). Open the map again "
+            "(glmap-mcp: load_map) to go on from what the file holds now."
+        )
+
     # ------------------------------------------------------------- extras
     def read_extra(self, name: str) -> str | None:
         """The extra `name` as stored in the file now, or None."""
@@ -335,10 +342,21 @@ class MapStore:
         self._write_meta({"next_id": str(glmap.next_id), "floor_z": json.dumps(glmap.floor_z)})
 
     def commit_frame(self, plan: FramePlan, glmap: GLMap) -> None:
-        """Write one frame's changes in a single transaction (all or nothing)."""
+        """Write one frame's changes in a single transaction (all or nothing).
+
+        Raises:
+            StoreError: the write failed, or another process changed or replaced the file
+                since this store read it (writing would mix two maps); nothing was written.
+        """
+        if self._fingerprint()[0] != self._seen[0]:
+            raise self._changed(plan.frame_index)
         try:
             with self.conn:
-                # The INSERT opens the transaction, so a migration's DDL is part of it.
+                # Take the write lock first, then check that no one else wrote meanwhile; the
+                # migration's DDL is part of this transaction.
+                self.conn.execute("BEGIN IMMEDIATE")
+                if self._fingerprint()[1] != self._seen[1]:
+                    raise self._changed(plan.frame_index)
                 self.conn.execute(
                     "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
                     (plan.frame_index, to_npy(plan.pose)),

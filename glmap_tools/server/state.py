@@ -257,6 +257,8 @@ class SessionRegistry:
     def load_map(self, session: Session, name: str) -> LiveMap:
         """Attach `session` to the saved map `name` (shared if another session has it open).
 
+        A map open here that another process has written to since is read again.
+
         Raises:
             InvalidInputError: a bad name.
             UnknownIdError: no such map; the message suggests the closest name.
@@ -266,6 +268,16 @@ class SessionRegistry:
             path = self.map_path(name)
             stem = path.name[: -len(MAP_SUFFIX)]
             live = self._named.get(stem)
+            store = live.glmap.store if live is not None else None
+            pinned = self.pin is not None and self.pin.live is live
+            if live is not None and store is not None and not pinned and store.changed_elsewhere():
+                from glmap_tools.map import GLMap  # another process wrote to it: read it again
+
+                with paths_hidden(self.maps_dir):
+                    fresh = GLMap.open(path, embedder=self.embedder, text_merger=self._merger())
+                with live.lock:
+                    old, live.glmap = live.glmap, fresh
+                    old.close()
             if live is None:
                 if not path.is_file():
                     names = self.saved_names()
