@@ -224,6 +224,23 @@ async def test_a_benchmark_episode_and_the_navigator_memory_go_on_in_the_next_se
     assert kept["actions"] and kept["nav"]["steps"] >= 3 and kept["nav"]["last_waypoint"]
 
 
+async def test_a_server_built_in_process_also_waits_for_the_map_lock(tmp_path):
+    # A server built in process (no CLI) on a --map map respects another process's lock.
+    maps = tmp_path / "maps"
+    async with Client(build_server(config(tmp_path, map_name="ep"))) as client:
+        answer(await client.call_tool("sim_reset", RESET))
+    before = (maps / "ep.glmap").read_bytes()
+    fd = os.open(maps / ".ep.glmap.lock", os.O_RDWR)
+    fcntl.flock(fd, fcntl.LOCK_EX)  # another process in a long call
+    try:
+        async with Client(build_server(config(tmp_path, map_name="ep", map_wait_s=0.3))) as c:
+            busy = await c.call_tool("sim_step", {"action": "turn_left"})
+    finally:
+        os.close(fd)
+    assert busy.is_error and "'ep' is in use" in busy.content[0].text
+    assert (maps / "ep.glmap").read_bytes() == before
+
+
 def test_the_navigator_memory_survives_its_json_form():
     from glmap_tools.nav import NavState
     from glmap_tools.nav.waypoint import Waypoint

@@ -297,4 +297,8 @@ def build_server(
     server.background = background
     add_tools(server)
     resources.register(server, config)
+    if config.map_name is not None:  # --map: each call holds the saved map's lock
+        from glmap_tools.server.persist import guard_calls
+
+        guard_calls(server)
     return server

@@ -161,15 +161,10 @@ def check_pinned_map(config: ServerConfig) -> None:
 
 
 def build(config: ServerConfig, perception: Any) -> Any:
-    """The server, its tool calls bracketed by the --map lock when --map is given."""
+    """The server (its tool calls hold the --map lock when --map is given)."""
     from glmap_tools.server.app import build_server
 
-    server = build_server(config, perception)
-    if config.map_name is not None:
-        from glmap_tools.server.persist import guard_calls
-
-        guard_calls(server)
-    return server
+    return build_server(config, perception)
 
 
 class BearerAuth:

@@ -232,7 +232,7 @@ class PinnedMap:
     def flush(self) -> None:
         """Write the episode record if it changed since a call's end (at the server's end).
 
-        Calls of a server without `guard_calls` (in memory) end without `exit`.
+        A safety net: each call already writes it on `exit` (see `guard_calls`).
         """
         with self._mutex:
             if self._depth or self.live is None:
