@@ -22,6 +22,17 @@ earlier rule, kept as the fallback (a region anchor, too few Gaussians, no free 
 and for `front_side=False`: the free cell within reach (0.6 m) of the anchor closest to l_o;
 it put the agent at the anchor's end nearest what is faced, often beside or behind it
 (tune: 50% of situations within 1 m and 45 degrees, 69% with the front side).
+
+Same-named objects (three kitchen cabinets, two dining tables): the paper takes l_a =
+argmax H_r and l_o = argmax H_o separately, which with several equal peaks can pair an
+anchor and a facing object on opposite sides of a wall. Here the pair is chosen: among
+the anchor and facing candidates within TIE of the best scores, the pairs whose facing
+object is in no line of sight from the anchor's stand band are dropped
+(`glmap_tools.sqa.sight`; unless all are), then the closest pair is taken. Tried on tune
+and not kept (docs/evaluation.md): weighting every pair by how much of the band sees the
+facing object and standing at the cell of highest expected success over all pairs (0.63
+vs 0.66: within a room the candidates are equally likely, and furniture hides objects on
+the 2D occupancy as walls do), and favouring the face that looks towards the facing object.
 """
 
 from __future__ import annotations
