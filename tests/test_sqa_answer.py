@@ -1,12 +1,21 @@
 """The offline situated answerer and the EM normalisation rules."""
 
+import dataclasses
 import math
 
 import pytest
 
 from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.qa import generate_qa
-from glmap_tools.sqa.answer import OfflineAnswerer, em1, em_r1, normalise, question_type
+from glmap_tools.sqa import situate
+from glmap_tools.sqa.answer import (
+    OfflineAnswerer,
+    answer_at,
+    em1,
+    em_r1,
+    normalise,
+    question_type,
+)
 from glmap_tools.sqa.surroundings import direction_of, surroundings
 from tests.test_sqa_situate import glmap  # noqa: F401  (the hand-built scene fixture)
 
@@ -67,6 +76,20 @@ def test_offline_answers_from_the_map_at_a_known_pose(glmap):  # noqa: F811
     assert ask("How many sofas are in the living area?", where).answer == "1"
     tv = next(n for n in where.nearby if n.label == "television")
     assert math.isclose(tv.bearing, 90.0, abs_tol=25.0)
+
+
+def test_a_situated_answer_never_names_the_anchor_l_a_was_placed_at(glmap):  # noqa: F811
+    # East of the bed, facing east: the bed is behind. The best H_r unit is the bedroom
+    # region, not the bed: excluding it (the earlier rule) would answer "bed".
+    s = situate(glmap, "I am sitting on the bed, facing the sofa.")
+    _, bed = _at_bed_facing_sofa(glmap)
+    region = next(u for u in s.anchors if u.kind == "region")
+    at_bed = dataclasses.replace(
+        s, x=1.2, y=0.0, heading=0.0, anchors=(region, *s.anchors), anchor_id=bed
+    )
+    assert answer_at(glmap, at_bed, "What is behind me?")[0].answer != "bed"
+    nowhere = dataclasses.replace(at_bed, anchor_id=None)
+    assert answer_at(glmap, nowhere, "What is behind me?")[0].answer == "bed"
 
 
 def test_the_offline_answerer_says_what_it_cannot_answer(glmap):  # noqa: F811

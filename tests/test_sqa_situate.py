@@ -144,3 +144,47 @@ def test_the_footprint_fit_finds_a_rotated_rectangle():
     assert np.allclose(sorted(fp.half), [0.3, 1.0], atol=0.06)
     assert np.allclose(fp.centre, [2.0, 1.0], atol=0.05)
     assert fit_footprint(np.zeros((3, 2))) is None
+
+
+# Two dining tables, a wall at x = 2 between them; the blue sofa is east of the wall with
+# the far table. The west table is the closer one to the sofa, through the wall.
+ROOM_TEXTS = {
+    1: ("dining table", "a wooden dining table"),
+    2: ("sofa", "a blue sofa"),
+    3: ("dining table", "a wooden dining table"),
+}
+
+
+@pytest.fixture(scope="module")
+def two_rooms_map():
+    boxes = [
+        *scenes.floor(7.0),
+        scenes.Box((1.9, -4.0, 0.0), (2.1, 4.0, 2.2), (0.9, 0.9, 0.85), 0),
+        scenes.Box((0.0, -0.4, 0.0), (1.2, 0.4, 0.75), (0.5, 0.3, 0.2), 1),
+        scenes.Box((2.5, -0.9, 0.0), (3.3, 0.9, 0.8), (0.1, 0.2, 0.8), 2),
+        scenes.Box((5.6, -0.4, 0.0), (6.8, 0.4, 0.75), (0.5, 0.3, 0.2), 3),
+    ]
+    g = GLMap(MapConfig(floor_z=0.0, voxel_size=0.04), embedder=HashingEmbedder())
+    for eye, target in (
+        ((-2.5, -2.5, 1.5), (0.6, 0.0, 0.3)),
+        ((-2.5, 2.5, 1.5), (0.6, 0.0, 0.3)),
+        ((0.6, -3.0, 1.5), (0.6, 0.0, 0.3)),
+        ((4.4, -3.0, 1.5), (2.9, 0.0, 0.3)),
+        ((4.4, 3.0, 1.5), (6.2, 0.0, 0.3)),
+        ((6.5, -3.0, 1.5), (4.0, 0.0, 0.3)),
+        ((4.4, 3.0, 1.5), (2.9, 0.0, 0.3)),
+    ):
+        frame, ids = scenes.view(boxes, eye, target, 320, 240)
+        g.integrate(frame, scenes.semantics(ids, ROOM_TEXTS))
+    return g
+
+
+def test_of_two_same_named_anchors_the_one_that_sees_what_is_faced_is_taken(two_rooms_map):
+    text = "I am standing next to the dining table, facing the blue sofa."
+    s = situate(two_rooms_map, text)
+    assert s.anchor_id is not None and two_rooms_map.instances[s.anchor_id].label == "dining table"
+    assert s.x > 2.1, (s.x, s.y, s.notes)  # east of the wall, by the far table
+    assert abs(_bearing(s, (2.9, 0.0))) <= 20.0
+    assert any("line of sight" in n for n in s.notes)
+    # Without the line of sight: the closest pair, through the wall.
+    assert situate(two_rooms_map, text, sight=False).x < 1.9

@@ -32,8 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     from glmap_tools.sim.benchmark import bench_layout, split_dir
     from glmap_tools.sim.qa import generate_qa
     from glmap_tools.sqa import situate
-    from glmap_tools.sqa.answer import OfflineAnswerer
-    from glmap_tools.sqa.surroundings import surroundings
+    from glmap_tools.sqa.answer import OfflineAnswerer, answer_at
     from glmap_tools.sqa.views import labelled_views
 
     report = Report("bench sqa")
@@ -57,8 +56,7 @@ def main(argv: list[str] | None = None) -> int:
         t = time.perf_counter()
         s = situate(glmap, q["situation"])
         labelled_views(glmap, s.x, s.y, s.heading)
-        where = surroundings(glmap, s.x, s.y, s.heading)
-        answerer.answer(q["question"], where, [s.anchors[0].unit_id] if s.anchors else [])
+        answer_at(glmap, s, q["question"], answerer)
         times.append(time.perf_counter() - t)
         if q["situation"] not in seen:
             seen.add(q["situation"])

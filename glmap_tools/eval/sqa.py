@@ -112,7 +112,7 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
     from glmap_tools.sim.benchmark import bench_layout
     from glmap_tools.sim.qa import generate_qa
     from glmap_tools.sqa import situate
-    from glmap_tools.sqa.answer import OfflineAnswerer, em1, em_r1
+    from glmap_tools.sqa.answer import OfflineAnswerer, answer_at, em1, em_r1
     from glmap_tools.sqa.surroundings import surroundings
 
     t0 = time.perf_counter()
@@ -135,7 +135,7 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
         for agent in spec.agents:
             t = time.perf_counter()
             loc: dict[str, Any] = {}
-            exclude: list[int] = []
+            at: Any = None  # the Situation the glmap agent answers at
             if agent == "glmap":
                 text = q["situation"]
                 if text not in situated:
@@ -149,7 +149,7 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
                     loc = {"error": str(s)[:200]}
                 else:
                     pose = (s.x, s.y, s.heading)
-                    exclude = [s.anchors[0].unit_id] if s.anchors else []
+                    at = s
                     err_m = math.hypot(s.x - gt_xy[0], s.y - gt_xy[1])
                     err_deg = abs(math.degrees(math.remainder(s.heading - gt_heading, math.tau)))
                     loc = {"err_m": round(err_m, 3), "err_deg": round(err_deg, 1)}
@@ -163,13 +163,16 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
                 pose = None
             if pose is None and agent != "text-only":
                 pred, supported, qtype = "", False, "unlocated"
+            elif at is not None:  # excludes the anchor one stands at
+                a, _ = answer_at(glmap, at, q["question"], answerer)
+                pred, supported, qtype = a.answer, a.supported, a.question_type
             else:
                 if agent == "text-only":
                     where = surroundings(glmap, 0.0, 0.0, 0.0, radius=None)
                 else:
                     assert pose is not None
                     where = surroundings(glmap, pose[0], pose[1], pose[2])
-                a = answerer.answer(q["question"], where, exclude)
+                a = answerer.answer(q["question"], where)
                 pred, supported, qtype = a.answer, a.supported, a.question_type
                 if agent == "text-only" and qtype in ("left", "right", "front", "behind"):
                     pred = prior_label  # no pose: the map's most common label

@@ -27,7 +27,7 @@ def locate(glmap: Any, situation: str, question: str = "") -> tuple[dict[str, An
             `supported=false` and the reason for questions the map alone cannot answer).
     """
     from glmap_tools.sqa import situate
-    from glmap_tools.sqa.answer import OfflineAnswerer
+    from glmap_tools.sqa.answer import answer_at
     from glmap_tools.sqa.surroundings import surroundings
     from glmap_tools.sqa.views import heat_image, labelled_views, views_sheet
 
@@ -37,8 +37,7 @@ def locate(glmap: Any, situation: str, question: str = "") -> tuple[dict[str, An
     info: dict[str, Any] = {"situation": s.as_dict(), "around": where.as_dict(max_units=12)}
     info["views"] = [[v.direction, round(v.heading_deg)] for v in views]
     if question.strip():
-        anchor = [s.anchors[0].unit_id] if s.anchors else []
-        a = OfflineAnswerer().answer(question, where, anchor)
+        a, _ = answer_at(glmap, s, question, where=where)
         info["map_answer"] = {
             "answer": a.answer,
             "type": a.question_type,

@@ -23,8 +23,13 @@ import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from glmap_tools.sqa.surroundings import Nearby, Surroundings
+from glmap_tools.sqa.surroundings import Nearby, Surroundings, surroundings
+
+if TYPE_CHECKING:
+    from glmap_tools.map.glmap import GLMap
+    from glmap_tools.sqa.situate import Situation
 
 NUMBER_WORDS = [
     "zero",
@@ -316,6 +321,27 @@ class OfflineAnswerer:
             True,
             f"{rule}: unit {n.unit_id} at {n.distance:.1f} m, {n.bearing:.0f} deg",
         )
+
+
+def answer_at(
+    glmap: GLMap,
+    situation: Situation,
+    question: str,
+    answerer: OfflineAnswerer | None = None,
+    where: Surroundings | None = None,
+) -> tuple[MapAnswer, Surroundings]:
+    """Answer `question` at a situated pose, never with the unit one stands at.
+
+    The unit excluded is `situation.anchor_id` (the one l_a was placed at), not the best
+    H_r unit `situation.anchors[0]`, which may be a region or another same-named object.
+
+    Returns:
+        (the answer, the surroundings it was read from).
+    """
+    s = situation
+    where = where or surroundings(glmap, s.x, s.y, s.heading)
+    exclude = [s.anchor_id] if s.anchor_id is not None else []
+    return (answerer or OfflineAnswerer()).answer(question, where, exclude), where
 
 
 def where_text(where: Surroundings, unit_id: int) -> str:

@@ -84,6 +84,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--no-front-side", action="store_true", help="the earlier stand rule (for comparison)"
     )
+    p.add_argument(
+        "--no-sight",
+        action="store_true",
+        help="the closest anchor/facing pair without the line-of-sight filter (comparison)",
+    )
     p.add_argument("--show", default="", help="print the rows with these causes (comma list)")
     args = p.parse_args(argv)
 
@@ -107,7 +112,12 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             done.add(q["situation"])
             try:
-                s: Any = situate(glmap, q["situation"], front_side=not args.no_front_side)
+                s: Any = situate(
+                    glmap,
+                    q["situation"],
+                    front_side=not args.no_front_side,
+                    sight=not args.no_sight,
+                )
             except GLMapError as exc:
                 s = exc
             rows.append({"scene": scene, **classify(glmap, layout, q, s)})

@@ -108,6 +108,36 @@ def _cells(glmap: GLMap, centre: np.ndarray, radius: float) -> tuple[np.ndarray,
     return xy, free, ok[r0:r1, c0:c1].ravel()
 
 
+def front_faces(
+    fp: Footprint, xy: np.ndarray, free: np.ndarray, ok: np.ndarray
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Unnormalised front-side weights of the four faces and their stand bands.
+
+    Args:
+        fp: the anchor's footprint.
+        xy: [N, 2] cell centres around it; free, ok: [N] seen-free and standable flags.
+
+    Returns:
+        ([4] weights, open in front x blocked behind, squared; 0 for a face with no
+        standable band cell), [4] masks [N] of the standable band cells beyond each face.
+    """
+    local, dist = fp.local(xy), fp.distance(xy)
+    in_band = (dist >= BAND[0]) & (dist <= BAND[1]) & ok
+    openness, bands = [], []
+    for face in range(4):
+        along, across = local[:, face % 2] * (1 if face < 2 else -1), local[:, 1 - face % 2]
+        h, half_len = fp.half[face % 2], fp.half[1 - face % 2]
+        strip = (along > h) & (along <= h + BACK_STRIP) & (np.abs(across) <= half_len)
+        openness.append(float(free[strip].mean()) if strip.any() else 0.0)
+        bands.append(in_band & (along > h))
+    # P(face k is the front): open in front of it and blocked behind it (its back to a
+    # wall or furniture); an island object, open all round, leaves every open face likely.
+    w = np.array([openness[k] * (1.0 - openness[(k + 2) % 4] + ISLAND) for k in range(4)])
+    w = w**SHARPEN
+    w *= np.array([b.any() for b in bands])
+    return w, bands
+
+
 def front_stand_point(
     glmap: GLMap, instance_ids: list[int], notes: list[str]
 ) -> tuple[float, float] | None:
@@ -123,24 +153,11 @@ def front_stand_point(
     xy, free, ok = _cells(glmap, fp.centre, float(np.hypot(*fp.half)) + BAND[1] + 0.1)
     if len(xy) == 0:
         return None
-    local, dist = fp.local(xy), fp.distance(xy)
-    in_band = (dist >= BAND[0]) & (dist <= BAND[1]) & ok
-    openness, bands = [], []
-    for face in range(4):
-        along, across = local[:, face % 2] * (1 if face < 2 else -1), local[:, 1 - face % 2]
-        h, half_len = fp.half[face % 2], fp.half[1 - face % 2]
-        strip = (along > h) & (along <= h + BACK_STRIP) & (np.abs(across) <= half_len)
-        openness.append(float(free[strip].mean()) if strip.any() else 0.0)
-        bands.append(in_band & (along > h))
-    # P(face k is the front): open in front of it and blocked behind it (its back to a
-    # wall or furniture); an island object, open all round, leaves every open face likely.
-    w = np.array([openness[k] * (1.0 - openness[(k + 2) % 4] + ISLAND) for k in range(4)])
-    w = w**SHARPEN
-    w *= np.array([b.any() for b in bands])
+    w, bands = front_faces(fp, xy, free, ok)
     if w.sum() <= 0:
         return None
+    cand = np.any(bands, axis=0)
     w /= w.sum()
-    cand = in_band & np.any(bands, axis=0)
     from scipy.spatial import cKDTree
 
     # Expected hit: the chance that the stand point is within HIT m of a point drawn from
