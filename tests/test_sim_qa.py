@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.sim.generator import generate_apartment
+from glmap_tools.sim.layout_io import layout_from_dict
 from glmap_tools.sim.navigation import build_nav_grid
 from glmap_tools.sim.qa import bearing, generate_qa, heading_from_rotation
 
@@ -84,3 +86,113 @@ def test_reach_straight_ahead_is_yes_only_when_the_way_is_clear(layout, qa) -> N
 def test_zero_situations_are_refused(layout) -> None:
     with pytest.raises(InvalidInputError, match="situations=0"):
         generate_qa(layout, 0, seed=0)
+
+
+# A kitchen with two navy cabinets against the south wall; only the west one has a neighbour
+# (the refrigerator) that can single it out.
+TWO_CABINETS = {
+    "name": "two cabinets",
+    "rooms": [
+        {"id": 1, "type": "kitchen", "polygon": [[0, 0], [6, 0], [6, 5], [0, 5]]},
+        {"id": 2, "type": "living room", "polygon": [[6, 0], [10, 0], [10, 5], [6, 5]]},
+    ],
+    "openings": [{"id": 1, "rooms": [1, 2], "center": [6, 2.5], "width": 0.9}],
+    "objects": [
+        {
+            "id": 1,
+            "category": "kitchen cabinet",
+            "mesh": "kenney/kitchenCabinet",
+            "position": [1.5, 0.4, 0],
+            "heading": math.pi / 2,
+            "attributes": {"color": "navy"},
+        },
+        {
+            "id": 2,
+            "category": "kitchen cabinet",
+            "mesh": "kenney/kitchenCabinet",
+            "position": [4.5, 0.4, 0],
+            "heading": math.pi / 2,
+            "attributes": {"color": "navy"},
+        },
+        {
+            "id": 3,
+            "category": "refrigerator",
+            "mesh": "kenney/kitchenFridgeSmall",
+            "position": [0.4, 0.4, 0],
+            "heading": math.pi / 2,
+            "attributes": {"color": "white"},
+        },
+        {
+            "id": 4,
+            "category": "table",
+            "mesh": "primitive/table",
+            "position": [3.0, 3.5, 0],
+            "attributes": {"color": "brown"},
+        },
+        {
+            "id": 5,
+            "category": "sofa",
+            "mesh": "kenney/loungeSofa",
+            "position": [8.0, 4.4, 0],
+            "heading": -math.pi / 2,
+            "attributes": {"color": "blue"},
+        },
+        {
+            "id": 6,
+            "category": "table",
+            "mesh": "primitive/table",
+            "position": [8.0, 2.0, 0],
+            "attributes": {"color": "brown"},
+        },
+    ],
+}
+
+
+def _fitting(layout, words: str) -> set[int]:
+    """Ids of the objects `words` ("navy kitchen cabinet next to the refrigerator") fits:
+    category last, attribute words among the object's, relations next to / on / in."""
+    from glmap_tools.sim.instnav import NEAR, footprint_gap
+
+    head, *rels = re.split(r" (next to|on|in) the ", words)
+    fits = set()
+    for o in layout.objects:
+        if not head.endswith(o.category):
+            continue
+        if not set(head.removesuffix(o.category).split()) <= set(o.attributes.values()):
+            continue
+        ok = True
+        for rel, obj in zip(rels[::2], rels[1::2], strict=True):
+            if rel == "in":
+                ok &= layout.room(o.room).name == obj
+            elif rel == "on":
+                ok &= o.supported_by is not None and o.supported_by in _fitting(layout, obj)
+            else:
+                ok &= any(
+                    a.room == o.room and a.id != o.id and footprint_gap(o, a) <= NEAR
+                    for a in layout.objects
+                    if a.id in _fitting(layout, obj)
+                )
+        if ok:
+            fits.add(o.id)
+    return fits
+
+
+def test_the_situation_names_one_anchor_and_one_facing_object_in_its_room() -> None:
+    layout = layout_from_dict(TWO_CABINETS)
+    qa = generate_qa(layout, 30, seed=0)
+    assert qa["version"] == 2
+    seen = {}
+    for q in qa["questions"]:
+        m = re.fullmatch(
+            r"I am standing (?:at|next to) the (.+), facing the (.+)\.", q["situation"]
+        )
+        assert m, q["situation"]
+        anchor, facing = q["object_ids"][:2]
+        assert _fitting(layout, m[1]) == {anchor}, q["situation"]
+        room = layout.object(anchor).room
+        assert {i for i in _fitting(layout, m[2]) if layout.object(i).room == room} == {facing}
+        seen[anchor] = m[1]
+    # The west cabinet is named by its neighbour; the east one, which nothing singles out,
+    # is never an anchor.
+    assert seen.get(1) == "navy kitchen cabinet next to the white refrigerator", seen
+    assert 2 not in seen

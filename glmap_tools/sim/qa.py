@@ -6,13 +6,22 @@ answers derived from the layout: what is to my left/right/behind, what colour so
 how many chairs a region has, what stands on something, which room I am in, and whether I can
 walk straight ahead to something. JSON (format "glmap-sim-sqa")::
 
-    {"format": "glmap-sim-sqa", "version": 1, "scene": ..., "scene_seed": ...,
+    {"format": "glmap-sim-sqa", "version": 2, "scene": ..., "scene_seed": ...,
      "questions": [{"question_id": 0, "scene_id": ..., "situation": ..., "question": ...,
                     "question_type": "left", "answers": [{"answer": "chair",
                     "answer_confidence": "yes", "answer_id": 1}],
                     "position": {"_x": ..., "_y": ..., "_z": 0.0},
                     "rotation": {"_w": ..., "_x": 0.0, "_y": 0.0, "_z": ...},
                     "heading": ..., "room": ..., "object_ids": [...]}]}
+
+The situation names its anchor so that only one object of the layout fits the words (the
+anchor's shortest phrase when it is unique, else an InstNav description with "next to the X",
+"on the X" or "in the <room>", `situation_phrase`); an anchor nothing singles out is not used
+(the draw moves on). The facing object must likewise be the only one in the anchor's room
+that fits its words, so the heading is determined. Version 1 used the shortest phrase even
+when several objects fitted it ("the navy kitchen cabinet" in a row of navy cabinets) and
+picked among them uniformly, so no locator could tell which was meant; everything else is
+as in version 1 (same random stream up to the first anchor or facing object it rejects).
 
 `position` is on the floor (z = 0, metres, z-up world); `rotation` is the quaternion of the
 yaw `heading` (radians counter-clockwise from +x) the person faces.
@@ -28,13 +37,13 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.sim.describe import number_word, plural
-from glmap_tools.sim.instnav import anchor_phrase
+from glmap_tools.sim.instnav import anchor_phrase, describe_instance
 from glmap_tools.sim.layout import Layout, SceneObject
 from glmap_tools.sim.motion import wrap_angle
 from glmap_tools.sim.navigation import NavGrid, build_nav_grid
 
 FORMAT = "glmap-sim-sqa"
-VERSION = 1
+VERSION = 2
 AROUND = 4.0  # metres: objects farther away are not "to my left"
 STAND_NEAR = (0.3, 1.0)  # metres from the anchor's footprint
 AT_CATEGORIES = {"sink", "stove", "desk", "kitchen cabinet", "bookcase", "refrigerator"}
@@ -50,6 +59,21 @@ def _landmarks(layout: Layout) -> list[SceneObject]:
 
 def _name(layout: Layout, obj: SceneObject) -> str:
     return anchor_phrase(layout, obj)[0]
+
+
+def situation_phrase(layout: Layout, obj: SceneObject, room: int | None = None) -> str | None:
+    """Words (no article) that fit `obj` alone among the layout's objects, or among those in
+    room `room` when given; None when nothing singles it out.
+
+    The shortest phrase ("navy kitchen cabinet") if only `obj` fits it, else
+    `describe_instance` ("white kitchen cabinet next to the refrigerator").
+    """
+    text, fits = anchor_phrase(layout, obj)
+    pool = [o for o in layout.objects if room is None or o.room == room]
+    if sum(1 for o in pool if fits(o)) == 1:
+        return text
+    unique = describe_instance(layout, obj)
+    return unique.removeprefix("the ") if unique is not None else None
 
 
 def bearing(position: np.ndarray, heading: float, obj: SceneObject) -> float:
@@ -212,21 +236,24 @@ def generate_qa(
         if made >= situations or not landmarks:
             break
         anchor = landmarks[int(rng.integers(len(landmarks)))]
+        anchor_text = situation_phrase(layout, anchor)
+        if anchor_text is None:  # nothing singles it out: the text could not say which
+            continue
         position = _stand_point(layout, grid, anchor, rng)
         if position is None:
             continue
         others = [o for o in landmarks if o.room == anchor.room and o.id != anchor.id]
         others = [o for o in others if o.distance_to(position[None])[0] > 0.5]
-        if not others:
+        named = [(o, situation_phrase(layout, o, anchor.room)) for o in others]
+        named = [(o, t) for o, t in named if t is not None]
+        if not named:
             continue
-        facing = others[int(rng.integers(len(others)))]
+        facing, facing_text = named[int(rng.integers(len(named)))]
         d = facing.position[:2] - position
         heading = math.atan2(d[1], d[0])
         made += 1
         prep = "at" if anchor.category in AT_CATEGORIES else "next to"
-        situation = (
-            f"I am standing {prep} the {_name(layout, anchor)}, facing the {_name(layout, facing)}."
-        )
+        situation = f"I am standing {prep} the {anchor_text}, facing the {facing_text}."
         for kind, question, answers, ids in _questions(
             layout, grid, position, heading, anchor, facing, rng
         ):
