@@ -188,3 +188,72 @@ def test_of_two_same_named_anchors_the_one_that_sees_what_is_faced_is_taken(two_
     assert any("line of sight" in n for n in s.notes)
     # Without the line of sight: the closest pair, through the wall.
     assert situate(two_rooms_map, text, sight=False).x < 1.9
+
+
+# Two navy kitchen cabinets; the refrigerator stands next to the west one, the table by the
+# east one. The closest cabinet/table pair is the east one: only the relation words
+# ("next to the white refrigerator", "in the kitchen") say it is the west one.
+RELATED_TEXTS = {
+    1: ("kitchen cabinet", "a navy kitchen cabinet"),
+    2: ("refrigerator", "a white refrigerator"),
+    3: ("kitchen cabinet", "a navy kitchen cabinet"),
+    4: ("table", "a brown table"),
+}
+RELATED_GROUPS = [
+    (1, "kitchen with a refrigerator and a kitchen cabinet", (1, 2)),
+    (2, "living room with a kitchen cabinet and a table", (3, 4)),
+]
+
+
+@pytest.fixture(scope="module")
+def related_map():
+    boxes = [
+        *scenes.floor(7.0),
+        scenes.Box((0.0, -0.3, 0.0), (1.0, 0.3, 0.9), (0.1, 0.1, 0.4), 1),
+        scenes.Box((-0.9, -0.35, 0.0), (-0.3, 0.35, 1.8), (0.95, 0.95, 0.95), 2),
+        scenes.Box((3.5, -0.3, 0.0), (4.5, 0.3, 0.9), (0.1, 0.1, 0.4), 3),
+        scenes.Box((3.6, 1.6, 0.0), (4.4, 2.4, 0.75), (0.5, 0.3, 0.2), 4),
+    ]
+    g = GLMap(MapConfig(floor_z=0.0, voxel_size=0.04), embedder=HashingEmbedder())
+    for eye, target in (
+        ((0.0, -3.0, 1.5), (0.0, 0.0, 0.3)),
+        ((0.5, 2.5, 1.5), (0.0, 0.0, 0.3)),
+        ((4.0, -3.0, 1.5), (4.0, 0.5, 0.3)),
+        ((2.0, 4.0, 1.5), (4.0, 1.0, 0.3)),
+        ((-2.5, 2.5, 1.5), (2.0, 0.5, 0.3)),
+    ):
+        frame, ids = scenes.view(boxes, eye, target, 320, 240)
+        g.integrate(frame, scenes.semantics(ids, RELATED_TEXTS, RELATED_GROUPS))
+    return g
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "I am standing at the navy kitchen cabinet next to the white refrigerator, "
+        "facing the brown table.",
+        "I am standing at the navy kitchen cabinet in the kitchen, facing the brown table.",
+    ],
+)
+def test_relation_words_pick_the_anchor_among_same_named_ones(related_map, text):
+    s = situate(related_map, text)
+    assert s.anchor_id is not None
+    assert related_map.instances[s.anchor_id].label == "kitchen cabinet"
+    assert s.x < 2.0, (s.x, s.y, s.notes)  # at the west cabinet
+    assert any("told apart" in n for n in s.notes), s.notes
+    # The earlier rule (the whole phrase scored, then the closest pair) takes the east one.
+    old = situate(related_map, text, relate=False)
+    assert old.x > 2.0 or related_map.instances[old.anchor_id].label != "kitchen cabinet"
+
+
+def test_relation_phrases_split_the_object_from_its_relations():
+    from glmap_tools.sqa.situate import relation_phrases
+
+    assert relation_phrases("the navy kitchen cabinet next to the fridge in the kitchen") == (
+        "the navy kitchen cabinet",
+        [("next to", "fridge"), ("in", "kitchen")],
+    )
+    assert relation_phrases("the potted plant in a green pot") == (
+        "the potted plant in a green pot",
+        [],
+    )

@@ -89,6 +89,11 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="the closest anchor/facing pair without the line-of-sight filter (comparison)",
     )
+    p.add_argument(
+        "--no-relate",
+        action="store_true",
+        help="score the whole location/facing phrase, relations included (the earlier rule)",
+    )
     p.add_argument("--show", default="", help="print the rows with these causes (comma list)")
     args = p.parse_args(argv)
 
@@ -117,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
                     q["situation"],
                     front_side=not args.no_front_side,
                     sight=not args.no_sight,
+                    relate=not args.no_relate,
                 )
             except GLMapError as exc:
                 s = exc

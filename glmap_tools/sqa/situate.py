@@ -62,6 +62,7 @@ STAND_RADIUS = 1.2  # ... or, when nothing is free that close, at most this far
 MAX_TEXT = 512
 TIE = 0.05  # scores this close to the best count as equally good
 REGION_MARGIN = 0.1  # a region must beat the best anchor object by this to place the agent
+NEAR = 1.0  # m between two units' cells for "next to" (the generator's and InstNav's)
 
 _FACING = re.compile(
     r"\b(?:facing|face|looking (?:at|towards?)|look(?:ing)? towards?|turned towards?|"
@@ -94,6 +95,20 @@ _FILLER = re.compile(
     r"edge of|the side of|side of|of|while|and|with)\b\s*)+",
     re.IGNORECASE,
 )
+
+
+_RELATION = re.compile(r"\s+(next to|beside|near|on|in)\s+the\s+", re.IGNORECASE)
+
+
+def relation_phrases(phrase: str) -> tuple[str, list[tuple[str, str]]]:
+    """(the object phrase, [(relation, what it relates to)]) of a phrase.
+
+    >>> relation_phrases("the white cabinet next to the fridge in the kitchen")
+    ('the white cabinet', [('next to', 'fridge'), ('in', 'kitchen')])
+    """
+    parts = _RELATION.split(phrase.strip(" .,;"))
+    rels = [(r.lower(), t.strip()) for r, t in zip(parts[1::2], parts[2::2], strict=True)]
+    return parts[0].strip(), [(r, t) for r, t in rels if t]
 
 
 def core_phrase(phrase: str) -> str:
@@ -240,6 +255,84 @@ def _stand_point(
     return float(near[k, 0]), float(near[k, 1])
 
 
+def _relation_fit(
+    glmap: GLMap,
+    scorer: Scorer,
+    instances: list[UnitText],
+    regions: list[UnitText],
+    relations: list[tuple[str, str]],
+    candidates: list[int],
+) -> dict[int, float]:
+    """How well each candidate instance (index) fits the relations, in [0, 1]: per relation,
+    the best score of what it names among the instances within NEAR of the candidate ("next
+    to", "on") or among the regions holding it ("in"); the mean over the relations."""
+    from scipy.spatial import cKDTree
+
+    s = glmap.grid.cell_size
+    cells = {
+        u.unit_id: np.array(sorted(glmap.grid.cells_of_unit(u.unit_id)), dtype=np.float64)
+        for u in instances
+    }
+    fits: dict[int, list[float]] = {i: [] for i in candidates}
+    for rel, words in relations:
+        if rel == "in":
+            p = scorer.score(f"the {words}", regions) if regions else np.zeros(0)
+            for i in candidates:
+                uid = instances[i].unit_id
+                held = [
+                    float(p[k])
+                    for k, r in enumerate(regions)
+                    if uid in getattr(glmap.regions[r.unit_id], "instance_ids", ())
+                ]
+                fits[i].append(max(held, default=0.0))
+            continue
+        p = scorer.score(f"the {words}", instances)
+        for i in candidates:
+            mine = cells[instances[i].unit_id]
+            best = 0.0
+            if len(mine):
+                tree = cKDTree((mine + 0.5) * s)
+                for k, u in enumerate(instances):
+                    other = cells[u.unit_id]
+                    if k == i or not len(other) or p[k] <= best:
+                        continue
+                    gap, _ = tree.query((other + 0.5) * s, k=1)
+                    if float(gap.min()) <= NEAR + s:
+                        best = float(p[k])
+            fits[i].append(best)
+    return {i: float(np.mean(f)) if f else 0.0 for i, f in fits.items()}
+
+
+def _prefer_related(
+    glmap: GLMap,
+    scorer: Scorer,
+    instances: list[UnitText],
+    regions: list[UnitText],
+    scores: np.ndarray,
+    relations: list[tuple[str, str]],
+    notes: list[str],
+) -> np.ndarray:
+    """`scores` with the equally good candidates (within TIE of the best) that fit the
+    relations worse than another by more than TIE moved out of the tie."""
+    if not relations or not len(scores):
+        return scores
+    cands = [i for i, p in enumerate(scores) if p >= float(scores.max()) - TIE]
+    if len(cands) < 2:
+        return scores
+    fit = _relation_fit(glmap, scorer, instances, regions, relations, cands)
+    top = max(fit.values())
+    out = scores.copy()
+    for i in cands:
+        if fit[i] < top - TIE:
+            out[i] = float(scores.max()) - 2 * TIE
+    notes.append(
+        "same-named candidates told apart by "
+        + ", ".join(f"'{r} the {w}'" for r, w in relations)
+        + f" (fits {', '.join(f'{fit[i]:.2f}' for i in cands)})"
+    )
+    return out
+
+
 def _centroid(glmap: GLMap, unit_id: int) -> tuple[float, float]:
     c = glmap.instances[unit_id].gaussians.means.mean(axis=0)
     return float(c[0]), float(c[1])
@@ -286,6 +379,7 @@ def situate(
     sigma: float = SIGMA,
     front_side: bool = True,
     sight: bool = True,
+    relate: bool = True,
 ) -> Situation:
     """Locate the situation `text` in `glmap`.
 
@@ -301,6 +395,9 @@ def situate(
         sight: among equally good anchor/facing pairs, keep those whose facing object is
             in line of sight from the anchor's stand band (`glmap_tools.sqa.sight`)
             before taking the closest; False: the closest pair (the earlier rule).
+        relate: offline, score an object by its own words and let the relations after
+            them ("next to the X", "on the X", "in the <room>") decide among equally good
+            candidates (`relation_phrases`); False: score the whole phrase (the earlier rule).
 
     Raises:
         InvalidInputError: empty or overlong text, or an empty map.
@@ -330,10 +427,22 @@ def situate(
     else:
         location = facing = text.strip()
     instances, regions = map_units(glmap, "instances"), map_units(glmap, "regions")
-    p_o = scorer.score(facing, instances) if facing else np.zeros(len(instances))
+    notes: list[str] = []
+    # Offline: an object is scored by its own words; the relations ("next to the fridge",
+    # "in the kitchen") then tell same-named candidates apart by what is around them.
+    parse = relate and split_text
+    loc_head, loc_rels = relation_phrases(location) if parse else (location, [])
+    face_head, face_rels = relation_phrases(facing) if parse and facing else (facing, [])
+    p_o = scorer.score(face_head or facing, instances) if facing else np.zeros(len(instances))
     p_r = scorer.score(location, regions) if regions else np.zeros(0)
     # Offline: the anchor object the location phrase names joins the regions in H_r.
-    p_anchor = scorer.score(location, instances) if split_text else np.zeros(len(instances))
+    p_anchor = (
+        scorer.score(loc_head or location, instances) if split_text else np.zeros(len(instances))
+    )
+    if parse:
+        p_anchor = _prefer_related(glmap, scorer, instances, regions, p_anchor, loc_rels, notes)
+        if facing:
+            p_o = _prefer_related(glmap, scorer, instances, regions, p_o, face_rels, notes)
 
     r_units = list(regions) + (list(instances) if split_text else [])
     r_scores = np.concatenate([p_r, p_anchor]) if split_text else p_r
@@ -348,7 +457,6 @@ def situate(
             "holds (find_instance / map_summary list them)."
         )
     window = map_window(glmap, TRUNCATE * sigma)
-    notes: list[str] = []
     h_r = value_map_from_scores(
         {u.unit_id: float(s) for u, s in zip(r_units, r_scores, strict=True)},
         glmap.grid,
