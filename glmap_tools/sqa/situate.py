@@ -15,6 +15,13 @@ Two scorers fit:
   instances that match the location phrase (the anchor the agent stands at), since regions
   alone place the agent somewhere in a room, not at the bed.
 
+Relation words: offline, each phrase is split (`relation_phrases`) into the object's own
+words ("the navy kitchen cabinet"), which score the instances, and relations ("next to the
+white refrigerator", "on the X", "in the kitchen"), which decide among the candidates
+within TIE of the best: per relation, the best score of what it names among the instances
+within NEAR of the candidate, or of the room among the regions holding it. A whole-phrase
+embedding cannot tell two equally named cabinets apart by their neighbours.
+
 l_a, when an object anchors the text: a seen-free cell on the object's accessible (front)
 side, read from the map (`glmap_tools.sqa.stand`: the face whose back is blocked by a wall
 or furniture is the back; the cell covering most of the 0.3-1.0 m band in front). The
