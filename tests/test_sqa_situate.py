@@ -247,7 +247,7 @@ def test_relation_words_pick_the_anchor_among_same_named_ones(related_map, text)
 
 
 def test_relation_phrases_split_the_object_from_its_relations():
-    from glmap_tools.sqa.situate import relation_phrases
+    from glmap_tools.sqa.relations import relation_phrases
 
     assert relation_phrases("the navy kitchen cabinet next to the fridge in the kitchen") == (
         "the navy kitchen cabinet",

@@ -15,12 +15,12 @@ Two scorers fit:
   instances that match the location phrase (the anchor the agent stands at), since regions
   alone place the agent somewhere in a room, not at the bed.
 
-Relation words: offline, each phrase is split (`relation_phrases`) into the object's own
-words ("the navy kitchen cabinet"), which score the instances, and relations ("next to the
-white refrigerator", "on the X", "in the kitchen"), which decide among the candidates
-within TIE of the best: per relation, the best score of what it names among the instances
-within NEAR of the candidate, or of the room among the regions holding it. A whole-phrase
-embedding cannot tell two equally named cabinets apart by their neighbours.
+Relation words (`glmap_tools.sqa.relations`): offline, each phrase is split into the
+object's own words ("the navy kitchen cabinet"), which score the instances, and relations
+("next to the white refrigerator", "on the X", "in the kitchen"), which decide among the
+candidates within TIE of the best: per relation, the best score of what it names among the
+instances within 1 m of the candidate, or of the room among the regions holding it. A
+whole-phrase embedding cannot tell two equally named cabinets apart by their neighbours.
 
 l_a, when an object anchors the text: a seen-free cell on the object's accessible (front)
 side, read from the map (`glmap_tools.sqa.stand`: the face whose back is blocked by a wall
@@ -53,6 +53,7 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError, NoMatchError
 from glmap_tools.map.occupancy import FREE
+from glmap_tools.sqa.relations import prefer_related, relation_phrases
 from glmap_tools.sqa.sight import SEEN_MIN, SightCheck
 from glmap_tools.sqa.stand import front_stand_point
 
@@ -69,7 +70,6 @@ STAND_RADIUS = 1.2  # ... or, when nothing is free that close, at most this far
 MAX_TEXT = 512
 TIE = 0.05  # scores this close to the best count as equally good
 REGION_MARGIN = 0.1  # a region must beat the best anchor object by this to place the agent
-NEAR = 1.0  # m between two units' cells for "next to" (the generator's and InstNav's)
 
 _FACING = re.compile(
     r"\b(?:facing|face|looking (?:at|towards?)|look(?:ing)? towards?|turned towards?|"
@@ -102,20 +102,6 @@ _FILLER = re.compile(
     r"edge of|the side of|side of|of|while|and|with)\b\s*)+",
     re.IGNORECASE,
 )
-
-
-_RELATION = re.compile(r"\s+(next to|beside|near|on|in)\s+the\s+", re.IGNORECASE)
-
-
-def relation_phrases(phrase: str) -> tuple[str, list[tuple[str, str]]]:
-    """(the object phrase, [(relation, what it relates to)]) of a phrase.
-
-    >>> relation_phrases("the white cabinet next to the fridge in the kitchen")
-    ('the white cabinet', [('next to', 'fridge'), ('in', 'kitchen')])
-    """
-    parts = _RELATION.split(phrase.strip(" .,;"))
-    rels = [(r.lower(), t.strip()) for r, t in zip(parts[1::2], parts[2::2], strict=True)]
-    return parts[0].strip(), [(r, t) for r, t in rels if t]
 
 
 def core_phrase(phrase: str) -> str:
@@ -262,84 +248,6 @@ def _stand_point(
     return float(near[k, 0]), float(near[k, 1])
 
 
-def _relation_fit(
-    glmap: GLMap,
-    scorer: Scorer,
-    instances: list[UnitText],
-    regions: list[UnitText],
-    relations: list[tuple[str, str]],
-    candidates: list[int],
-) -> dict[int, float]:
-    """How well each candidate instance (index) fits the relations, in [0, 1]: per relation,
-    the best score of what it names among the instances within NEAR of the candidate ("next
-    to", "on") or among the regions holding it ("in"); the mean over the relations."""
-    from scipy.spatial import cKDTree
-
-    s = glmap.grid.cell_size
-    cells = {
-        u.unit_id: np.array(sorted(glmap.grid.cells_of_unit(u.unit_id)), dtype=np.float64)
-        for u in instances
-    }
-    fits: dict[int, list[float]] = {i: [] for i in candidates}
-    for rel, words in relations:
-        if rel == "in":
-            p = scorer.score(f"the {words}", regions) if regions else np.zeros(0)
-            for i in candidates:
-                uid = instances[i].unit_id
-                held = [
-                    float(p[k])
-                    for k, r in enumerate(regions)
-                    if uid in getattr(glmap.regions[r.unit_id], "instance_ids", ())
-                ]
-                fits[i].append(max(held, default=0.0))
-            continue
-        p = scorer.score(f"the {words}", instances)
-        for i in candidates:
-            mine = cells[instances[i].unit_id]
-            best = 0.0
-            if len(mine):
-                tree = cKDTree((mine + 0.5) * s)
-                for k, u in enumerate(instances):
-                    other = cells[u.unit_id]
-                    if k == i or not len(other) or p[k] <= best:
-                        continue
-                    gap, _ = tree.query((other + 0.5) * s, k=1)
-                    if float(gap.min()) <= NEAR + s:
-                        best = float(p[k])
-            fits[i].append(best)
-    return {i: float(np.mean(f)) if f else 0.0 for i, f in fits.items()}
-
-
-def _prefer_related(
-    glmap: GLMap,
-    scorer: Scorer,
-    instances: list[UnitText],
-    regions: list[UnitText],
-    scores: np.ndarray,
-    relations: list[tuple[str, str]],
-    notes: list[str],
-) -> np.ndarray:
-    """`scores` with the equally good candidates (within TIE of the best) that fit the
-    relations worse than another by more than TIE moved out of the tie."""
-    if not relations or not len(scores):
-        return scores
-    cands = [i for i, p in enumerate(scores) if p >= float(scores.max()) - TIE]
-    if len(cands) < 2:
-        return scores
-    fit = _relation_fit(glmap, scorer, instances, regions, relations, cands)
-    top = max(fit.values())
-    out = scores.copy()
-    for i in cands:
-        if fit[i] < top - TIE:
-            out[i] = float(scores.max()) - 2 * TIE
-    notes.append(
-        "same-named candidates told apart by "
-        + ", ".join(f"'{r} the {w}'" for r, w in relations)
-        + f" (fits {', '.join(f'{fit[i]:.2f}' for i in cands)})"
-    )
-    return out
-
-
 def _centroid(glmap: GLMap, unit_id: int) -> tuple[float, float]:
     c = glmap.instances[unit_id].gaussians.means.mean(axis=0)
     return float(c[0]), float(c[1])
@@ -404,7 +312,8 @@ def situate(
             before taking the closest; False: the closest pair (the earlier rule).
         relate: offline, score an object by its own words and let the relations after
             them ("next to the X", "on the X", "in the <room>") decide among equally good
-            candidates (`relation_phrases`); False: score the whole phrase (the earlier rule).
+            candidates (`glmap_tools.sqa.relations`); False: score the whole phrase (the
+            earlier rule).
 
     Raises:
         InvalidInputError: empty or overlong text, or an empty map.
@@ -447,9 +356,9 @@ def situate(
         scorer.score(loc_head or location, instances) if split_text else np.zeros(len(instances))
     )
     if parse:
-        p_anchor = _prefer_related(glmap, scorer, instances, regions, p_anchor, loc_rels, notes)
+        p_anchor = prefer_related(glmap, scorer, instances, regions, p_anchor, loc_rels, TIE, notes)
         if facing:
-            p_o = _prefer_related(glmap, scorer, instances, regions, p_o, face_rels, notes)
+            p_o = prefer_related(glmap, scorer, instances, regions, p_o, face_rels, TIE, notes)
 
     r_units = list(regions) + (list(instances) if split_text else [])
     r_scores = np.concatenate([p_r, p_anchor]) if split_text else p_r
