@@ -53,3 +53,28 @@ def test_a_rerun_reuses_the_scene_results_and_other_settings_are_refused(run):
 def test_an_unknown_sqa_agent_suggests_the_closest():
     with pytest.raises(InvalidInputError, match="Did you mean 'gt-pose'"):
         check_agents(["gt-pos"])
+
+
+def test_two_stand_points_with_one_text_are_two_situations_in_the_localisation():
+    from glmap_tools.eval.sqa import summarize
+
+    def record(stand, err_m):
+        return {
+            "scene": "s00",
+            "question_id": 0,
+            "situation": "I am standing next to the bed, facing the desk.",
+            "stand": stand,
+            "type": "left",
+            "agent": "glmap",
+            "prediction": "",
+            "answers": ["desk"],
+            "em1": False,
+            "em_r1": False,
+            "supported": True,
+            "seconds": 0.1,
+            "err_m": err_m,
+            "err_deg": 5.0,
+        }
+
+    text = summarize([record([1.0, 2.0, 0.5], 0.4), record([3.0, 2.0, 0.5], 2.0)], ["glmap"])
+    assert "of 2 situations" in text and "0.50" in text  # one of the two located

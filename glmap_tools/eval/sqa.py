@@ -181,6 +181,7 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
                     "scene": scene,
                     "question_id": q["question_id"],
                     "situation": q["situation"],
+                    "stand": [round(gt_xy[0], 3), round(gt_xy[1], 3), round(gt_heading, 3)],
                     "type": q["question_type"],
                     "agent": agent,
                     "prediction": pred,
@@ -245,10 +246,12 @@ def summarize(records: list[dict[str, Any]], agents: Sequence[str], resamples: i
             rs = [r for r in records if r["type"] == t and r["agent"] == agent]
             row.append(f"{np.mean([r['em1'] for r in rs]):.2f}" if rs else "-")
         lines.append("| " + " | ".join(row) + " |")
-    loc = {}  # one row per situation: localisation does not depend on the question
+    # One row per situation (its text and true pose; two stand points may share a text):
+    # localisation does not depend on the question.
+    loc = {}
     for r in records:
         if r["agent"] == "glmap":
-            loc[(r["scene"], r["situation"])] = r
+            loc[(r["scene"], r["situation"], tuple(r.get("stand", ())))] = r
     if loc:
         ok = np.array(
             [
