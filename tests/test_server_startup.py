@@ -104,3 +104,30 @@ def test_building_the_server_imports_none_of_the_slow_libraries(tmp_path):
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
     )
     assert done.stdout.strip() == "", done.stdout
+
+
+def test_start_up_work_waits_for_the_handshake_then_runs():
+    background = Background(hold_s=30.0)
+    ran = threading.Event()
+    task = background.start(KERNELS, ran.set)
+    assert not ran.wait(0.3)  # held: the handshake gets the CPU
+    background.release()
+    assert ran.wait(10) and task.wait() is None
+    unreleased = Background(hold_s=0.2).start(KERNELS, lambda: 7)
+    assert unreleased.wait() == 7  # nobody asked for tools: the hold ends by itself
+
+
+async def test_tools_list_or_a_call_releases_the_start_up_work(tmp_path):
+    for first in ("tools/list", "call"):
+        server = build_server(config(tmp_path / first.replace("/", "-")))
+        ran = threading.Event()
+        server.background.start("probe", ran.set)
+        async with Client(server) as client:
+            assert not ran.is_set()
+            if first == "tools/list":
+                await client.list_tools()
+            else:
+                await client.call_tool("list_maps", {})
+            with anyio.fail_after(10):
+                while not ran.is_set():
+                    await anyio.sleep(0.01)

@@ -18,6 +18,7 @@ from glmap_tools.errors import GLMapError
 from glmap_tools.server import resources
 from glmap_tools.server.background import (
     EMBEDDER,
+    HANDSHAKE_HOLD_S,
     KERNELS,
     WHAT,
     Background,
@@ -89,7 +90,9 @@ class GLMapServer(MCPServer[AppState]):
     background: Background
 
     async def list_tools(self) -> list[Tool]:
-        return lean_tools(await super().list_tools())
+        tools = lean_tools(await super().list_tools())
+        self.background.release()  # handshake done: the start-up work may take the CPU
+        return tools
 
     async def call_tool(
         self,
@@ -109,6 +112,7 @@ class GLMapServer(MCPServer[AppState]):
                     validation_message(name, exc) if isinstance(exc, ValidationError) else str(exc)
                 )
                 return CallToolResult(content=[TextContent(type="text", text=text)], is_error=True)
+        self.background.release()
         pending = self.background.pending(needed_tasks(name))
         if pending:
             await self._wait_for(name, pending, context)
@@ -279,7 +283,7 @@ def build_server(
         A GLMapServer; run it with `.run()` (stdio) or serve `.streamable_http_app()`.
     """
     config = config or ServerConfig()
-    background = Background()
+    background = Background(hold_s=HANDSHAKE_HOLD_S)
 
     @asynccontextmanager
     async def lifespan(_: MCPServer[AppState]) -> AsyncIterator[AppState]:

@@ -26,6 +26,9 @@ if TYPE_CHECKING:
 
 logger = logging.getLogger(__name__)
 
+# glmap-mcp's start-up work waits up to this long for the first tools/list (or call), so that
+# its imports (torch) do not take the interpreter from the handshake on a busy machine.
+HANDSHAKE_HOLD_S = 2.0
 EMBEDDER = "embedder"
 KERNELS = "kernels"
 WHAT = {
@@ -37,9 +40,17 @@ WHAT = {
 class Task:
     """One piece of start-up work on a daemon thread; `wait()` re-raises its error."""
 
-    def __init__(self, name: str, fn: Callable[[], Any]) -> None:
+    def __init__(
+        self,
+        name: str,
+        fn: Callable[[], Any],
+        gate: threading.Event | None = None,
+        hold_s: float = 0.0,
+    ) -> None:
         self.name = name
         self.started = time.perf_counter()
+        self._gate = gate
+        self._hold_s = hold_s
         self.seconds: float | None = None
         self._done = threading.Event()
         self._value: Any = None
@@ -48,6 +59,9 @@ class Task:
         threading.Thread(target=self._run, name=f"glmap-{name}", daemon=True).start()
 
     def _run(self) -> None:
+        if self._gate is not None and self._hold_s > 0:
+            self._gate.wait(self._hold_s)
+            self.started = time.perf_counter()
         try:
             self._value = self._fn()
         except BaseException as exc:  # re-raised in every waiting call
@@ -72,13 +86,20 @@ class Task:
 class Background:
     """The named start-up tasks of one server process."""
 
-    def __init__(self) -> None:
+    def __init__(self, hold_s: float = 0.0) -> None:
+        """`hold_s`: tasks start after `release()` or after this many seconds (0: at once)."""
         self.tasks: dict[str, Task] = {}
+        self.hold_s = hold_s
+        self._released = threading.Event()
 
     def start(self, name: str, fn: Callable[[], Any]) -> Task:
-        task = Task(name, fn)
+        task = Task(name, fn, self._released, self.hold_s)
         self.tasks[name] = task
         return task
+
+    def release(self) -> None:
+        """Let held tasks start now (the handshake is answered, or a call needs them)."""
+        self._released.set()
 
     def pending(self, names: Sequence[str]) -> list[Task]:
         """The tasks among `names` still running."""
