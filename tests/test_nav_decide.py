@@ -146,7 +146,7 @@ def test_a_forward_move_that_goes_nowhere_marks_an_obstacle_and_the_waypoint_is_
     second = decide(built, (0.0, 0.0), heading, "a bathtub", state=state, config=config)
     assert state.blocked  # cells one agent radius ahead are now obstacles
     assert second.action != "move_forward"
-    chosen = []
+    chosen = [first.waypoint.xy, second.waypoint.xy]
     for _ in range(config.stuck_steps + 1):
         d = decide(built, (0.0, 0.0), heading, "a bathtub", state=state, config=config)
         chosen.append(d.waypoint.xy)

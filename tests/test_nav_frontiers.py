@@ -96,7 +96,7 @@ def value_peak_at(occ: DenseOccupancy, row: int, col: int) -> ValueMap:
 def test_the_waypoint_is_the_frontier_closest_to_the_value_maximum() -> None:
     occ = two_door_room()
     here = occ.index_to_world(35, 40)  # nearer the right door
-    config = NavConfig()
+    config = NavConfig(waypoint_rule="paper")
     field = agent_field(occ, here, config).metres
     fronts = frontiers(occ, here, RADIUS, min_size=3, distance_field=field)
     assert len(fronts) == 2
@@ -153,3 +153,71 @@ def test_no_frontier_no_match_and_no_value_means_no_waypoint() -> None:
     # With a value map the agent heads for its best navigable cell instead.
     wp = choose_waypoint(value_peak_at(occ, 45, 45), [], trav, here, None, NavConfig(), occ=occ)
     assert wp.kind == "explore" and math.dist(wp.xy, occ.index_to_world(45, 45)) < 0.2  # type: ignore[arg-type]
+
+
+UTILITY = NavConfig(waypoint_rule="utility")
+
+
+def two_door_setup(
+    here_rc: tuple[int, int],
+) -> tuple[DenseOccupancy, list, np.ndarray, np.ndarray, tuple[float, float]]:  # type: ignore[type-arg]
+    occ = two_door_room()
+    here = occ.index_to_world(*here_rc)
+    field = agent_field(occ, here, NavConfig()).metres
+    fronts = frontiers(occ, here, RADIUS, min_size=3, distance_field=field)
+    assert len(fronts) == 2
+    return occ, fronts, traversable(occ, RADIUS), field, here
+
+
+def values_at(
+    occ: DenseOccupancy, cells: dict[tuple[int, int], float], scale: float = 1.0
+) -> ValueMap:
+    values = np.zeros(occ.state.shape)
+    for (r, c), v in cells.items():
+        values[r, c] = v
+    return ValueMap(values, occ.origin, CELL, 1.0, 0.5, scale)
+
+
+def test_the_utility_takes_a_near_promising_frontier_over_the_one_nearest_a_far_peak() -> None:
+    # The agent stands by the top door. H peaks on seen units deep in the room (row 25,
+    # column 12: 1.25 m from the top doorway, 1.9 m from the right one) and has a
+    # moderate value just beyond the right door.
+    occ, fronts, trav, field, here = two_door_setup((45, 25))
+    value = values_at(occ, {(25, 12): 1.0, (30, 56): 0.6})
+    paper = NavConfig(waypoint_rule="paper")
+    wp = choose_waypoint(value, fronts, trav, here, None, paper, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[0] == 50  # type: ignore[misc]  # top door, nearest the peak
+    wp = choose_waypoint(value, fronts, trav, here, None, UTILITY, occ=occ, distance=field)
+    assert wp.kind == "frontier" and occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]
+    # Nearest-frontier exploration would take the top door too.
+    wp = choose_waypoint(None, fronts, trav, here, None, UTILITY, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[0] == 50  # type: ignore[misc]
+
+
+def test_weak_evidence_leaves_the_utility_to_the_distance() -> None:
+    occ, fronts, trav, field, here = two_door_setup((45, 25))
+    # The same shape of H, but the best unit scores only 0.05: 0.3 m of value, less than the
+    # 1.2 m more it takes to reach the right door.
+    weak = values_at(occ, {(25, 12): 1.0, (30, 56): 0.6}, scale=0.05)
+    wp = choose_waypoint(weak, fronts, trav, here, None, UTILITY, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[0] == 50  # type: ignore[misc]  # the near top door
+
+
+def test_the_previous_frontier_is_kept_unless_another_is_better_by_the_commit_margin() -> None:
+    occ, fronts, trav, field, here = two_door_setup((35, 40))  # nearer the right door
+    config = UTILITY
+    flat = values_at(occ, {(30, 56): 0.5, (56, 20): 0.5})  # both doors equally promising
+    wp = choose_waypoint(flat, fronts, trav, here, None, config, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]  # the nearer right door
+    top = occ.index_to_world(50, 22)
+    assert field[50, 22] - field[occ.world_to_index(*wp.xy)] < config.commit_margin  # type: ignore[misc]
+    kept = choose_waypoint(
+        flat, fronts, trav, here, None, config, occ=occ, distance=field, previous=top
+    )
+    assert occ.world_to_index(*kept.xy)[0] == 50 and "keeping" in kept.reason  # type: ignore[misc]
+    # A much better frontier elsewhere wins over the commitment.
+    better = values_at(occ, {(30, 56): 1.0, (56, 20): 0.2})
+    wp = choose_waypoint(
+        better, fronts, trav, here, None, config, occ=occ, distance=field, previous=top
+    )
+    assert occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]

@@ -19,6 +19,7 @@ CATEGORY_MARGINS: dict[str, float | None] = {"objectnav": 0.0, "instnav": None}
 CATEGORY_STOP_THRESHOLD = 0.31
 POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
 ACTIONS = ("move_forward", "turn_left", "turn_right", "stop")
+WAYPOINT_RULES = ("utility", "paper")
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,14 @@ class NavConfig:
         plan_stride: the FMM planner works on cells this many map cells wide (1 = map cells).
         initial_spin: turn_left steps taken first, to look around (12 x 30 deg = a full turn).
         bump_memory: steps a cell where a forward move was stopped stays an obstacle.
+        waypoint_rule: 'paper' (default: the frontier closest to argmax H) or 'utility' (the
+            frontier cell with the best value near it less its geodesic distance; measured
+            worse on tune, SR 0.44 vs 0.56, see nav/design.md).
+        frontier_value_weight: metres of path one unit of score near a frontier is worth
+            (rule 'utility').
+        frontier_value_radius: metres around a frontier cell whose best value counts for it.
+        commit_margin: metres of utility by which another frontier must beat the previous
+            waypoint before the agent switches (rule 'utility'; stops oscillation).
     """
 
     agent_radius: float = 0.18
@@ -66,6 +75,10 @@ class NavConfig:
     plan_stride: int = 2
     initial_spin: int = 12
     bump_memory: int = 40
+    waypoint_rule: str = "paper"
+    frontier_value_weight: float = 10.0
+    frontier_value_radius: float = 1.0
+    commit_margin: float = 1.0
 
     def __post_init__(self) -> None:
         positive = (
@@ -113,6 +126,15 @@ class NavConfig:
             raise InvalidInputError(
                 f"NavConfig.category_margin={self.category_margin!r} must be finite or None."
             )
+        if self.waypoint_rule not in WAYPOINT_RULES:
+            raise InvalidInputError(
+                f"NavConfig.waypoint_rule={self.waypoint_rule!r} is not one of "
+                f"{list(WAYPOINT_RULES)}.{did_you_mean(self.waypoint_rule, WAYPOINT_RULES)}"
+            )
+        for name in ("frontier_value_weight", "frontier_value_radius", "commit_margin"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise InvalidInputError(f"NavConfig.{name}={value!r} must be a number >= 0.")
         if self.window_margin < 0:
             raise InvalidInputError(f"NavConfig.window_margin={self.window_margin!r} must be >= 0.")
 

@@ -329,6 +329,8 @@ def _choose_and_plan(
     config: NavConfig,
 ) -> tuple[Waypoint, Plan]:
     """Choose a waypoint and plan to it; a frontier reached without effect is given up."""
+    last = state.last_waypoint
+    previous = last.xy if last is not None and last.kind == "frontier" else None
     for _ in range(8):
         wp = choose_waypoint(
             value,
@@ -340,6 +342,7 @@ def _choose_and_plan(
             occ=occ,
             distance=field.metres,
             avoid=state.avoid,
+            previous=previous,
         )
         if wp.xy is None and state.avoid and fronts:
             state.avoid.clear()  # every frontier was given up once: give them another chance
@@ -360,6 +363,7 @@ def _choose_and_plan(
             continue
         if out.action == "stop" and wp.kind != "goal":
             state.avoid.append(wp.xy)  # reached, yet still a frontier: look elsewhere
+            previous = None
             continue
         return wp, out
     look = Waypoint(xy, "explore", None, 0.0, "every nearby waypoint was given up: look around.")

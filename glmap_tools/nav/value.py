@@ -42,6 +42,8 @@ class ValueMap:
         cell_size: metres per cell.
         peak: Z, the largest unnormalised value (0 when nothing scored).
         sigma: kernel bandwidth (m); 0 for maps that are not smoothed (egocentric).
+        scale: the score that H = 1 stands for: the largest s_u of an Eq. 7 map (H is
+            normalised by Z, so `scale * H` is in score units); 1 for maps of scores.
     """
 
     values: np.ndarray  # [H, W]
@@ -49,6 +51,7 @@ class ValueMap:
     cell_size: float
     peak: float = 0.0
     sigma: float = 0.0
+    scale: float = 1.0
 
     @property
     def empty(self) -> bool:
@@ -178,7 +181,8 @@ def value_map_from_scores(
         h[rows] = ndimage.correlate1d(h[rows], g, axis=1, mode="constant")
     peak = float(h.max()) if h.size else 0.0
     values = h / peak if peak > 0 else np.zeros_like(h)
-    return ValueMap(np.clip(values, 0.0, 1.0), win.origin, grid.cell_size, peak, sigma)
+    scale = max((float(v) for v in scores.values()), default=0.0)
+    return ValueMap(np.clip(values, 0.0, 1.0), win.origin, grid.cell_size, peak, sigma, scale)
 
 
 def value_map_reference(
@@ -209,7 +213,8 @@ def value_map_reference(
             h[r, c] = total
     peak = float(h.max()) if h.size else 0.0
     values = h / peak if peak > 0 else np.zeros_like(h)
-    return ValueMap(values, win.origin, s_cell, peak, sigma)
+    scale = max((float(v) for v in scores.values()), default=0.0)
+    return ValueMap(values, win.origin, s_cell, peak, sigma, scale)
 
 
 def map_window(glmap: GLMap, margin: float) -> Window:

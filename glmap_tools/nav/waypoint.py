@@ -1,7 +1,10 @@
-"""The waypoint rule: the frontier closest to argmax H, or the matched goal unit.
+"""The waypoint rule: a frontier chosen by the value map H, or the matched goal unit.
 
 Paper 3.2: "the next waypoint is selected as the frontier closest to the location of the
-maximum value grid". Once an instance matches the goal (score >= stop_threshold, observed
+maximum value grid" (`NavConfig.waypoint_rule='paper'`, the default). The rule 'utility'
+takes the frontier cell c maximising `w * scale * max H(near c) - d(c)` (d geodesic
+metres) and keeps the previous waypoint unless another beats it by `commit_margin`
+(nav/design.md). Once an instance matches the goal (score >= stop_threshold, observed
 in >= min_observations frames) the waypoint becomes the nearest navigable cell within
 `stop_distance` (< success radius) of that unit's cells.
 """
@@ -9,7 +12,7 @@ in >= min_observations frames) the waypoint becomes the nearest navigable cell w
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -96,6 +99,40 @@ def goal_cells_near(
     return np.stack([rows + r0, cols + c0], axis=1)
 
 
+def frontier_utility(
+    value: ValueMap, rc: np.ndarray, dist: np.ndarray, occ: DenseOccupancy, config: NavConfig
+) -> np.ndarray:
+    """[K] utility in metres of the frontier cells rc ([K, 2] (row, col) in `occ`'s window).
+
+    `w * scale * Hr(c) - d(c)`: Hr(c) the largest H within `frontier_value_radius` of c
+    (square window), `scale * Hr` in score units, w = `frontier_value_weight` metres per unit
+    of score, d(c) = `dist` ([K] geodesic metres). With nothing scored it is -d: the
+    nearest frontier.
+    """
+    if value.empty or value.scale <= 0:
+        return -dist
+    r = value.values.shape
+    rows = rc[:, 0] + occ.origin[1] - value.origin[1]
+    cols = rc[:, 1] + occ.origin[0] - value.origin[0]
+    half = int(round(config.frontier_value_radius / value.cell_size))
+    near = np.zeros(len(rc))
+    inside = (rows >= 0) & (rows < r[0]) & (cols >= 0) & (cols < r[1])
+    if inside.any():
+        r0, r1 = (
+            max(0, int(rows[inside].min()) - half),
+            min(r[0], int(rows[inside].max()) + half + 1),
+        )
+        c0, c1 = (
+            max(0, int(cols[inside].min()) - half),
+            min(r[1], int(cols[inside].max()) + half + 1),
+        )
+        patch = ndimage.maximum_filter(
+            value.values[r0:r1, c0:c1], size=2 * half + 1, mode="constant"
+        )
+        near[inside] = patch[rows[inside] - r0, cols[inside] - c0]
+    return config.frontier_value_weight * value.scale * near - dist
+
+
 def choose_waypoint(
     value: ValueMap | None,
     fronts: Sequence[Frontier],
@@ -107,6 +144,7 @@ def choose_waypoint(
     occ: DenseOccupancy,
     distance: np.ndarray | None = None,
     avoid: Sequence[tuple[float, float]] = (),
+    previous: tuple[float, float] | None = None,
 ) -> Waypoint:
     """Pick the next waypoint (see the module docstring).
 
@@ -122,6 +160,9 @@ def choose_waypoint(
             reach are skipped (next best is taken); None = straight-line distances.
         avoid: (x, y) of waypoints given up earlier (stuck, or reached without effect);
             frontiers within `config.stop_distance` of one are skipped.
+        previous: (x, y) of the last frontier waypoint; rule 'utility' keeps the usable
+            frontier cell nearest it (within 2 cells) unless another cell's utility is
+            `config.commit_margin` higher.
     """
     s = occ.cell_size
 
@@ -175,6 +216,8 @@ def choose_waypoint(
         if keep.any():
             usable.append((f, xy[keep]))
     peak = value.argmax_xy() if value is not None else None
+    if usable and value is not None and config.waypoint_rule == "utility":
+        return _best_utility(value, usable, occ, dist_of, config, previous)
     if usable and peak is not None:
         best = None
         for f, xy in usable:
@@ -224,3 +267,42 @@ def choose_waypoint(
                     "maximum.",
                 )
     return Waypoint(None, "none", None, 0.0, "no frontier left, no match and no value to follow.")
+
+
+def _best_utility(
+    value: ValueMap,
+    usable: Sequence[tuple[Frontier, np.ndarray]],
+    occ: DenseOccupancy,
+    dist_of: Callable[[np.ndarray], np.ndarray],
+    config: NavConfig,
+    previous: tuple[float, float] | None,
+) -> Waypoint:
+    """Rule 'utility': the frontier cell with the best `frontier_utility`, with commitment."""
+    xy = np.concatenate([c for _, c in usable])
+    s = occ.cell_size
+    rc = np.stack(
+        [
+            np.floor(xy[:, 1] / s).astype(np.int64) - occ.origin[1],
+            np.floor(xy[:, 0] / s).astype(np.int64) - occ.origin[0],
+        ],
+        axis=1,
+    )
+    dist = dist_of(rc)
+    util = np.where(np.isfinite(dist), frontier_utility(value, rc, dist, occ, config), -np.inf)
+    k = int(np.argmax(util))
+    reason = "best frontier utility"
+    if previous is not None:
+        gap = np.hypot(xy[:, 0] - previous[0], xy[:, 1] - previous[1])
+        j = int(np.argmin(gap))
+        if gap[j] <= 2 * s and np.isfinite(util[j]) and util[j] >= util[k] - config.commit_margin:
+            k, reason = j, "keeping the previous frontier (within the commit margin of the best)"
+    x, y = float(xy[k, 0]), float(xy[k, 1])
+    h = value.value_at(x, y)
+    return Waypoint(
+        (x, y),
+        "frontier",
+        None,
+        h,
+        f"{reason}: {util[k]:.2f} m (value {value.scale * h:.2f} here, {float(dist[k]):.2f} m "
+        "away).",
+    )
