@@ -6,7 +6,7 @@ answers derived from the layout: what is to my left/right/behind, what colour so
 how many chairs a region has, what stands on something, which room I am in, and whether I can
 walk straight ahead to something. JSON (format "glmap-sim-sqa")::
 
-    {"format": "glmap-sim-sqa", "version": 2, "scene": ..., "scene_seed": ...,
+    {"format": "glmap-sim-sqa", "version": 3, "scene": ..., "scene_seed": ...,
      "questions": [{"question_id": 0, "scene_id": ..., "situation": ..., "question": ...,
                     "question_type": "left", "answers": [{"answer": "chair",
                     "answer_confidence": "yes", "answer_id": 1}],
@@ -22,6 +22,8 @@ that fits its words, so the heading is determined. Version 1 used the shortest p
 when several objects fitted it ("the navy kitchen cabinet" in a row of navy cabinets) and
 picked among them uniformly, so no locator could tell which was meant; everything else is
 as in version 1 (same random stream up to the first anchor or facing object it rejects).
+Version 3 accepts a numbered room by its kind too ("second bedroom" or "bedroom"): which
+bedroom is the second is the generator's count, nothing one could see; the rest is as in 2.
 
 `position` is on the floor (z = 0, metres, z-up world); `rotation` is the quaternion of the
 yaw `heading` (radians counter-clockwise from +x) the person faces.
@@ -43,7 +45,7 @@ from glmap_tools.sim.motion import wrap_angle
 from glmap_tools.sim.navigation import NavGrid, build_nav_grid
 
 FORMAT = "glmap-sim-sqa"
-VERSION = 2
+VERSION = 3
 AROUND = 4.0  # metres: objects farther away are not "to my left"
 STAND_NEAR = (0.3, 1.0)  # metres from the anchor's footprint
 AT_CATEGORIES = {"sink", "stove", "desk", "kitchen cabinet", "bookcase", "refrigerator"}
@@ -159,7 +161,7 @@ def _questions(
             yield kind, question, [obj.category], [obj.id]
             if kind == "behind":
                 behind = obj
-    yield "room", "Which room am I in?", [room.name], []
+    yield "room", "Which room am I in?", list(dict.fromkeys([room.name, room.type])), []
     in_room = [o for o in layout.objects if o.room == room.id and "color" in o.attributes]
     rng.shuffle(in_room)
     for o in in_room:
