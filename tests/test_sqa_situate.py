@@ -127,6 +127,37 @@ def test_one_stands_in_front_of_an_object_with_its_back_to_a_wall(wall_map):
     assert any("front-side probabilities" in n for n in s.notes)
 
 
+# An armchair in the open (backrest on its north side) and a table north-east of it: the
+# floor gives no back, the backrest does; one sits facing south-east of it, not behind it.
+CHAIR_TEXTS = {1: ("armchair", "a red armchair"), 2: ("table", "a wooden table")}
+
+
+@pytest.fixture(scope="module")
+def chair_map():
+    boxes = scenes.floor() + scenes.chair(0.0, 0.0, object_id=1) + scenes.table(2.2, 0.8, 2)
+    g = GLMap(MapConfig(floor_z=0.0, voxel_size=0.04), embedder=HashingEmbedder())
+    eyes = ((0.0, -2.5, 1.5), (2.5, -2.0, 1.5), (-2.5, 0.5, 1.5), (0.5, 2.8, 1.5), (3.5, 2.5, 1.5))
+    for eye in eyes:
+        frame, ids = scenes.view(boxes, eye, (1.0, 0.4, 0.3), 320, 240)
+        g.integrate(frame, scenes.semantics(ids, CHAIR_TEXTS))
+    return g
+
+
+def test_a_backrest_marks_the_back_of_an_object_free_on_all_sides(chair_map):
+    from glmap_tools.sqa.stand import backrest_factors, edge_heights, fit_footprint
+
+    chair = next(u for u in chair_map.instances.values() if u.label == "armchair")
+    means = np.asarray(chair.gaussians.means)
+    tops = edge_heights(fit_footprint(means[:, :2]), means)
+    # Faces +x, +y, -x, -y: only the north (+y) edge rises (backrest 0.9 m over a 0.45 m seat).
+    assert tops[1] - max(tops[0], tops[2], tops[3]) >= 0.3, tops
+    assert list(backrest_factors(tops)) == [1.0, 0.25, 1.0, 4.0]
+    text = "I am sitting on the armchair, facing the table."
+    s = situate(chair_map, text)
+    assert -1.25 <= s.y <= -0.4 and abs(s.x) <= 0.5, (s.x, s.y, s.notes)
+    assert situate(chair_map, text, backrest=False).y > 0.2  # the floor alone: behind it
+
+
 def test_the_front_side_rule_can_be_switched_off(wall_map):
     s = situate(wall_map, "I am standing next to the dresser, facing the plant.", front_side=False)
     assert not any("front-side probabilities" in n for n in s.notes)

@@ -94,6 +94,11 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="score the whole location/facing phrase, relations included (the earlier rule)",
     )
+    p.add_argument(
+        "--no-backrest",
+        action="store_true",
+        help="the stand side from the floor alone, no edge-height cue (the earlier rule)",
+    )
     p.add_argument("--show", default="", help="print the rows with these causes (comma list)")
     args = p.parse_args(argv)
 
@@ -123,6 +128,7 @@ def main(argv: list[str] | None = None) -> int:
                     front_side=not args.no_front_side,
                     sight=not args.no_sight,
                     relate=not args.no_relate,
+                    backrest=not args.no_backrest,
                 )
             except GLMapError as exc:
                 s = exc

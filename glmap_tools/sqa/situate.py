@@ -295,6 +295,7 @@ def situate(
     front_side: bool = True,
     sight: bool = True,
     relate: bool = True,
+    backrest: bool = True,
 ) -> Situation:
     """Locate the situation `text` in `glmap`.
 
@@ -314,6 +315,8 @@ def situate(
             them ("next to the X", "on the X", "in the <room>") decide among equally good
             candidates (`glmap_tools.sqa.relations`); False: score the whole phrase (the
             earlier rule).
+        backrest: let a rising edge (backrest, headboard) mark the anchor's back
+            (`glmap_tools.sqa.stand`); False: the floor around it alone (the earlier rule).
 
     Raises:
         InvalidInputError: empty or overlong text, or an empty map.
@@ -427,7 +430,7 @@ def situate(
                 + "the closest pair)"
             )
     if stand is None and front_side and anchor_ids and anchor_ids[0] in glmap.instances:
-        stand = front_stand_point(glmap, anchor_ids[:1], notes)
+        stand = front_stand_point(glmap, anchor_ids[:1], notes, backrest=backrest)
     x, y = stand or _stand_point(glmap, peak_r, anchor_ids, peak_o, notes)
     if peak_o is not None and math.hypot(peak_o[0] - x, peak_o[1] - y) > 1e-6:
         heading = math.atan2(peak_o[1] - y, peak_o[0] - x)

@@ -10,8 +10,12 @@ side is read from its own evidence:
    whose strip just beyond it (BACK_STRIP m deep, along the face) is least seen-free is
    the back, when it is clearly blocked (free share <= BLOCKED) and clearly more blocked
    than the opposite face; the front is the opposite face.
-3. An object free on all sides (an island, a table mid-room) has no readable back: the
-   front is the face with the most standable floor in the band, where a person has room.
+3. An object free on all sides (an island, a table mid-room) has no readable back from
+   the floor. Its shape may still show one: seats, beds and toilets rise at the back
+   (backrest, headboard, tank). A face whose opposite edge stands RISE m higher than its
+   own edge is BACKREST times likelier the front, and one lower than its opposite edge
+   that much less likely. Otherwise the front is the face with the most standable floor in
+   the band, where a person has room.
 4. The stand point: among the seen-free cells where the agent fits, in the band
    BAND = (0.3, 1.0) m from the footprint beyond the front face, the cell with the most
    band cells within HIT m (a person can stand anywhere in the band; this cell is within
@@ -41,6 +45,10 @@ HIT = 1.0  # m: the stand point covers the band cells this close
 ISLAND = 0.1  # an open face stays this likely a front even with nothing behind its back
 SHARPEN = 2.0  # squared: a clear back outweighs a half-open one (tune: 0.66 -> 0.69 at 1)
 MIN_POINTS = 8  # Gaussians needed to fit a footprint
+RISE = 0.15  # m: an edge this much higher than the opposite one is a back (backrest)
+BACKREST = 4.0  # likelihood ratio of a face being the front when its opposite edge rises
+EDGE = 0.3  # share of the depth taken as a face's edge slab for its height
+MIDDLE = 0.6  # share of a face's length (about its middle) whose edge height counts
 
 
 @dataclass(frozen=True)
@@ -108,14 +116,48 @@ def _cells(glmap: GLMap, centre: np.ndarray, radius: float) -> tuple[np.ndarray,
     return xy, free, ok[r0:r1, c0:c1].ravel()
 
 
+def edge_heights(fp: Footprint, means: np.ndarray) -> np.ndarray:
+    """[4] top height (95th percentile z) of the Gaussians along the middle of each face's
+    edge slab (NaN where too few)."""
+    pts = np.asarray(means, dtype=np.float64)
+    local = fp.local(pts[:, :2])
+    tops = np.full(4, np.nan)
+    for face in range(4):
+        along = local[:, face % 2] * (1 if face < 2 else -1)
+        across = np.abs(local[:, 1 - face % 2])
+        h, half_len = fp.half[face % 2], fp.half[1 - face % 2]
+        # The middle of the edge only: a backrest's ends are the side faces' corners.
+        edge = (along >= h - 2 * h * EDGE) & (across <= MIDDLE * half_len)
+        if edge.sum() >= 3:
+            tops[face] = float(np.percentile(pts[edge, 2], 95))
+    return tops
+
+
+def backrest_factors(tops: np.ndarray) -> np.ndarray:
+    """[4] front-likelihood factors from edge heights: BACKREST where the opposite edge rises."""
+    out = np.ones(4)
+    for k in range(4):
+        rise = tops[(k + 2) % 4] - tops[k]
+        if np.isfinite(rise) and rise >= RISE:
+            out[k] = BACKREST
+        elif np.isfinite(rise) and rise <= -RISE:
+            out[k] = 1.0 / BACKREST
+    return out
+
+
 def front_faces(
-    fp: Footprint, xy: np.ndarray, free: np.ndarray, ok: np.ndarray
+    fp: Footprint,
+    xy: np.ndarray,
+    free: np.ndarray,
+    ok: np.ndarray,
+    tops: np.ndarray | None = None,
 ) -> tuple[np.ndarray, list[np.ndarray]]:
     """Unnormalised front-side weights of the four faces and their stand bands.
 
     Args:
         fp: the anchor's footprint.
         xy: [N, 2] cell centres around it; free, ok: [N] seen-free and standable flags.
+        tops: [4] edge heights (`edge_heights`) for the backrest cue; None: not used.
 
     Returns:
         ([4] weights, open in front x blocked behind, squared; 0 for a face with no
@@ -134,26 +176,30 @@ def front_faces(
     # wall or furniture); an island object, open all round, leaves every open face likely.
     w = np.array([openness[k] * (1.0 - openness[(k + 2) % 4] + ISLAND) for k in range(4)])
     w = w**SHARPEN
+    if tops is not None:
+        w *= backrest_factors(tops)
     w *= np.array([b.any() for b in bands])
     return w, bands
 
 
 def front_stand_point(
-    glmap: GLMap, instance_ids: list[int], notes: list[str]
+    glmap: GLMap, instance_ids: list[int], notes: list[str], backrest: bool = True
 ) -> tuple[float, float] | None:
-    """l_a on the accessible side of the anchor instance(s), or None (see the module doc)."""
+    """l_a on the accessible side of the anchor instance(s), or None (see the module doc).
+
+    `backrest=False` leaves out the edge-height cue (the earlier rule, for comparison)."""
     pts = [
-        np.asarray(glmap.instances[i].gaussians.means)[:, :2]
-        for i in instance_ids
-        if i in glmap.instances
+        np.asarray(glmap.instances[i].gaussians.means) for i in instance_ids if i in glmap.instances
     ]
-    fp = fit_footprint(np.concatenate(pts)) if pts else None
+    means = np.concatenate(pts) if pts else np.zeros((0, 3))
+    fp = fit_footprint(means[:, :2]) if pts else None
     if fp is None:
         return None
     xy, free, ok = _cells(glmap, fp.centre, float(np.hypot(*fp.half)) + BAND[1] + 0.1)
     if len(xy) == 0:
         return None
-    w, bands = front_faces(fp, xy, free, ok)
+    tops = edge_heights(fp, means) if backrest else None
+    w, bands = front_faces(fp, xy, free, ok, tops)
     if w.sum() <= 0:
         return None
     cand = np.any(bands, axis=0)
