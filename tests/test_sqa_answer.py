@@ -17,7 +17,10 @@ from glmap_tools.sqa.answer import (
     question_type,
 )
 from glmap_tools.sqa.surroundings import direction_of, surroundings
-from tests.test_sqa_situate import glmap  # noqa: F401  (the hand-built scene fixture)
+from tests.test_sqa_situate import (
+    glmap,  # noqa: F401  (the hand-built scene fixture)
+    two_rooms_map,  # noqa: F401  (a wall between two rooms)
+)
 
 
 @pytest.mark.parametrize(
@@ -92,10 +95,39 @@ def test_a_situated_answer_never_names_the_anchor_l_a_was_placed_at(glmap):  # n
     assert answer_at(glmap, nowhere, "What is behind me?")[0].answer == "bed"
 
 
+def test_the_room_is_read_from_what_stands_nearest(glmap):  # noqa: F811
+    ask = OfflineAnswerer().answer
+    by_bed = ask("Which room am I in?", surroundings(glmap, 1.0, 0.0, 0.0))
+    assert by_bed.supported and by_bed.answer == "bedroom" and "bed" in by_bed.evidence
+    by_sofa = ask("Which room am I in?", surroundings(glmap, 3.0, 1.2, 0.0))
+    assert by_sofa.answer == "living room" and "sofa" in by_sofa.evidence
+
+
+def test_what_a_wall_hides_is_in_another_room(two_rooms_map):  # noqa: F811
+    # West of the wall (x 1.9-2.1) by the west dining table, facing east: the sofa 1 m ahead
+    # stands beyond the wall, so nothing is in front and the table behind stays seen.
+    m = two_rooms_map
+    label = {u.id: u.label for u in m.instances.values()}
+    where = surroundings(m, 1.5, 0.0, 0.0)
+    assert {label[i] for i in where.walled} == {"sofa"}  # the east table is beyond 4 m
+    assert [label[n.unit_id] for n in where.nearby if n.unit_id not in where.walled] == [
+        "dining table"
+    ]
+    ask = OfflineAnswerer().answer
+    assert ask("What is in front of me?", where).answer == "nothing"
+    assert ask("What is behind me?", where).answer == "dining table"
+    blind = surroundings(m, 1.5, 0.0, 0.0, walls=False)
+    assert not blind.walled and ask("What is in front of me?", blind).answer == "sofa"
+
+
 def test_the_offline_answerer_says_what_it_cannot_answer(glmap):  # noqa: F811
     where, _ = _at_bed_facing_sofa(glmap)
-    room = OfflineAnswerer().answer("Which room am I in?", where)
-    assert not room.supported and "room names" in room.evidence and room.answer == ""
+    bare = dataclasses.replace(where, nearby=tuple(n for n in where.nearby if n.label == "sofa"))
+    bare = dataclasses.replace(
+        bare, nearby=tuple(dataclasses.replace(n, label="box", text="a box") for n in bare.nearby)
+    )
+    room = OfflineAnswerer().answer("Which room am I in?", bare)
+    assert not room.supported and "what kind of room" in room.evidence and room.answer == ""
     odd = OfflineAnswerer().answer("Why is the sky blue?", where)
     assert not odd.supported and odd.question_type == "unknown"
 

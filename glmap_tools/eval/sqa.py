@@ -168,7 +168,7 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
                 pred, supported, qtype = a.answer, a.supported, a.question_type
             else:
                 if agent == "text-only":
-                    where = surroundings(glmap, 0.0, 0.0, 0.0, radius=None)
+                    where = surroundings(glmap, 0.0, 0.0, 0.0, radius=None, walls=False)
                 else:
                     assert pose is not None
                     where = surroundings(glmap, pose[0], pose[1], pose[2])

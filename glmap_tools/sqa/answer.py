@@ -3,8 +3,12 @@
 No model: the question's type is read from its wording, the object it names is matched to
 unit labels, and the answer comes from `Surroundings` (bearings, distances, heights,
 region members, descriptions). It is honest about what it cannot do: a question type it
-has no rule for, or one the map cannot answer (room names are not in the map), comes back
-with `supported=False` and the reason, never a guess dressed as an answer.
+has no rule for, or one the map cannot answer, comes back with `supported=False` and the
+reason, never a guess dressed as an answer. The map holds no room names: "which room" is
+inferred from what stands near the pose through a common-sense table of what each kind of
+room holds (`ROOM_CUES`, the knowledge an MLLM brings), nearer units weighing more.
+Units a wall hides from the pose (`Surroundings.walled`, from the map's structure layer)
+are in another room: no directional or room answer names them.
 
 Exact match (EM) after normalisation — the rules, applied to prediction and answers alike:
 1. lower case; strip punctuation except inner hyphens; collapse spaces;
@@ -83,6 +87,39 @@ COLOURS = [
     "cream",
     "tan",
 ]
+# What each kind of room typically holds (words of a unit's label or description). Common
+# household knowledge, not read from any scene; a unit fitting several rooms splits its vote.
+ROOM_CUES: dict[str, tuple[str, ...]] = {
+    "kitchen": (
+        "kitchen",
+        "refrigerator",
+        "fridge",
+        "stove",
+        "oven",
+        "cooker",
+        "microwave",
+        "toaster",
+        "coffee machine",
+        "dishwasher",
+        "kettle",
+    ),
+    "bathroom": ("bathroom", "toilet", "bathtub", "bath", "shower", "washbasin", "towel"),
+    "bedroom": ("bedroom", "bed", "nightstand", "bedside", "wardrobe", "dresser", "pillow"),
+    "living room": (
+        "living room",
+        "sofa",
+        "couch",
+        "armchair",
+        "tv",
+        "television",
+        "tv stand",
+        "coffee table",
+    ),
+    "office": ("office", "desk", "office chair", "monitor", "computer", "printer"),
+    "dining room": ("dining", "dining table", "dining chair", "sideboard"),
+    "hallway": ("hallway", "coat rack", "shoe rack", "umbrella stand", "front door"),
+}
+ROOM_DECAY = 1.5  # m: a unit's vote falls by e per this much distance from the pose
 REACH_CONE = 20.0  # degrees either side of straight ahead
 SIDE_SECTORS = {"left": (45.0, 135.0), "right": (-135.0, -45.0)}
 BEHIND = 150.0  # |bearing| at least this is behind
@@ -238,7 +275,7 @@ class OfflineAnswerer:
             exclude: unit ids not to answer with (the anchor one stands at).
         """
         kind, parts = question_type(question)
-        skip = set(exclude)
+        skip = set(exclude) | set(where.walled)  # what one stands at; what a wall hides
         labels = list(where.labels.values())
         if kind in ("left", "right"):
             lo, hi = SIDE_SECTORS[kind]
@@ -254,7 +291,7 @@ class OfflineAnswerer:
             )
             return self._object(kind, n, f"nearest unit at |bearing| >= {BEHIND:.0f} deg")
         if kind == "room":
-            return MapAnswer("", kind, False, "the map holds no room names")
+            return _room(where)
         if kind == "color":
             label = _match_label(parts.get("object", ""), labels)
             if label is None:
@@ -321,6 +358,28 @@ class OfflineAnswerer:
             True,
             f"{rule}: unit {n.unit_id} at {n.distance:.1f} m, {n.bearing:.0f} deg",
         )
+
+
+def _room(where: Surroundings) -> MapAnswer:
+    """The room kind whose typical contents stand nearest the pose (ROOM_CUES)."""
+    votes = dict.fromkeys(ROOM_CUES, 0.0)
+    why: dict[str, list[str]] = {room: [] for room in ROOM_CUES}
+    for n in where.nearby:
+        if n.unit_id in where.walled:  # another room
+            continue
+        words = " ".join(_singular(w) for w in re.findall(r"[a-z]+", f"{n.label} {n.text}".lower()))
+        rooms = [
+            room
+            for room, cues in ROOM_CUES.items()
+            if any(re.search(rf"(?<!\w){re.escape(c)}(?!\w)", words) for c in cues)
+        ]
+        for room in rooms:
+            votes[room] += math.exp(-n.distance / ROOM_DECAY) / len(rooms)
+            why[room].append(f"{n.label} {n.distance:.1f} m")
+    best = max(votes, key=lambda r: votes[r])
+    if votes[best] <= 0.0:
+        return MapAnswer("", "room", False, "nothing nearby says what kind of room this is")
+    return MapAnswer(best, "room", True, f"{best} {votes[best]:.2f}: {', '.join(why[best][:4])}")
 
 
 def answer_at(

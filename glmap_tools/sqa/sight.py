@@ -18,7 +18,8 @@ docs/evaluation.md).
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+import weakref
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -124,3 +125,82 @@ class SightCheck:
         los[band_any] = self.floor.line_of_sight(xy[band_any], _centre(g, facing_id), own)
         seen = np.array([los[b].mean() if b.any() else 0.0 for b in bands])
         return float((w / w.sum() * seen).sum())
+
+
+WALL_BAND = (0.3, 2.1)  # m above the floor: structure here is wall (floor below, ceiling above)
+
+
+_WALLS: weakref.WeakKeyDictionary[Any, tuple[int, Walls]] = weakref.WeakKeyDictionary()
+
+
+def walls_of(glmap: GLMap) -> Walls:
+    """The map's `Walls`, kept until its structure layer changes."""
+    size = len(glmap.structure)
+    kept = _WALLS.get(glmap)
+    if kept is None or kept[0] != size:
+        kept = (size, Walls(glmap))
+        _WALLS[glmap] = kept
+    return kept[1]
+
+
+class Walls:
+    """The walls of a map, from its structure layer: every cell under a structure Gaussian
+    between WALL_BAND heights above the floor. Objects are masked out of the structure, so
+    furniture never blocks here, and a wall behind furniture still shows above it."""
+
+    def __init__(self, glmap: GLMap) -> None:
+        from scipy.ndimage import binary_closing
+
+        self.s = float(glmap.grid.cell_size)
+        means = np.asarray(glmap.structure.gaussians().means) if len(glmap.structure) else None
+        floor = float(glmap.floor_z or 0.0)
+        self.mask = np.zeros((0, 0), bool)
+        self.origin = (0, 0)
+        if means is None or len(means) == 0:
+            return
+        z = means[:, 2] - floor
+        pts = means[(z >= WALL_BAND[0]) & (z <= WALL_BAND[1]), :2]
+        if len(pts) == 0:
+            return
+        ij = np.floor(pts / self.s).astype(np.int64)
+        lo = ij.min(axis=0) - 1
+        shape = tuple(int(v) for v in ij.max(axis=0) - lo + 2)
+        mask = np.zeros(shape[::-1], bool)  # [rows = y, cols = x]
+        mask[ij[:, 1] - lo[1], ij[:, 0] - lo[0]] = True
+        self.mask = binary_closing(mask, iterations=1)  # one-cell gaps between samples
+        self.origin = (int(lo[0]), int(lo[1]))
+
+    def blocked(self, start: tuple[float, float], ends: np.ndarray) -> np.ndarray:
+        """[N] bool: the segment from `start` to each end crosses a wall cell (the last
+        cell before the end aside: an object against a wall ends at it)."""
+        ends = np.asarray(ends, dtype=np.float64).reshape(-1, 2)
+        if len(ends) == 0 or self.mask.size == 0:
+            return np.zeros(len(ends), bool)
+        a = np.asarray(start, dtype=np.float64)
+        length = np.hypot(*(ends - a).T)
+        steps = int(np.ceil(length.max() / (0.5 * self.s))) + 2
+        t = np.linspace(0.0, 1.0, steps)[None, :] * np.maximum(length - self.s, 0.0)[:, None]
+        unit = (ends - a) / np.maximum(length, 1e-9)[:, None]
+        pts = a[None, None, :] + unit[:, None, :] * t[..., None]  # [N, T, 2]
+        c = np.floor(pts[..., 0] / self.s).astype(np.int64) - self.origin[0]
+        r = np.floor(pts[..., 1] / self.s).astype(np.int64) - self.origin[1]
+        inside = (r >= 0) & (r < self.mask.shape[0]) & (c >= 0) & (c < self.mask.shape[1])
+        hit = inside & self.mask[np.where(inside, r, 0), np.where(inside, c, 0)]
+        return hit.any(axis=1)
+
+    def behind(self, glmap: GLMap, x: float, y: float, unit_ids: list[int]) -> frozenset[int]:
+        """The units of `unit_ids` a wall hides from (x, y): both their centre and their
+        nearest grid cell lie beyond a wall."""
+        out = set()
+        for uid in unit_ids:
+            unit = glmap.instances.get(uid)
+            if unit is None:
+                continue
+            cells = np.array(sorted(glmap.grid.cells_of_unit(uid)), np.float64)
+            targets = [_centre(glmap, uid)]
+            if len(cells):
+                centres = (cells + 0.5) * glmap.grid.cell_size
+                targets.append(centres[int(np.argmin(np.hypot(*(centres - (x, y)).T)))])
+            if self.blocked((x, y), np.array(targets)).all():
+                out.add(uid)
+        return frozenset(out)

@@ -65,6 +65,7 @@ class Surroundings:
     nearby: tuple[Nearby, ...]  # nearest first
     regions: tuple[tuple[int, str, tuple[int, ...]], ...]  # (id, text, member ids)
     labels: dict[int, str]  # every instance's label, for region member counts
+    walled: frozenset[int] = frozenset()  # nearby units a wall hides (another room)
 
     def as_dict(self, max_units: int = 20) -> dict[str, Any]:
         """Compact JSON: [id, label, metres, bearing, direction] rows and regions."""
@@ -89,9 +90,15 @@ def _all_units(glmap: GLMap, x: float, y: float) -> list[tuple[int, float]]:
 
 
 def surroundings(
-    glmap: GLMap, x: float, y: float, heading: float, radius: float | None = AROUND
+    glmap: GLMap,
+    x: float,
+    y: float,
+    heading: float,
+    radius: float | None = AROUND,
+    walls: bool = True,
 ) -> Surroundings:
-    """The instances within `radius` of (x, y) (None: all) with bearings from `heading`."""
+    """The instances within `radius` of (x, y) (None: all) with bearings from `heading`;
+    with `walls`, also which of them a wall hides (`glmap_tools.sqa.sight.Walls`)."""
     s = glmap.grid.cell_size
     rows = []
     near = glmap.grid.units_near(x, y, radius) if radius is not None else _all_units(glmap, x, y)
@@ -124,4 +131,9 @@ def surroundings(
         for r in sorted(glmap.regions.values(), key=lambda r: r.id)
     )
     labels = {uid: u.label for uid, u in glmap.instances.items()}
-    return Surroundings(x, y, heading, tuple(rows), regions, labels)
+    walled: frozenset[int] = frozenset()
+    if walls and rows:
+        from glmap_tools.sqa.sight import walls_of
+
+        walled = walls_of(glmap).behind(glmap, x, y, [n.unit_id for n in rows])
+    return Surroundings(x, y, heading, tuple(rows), regions, labels, walled)
