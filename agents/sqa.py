@@ -29,6 +29,16 @@ from glmap_tools.language.prompts import PromptSet, default_prompts
 VIEW_ORDER = (
     "a 2x2 sheet: front (top left), left (top right), back (bottom left), right (bottom right)"
 )
+CROP_TEXT = (
+    "a top-down map crop 6 m across centred on you, north up: the red arrow is you and the "
+    "way you face, the numbers are the ids in the notes"
+)
+# What the MLLM is shown (paper: the four views; GPT4Scene-style: a top-down crop with ids).
+VIEW_MODES = {
+    "four": VIEW_ORDER,
+    "topdown": CROP_TEXT,
+    "both": f"{VIEW_ORDER}; then {CROP_TEXT}",
+}
 
 
 class SituatedAnswer(BaseModel):
@@ -47,11 +57,14 @@ class AgentAnswer:
     located: dict[str, Any]
 
 
-async def locate(client: Any, situation: str, question: str) -> tuple[dict[str, Any], list[bytes]]:
-    """Call locate_situation; its JSON and its images (heat map, views sheet)."""
-    result = await client.call_tool(
-        "locate_situation", {"situation": situation, "question": question}
-    )
+async def locate(
+    client: Any, situation: str, question: str, topdown: bool = False
+) -> tuple[dict[str, Any], list[bytes]]:
+    """Call locate_situation; its JSON and its images (heat map, views sheet[, crop])."""
+    args: dict[str, Any] = {"situation": situation, "question": question}
+    if topdown:
+        args["topdown"] = True
+    result = await client.call_tool("locate_situation", args)
     texts = [c.text for c in result.content if c.type == "text"]
     if result.is_error:
         raise RuntimeError(f"locate_situation failed: {' '.join(texts)}")
@@ -59,12 +72,15 @@ async def locate(client: Any, situation: str, question: str) -> tuple[dict[str, 
     return json.loads(texts[0]), images
 
 
-def context_notes(info: dict[str, Any]) -> str:
-    """The text beside the views: what the map says is around, by direction."""
+def context_notes(info: dict[str, Any], ids: bool = False) -> str:
+    """The text beside the views: what the map says is around, by direction (with `ids`,
+    each unit's id as the top-down crop marks it)."""
     rows = info.get("around", {}).get("nearby", [])
     by_dir: dict[str, list[str]] = {}
-    for _, label, dist, _, direction in rows:
-        by_dir.setdefault(direction, []).append(f"{label} ({dist} m)")
+    for uid, label, dist, _, direction in rows:
+        by_dir.setdefault(direction, []).append(
+            f"{label} ({dist} m, id {uid})" if ids else f"{label} ({dist} m)"
+        )
     parts = [f"{d}: {', '.join(v[:4])}" for d, v in by_dir.items()]
     return "Map notes (nearest first) - " + "; ".join(parts) + "." if parts else ""
 
@@ -76,15 +92,26 @@ def mllm_answer(
     info: dict[str, Any],
     views_png: bytes,
     prompts: PromptSet | None = None,
+    crop_png: bytes | None = None,
+    views: str = "four",
 ) -> SituatedAnswer:
-    """T_a = f_MLLM({(I_k, d_k)}, T_q): one structured call with the views sheet."""
+    """T_a = f_MLLM({(I_k, d_k)}, T_q): one structured call with the views sheet, the
+    top-down crop (`views='topdown'`) or both (`'both'`: the sheet, then the crop)."""
+    if views not in VIEW_MODES:
+        raise ValueError(f"views={views!r} is not one of {list(VIEW_MODES)}.")
+    if views != "four" and crop_png is None:
+        raise ValueError(f"views={views!r} needs the top-down crop (locate with topdown=True).")
+    images = {"four": [views_png], "topdown": [crop_png], "both": [views_png, crop_png]}[views]
     prompt = (prompts or default_prompts()).get("sqa_answer")
     content = prompt.format(
-        situation=situation, views=VIEW_ORDER, context=context_notes(info), question=question
+        situation=situation,
+        views=VIEW_MODES[views],
+        context=context_notes(info, ids=views != "four"),
+        question=question,
     )
     value, _ = chat_structured(
         llm,
-        [{"role": "user", "content": content, "images": [views_png]}],
+        [{"role": "user", "content": content, "images": images}],
         SituatedAnswer,
         prompt=prompt,
     )
@@ -97,14 +124,19 @@ async def answer(
     question: str,
     llm: LLMClient | None = None,
     prompts: PromptSet | None = None,
+    views: str = "four",
 ) -> AgentAnswer:
-    """Locate `situation` and answer `question` (with `llm` when given, else from the map)."""
-    info, images = await locate(client, situation, question)
+    """Locate `situation` and answer `question` (with `llm` when given, else from the map);
+    `views` says what the MLLM sees: 'four' (the paper's views), 'topdown' or 'both'."""
+    if views not in VIEW_MODES:
+        raise ValueError(f"views={views!r} is not one of {list(VIEW_MODES)}.")
+    info, images = await locate(client, situation, question, topdown=views != "four")
     if llm is None:
         m = info["map_answer"]
         return AgentAnswer(m["answer"], 1.0 if m["supported"] else 0.0, "map", m["supported"], info)
+    crop = images[2] if views != "four" else None
     reply = await asyncio.to_thread(
-        mllm_answer, llm, situation, question, info, images[-1], prompts
+        mllm_answer, llm, situation, question, info, images[1], prompts, crop, views
     )
     return AgentAnswer(reply.answer, reply.confidence, "mllm", True, info)
 
@@ -126,7 +158,7 @@ async def _main(args: argparse.Namespace) -> int:
             if loaded.is_error:
                 print(loaded.content[0].text, file=sys.stderr)
                 return 1
-        out = await answer(client, args.situation, args.question, llm, prompts)
+        out = await answer(client, args.situation, args.question, llm, prompts, args.views)
     print(
         json.dumps(
             {
@@ -155,6 +187,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--ollama-host", default=None)
     p.add_argument("--prompts", type=Path, default=None)
     p.add_argument("--embedder", default="minilm", choices=["minilm", "hashing"])
+    p.add_argument(
+        "--views",
+        default="four",
+        choices=list(VIEW_MODES),
+        help="what the MLLM sees: the four captioned views, a top-down crop with unit ids "
+        "(GPT4Scene-style), or both",
+    )
     p.add_argument("--server-command", default=None)
     return asyncio.run(_main(p.parse_args(argv)))
 

@@ -19,6 +19,7 @@ import json
 import re
 import sys
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -206,8 +207,9 @@ SQA_SITUATION = "I am standing next to the dining table, facing the blue chair"
 SQA_QUESTION = "What is in front of me?"
 
 
-def sqa_mllm(host: str) -> Any:
-    """One situated question answered by the MLLM from locate_situation's views."""
+def sqa_mllm(host: str, views: str = "four") -> Any:
+    """One situated question answered by the MLLM from locate_situation's views (and, with
+    views='both', the top-down crop with unit ids)."""
     import asyncio
     import tempfile
 
@@ -222,7 +224,7 @@ def sqa_mllm(host: str) -> Any:
             for eye in ((0.0, -2.6, 1.4), (-2.5, 1.5, 1.4)):
                 await mcp_client.call_tool("observe_frame", frame_args(eye))
             llm = OllamaClient(MODEL, host=host, retries=0, vision=True)
-            return await answer(mcp_client, SQA_SITUATION, SQA_QUESTION, llm)
+            return await answer(mcp_client, SQA_SITUATION, SQA_QUESTION, llm, views=views)
 
     with tempfile.TemporaryDirectory() as tmp:
         return asyncio.run(run(Path(tmp)))
@@ -317,6 +319,7 @@ def main() -> int:
     write("map_text_merge.jsonl", map_text_merge, merge_first_sentence, HAND_WRITTEN)
     write("faults.jsonl", faults, scripted_faults, FAULTS_SOURCE)
     write("sqa_mllm.jsonl", sqa_mllm, scripted_sqa, HAND_WRITTEN)
+    write("sqa_mllm_both.jsonl", partial(sqa_mllm, views="both"), scripted_sqa, HAND_WRITTEN)
     write("agent_episode.jsonl", agent_episode, scripted_navigator, HAND_WRITTEN)
     write("segment_naming.jsonl", segment_naming, scripted_segment_namer, SEGMENT_SOURCE)
     return 0

@@ -6,6 +6,7 @@ replaying them (exact-value checks are skipped then: a real model answers differ
 
 import json
 import os
+import re
 import socket
 
 import numpy as np
@@ -209,6 +210,18 @@ def test_an_mllm_answers_a_situated_question_from_the_captioned_views():
     (image,) = request["messages"][0]["images"]
     assert image.startswith("sha256:")
     assert "front (top left), left (top right)" in request["messages"][0]["content"]
+
+
+def test_sqa_mllm_both_sends_the_views_then_the_topdown_crop_with_ids():
+    with replay("sqa_mllm_both.jsonl") as server:
+        out = sc.sqa_mllm(server.host, views="both")
+    if not RECORDING:
+        assert out.answer == "chair"
+    request = Cassette.load(sc.CASSETTES / "sqa_mllm_both.jsonl").exchanges[0]["request"]["body"]
+    message = request["messages"][0]
+    assert len(message["images"]) == 2  # the views sheet, then the crop
+    assert "then a top-down map crop" in message["content"]
+    assert re.search(r"front: chair \([\d.]+ m, id \d+\)", message["content"])
 
 
 def test_a_tool_agent_episode_replays_to_the_same_tool_results_step_by_step(tmp_path):

@@ -43,6 +43,29 @@ async def test_a_situation_comes_back_as_a_pose_a_heat_map_and_four_captioned_vi
     assert len(images) == 2 and all(c.mime_type == "image/png" for c in images)
 
 
+async def test_topdown_adds_a_map_crop_with_unit_ids_around_the_pose(tmp_path):
+    import base64
+
+    import cv2
+    import numpy as np
+
+    async with Client(build_server(config(tmp_path))) as client:
+        for eye in ((0.0, -2.6, 1.4), (-2.5, 1.5, 1.4)):
+            assert not (await client.call_tool("observe_frame", frame_args(eye))).is_error
+        args = {"situation": "I am standing next to the dining table, facing the blue chair"}
+        result = await client.call_tool("locate_situation", {**args, "topdown": True})
+        assert not result.is_error, result.content[0].text
+    images = [c for c in result.content if c.type == "image"]
+    texts = " ".join(c.text for c in result.content if c.type == "text")
+    assert len(images) == 3 and "top-down crop" in texts
+    crop = cv2.imdecode(np.frombuffer(base64.b64decode(images[2].data), np.uint8), 1)
+    assert crop.shape[0] == crop.shape[1] <= 384  # 6 m around the pose, north up
+    red = (crop[..., 2] > 180) & (crop[..., 1] < 80) & (crop[..., 0] < 80)  # the agent arrow
+    rows, cols = np.nonzero(red)
+    centre = crop.shape[0] / 2
+    assert abs(rows.mean() - centre) < 0.15 * centre and abs(cols.mean() - centre) < 0.15 * centre
+
+
 async def test_a_situation_on_an_empty_map_or_matching_nothing_is_a_clear_error(tmp_path):
     async with Client(build_server(config(tmp_path))) as client:
         empty = await client.call_tool("locate_situation", {"situation": "by the bed"})

@@ -100,3 +100,19 @@ def test_the_image_size_is_capped_and_the_png_decodes_to_it(scene):
 def test_an_empty_map_has_nothing_to_draw():
     with pytest.raises(GLMapError, match="empty"):
         draw_topdown(empty_map())
+
+
+def test_a_window_crops_the_map_to_it_and_labels_only_what_it_shows(scene):
+    glmap = scene.glmap
+    whole = draw_topdown(glmap, regions=False, trajectory=False)
+    cx, cy = next(iter(glmap.instances.values())).centroid[:2]
+    crop = draw_topdown(
+        glmap, regions=False, trajectory=False, max_side=256, window=(cx - 1, cy - 1, cx + 1, cy + 1)
+    )
+    assert max(crop.rgb.shape[:2]) <= 256
+    assert crop.x0 <= cx - 1 + 1e-9 and crop.y1 >= cy + 1 - 1e-9
+    assert crop.x0 >= cx - 1.5 and crop.y1 <= cy + 1.5  # the window, not the whole map
+    assert len(crop.label_boxes) < len(whole.label_boxes) or len(glmap.instances) == 1
+    for bad in ((1.0, 1.0, 0.0, 0.0), (0.0, 0.0, float("nan"), 1.0), (0.0, 0.0, 1.0)):
+        with pytest.raises(InvalidInputError, match="window"):
+            draw_topdown(glmap, window=bad)

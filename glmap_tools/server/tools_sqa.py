@@ -17,19 +17,23 @@ from glmap_tools.views.common import encode_png
 MAX_SITUATION = 512
 
 
-def locate(glmap: Any, situation: str, question: str = "") -> tuple[dict[str, Any], list[bytes]]:
-    """The situated pose and evidence as JSON, and PNGs: the heat map then the four views.
+def locate(
+    glmap: Any, situation: str, question: str = "", topdown: bool = False
+) -> tuple[dict[str, Any], list[bytes]]:
+    """The situated pose and evidence as JSON, and PNGs: the heat map, the four views and,
+    with `topdown`, a top-down crop around the pose with instance ids as markers.
 
     Args:
         glmap: the map.
         situation: the situation text T_l.
         question: optional T_q; when given, the offline map answer is included (with
             `supported=false` and the reason for questions the map alone cannot answer).
+        topdown: add the GPT4Scene-style crop (`glmap_tools.sqa.views.topdown_crop`).
     """
     from glmap_tools.sqa import situate
     from glmap_tools.sqa.answer import answer_at
     from glmap_tools.sqa.surroundings import surroundings
-    from glmap_tools.sqa.views import heat_image, labelled_views, views_sheet
+    from glmap_tools.sqa.views import heat_image, labelled_views, topdown_crop, views_sheet
 
     s = situate(glmap, situation)
     views = labelled_views(glmap, s.x, s.y, s.heading)
@@ -45,6 +49,8 @@ def locate(glmap: Any, situation: str, question: str = "") -> tuple[dict[str, An
             "evidence": a.evidence,
         }
     images = [encode_png(heat_image(glmap, s, 384)), encode_png(views_sheet(views))]
+    if topdown:
+        images.append(encode_png(topdown_crop(glmap, s.x, s.y, s.heading).rgb))
     return info, images
 
 
@@ -59,20 +65,23 @@ async def locate_situation(
         ),
     ],
     question: Annotated[str, Field(max_length=MAX_SITUATION)] = "",
+    topdown: bool = False,
     session: SessionArg = "",
 ) -> ImageResult:
     """Situated QA: locate a situation text in the map: pose, confidence, units around
-    (distance, bearing), a heat map and 4 views; map_answer answers the question."""
+    (distance, bearing), a heat map and 4 views (topdown: + a map crop with unit ids);
+    map_answer answers the question."""
     target = session_of(ctx, session)
 
     def run() -> ImageResult:
         with locked(target) as glmap:
-            info, images = locate(glmap, situation, question)
+            info, images = locate(glmap, situation, question, topdown)
         sit = info["situation"]
         note = (
             f"At ({sit['x']}, {sit['y']}) facing {sit['heading_deg']} deg"
             f"{' (low confidence)' if sit['low_confidence'] else ''}. "
-            "Images: heat map, then views front|left / back|right."
+            "Images: heat map, then views front|left / back|right"
+            + (", then a top-down crop (ids = units, red arrow = you)." if topdown else ".")
         )
         return ImageResult(
             data=info, notes=[note], images=[Picture(format="png", data=png) for png in images]

@@ -19,6 +19,7 @@ from glmap_tools.views.common import encode_png
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
     from glmap_tools.sqa.situate import Situation
+    from glmap_tools.views.topdown import TopDownImage
 
 ORDER = ("front", "left", "back", "right")  # as a person turns: the captions read this way
 CAPTION = 22  # px of the caption band
@@ -121,3 +122,25 @@ def heat_image(glmap: GLMap, situation: Situation, size: int = 512) -> np.ndarra
     cv2.arrowedLine(out, tail, tip, (0, 140, 0), 2, cv2.LINE_AA, tipLength=0.35)
     cv2.circle(out, tail, 4, (0, 140, 0), -1, cv2.LINE_AA)
     return np.ascontiguousarray(out[::-1])  # north (+y) up
+
+
+CROP_RADIUS = 3.0  # m around the agent in the top-down crop
+
+
+def topdown_crop(
+    glmap: GLMap, x: float, y: float, heading: float, radius: float = CROP_RADIUS, size: int = 384
+) -> TopDownImage:
+    """A top-down crop around the situated pose with instance ids as markers (GPT4Scene-
+    style): the map's footprints within `radius` m, ids at their centroids, the agent as a
+    red arrow along `heading`, north (+y) up, metre ticks; at most size x size pixels."""
+    from glmap_tools.views.topdown import draw_topdown
+
+    window = (x - radius, y - radius, x + radius, y + radius)
+    return draw_topdown(
+        glmap,
+        agent=(x, y, heading),
+        max_side=size,
+        regions=False,
+        trajectory=False,
+        window=window,
+    )

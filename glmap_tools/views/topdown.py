@@ -203,6 +203,18 @@ def _content_bounds(
     return np.min(lo_parts, 0) - margin, np.max(hi_parts, 0) + margin
 
 
+def _window_bounds(window: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        x0, y0, x1, y1 = (float(v) for v in window)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"window={window!r} must be (x0, y0, x1, y1) in metres.") from None
+    if not all(math.isfinite(v) for v in (x0, y0, x1, y1)) or x1 <= x0 or y1 <= y0:
+        raise InvalidInputError(
+            f"window={window!r} must be finite with x0 < x1 and y0 < y1, e.g. (0, 0, 6, 6)."
+        )
+    return np.array([x0, y0]), np.array([x1, y1])
+
+
 def _paint_occupancy(canvas: Canvas, glmap: GLMap) -> bool:
     """Free cells white, then obstacles dark grey (they win a shared pixel); chunk by chunk."""
     occupancy = glmap.occupancy
@@ -244,6 +256,7 @@ def draw_topdown(
     trajectory: bool = True,
     metres_per_pixel: float | None = None,
     frame: TopDownFrame | None = None,
+    window: Sequence[float] | None = None,
 ) -> TopDownImage:
     """Draw the map's index grid from above as a labelled image with metre ticks.
 
@@ -265,6 +278,8 @@ def draw_topdown(
         trajectory: draw the integrated camera positions as a blue line.
         metres_per_pixel: a fixed scale instead of the ladder's choice.
         frame: a previous image's frame, kept when everything still fits in it.
+        window: (x0, y0, x1, y1) metres: draw only this part of the map (a crop around
+            the agent); ids are written for the instances whose centroid lies inside.
 
     Raises:
         InvalidInputError: nothing to draw (no instances and no observed space), a bad
@@ -280,9 +295,13 @@ def draw_topdown(
         )
     agent_xyh = _agent_xy_heading(agent) if agent is not None else None
     cells = _unit_cells(glmap)
-    extra = [agent_xyh[:2]] if agent_xyh is not None else []
-    lo, hi = _content_bounds(glmap, cells, extra, heatmap)
     cell = glmap.config.cell_size
+    if window is not None:
+        lo, hi = _window_bounds(window)
+        frame = None
+    else:
+        extra = [agent_xyh[:2]] if agent_xyh is not None else []
+        lo, hi = _content_bounds(glmap, cells, extra, heatmap)
     keep = (
         frame is not None
         and metres_per_pixel is None
@@ -308,6 +327,13 @@ def draw_topdown(
     image = canvas.image()
     writer = Labels(image)
     draw_ticks(image, frame, writer)
+    if window is not None:  # ids only for what the crop shows
+        cells = {
+            u: c
+            for u, c in cells.items()
+            if lo[0] <= glmap.instances[u].centroid[0] <= hi[0]
+            and lo[1] <= glmap.instances[u].centroid[1] <= hi[1]
+        }
     label_count = len(cells) + (len(glmap.regions) if regions else 0)
     write_labels = labels and label_count <= MAX_LABELS
     if regions:
