@@ -144,14 +144,14 @@ def chair_map():
 
 
 def test_a_backrest_marks_the_back_of_an_object_free_on_all_sides(chair_map):
-    from glmap_tools.sqa.stand import backrest_factors, edge_heights, fit_footprint
+    from glmap_tools.sqa.stand import BACKREST, backrest_factors, edge_heights, fit_footprint
 
     chair = next(u for u in chair_map.instances.values() if u.label == "armchair")
     means = np.asarray(chair.gaussians.means)
     tops = edge_heights(fit_footprint(means[:, :2]), means)
     # Faces +x, +y, -x, -y: only the north (+y) edge rises (backrest 0.9 m over a 0.45 m seat).
     assert tops[1] - max(tops[0], tops[2], tops[3]) >= 0.3, tops
-    assert list(backrest_factors(tops)) == [1.0, 0.25, 1.0, 4.0]
+    assert list(backrest_factors(tops)) == [1.0, 1 / BACKREST, 1.0, BACKREST]
     text = "I am sitting on the armchair, facing the table."
     s = situate(chair_map, text)
     assert -1.25 <= s.y <= -0.4 and abs(s.x) <= 0.5, (s.x, s.y, s.notes)

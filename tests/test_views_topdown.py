@@ -106,9 +106,8 @@ def test_a_window_crops_the_map_to_it_and_labels_only_what_it_shows(scene):
     glmap = scene.glmap
     whole = draw_topdown(glmap, regions=False, trajectory=False)
     cx, cy = next(iter(glmap.instances.values())).centroid[:2]
-    crop = draw_topdown(
-        glmap, regions=False, trajectory=False, max_side=256, window=(cx - 1, cy - 1, cx + 1, cy + 1)
-    )
+    window = (cx - 1, cy - 1, cx + 1, cy + 1)
+    crop = draw_topdown(glmap, regions=False, trajectory=False, max_side=256, window=window)
     assert max(crop.rgb.shape[:2]) <= 256
     assert crop.x0 <= cx - 1 + 1e-9 and crop.y1 >= cy + 1 - 1e-9
     assert crop.x0 >= cx - 1.5 and crop.y1 <= cy + 1.5  # the window, not the whole map
