@@ -73,11 +73,14 @@ async def locate(
 
 
 def context_notes(info: dict[str, Any], ids: bool = False) -> str:
-    """The text beside the views: what the map says is around, by direction (with `ids`,
-    each unit's id as the top-down crop marks it)."""
+    """The text beside the views: what the map says is around, by direction, leaving out
+    what a wall hides (with `ids`, each unit's id as the top-down crop marks it)."""
     rows = info.get("around", {}).get("nearby", [])
+    hidden = set(info.get("around", {}).get("behind_walls", []))  # another room's
     by_dir: dict[str, list[str]] = {}
     for uid, label, dist, _, direction in rows:
+        if uid in hidden:
+            continue
         by_dir.setdefault(direction, []).append(
             f"{label} ({dist} m, id {uid})" if ids else f"{label} ({dist} m)"
         )

@@ -116,6 +116,12 @@ def test_what_a_wall_hides_is_in_another_room(two_rooms_map):  # noqa: F811
     ask = OfflineAnswerer().answer
     assert ask("What is in front of me?", where).answer == "nothing"
     assert ask("What is behind me?", where).answer == "dining table"
+    sofa = next(i for i in where.walled)
+    assert where.as_dict()["behind_walls"] == [sofa]  # what locate_situation tells a client
+    from agents.sqa import context_notes
+
+    notes = context_notes({"around": where.as_dict()})
+    assert "dining table" in notes and "sofa" not in notes
     blind = surroundings(m, 1.5, 0.0, 0.0, walls=False)
     assert not blind.walled and ask("What is in front of me?", blind).answer == "sofa"
 

@@ -68,12 +68,18 @@ class Surroundings:
     walled: frozenset[int] = frozenset()  # nearby units a wall hides (another room)
 
     def as_dict(self, max_units: int = 20) -> dict[str, Any]:
-        """Compact JSON: [id, label, metres, bearing, direction] rows and regions."""
-        return {
+        """Compact JSON: [id, label, metres, bearing, direction] rows, regions and, when
+        any, the ids of the rows a wall hides ("behind_walls": another room)."""
+        rows = self.nearby[:max_units]
+        out: dict[str, Any] = {
             "pose": [round(self.x, 2), round(self.y, 2), round(math.degrees(self.heading))],
-            "nearby": [n.as_row() for n in self.nearby[:max_units]],
+            "nearby": [n.as_row() for n in rows],
             "regions": [[rid, text[:100], list(members)] for rid, text, members in self.regions],
         }
+        hidden = sorted(n.unit_id for n in rows if n.unit_id in self.walled)
+        if hidden:
+            out["behind_walls"] = hidden
+        return out
 
 
 def _all_units(glmap: GLMap, x: float, y: float) -> list[tuple[int, float]]:
