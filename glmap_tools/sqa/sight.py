@@ -152,13 +152,12 @@ class Walls:
         from scipy.ndimage import binary_closing
 
         self.s = float(glmap.grid.cell_size)
-        means = np.asarray(glmap.structure.gaussians().means) if len(glmap.structure) else None
-        floor = float(glmap.floor_z or 0.0)
         self.mask = np.zeros((0, 0), bool)
         self.origin = (0, 0)
-        if means is None or len(means) == 0:
+        if not len(glmap.structure):
             return
-        z = means[:, 2] - floor
+        means = np.asarray(glmap.structure.gaussians().means)
+        z = means[:, 2] - float(glmap.floor_z or 0.0)
         pts = means[(z >= WALL_BAND[0]) & (z <= WALL_BAND[1]), :2]
         if len(pts) == 0:
             return
@@ -187,20 +186,3 @@ class Walls:
         inside = (r >= 0) & (r < self.mask.shape[0]) & (c >= 0) & (c < self.mask.shape[1])
         hit = inside & self.mask[np.where(inside, r, 0), np.where(inside, c, 0)]
         return hit.any(axis=1)
-
-    def behind(self, glmap: GLMap, x: float, y: float, unit_ids: list[int]) -> frozenset[int]:
-        """The units of `unit_ids` a wall hides from (x, y): both their centre and their
-        nearest grid cell lie beyond a wall."""
-        out = set()
-        for uid in unit_ids:
-            unit = glmap.instances.get(uid)
-            if unit is None:
-                continue
-            cells = np.array(sorted(glmap.grid.cells_of_unit(uid)), np.float64)
-            targets = [_centre(glmap, uid)]
-            if len(cells):
-                centres = (cells + 0.5) * glmap.grid.cell_size
-                targets.append(centres[int(np.argmin(np.hypot(*(centres - (x, y)).T)))])
-            if self.blocked((x, y), np.array(targets)).all():
-                out.add(uid)
-        return frozenset(out)

@@ -107,6 +107,7 @@ def surroundings(
     with `walls`, also which of them a wall hides (`glmap_tools.sqa.sight.Walls`)."""
     s = glmap.grid.cell_size
     rows = []
+    sight: dict[int, np.ndarray] = {}  # unit id -> [2, 2]: its centre and nearest cell centre
     near = glmap.grid.units_near(x, y, radius) if radius is not None else _all_units(glmap, x, y)
     for uid, dist in near:
         unit = glmap.instances.get(uid)
@@ -118,6 +119,9 @@ def surroundings(
         cells = np.array(sorted(glmap.grid.cells_of_unit(uid)), dtype=np.float64)
         lo = cells.min(axis=0) * s if len(cells) else c[:2]
         hi = (cells.max(axis=0) + 1) * s if len(cells) else c[:2]
+        centres = (cells + 0.5) * s if len(cells) else c[None, :2]
+        nearest = centres[int(np.argmin(np.hypot(centres[:, 0] - x, centres[:, 1] - y)))]
+        sight[uid] = np.array([c[:2], nearest], dtype=np.float64)
         rows.append(
             Nearby(
                 uid,
@@ -141,5 +145,9 @@ def surroundings(
     if walls and rows:
         from glmap_tools.sqa.sight import walls_of
 
-        walled = walls_of(glmap).behind(glmap, x, y, [n.unit_id for n in rows])
+        # Hidden: a wall lies before both the unit's centre and its nearest cell.
+        ids = [n.unit_id for n in rows]
+        ends = np.concatenate([sight[i] for i in ids])
+        hidden = walls_of(glmap).blocked((x, y), ends).reshape(len(ids), 2).all(axis=1)
+        walled = frozenset(ids[k] for k in np.flatnonzero(hidden))
     return Surroundings(x, y, heading, tuple(rows), regions, labels, walled)
