@@ -1,13 +1,31 @@
 """Language: text embedders phi, the calibrated threshold tau_s, text-buffer mergers."""
 
-from glmap_tools.language.embed import (
-    Embedder,
-    HashingEmbedder,
-    MiniLMEmbedder,
-    cosine_similarity,
-    default_embedder,
-)
+from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+from glmap_tools.lazy import lazy_getattr
+
+if TYPE_CHECKING:
+    from glmap_tools.language.embed import (
+        Embedder,
+        HashingEmbedder,
+        MiniLMEmbedder,
+        cosine_similarity,
+        default_embedder,
+    )
+
+# Loaded on first use: the command lines (language.backends) need no numpy.
+_LAZY = {
+    name: "glmap_tools.language.embed"
+    for name in (
+        "Embedder",
+        "HashingEmbedder",
+        "MiniLMEmbedder",
+        "cosine_similarity",
+        "default_embedder",
+    )
+}
 __all__ = [
     "Embedder",
     "HashingEmbedder",
@@ -15,3 +33,4 @@ __all__ = [
     "cosine_similarity",
     "default_embedder",
 ]
+__getattr__ = lazy_getattr(__name__, _LAZY, globals())

@@ -192,10 +192,15 @@ def warm_kernels() -> float:
 
 
 def prepare() -> int:
-    """Fill numba's cache and check the embedder loads (`glmap-mcp --prepare`, .ci/setup)."""
+    """Fill numba's cache, check the embedder loads and prepare the handshake answers
+    (`glmap-mcp --prepare`, .ci/setup)."""
     seconds = warm_kernels()
     print(f"glmap-mcp kernels ready in {seconds:.1f} s (numba cache filled)")
     start = time.perf_counter()
     load_embedder("minilm", None).embed(["a chair"])
     print(f"text embedder loaded in {time.perf_counter() - start:.1f} s")
+    from glmap_tools.server.handshake import answers_path, prepare_handshake
+
+    versions = prepare_handshake()
+    print(f"handshake answers prepared for {', '.join(versions)} in {answers_path()}")
     return 0

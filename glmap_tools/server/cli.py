@@ -20,8 +20,13 @@ from typing import Any
 from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.language.backends import add_llm_arguments, settings_from_args
 from glmap_tools.map import MapConfig
-from glmap_tools.server.config import MIB, ServerConfig, default_maps_dir
-from glmap_tools.server.http import MAX_CONNECTIONS, REQUEST_TIMEOUT_S
+from glmap_tools.server.config import (
+    MAX_CONNECTIONS,
+    MIB,
+    REQUEST_TIMEOUT_S,
+    ServerConfig,
+    default_maps_dir,
+)
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 TOKEN_ENV = "GLMAP_MCP_TOKEN"
@@ -104,7 +109,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--prepare",
         action="store_true",
-        help="fill numba's kernel cache and load the embedder once, then exit (for setup)",
+        help="fill numba's kernel cache, load the embedder once and prepare the handshake "
+        "answers (docs/mcp.md, Start-up), then exit (for setup)",
     )
     p.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     add_llm_arguments(p)
@@ -303,7 +309,10 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 2
-        build(config, perception).run("stdio")
+        from glmap_tools.server.handshake import start_relay
+
+        relay = start_relay()  # answers the handshake while the SDK imports
+        relay.serve(build(config, perception))
         return 0
     host = args.host or "127.0.0.1"
     if host not in LOOPBACK and not token:

@@ -12,6 +12,10 @@ from glmap_tools.errors import InvalidInputError
 from glmap_tools.language.backends import LLMSettings
 from glmap_tools.map.config import MapConfig
 
+# HTTP limits (glmap_tools.server.http); here so the command line needs no uvicorn import.
+REQUEST_TIMEOUT_S = 10.0
+MAX_CONNECTIONS = 64
+
 EmbedderName = Literal["minilm", "hashing"]
 EMBEDDERS: tuple[str, ...] = ("minilm", "hashing")
 

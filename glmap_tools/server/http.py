@@ -26,8 +26,8 @@ from typing import Any
 import h11
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
-REQUEST_TIMEOUT_S = 10.0
-MAX_CONNECTIONS = 64
+from glmap_tools.server.config import MAX_CONNECTIONS, REQUEST_TIMEOUT_S
+
 LISTEN_BACKLOG = 128
 
 

@@ -1,0 +1,223 @@
+"""`glmap-mcp` over stdio answers the handshake from prepared answers while the SDK imports.
+
+Each test launches the real console script with its own $GLMAP_CACHE_DIR. How soon the
+answers come is measured by `python -m glmap_tools.bench startup`, not here.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import anyio
+import pytest
+from mcp import Client
+from mcp.client.stdio import StdioServerParameters
+
+from glmap_tools.bench.startup import StdioPeer
+from glmap_tools.server.handshake import (
+    FORMAT,
+    HANDSHAKE_VERSIONS,
+    META_VERSION,
+    MODERN_VERSIONS,
+    source_stamp,
+)
+from tests.test_server_transports import FAST, REPO, STARTUP_TIMEOUT, server_command
+
+VERSION = "2025-11-25"
+MARKER = "prepared answer from the handshake file"
+
+
+def launch(tmp_path: Path, cache: Path) -> StdioPeer:
+    env = dict(os.environ, GLMAP_CACHE_DIR=str(cache), HF_HUB_OFFLINE="1")
+    return StdioPeer([*server_command(), *FAST, "--maps-dir", str(tmp_path / "maps")], env)
+
+
+def modern_meta(version: str) -> dict[str, Any]:
+    return {
+        META_VERSION: version,
+        "io.modelcontextprotocol/clientInfo": {"name": "t", "version": "1"},
+        "io.modelcontextprotocol/clientCapabilities": {},
+    }
+
+
+def handshake(peer: StdioPeer, version: str = VERSION) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(opening result, tools/list result) as the client received them: `initialize` for
+    handshake-era versions, `server/discover` for stateless ones."""
+    if version in MODERN_VERSIONS:
+        meta = modern_meta(version)
+        for i, method in ((1, "server/discover"), (2, "tools/list")):
+            peer.send({"jsonrpc": "2.0", "id": i, "method": method, "params": {"_meta": meta}})
+        return (
+            peer.answer(1, STARTUP_TIMEOUT)[0]["result"],
+            peer.answer(2, STARTUP_TIMEOUT)[0]["result"],
+        )
+    peer.send(
+        {
+            "jsonrpc": "2.0",
+            "id": 1,
+            "method": "initialize",
+            "params": {
+                "protocolVersion": version,
+                "capabilities": {},
+                "clientInfo": {"name": "test", "version": "1"},
+            },
+        }
+    )
+    init, _ = peer.answer(1, STARTUP_TIMEOUT)
+    peer.send({"jsonrpc": "2.0", "method": "notifications/initialized"})
+    peer.send({"jsonrpc": "2.0", "id": 2, "method": "tools/list", "params": {}})
+    listed, _ = peer.answer(2, STARTUP_TIMEOUT)
+    return init["result"], listed["result"]
+
+
+def call(
+    peer: StdioPeer, request_id: int, name: str | None, arguments: dict[str, Any], version: str
+) -> Any:
+    """The answer to tools/call `name` (None: to tools/list), in `version`'s form."""
+    params: dict[str, Any] = {"name": name, "arguments": arguments} if name else {}
+    if version in MODERN_VERSIONS:
+        params["_meta"] = modern_meta(version)
+    method = "tools/call" if name else "tools/list"
+    peer.send({"jsonrpc": "2.0", "id": request_id, "method": method, "params": params})
+    return peer.answer(request_id, STARTUP_TIMEOUT)[0]
+
+
+def stored(cache: Path) -> dict[str, Any]:
+    return json.loads((cache / "handshake.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def first(tmp_path_factory) -> tuple[Path, dict[str, tuple[dict[str, Any], dict[str, Any]]]]:
+    """A cache folder filled by first launches (one per opening), and their SDK-made answers."""
+    tmp = tmp_path_factory.mktemp("first")
+    cache = tmp / "cache"
+    answers = {}
+    for version in (VERSION, MODERN_VERSIONS[0]):
+        peer = launch(tmp, cache)
+        try:
+            answers[version] = handshake(peer, version)
+        finally:
+            peer.close()
+    return cache, answers
+
+
+@pytest.fixture
+def prepared(first) -> tuple[Path, dict[str, Any], dict[str, Any]]:
+    cache, answers = first
+    return cache, *answers[VERSION]
+
+
+def test_a_first_launch_answers_through_the_sdk_and_keeps_its_answers(first):
+    cache, answers = first
+    data = stored(cache)
+    assert data["format"] == FORMAT
+    mine = data["installations"][source_stamp()]["answers"]
+    init, listed = answers[VERSION]
+    assert mine[VERSION] == {"initialize": init, "tools/list": listed}
+    assert init["protocolVersion"] == VERSION and init["serverInfo"]["name"] == "glmap"
+    assert "find_instance" in {t["name"] for t in listed["tools"]}
+    modern = MODERN_VERSIONS[0]
+    discovered, modern_list = answers[modern]
+    assert mine[modern] == {"server/discover": discovered, "tools/list": modern_list}
+    assert {t["name"] for t in modern_list["tools"]} == {t["name"] for t in listed["tools"]}
+
+
+@pytest.mark.parametrize("version", [VERSION, MODERN_VERSIONS[0]])
+def test_a_later_launch_answers_from_the_file_and_the_sdk_session_follows(first, tmp_path, version):
+    cache, answers = first
+    opening, listed = answers[version]
+    here = tmp_path / "cache"
+    here.mkdir()
+    data = stored(cache)
+    stale = json.loads(json.dumps(listed))
+    stale["tools"][0]["description"] = MARKER  # only the file says this
+    data["installations"][source_stamp()]["answers"][version]["tools/list"] = stale
+    (here / "handshake.json").write_text(json.dumps(data))
+    peer = launch(tmp_path, here)
+    try:
+        got_opening, got_list = handshake(peer, version)
+        assert got_opening == opening
+        assert got_list["tools"][0]["description"] == MARKER  # answered before the SDK
+        summary = call(peer, 3, "map_summary", {}, version)  # the SDK's session follows
+        assert not summary["result"].get("isError"), summary
+        relisted = call(peer, 4, None, {}, version)
+        assert relisted["result"] == listed  # later requests: the SDK itself
+    finally:
+        peer.close()
+    assert "prepared tools/list answer was out of date" in "".join(peer.stderr)
+    refreshed = stored(here)["installations"][source_stamp()]["answers"]
+    assert refreshed[version]["tools/list"] == listed
+
+
+def test_answers_of_another_installation_are_not_used(prepared, tmp_path):
+    cache, _, listed = prepared
+    here = tmp_path / "cache"
+    here.mkdir()
+    data = stored(cache)
+    other = data["installations"].pop(source_stamp())
+    other["answers"][VERSION]["tools/list"]["tools"][0]["description"] = MARKER
+    data["installations"]["another-installation"] = other
+    (here / "handshake.json").write_text(json.dumps(data))
+    peer = launch(tmp_path, here)
+    try:
+        _, got_list = handshake(peer)
+    finally:
+        peer.close()
+    assert got_list == listed
+    kept = stored(here)["installations"]  # both installations' answers are kept
+    assert set(kept) == {"another-installation", source_stamp()}
+
+
+def test_a_version_without_prepared_answers_is_negotiated_by_the_sdk(prepared, tmp_path):
+    cache, _, listed = prepared
+    here = tmp_path / "cache"
+    here.mkdir()
+    (here / "handshake.json").write_text((cache / "handshake.json").read_text())
+    peer = launch(tmp_path, here)
+    try:
+        init, got_list = handshake(peer, "1999-01-01")
+    finally:
+        peer.close()
+    assert init["protocolVersion"] in HANDSHAKE_VERSIONS  # the SDK's counter-offer
+    assert "find_instance" in {t["name"] for t in got_list["tools"]}
+
+
+@pytest.mark.anyio
+async def test_a_real_client_session_works_on_prepared_answers(prepared, tmp_path):
+    cache, _, _ = prepared
+    command = server_command()
+    params = StdioServerParameters(
+        command=command[0],
+        args=[*command[1:], *FAST, "--maps-dir", str(tmp_path / "maps")],
+        cwd=str(REPO),
+        env=dict(os.environ, GLMAP_CACHE_DIR=str(cache)),
+    )
+    with anyio.fail_after(STARTUP_TIMEOUT):
+        async with Client(params) as client:
+            tools = {t.name for t in (await client.list_tools()).tools}
+            found = await client.call_tool("find_instance", {"query": "a chair"})
+    assert "observe_frame" in tools and not found.is_error
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+def test_the_command_line_imports_neither_the_sdk_nor_pydantic():
+    """What runs before the relay answers the handshake stays light."""
+    code = (
+        "import sys\n"
+        "import glmap_tools.server.cli, glmap_tools.server.handshake\n"
+        "print(' '.join(m for m in ('mcp', 'mcp_types', 'pydantic', 'uvicorn', 'scipy') "
+        "if m in sys.modules))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
+    )
+    assert done.stdout.strip() == "", done.stdout
