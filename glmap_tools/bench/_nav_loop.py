@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -43,6 +44,7 @@ def run_episode(
     max_steps: int = 500,
     timings: bool = False,
     camera: CameraSpec | None = None,
+    overrides: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run `policy` on one episode; returns success, spl, steps, distance and timings.
 
@@ -60,7 +62,7 @@ def run_episode(
     try:
         obs, info = env.reset(seed=0, options={"episode": be.episode})
         glmap = GLMap(MapConfig(), embedder=embedder())
-        state, config = NavState(), NavConfig.for_task(be.task)
+        state, config = NavState(), replace(NavConfig.for_task(be.task), **(overrides or {}))
         intr = env.camera.intrinsics
         while True:
             frame = RGBDFrame(obs["rgb"], obs["depth"], intr, Pose(obs["pose"].astype(np.float64)))
@@ -132,10 +134,11 @@ def outcome(r: dict[str, Any], max_steps: int) -> str:
     return "timeout, goal seen"
 
 
-def _run_one(args: tuple[str, int, str, int]) -> dict[str, Any]:
-    task, k, policy, max_steps = args
+def _run_one(args: tuple[str, int, str, int, dict[str, Any]]) -> dict[str, Any]:
+    task, k, policy, max_steps, overrides = args
     os.nice(10)
-    r = run_episode(load_split("tune", task)[k], policy, max_steps=max_steps)
+    be = load_split("tune", task)[k]
+    r = run_episode(be, policy, max_steps=max_steps, overrides=overrides)
     r["policy"], r["index"] = policy, k
     return r
 
@@ -146,11 +149,13 @@ def tune_eval(
     policies: Sequence[str],
     workers: int = 2,
     max_steps: int = 500,
+    overrides: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
-    """Run every policy on the tune episodes `indices` with `workers` processes (<= 2 here)."""
+    """Run every policy on the tune episodes `indices` with `workers` processes (<= 2 here);
+    `overrides`: NavConfig fields to change (e.g. {"visited_discount": 0.3})."""
     import multiprocessing as mp
 
-    jobs = [(task, k, p, max_steps) for p in policies for k in indices]
+    jobs = [(task, k, p, max_steps, overrides or {}) for p in policies for k in indices]
     if workers <= 1:
         return [_run_one(j) for j in jobs]
     with mp.get_context("spawn").Pool(workers) as pool:
@@ -164,12 +169,15 @@ def closed_loop(
     workers: int = 1,
     out: str | None = None,
     max_steps: int = 500,
+    overrides: dict[str, Any] | None = None,
 ) -> int:
     """Print each episode's outcome and SR / SPL / failure classes per policy (tune split only)."""
     import json
     from collections import Counter
 
-    results = tune_eval(task, indices, policies, workers, max_steps)
+    if overrides:
+        print(f"NavConfig overrides: {overrides}", flush=True)
+    results = tune_eval(task, indices, policies, workers, max_steps, overrides)
     for r in results:
         print(
             f"{r['policy']:15s} {r['episode']} {r['goal'][:40]!r}: {r['outcome']}, spl "

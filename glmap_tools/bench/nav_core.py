@@ -21,10 +21,12 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from typing import Any
 
 import numpy as np
 
 from glmap_tools.bench.report import Report
+from glmap_tools.errors import InvalidInputError, did_you_mean
 from glmap_tools.map.grid import IndexGrid
 from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
 from glmap_tools.nav import DIJKSTRA8_MAX_RATIO, NavConfig, frontiers, reference_geodesic
@@ -187,6 +189,32 @@ def _indices(text: str) -> list[int]:
     return [int(k) for k in text.split(",")]
 
 
+def config_overrides(pairs: list[str]) -> dict[str, Any]:
+    """NavConfig fields from FIELD=VALUE strings (JSON values; bare words are strings).
+
+    Raises:
+        InvalidInputError: an unknown field or a value NavConfig refuses.
+    """
+    import dataclasses
+    import json
+
+    fields = {f.name for f in dataclasses.fields(NavConfig)}
+    out: dict[str, Any] = {}
+    for pair in pairs:
+        name, sep, text = pair.partition("=")
+        if not sep or name not in fields:
+            raise InvalidInputError(
+                f"--set {pair!r}: give FIELD=VALUE with a NavConfig field."
+                f"{did_you_mean(name, sorted(fields))}"
+            )
+        try:
+            out[name] = json.loads(text)
+        except ValueError:
+            out[name] = text
+    dataclasses.replace(NavConfig(), **out)  # refuses bad values now, not in a worker
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench nav-core")
     parser.add_argument("--repeat", type=int, default=30, help="timing repetitions")
@@ -201,6 +229,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=1, help="closed loop: processes (<= 2)")
     parser.add_argument("--out", default=None, help="closed loop: per-episode JSON file")
     parser.add_argument("--max-steps", type=int, default=500, help="closed loop: step limit")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="closed loop: change a NavConfig field (repeatable), e.g. visited_discount=0.3",
+    )
     args = parser.parse_args(argv)
     if args.calibrate:
         from glmap_tools.bench._nav_loop import calibrate
@@ -211,7 +246,10 @@ def main(argv: list[str] | None = None) -> int:
 
         indices = _indices(args.episodes)
         policies = args.policies.split(",")
-        return closed_loop(args.task, indices, policies, args.workers, args.out, args.max_steps)
+        overrides = config_overrides(args.set)
+        return closed_loop(
+            args.task, indices, policies, args.workers, args.out, args.max_steps, overrides
+        )
     report = Report("bench nav-core")
     for stride in sorted({1, NavConfig().plan_stride}):
         time_nav_part(report, args.repeat, stride)

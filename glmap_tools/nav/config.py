@@ -55,6 +55,10 @@ class NavConfig:
         frontier_value_radius: metres around a frontier cell whose best value counts for it.
         commit_margin: metres of utility by which another frontier must beat the previous
             waypoint before the agent switches (rule 'utility'; stops oscillation).
+        visited_discount: factor on the score s_u of a unit the agent has already been near
+            (GLMap policies; 1 = off): the value map then points past what was searched.
+        visited_radius: metres from the agent's past positions within which a unit's cells
+            count as visited (the share of its cells within it scales the discount).
     """
 
     agent_radius: float = 0.18
@@ -79,6 +83,8 @@ class NavConfig:
     frontier_value_weight: float = 10.0
     frontier_value_radius: float = 1.0
     commit_margin: float = 1.0
+    visited_discount: float = 1.0
+    visited_radius: float = 1.5
 
     def __post_init__(self) -> None:
         positive = (
@@ -135,6 +141,19 @@ class NavConfig:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
                 raise InvalidInputError(f"NavConfig.{name}={value!r} must be a number >= 0.")
+        if not (isinstance(self.visited_discount, int | float) and 0 <= self.visited_discount <= 1):
+            raise InvalidInputError(
+                f"NavConfig.visited_discount={self.visited_discount!r} must be in [0, 1] "
+                "(1 = no discount)."
+            )
+        if not (
+            isinstance(self.visited_radius, int | float)
+            and math.isfinite(self.visited_radius)
+            and self.visited_radius > 0
+        ):
+            raise InvalidInputError(
+                f"NavConfig.visited_radius={self.visited_radius!r} must be a positive number."
+            )
         if self.window_margin < 0:
             raise InvalidInputError(f"NavConfig.window_margin={self.window_margin!r} must be >= 0.")
 

@@ -29,7 +29,12 @@ from glmap_tools.nav.planner import (
     plan_on_field,
 )
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
-from glmap_tools.nav.value import ValueMap, unit_cell_array, value_map_from_scores
+from glmap_tools.nav.value import (
+    ValueMap,
+    discount_visited,
+    unit_cell_array,
+    value_map_from_scores,
+)
 from glmap_tools.nav.waypoint import GoalMatch, Waypoint, choose_waypoint
 
 if TYPE_CHECKING:
@@ -41,6 +46,7 @@ POLICY_UNITS = {"glmap": "both", "glmap-instance": "instances", "glmap-region": 
 PROGRESS = 0.25  # metres of progress toward the waypoint that reset the stuck counter
 BUMP_MOVE = 0.02  # metres: a move_forward that moved less than this did not move
 SHORT_MOVE = 0.0125  # metres: a move_forward this much short of a full step was stopped
+VISITED_SPACING = 0.25  # metres between the positions NavState.visited keeps
 TURNS = {"turn_left": "turn_right", "turn_right": "turn_left"}  # each turn and its opposite
 
 
@@ -57,6 +63,7 @@ class NavState:
             `NavConfig.bump_memory` steps).
         last_waypoint: the previous step's waypoint.
         steps: decisions taken.
+        visited: positions the agent has been at, one per `VISITED_SPACING` metres walked.
     """
 
     egocentric: EgocentricValueMap | None = None
@@ -73,6 +80,7 @@ class NavState:
     since_progress: int = 0
     steps: int = 0
     scorer: Scorer | None = None
+    visited: list[tuple[float, float]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -262,6 +270,8 @@ def decide(
         scorer = state.scorer
     s = glmap.grid.cell_size
     _bump(state, xy, heading, config, s)
+    if not state.visited or math.dist(state.visited[-1], xy) >= VISITED_SPACING:
+        state.visited.append(xy)
 
     occ, trav, field, fronts = _surroundings(glmap, xy, state, config)
     if not fronts and state.blocked:
@@ -281,6 +291,10 @@ def decide(
         kinds = {"both": ("instance", "region"), "instances": ("instance",), "regions": ("region",)}
         keep = kinds[POLICY_UNITS[policy]]
         used = {u.unit_id: by_id[u.unit_id] for u in units if u.kind in keep}
+        if config.visited_discount < 1.0:
+            used = discount_visited(
+                used, glmap.grid, state.visited, config.visited_radius, config.visited_discount
+            )
         value = value_map_from_scores(used, glmap.grid, occ, config.value_sigma)
     elif policy == "egocentric":
         if state.egocentric is None:

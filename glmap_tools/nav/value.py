@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -259,3 +259,32 @@ def value_map(
     by_id = {u.unit_id: float(s) for u, s in zip(unit_texts, scores, strict=True)}
     win = as_window(window) if window is not None else map_window(glmap, TRUNCATE * sigma)
     return value_map_from_scores(by_id, glmap.grid, win, sigma)
+
+
+def discount_visited(
+    scores: Mapping[int, float],
+    grid: IndexGrid,
+    visited: Sequence[tuple[float, float]],
+    radius: float,
+    discount: float,
+) -> dict[int, float]:
+    """Scores with units near where the agent has been discounted.
+
+    s_u <- s_u * (1 - (1 - discount) * f_u), with f_u the share of unit u's cells within
+    `radius` metres of a visited (x, y). A goal near a unit the agent walked past would most
+    likely have been seen and matched, so the value map should point past what was searched.
+    """
+    out = {int(uid): float(s) for uid, s in scores.items()}
+    if discount >= 1.0 or not visited:
+        return out
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(np.asarray(visited, dtype=np.float64))
+    for uid, s in out.items():
+        cells = unit_cell_array(grid, uid)
+        if s <= 0 or not len(cells):
+            continue
+        centres = (cells + 0.5) * grid.cell_size
+        near, _ = tree.query(centres, k=1, distance_upper_bound=radius)
+        out[uid] = s * (1.0 - (1.0 - discount) * float(np.isfinite(near).mean()))
+    return out

@@ -347,6 +347,42 @@ def start_relay() -> StdioRelay:
     return StdioRelay(PreparedAnswers(answers_path(), source_stamp()))
 
 
+def _exchange(
+    command: list[str], text: str, ids: set[int], timeout: float
+) -> tuple[set[Any], str, int | None]:
+    """Send `text` to a new server, read until `ids` are answered (stdin stays open till
+    then: a stateless server drops requests still running when its input ends), close.
+
+    Returns:
+        (the ids answered, the server's stderr, its exit status or None if it was killed).
+    """
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.Popen(
+            command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=err, text=True
+        )
+        timer = threading.Timer(timeout, proc.kill)
+        timer.start()
+        answered: set[Any] = set()
+        try:
+            assert proc.stdin is not None and proc.stdout is not None
+            proc.stdin.write(text)
+            proc.stdin.flush()
+            for line in proc.stdout:
+                with contextlib.suppress(ValueError, AttributeError):
+                    answered.add(json.loads(line).get("id"))
+                if ids <= answered:
+                    break
+            proc.stdin.close()
+            code = proc.wait()
+        finally:
+            timer.cancel()
+        err.seek(0)
+        return answered, err.read(), code
+
+
 def prepare_handshake(timeout: float = 60.0) -> list[str]:
     """Start `glmap-mcp` once per protocol version and let it keep its answers.
 
@@ -356,7 +392,6 @@ def prepare_handshake(timeout: float = 60.0) -> list[str]:
     Raises:
         RuntimeError: a server did not answer (its stderr is in the message).
     """
-    import subprocess
     import tempfile
 
     client = {"name": "glmap-mcp --prepare", "version": "1"}
@@ -386,13 +421,10 @@ def prepare_handshake(timeout: float = 60.0) -> list[str]:
                     for i, m in ((1, DISCOVER), (2, TOOLS_LIST))
                 ]
             text = "".join(json.dumps(r) + "\n" for r in requests)
-            done = subprocess.run(
-                command, input=text, capture_output=True, text=True, timeout=timeout
-            )
-            answered = {json.loads(line).get("id") for line in done.stdout.splitlines() if line}
-            if done.returncode != 0 or not {1, 2} <= answered:
+            answered, stderr, code = _exchange(command, text, {1, 2}, timeout)
+            if not {1, 2} <= answered:
                 raise RuntimeError(
-                    f"glmap-mcp did not answer the {version} opening (exit "
-                    f"{done.returncode}):\n{done.stderr[-2000:]}"
+                    f"glmap-mcp did not answer the {version} opening (exit {code}):\n"
+                    f"{stderr[-2000:]}"
                 )
     return sorted(PreparedAnswers(answers_path(), source_stamp()).complete())
