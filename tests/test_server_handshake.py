@@ -22,8 +22,8 @@ from glmap_tools.bench.startup import StdioPeer
 from glmap_tools.server.handshake import (
     FORMAT,
     HANDSHAKE_VERSIONS,
-    META_VERSION,
     MODERN_VERSIONS,
+    opening_requests,
     source_stamp,
 )
 from tests.test_server_transports import FAST, REPO, STARTUP_TIMEOUT, server_command
@@ -37,42 +37,11 @@ def launch(tmp_path: Path, cache: Path) -> StdioPeer:
     return StdioPeer([*server_command(), *FAST, "--maps-dir", str(tmp_path / "maps")], env)
 
 
-def modern_meta(version: str) -> dict[str, Any]:
-    return {
-        META_VERSION: version,
-        "io.modelcontextprotocol/clientInfo": {"name": "t", "version": "1"},
-        "io.modelcontextprotocol/clientCapabilities": {},
-    }
-
-
 def handshake(peer: StdioPeer, version: str = VERSION) -> tuple[dict[str, Any], dict[str, Any]]:
     """(opening result, tools/list result) as the client received them: `initialize` for
     handshake-era versions, `server/discover` for stateless ones."""
-    if version in MODERN_VERSIONS:
-        meta = modern_meta(version)
-        for i, method in ((1, "server/discover"), (2, "tools/list")):
-            peer.send({"jsonrpc": "2.0", "id": i, "method": method, "params": {"_meta": meta}})
-        return (
-            peer.answer(1, STARTUP_TIMEOUT)[0]["result"],
-            peer.answer(2, STARTUP_TIMEOUT)[0]["result"],
-        )
-    peer.send(
-        {
-            "jsonrpc": "2.0",
-            "id": 1,
-            "method": "initialize",
-            "params": {
-                "protocolVersion": version,
-                "capabilities": {},
-                "clientInfo": {"name": "test", "version": "1"},
-            },
-        }
-    )
-    init, _ = peer.answer(1, STARTUP_TIMEOUT)
-    peer.send({"jsonrpc": "2.0", "method": "notifications/initialized"})
-    peer.send({"jsonrpc": "2.0", "id": 2, "method": "tools/list", "params": {}})
-    listed, _ = peer.answer(2, STARTUP_TIMEOUT)
-    return init["result"], listed["result"]
+    (opening, _), (listed, _) = peer.open(version, STARTUP_TIMEOUT, client="test")
+    return opening["result"], listed["result"]
 
 
 def call(
@@ -81,7 +50,7 @@ def call(
     """The answer to tools/call `name` (None: to tools/list), in `version`'s form."""
     params: dict[str, Any] = {"name": name, "arguments": arguments} if name else {}
     if version in MODERN_VERSIONS:
-        params["_meta"] = modern_meta(version)
+        params["_meta"] = opening_requests(version, "test")[-1]["params"]["_meta"]
     method = "tools/call" if name else "tools/list"
     peer.send({"jsonrpc": "2.0", "id": request_id, "method": method, "params": params})
     return peer.answer(request_id, STARTUP_TIMEOUT)[0]

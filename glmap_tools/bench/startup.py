@@ -86,6 +86,25 @@ class StdioPeer:
             if message.get("id") == request_id:
                 return message, time.perf_counter() - self.started
 
+    def open(
+        self, version: str, timeout: float, client: str = "bench-startup"
+    ) -> tuple[tuple[dict[str, Any], float], tuple[dict[str, Any], float]]:
+        """Open a session in `version` as a client does and list the tools: ((opening answer,
+        seconds since launch), (tools/list answer, seconds)). A handshake-era client waits
+        for the `initialize` answer before it sends more; a stateless one sends both."""
+        from glmap_tools.server.handshake import MODERN_VERSIONS, opening_requests
+
+        first, *rest = opening_requests(version, client)
+        self.send(first)
+        if version not in MODERN_VERSIONS:
+            opened = self.answer(1, timeout)
+            for message in rest:
+                self.send(message)
+            return opened, self.answer(2, timeout)
+        for message in rest:
+            self.send(message)
+        return self.answer(1, timeout), self.answer(2, timeout)
+
     def close(self) -> None:
         assert self.proc.stdin is not None
         self.proc.stdin.close()
@@ -102,22 +121,7 @@ def measure(command: list[str], extra_args: list[str], timeout: float) -> dict[s
     with tempfile.TemporaryDirectory() as maps:
         peer = StdioPeer([*command, "--maps-dir", maps, *extra_args], env)
         try:
-            peer.send(
-                {
-                    "jsonrpc": "2.0",
-                    "id": 1,
-                    "method": "initialize",
-                    "params": {
-                        "protocolVersion": PROTOCOL,
-                        "capabilities": {},
-                        "clientInfo": {"name": "bench-startup", "version": "1"},
-                    },
-                }
-            )
-            _, t_init = peer.answer(1, timeout)
-            peer.send({"jsonrpc": "2.0", "method": "notifications/initialized"})
-            peer.send({"jsonrpc": "2.0", "id": 2, "method": "tools/list", "params": {}})
-            listed, t_list = peer.answer(2, timeout)
+            (_, t_init), (listed, t_list) = peer.open(PROTOCOL, timeout)
             cpu_list = process_cpu_seconds(peer.proc.pid)
             tools = len(listed["result"]["tools"])
             call = {"name": "find_instance", "arguments": {"query": "a chair"}}
@@ -138,18 +142,10 @@ def measure_stateless(command: list[str], extra_args: list[str], timeout: float)
     """Seconds from launch to the tools/list answer of a 2026-07-28 (stateless) client, which
     sends `server/discover` and `tools/list` at once (pydantic-ai through fastmcp does)."""
     env = dict(os.environ, HF_HUB_OFFLINE="1", TRANSFORMERS_OFFLINE="1")
-    meta = {
-        "io.modelcontextprotocol/protocolVersion": STATELESS_PROTOCOL,
-        "io.modelcontextprotocol/clientInfo": {"name": "bench-startup", "version": "1"},
-        "io.modelcontextprotocol/clientCapabilities": {},
-    }
     with tempfile.TemporaryDirectory() as maps:
         peer = StdioPeer([*command, "--maps-dir", maps, *extra_args], env)
         try:
-            for i, method in ((1, "server/discover"), (2, "tools/list")):
-                peer.send({"jsonrpc": "2.0", "id": i, "method": method, "params": {"_meta": meta}})
-            peer.answer(1, timeout)
-            _, t_list = peer.answer(2, timeout)
+            _, (_, t_list) = peer.open(STATELESS_PROTOCOL, timeout)
         finally:
             peer.close()
     return t_list

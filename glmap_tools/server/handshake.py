@@ -347,6 +347,29 @@ def start_relay() -> StdioRelay:
     return StdioRelay(PreparedAnswers(answers_path(), source_stamp()))
 
 
+def opening_requests(version: str, client: str) -> list[dict[str, Any]]:
+    """A client's first messages in `version`: the opening request (id 1), then tools/list
+    (id 2); `server/discover` with every request's `_meta` envelope for stateless versions,
+    else `initialize` and its `notifications/initialized`."""
+    info = {"name": client, "version": "1"}
+    if version in MODERN_VERSIONS:
+        meta = {
+            META_VERSION: version,
+            "io.modelcontextprotocol/clientInfo": info,
+            "io.modelcontextprotocol/clientCapabilities": {},
+        }
+        return [
+            {"jsonrpc": "2.0", "id": i, "method": m, "params": {"_meta": meta}}
+            for i, m in ((1, DISCOVER), (2, TOOLS_LIST))
+        ]
+    opening = {"protocolVersion": version, "capabilities": {}, "clientInfo": info}
+    return [
+        {"jsonrpc": "2.0", "id": 1, "method": INITIALIZE, "params": opening},
+        {"jsonrpc": "2.0", "method": "notifications/initialized"},
+        {"jsonrpc": "2.0", "id": 2, "method": TOOLS_LIST, "params": {}},
+    ]
+
+
 def _exchange(
     command: list[str], text: str, ids: set[int], timeout: float
 ) -> tuple[set[Any], str, int | None]:
@@ -394,32 +417,11 @@ def prepare_handshake(timeout: float = 60.0) -> list[str]:
     """
     import tempfile
 
-    client = {"name": "glmap-mcp --prepare", "version": "1"}
     for version in (*HANDSHAKE_VERSIONS, *MODERN_VERSIONS):
         with tempfile.TemporaryDirectory() as maps:
             command = [sys.executable, "-m", "glmap_tools.server", "--embedder", "hashing"]
             command += ["--no-warm-up", "--maps-dir", maps]
-            if version in HANDSHAKE_VERSIONS:
-                opening: dict[str, Any] = {
-                    "protocolVersion": version,
-                    "capabilities": {},
-                    "clientInfo": client,
-                }
-                requests = [
-                    {"jsonrpc": "2.0", "id": 1, "method": INITIALIZE, "params": opening},
-                    {"jsonrpc": "2.0", "method": "notifications/initialized"},
-                    {"jsonrpc": "2.0", "id": 2, "method": TOOLS_LIST, "params": {}},
-                ]
-            else:  # stateless: every request carries the version and client in _meta
-                meta = {
-                    META_VERSION: version,
-                    "io.modelcontextprotocol/clientInfo": client,
-                    "io.modelcontextprotocol/clientCapabilities": {},
-                }
-                requests = [
-                    {"jsonrpc": "2.0", "id": i, "method": m, "params": {"_meta": meta}}
-                    for i, m in ((1, DISCOVER), (2, TOOLS_LIST))
-                ]
+            requests = opening_requests(version, "glmap-mcp --prepare")
             text = "".join(json.dumps(r) + "\n" for r in requests)
             answered, stderr, code = _exchange(command, text, {1, 2}, timeout)
             if not {1, 2} <= answered:
