@@ -203,3 +203,31 @@ def test_objectnav_settings_check_the_category_and_instnav_settings_do_not() -> 
     assert NavConfig.for_task("instnav").category_margin is None
     with pytest.raises(InvalidInputError, match="category_threshold"):
         NavConfig(category_threshold=1.5)
+
+
+def test_forward_moves_stopped_again_and_again_make_the_agent_turn_around_and_step_back(
+    built: GLMap,
+) -> None:
+    """The simulator stops every forward move (the agent never moves; turns do turn it):
+    on the fourth forward move in a row stopped, the agent turns around (180 deg) and walks
+    back two steps, giving up the waypoint it pushed towards (NavConfig.escape_after=3)."""
+    config = NavConfig(stop_threshold=0.5, min_observations=1, initial_spin=0, escape_after=3)
+    state, heading = NavState(), 0.0
+    actions, pushed = [], None
+    turn = math.radians(config.turn_angle_deg)
+    for _ in range(60):
+        d = decide(built, (0.0, 0.0), heading, "a bathtub", state=state, config=config)
+        if state.escape and pushed is None:
+            pushed = d.waypoint.xy
+        actions.append(d.action)
+        heading += {"turn_left": turn, "turn_right": -turn}.get(d.action, 0.0)
+    text = " ".join(actions)
+    escape = " ".join(["turn_left"] * 6 + ["move_forward"] * 2)
+    assert escape in text
+    before = text[: text.index(escape)].split()
+    assert before.count("move_forward") == 3  # three stopped, the fourth became the turn
+    assert pushed in state.avoid
+    off = NavState()  # the default: no escape
+    for _ in range(60):
+        decide(built, (0.0, 0.0), 0.0, "a bathtub", state=off, config=CONFIG)
+        assert not off.escape

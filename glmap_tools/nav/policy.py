@@ -46,6 +46,7 @@ POLICY_UNITS = {"glmap": "both", "glmap-instance": "instances", "glmap-region": 
 PROGRESS = 0.25  # metres of progress toward the waypoint that reset the stuck counter
 BUMP_MOVE = 0.02  # metres: a move_forward that moved less than this did not move
 SHORT_MOVE = 0.0125  # metres: a move_forward this much short of a full step was stopped
+ESCAPE_STEPS = 2  # forward steps back the way it came
 VISITED_SPACING = 0.25  # metres between the positions NavState.visited keeps
 TURNS = {"turn_left": "turn_right", "turn_right": "turn_left"}  # each turn and its opposite
 
@@ -64,6 +65,10 @@ class NavState:
         last_waypoint: the previous step's waypoint.
         steps: decisions taken.
         visited: positions the agent has been at, one per `VISITED_SPACING` metres walked.
+        stalled: forward moves stopped on the spot since the last one that moved (turns in
+            between do not reset it).
+        escape: actions still to take of an escape (turn around, step back) from a spot
+            where forward moves keep being stopped.
     """
 
     egocentric: EgocentricValueMap | None = None
@@ -81,6 +86,8 @@ class NavState:
     steps: int = 0
     scorer: Scorer | None = None
     visited: list[tuple[float, float]] = field(default_factory=list)
+    stalled: int = 0
+    escape: list[str] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -314,6 +321,7 @@ def decide(
         )
     out = _keep_turning(state, xy, out)
     out = _unstick(state, occ, xy, heading, out, config)
+    out = _escape(state, waypoint, xy, out, config)
     _track_progress(state, waypoint, out, config)
     state.last_waypoint, state.last_action = waypoint, out.action
     state.last_xy, state.last_heading = xy, heading
@@ -421,6 +429,36 @@ def _unstick(
         state.turns_in_place = 0
         return replace(out, action="move_forward")
     return out
+
+
+def _escape(
+    state: NavState, waypoint: Waypoint, xy: tuple[float, float], out: Plan, config: NavConfig
+) -> Plan:
+    """Turn around and step back after `config.escape_after` forward moves were stopped on
+    the spot with no forward move that moved in between (0: never; the default, see
+    nav/design.md).
+
+    The map can draw free space where the agent cannot pass (furniture below the camera's
+    view, a footprint grazing a corner): the bump cells then seal every frontier, are
+    forgotten, and the planner sends the agent into the same spot again (tune s00-008: 249
+    collisions in 500 steps). The way the agent came is free, so it turns around and walks
+    back `ESCAPE_STEPS` steps; the waypoint it was pushing towards is given up.
+    """
+    moved = state.last_xy is None or math.dist(xy, state.last_xy) >= BUMP_MOVE
+    if state.last_action == "move_forward":
+        state.stalled = 0 if moved else state.stalled + 1
+    if state.escape:
+        return replace(out, action=state.escape.pop(0))
+    if not config.escape_after or state.stalled < config.escape_after:
+        return out
+    if out.action != "move_forward":
+        return out
+    state.stalled = 0
+    if waypoint.xy is not None and waypoint.kind != "goal":
+        state.avoid.append(waypoint.xy)
+    turns = round(180 / config.turn_angle_deg)
+    state.escape = ["turn_left"] * (turns - 1) + ["move_forward"] * ESCAPE_STEPS
+    return replace(out, action="turn_left")
 
 
 def _track_progress(state: NavState, wp: Waypoint, out: Plan, config: NavConfig) -> None:
