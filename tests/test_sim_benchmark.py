@@ -24,10 +24,10 @@ from glmap_tools.sim.benchmark import (
     scene_episodes,
     split_dir,
 )
-from glmap_tools.sim.episodes import TASKS, episodes_to_dict
+from glmap_tools.sim.episodes import TASKS, episodes_to_dict, goal_cells
 from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.layout_io import layout_to_dict
-from glmap_tools.sim.navigation import build_nav_grid
+from glmap_tools.sim.navigation import NavGrid, build_nav_grid
 from glmap_tools.sim.render import CameraSpec
 from glmap_tools.sim.sight import SightChecker
 
@@ -40,6 +40,45 @@ def test_regenerating_a_scene_reproduces_its_checked_in_layout_and_episodes() ->
     assert layout_to_dict(layout) == json.loads((folder / "layout.json").read_text())
     episodes = scene_episodes(spec, seed, layout, "instnav")
     assert episodes_to_dict(episodes) == json.loads((folder / "instnav.json").read_text())
+
+
+def test_a_scene_whose_starts_were_redrawn_for_a_sliver_regenerates_as_checked_in() -> None:
+    spec = SPLIT_SPECS["tune"]
+    folder = split_dir("tune") / "s03"
+    layout = make_layout(spec, spec.seeds[3])
+    episodes = scene_episodes(spec, spec.seeds[3], layout, "objectnav")
+    assert episodes_to_dict(episodes) == json.loads((folder / "objectnav.json").read_text())
+
+
+def _two_rooms(passage_cells: int) -> NavGrid:
+    """Two 10 x 10 navigable rooms joined by a 4-cell-long passage `passage_cells` wide."""
+    nav = np.zeros((12, 26), dtype=bool)
+    nav[1:11, 1:11] = nav[1:11, 15:25] = True
+    nav[5 : 5 + passage_cells, 11:15] = True
+    return NavGrid(np.zeros(2), 0.05, nav.copy(), nav, 0.18)
+
+
+@pytest.mark.parametrize(("width", "joined"), [(1, False), (2, False), (3, True), (4, True)])
+def test_passable_parts_close_passages_narrower_than_three_cells(width: int, joined: bool) -> None:
+    parts = _two_rooms(width).passable_parts()
+    left, right = parts[5, 5], parts[5, 20]
+    assert left > 0 and right > 0
+    assert bool(left == right) is joined
+    assert (parts[1:11, 1:11] == left).all(), "a room keeps every cell, walls included"
+
+
+@pytest.mark.parametrize("split", SPLITS)
+def test_every_checked_in_start_reaches_its_goal_through_a_passable_part(split: str) -> None:
+    grids: dict[str, tuple[NavGrid, np.ndarray]] = {}
+    for be in load_split(split, "objectnav"):
+        if be.scene not in grids:
+            grid = bench_grid(be.layout_path)
+            grids[be.scene] = (grid, grid.passable_parts())
+        grid, parts = grids[be.scene]
+        layout = bench_layout(be.layout_path)
+        goals = goal_cells(grid, [layout.object(i) for i in be.episode.goal_object_ids], 1.0)
+        start = parts[grid.cell_of(*be.episode.start_position)]
+        assert start > 0 and start in set(parts[goals].tolist()), be.episode_id
 
 
 def test_the_splits_never_share_a_scene_and_use_their_seed_ranges() -> None:

@@ -8,6 +8,9 @@ usual area lined up along a hallway that runs the apartment's length
 - starts on navigable floor at least `MIN_GEODESIC` metres (geodesic) from the goal;
 - starts out of sight of every goal object (`sight.SightChecker`: walls and tall objects
   block, the agent may look all around);
+- reaches a goal through passages at least `MIN_PASSAGE_CELLS` (3) navigable cells wide
+  (`NavGrid.passable_parts`): a start joined to its goal only by a one-cell sliver between
+  furniture, which a discrete-action agent cannot follow, is drawn again;
 - succeeds when the agent stops within `SUCCESS_DISTANCE` (1 m) of a goal object's
   footprint *surface* (the planar distance from the agent's centre to the nearest point of
   the footprint rectangle, 0 inside it), not its centre, within `MAX_STEPS` (500) steps.
@@ -46,7 +49,7 @@ from glmap_tools.sim.episodes import (
 from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.layout import Layout
 from glmap_tools.sim.layout_io import layout_to_dict, load_layout
-from glmap_tools.sim.navigation import NavGrid, build_nav_grid
+from glmap_tools.sim.navigation import MIN_PASSAGE_CELLS, NavGrid, build_nav_grid
 from glmap_tools.sim.sight import SightChecker
 
 if TYPE_CHECKING:  # importing env pulls in the renderer
@@ -139,7 +142,8 @@ def hidden_episodes(
 
     Goals are drawn uniformly from the task's reachable goals, starts uniformly from the
     navigable cells at least `min_distance` geodesic metres away; a start with a goal in
-    sight is drawn again.
+    sight, or joined to every goal cell only through a passage narrower than
+    `MIN_PASSAGE_CELLS` (`NavGrid.passable_parts`), is drawn again.
 
     Raises:
         InvalidInputError: more than twice as many goals in a row as there are goals found
@@ -152,18 +156,35 @@ def hidden_episodes(
     sight = SightChecker(layout, grid)
     pool = goal_pool(layout, task, grid, SUCCESS_DISTANCE, min_distance)
     starts = [np.argwhere(np.isfinite(f) & (f >= min_distance)) for _, _, f in pool]
+    parts = grid.passable_parts()
+    goal_parts = [set(np.unique(parts[(f == 0) & (parts > 0)]).tolist()) for _, _, f in pool]
     rng = np.random.default_rng([int(seed), TASKS.index(task), 11])
     episodes: list[Episode] = []
     misses = 0
+
+    def hidden_start(g: int, draw: np.random.Generator) -> tuple[int, int] | None:
+        for _ in range(tries):
+            r, c = starts[g][int(draw.integers(len(starts[g])))]
+            if not sight.in_sight(grid.to_world(np.array([[r, c]]))[0], pool[g][1]):
+                return int(r), int(c)
+        return None
+
     while len(episodes) < count:
         g = int(rng.integers(len(pool)))
         text, ids, field = pool[g]
-        for _ in range(tries):
-            r, c = starts[g][int(rng.integers(len(starts[g])))]
-            xy = grid.to_world(np.array([[r, c]]))[0]
-            if not sight.in_sight(xy, ids):
-                break
-        else:
+        cell = hidden_start(g, rng)
+        if cell is not None and int(parts[cell]) not in goal_parts[g]:
+            # Joined to the goal only through a sliver the agent cannot follow: draw the
+            # start again from a stream of this episode's own, so that the episodes after
+            # it stay as they were before the check existed.
+            own = np.random.default_rng([int(seed), TASKS.index(task), 11, len(episodes)])
+            for _ in range(tries):
+                cell = hidden_start(g, own)
+                if cell is None or int(parts[cell]) in goal_parts[g]:
+                    break
+            else:
+                cell = None
+        if cell is None:
             misses += 1  # every draw saw the goal: draw another goal
             if misses > 2 * len(pool):
                 raise InvalidInputError(
@@ -173,6 +194,7 @@ def hidden_episodes(
                 )
             continue
         misses = 0
+        xy = grid.to_world(np.array([cell]))[0]
         episodes.append(
             Episode(
                 episode_id=len(episodes),
@@ -181,7 +203,7 @@ def hidden_episodes(
                 start_heading=round(float(rng.uniform(-math.pi, math.pi)), 5),
                 goal_text=text,
                 goal_object_ids=ids,
-                geodesic_distance=round(float(field[r, c]), 4),
+                geodesic_distance=round(float(field[cell]), 4),
             )
         )
     return EpisodeSet(task, layout.name, layout.seed, episodes, SUCCESS_DISTANCE)
@@ -229,6 +251,7 @@ def write_split(split: str, out: Path) -> tuple[dict[str, list[EpisodeSet]], dic
                       "n_rooms": "6 + seed % 2"},
         "episodes_per_scene": spec.episodes_per_scene,
         "min_geodesic": MIN_GEODESIC,
+        "min_passage_cells": MIN_PASSAGE_CELLS,
         "success_distance": SUCCESS_DISTANCE,
         "success": "stop within success_distance of a goal footprint's surface",
         "max_steps": MAX_STEPS,

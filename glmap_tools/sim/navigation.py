@@ -29,6 +29,7 @@ OBSTACLE_MAX_BASE = 1.5  # metres: objects starting higher do not block the agen
 OBSTACLE_MIN_TOP = 0.05  # metres: flatter objects of any kind do not block the agent
 FLAT_MAX_HEIGHT = 0.2  # metres: floor coverings lower than this are walked over
 FLAT_BASE = 0.05  # metres: a floor covering's base is at most this high
+MIN_PASSAGE_CELLS = 3  # navigable cells across the narrowest passage an episode may need
 FLAT_WORDS = frozenset(
     {"rug", "rugs", "carpet", "carpets", "mat", "mats", "doormat", "doormats", "bathmat", "runner"}
 )
@@ -124,6 +125,20 @@ class NavGrid:
     def distance_field(self, sources: np.ndarray) -> np.ndarray:
         """[H, W] geodesic metres from the [H, W] bool `sources` over navigable cells."""
         return geodesic_distance(self.navigable, sources & self.navigable, self.cell)
+
+    def passable_parts(self, width: int = MIN_PASSAGE_CELLS) -> np.ndarray:
+        """[H, W] int labels of the navigable space with passages under `width` cells closed.
+
+        A binary opening with a `width` x `width` square keeps every navigable cell that lies
+        in such a square and drops slivers narrower than it; the rest is labelled in
+        4-connected parts (0: dropped). An agent with 30 deg turns and 0.25 m steps cannot
+        follow a one-cell (5 cm) sliver of centre positions, so two places joined only by
+        one are apart for it.
+        """
+        square = np.ones((width, width), dtype=bool)
+        opened = ndimage.binary_opening(self.navigable, structure=square)
+        labels, _ = ndimage.label(opened)
+        return np.asarray(labels)
 
     def segment_is_free(self, a: np.ndarray, b: np.ndarray, step: float | None = None) -> bool:
         """Whether every point of the straight segment a-b is navigable."""
