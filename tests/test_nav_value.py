@@ -107,6 +107,26 @@ def test_units_near_visited_positions_are_discounted_by_their_share_of_cells_nea
     assert discount_visited(scores, grid, visited, 0.2, 1.0) == scores  # switched off
 
 
+def test_per_unit_mass_gives_every_unit_its_score_in_total_whatever_its_area() -> None:
+    from glmap_tools.nav import NavConfig
+    from glmap_tools.nav.value import per_unit_mass, score_image
+
+    grid = small_grid()  # unit 1: 9 cells, unit 2: 3 cells, unit 3: both (12)
+    window = Window(0, 0, 16, 18)
+    scores = {1: 0.3, 2: 0.5}
+    spread = per_unit_mass(scores, grid)
+    assert spread == {1: pytest.approx(0.3 / 9), 2: pytest.approx(0.5 / 3)}
+    for uid, s in scores.items():
+        assert score_image({uid: spread[uid]}, grid, window).sum() == pytest.approx(s)
+    # Summed over cells, the 9-cell unit outweighs the better 3-cell one; spread, it does not.
+    by_cells = value_map_from_scores(scores, grid, window, 0.15).argmax_xy()
+    by_unit = value_map_from_scores(spread, grid, window, 0.15).argmax_xy()
+    assert grid.cell_of(*by_cells) in grid.cells_of_unit(1)  # type: ignore[misc]
+    assert grid.cell_of(*by_unit) in grid.cells_of_unit(2)  # type: ignore[misc]
+    with pytest.raises(InvalidInputError, match="unit_mass='units'.*Did you mean 'unit'"):
+        NavConfig(unit_mass="units")
+
+
 def test_the_visited_discount_settings_are_checked() -> None:
     from glmap_tools.nav import NavConfig
 

@@ -20,6 +20,7 @@ CATEGORY_STOP_THRESHOLD = 0.31
 POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
 ACTIONS = ("move_forward", "turn_left", "turn_right", "stop")
 WAYPOINT_RULES = ("utility", "paper")
+UNIT_MASSES = ("cells", "unit")
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,9 @@ class NavConfig:
         escape_after: forward moves stopped on the spot (with no forward move that moved in
             between) after which the agent turns around and steps back; 0 = never (default:
             measured worse on tune, SR 0.44 vs 0.52, see nav/design.md).
+        unit_mass: how a unit's score s_u enters Eq. 7: 'cells' (default: s_u on each of its
+            cells, so a unit weighs with its area) or 'unit' (s_u / |cells| on each cell:
+            every unit carries the same mass s_u, as a single delta at p_u would).
     """
 
     agent_radius: float = 0.18
@@ -89,6 +93,7 @@ class NavConfig:
     visited_discount: float = 1.0
     visited_radius: float = 1.5
     escape_after: int = 0
+    unit_mass: str = "cells"
 
     def __post_init__(self) -> None:
         positive = (
@@ -139,6 +144,11 @@ class NavConfig:
         if self.category_margin is not None and not math.isfinite(self.category_margin):
             raise InvalidInputError(
                 f"NavConfig.category_margin={self.category_margin!r} must be finite or None."
+            )
+        if self.unit_mass not in UNIT_MASSES:
+            raise InvalidInputError(
+                f"NavConfig.unit_mass={self.unit_mass!r} is not one of "
+                f"{list(UNIT_MASSES)}.{did_you_mean(self.unit_mass, UNIT_MASSES)}"
             )
         if self.waypoint_rule not in WAYPOINT_RULES:
             raise InvalidInputError(

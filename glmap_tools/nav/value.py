@@ -261,6 +261,15 @@ def value_map(
     return value_map_from_scores(by_id, glmap.grid, win, sigma)
 
 
+def per_unit_mass(scores: Mapping[int, float], grid: IndexGrid) -> dict[int, float]:
+    """Scores spread over each unit's cells: s_u / |cells of u|, so that every unit adds
+    the same total s_u to Eq. 7 whatever its area (`NavConfig.unit_mass` = 'unit')."""
+    return {
+        int(uid): float(s) / max(1, len(unit_cell_array(grid, int(uid))))
+        for uid, s in scores.items()
+    }
+
+
 def discount_visited(
     scores: Mapping[int, float],
     grid: IndexGrid,
