@@ -231,3 +231,25 @@ def test_forward_moves_stopped_again_and_again_make_the_agent_turn_around_and_st
     for _ in range(60):
         decide(built, (0.0, 0.0), 0.0, "a bathtub", state=off, config=CONFIG)
         assert not off.escape
+
+
+def test_the_cell_a_stopped_move_marks_lies_on_the_line_the_forward_check_looks_along() -> None:
+    """Found on tune s03-005: the mark fell one cell off the checked line at a cell corner,
+    so the check passed and the agent pushed into the same spot 439 times."""
+    from glmap_tools.map.occupancy import FREE, OBSTACLE, DenseOccupancy
+    from glmap_tools.nav.planner import forward_is_free
+    from glmap_tools.nav.policy import _bump
+
+    config = NavConfig()
+    s = 0.05
+    rng = np.random.default_rng(0)
+    poses = [((1.454472414888142, 4.061757844602615), math.radians(137.53458990303392))]
+    poses += [((float(x), float(y)), float(h)) for x, y, h in rng.uniform(-3, 3, (500, 3))]
+    for xy, heading in poses:
+        state = NavState(last_action="move_forward", last_xy=xy)
+        _bump(state, xy, heading, config, s)
+        (cell,) = state.blocked
+        occ = DenseOccupancy(np.full((200, 200), FREE, dtype=np.int8), (-100, -100), s)
+        assert forward_is_free(occ, xy, heading, config)
+        occ.state[cell[1] + 100, cell[0] + 100] = OBSTACLE
+        assert not forward_is_free(occ, xy, heading, config), (xy, heading, cell)

@@ -274,6 +274,22 @@ def plan_on_field(
     return Plan(path, length, action, reachable, end_xy)
 
 
+def forward_points(
+    agent_xy: tuple[float, float], heading: float, config: NavConfig, cell_size: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Points along one forward step, a quarter cell apart: ([n, 2] world xy, [n] metres).
+
+    `forward_is_free` checks the cells of these points and a stopped move marks the cell
+    of one of them, so the mark always lies on the line the check looks along.
+    """
+    n = max(1, math.ceil(config.forward_step / (cell_size / 4)))
+    t = config.forward_step * np.arange(1, n + 1) / n
+    xy = np.stack(
+        [agent_xy[0] + t * math.cos(heading), agent_xy[1] + t * math.sin(heading)], axis=1
+    )
+    return xy, t
+
+
 def forward_is_free(
     occ: DenseOccupancy,
     agent_xy: tuple[float, float],
@@ -285,16 +301,12 @@ def forward_is_free(
     Only hard evidence counts: the inflated margin is for planning, and an agent that ended
     up inside it (noise, a cleared footprint) must still be able to move out.
     """
+    xy, _ = forward_points(agent_xy, heading, config, occ.cell_size)
+    r = np.floor(xy[:, 1] / occ.cell_size).astype(np.int64) - occ.origin[1]
+    c = np.floor(xy[:, 0] / occ.cell_size).astype(np.int64) - occ.origin[0]
     h, w = occ.state.shape
-    n = max(1, math.ceil(config.forward_step / (occ.cell_size / 2)))
-    for k in range(1, n + 1):
-        t = config.forward_step * k / n
-        r, c = occ.world_to_index(
-            agent_xy[0] + t * math.cos(heading), agent_xy[1] + t * math.sin(heading)
-        )
-        if 0 <= r < h and 0 <= c < w and occ.state[r, c] == OBSTACLE:
-            return False
-    return True
+    inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+    return not bool((occ.state[r[inside], c[inside]] == OBSTACLE).any())
 
 
 def nearest_finite(field: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] | None:

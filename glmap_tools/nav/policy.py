@@ -25,6 +25,7 @@ from glmap_tools.nav.planner import (
     Plan,
     distance_field,
     forward_is_free,
+    forward_points,
     heading_error,
     plan_on_field,
 )
@@ -137,8 +138,11 @@ def _bump(
     moved = math.hypot(agent_xy[0] - state.last_xy[0], agent_xy[1] - state.last_xy[1])
     if moved >= config.forward_step - SHORT_MOVE:
         return
-    t = config.agent_radius + s / 2
-    x, y = agent_xy[0] + t * math.cos(heading), agent_xy[1] + t * math.sin(heading)
+    # The point of the forward check's line nearest one agent radius and half a cell ahead:
+    # marked anywhere else, the check could pass beside its own mark (tune s03-005: 439
+    # stopped moves on one spot, the mark one cell off the line at a cell corner).
+    xy, t = forward_points(agent_xy, heading, config, s)
+    x, y = xy[int(np.argmin(np.abs(t - (config.agent_radius + s / 2))))]
     cell = (math.floor(x / s), math.floor(y / s))
     state.blocked.add(cell)
     state.blocked_at[cell] = state.steps
