@@ -99,7 +99,9 @@ def time_nav_part(report: Report, repeat: int, stride: int) -> None:
             occ, agent, config.agent_radius, config.min_frontier_size, field.metres, trav
         )
         t2 = time.process_time()
-        value = value_map_from_scores(scores, grid, occ, config.value_sigma)
+        value = value_map_from_scores(
+            scores, grid, occ, config.value_sigma, unit_mass=config.unit_mass
+        )
         t3 = time.process_time()
         wp = choose_waypoint(
             value, fronts, trav, agent, None, config, occ=occ, distance=field.metres

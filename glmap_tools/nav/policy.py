@@ -33,7 +33,6 @@ from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goa
 from glmap_tools.nav.value import (
     ValueMap,
     discount_visited,
-    per_unit_mass,
     unit_cell_array,
     value_map_from_scores,
 )
@@ -307,9 +306,9 @@ def decide(
             used = discount_visited(
                 used, glmap.grid, state.visited, config.visited_radius, config.visited_discount
             )
-        if config.unit_mass == "unit":
-            used = per_unit_mass(used, glmap.grid)
-        value = value_map_from_scores(used, glmap.grid, occ, config.value_sigma)
+        value = value_map_from_scores(
+            used, glmap.grid, occ, config.value_sigma, unit_mass=config.unit_mass
+        )
     elif policy == "egocentric":
         if state.egocentric is None:
             state.egocentric = EgocentricValueMap(s, glmap.config.max_range)

@@ -159,6 +159,8 @@ def value_map_from_scores(
     grid: IndexGrid,
     window: Window | DenseOccupancy,
     sigma: float,
+    *,
+    unit_mass: str = "unit",
 ) -> ValueMap:
     """Eq. 7 over `window` for unit scores s_u (fast: separable convolution of the cells).
 
@@ -167,10 +169,12 @@ def value_map_from_scores(
         grid: the index grid m holding each unit's cells.
         window: the cells to evaluate (units outside it do not contribute).
         sigma: kernel bandwidth, metres.
+        unit_mass: 'unit' (s_u / |cells| on each cell: every unit adds s_u in total) or
+            'cells' (s_u on each cell: a unit weighs with its area); see `NavConfig.unit_mass`.
     """
     check_scores(scores)
     win = as_window(window)
-    img = score_image(scores, grid, win)
+    img = score_image(spread_scores(scores, grid, unit_mass), grid, win)
     g = gaussian_kernel_1d(sigma / grid.cell_size)
     # K_sigma is separable: filter along columns (only those holding a score), then rows.
     h = np.zeros_like(img)
@@ -190,6 +194,8 @@ def value_map_reference(
     grid: IndexGrid,
     window: Window | DenseOccupancy,
     sigma: float,
+    *,
+    unit_mass: str = "unit",
 ) -> ValueMap:
     """Slow reference of `value_map_from_scores`: the explicit double sum of Eq. 7."""
     win = as_window(window)
@@ -198,9 +204,11 @@ def value_map_reference(
     radius = len(g) // 2
     sources: dict[tuple[int, int], float] = {}
     for uid, s in scores.items():
-        for i, j in grid.cells_of_unit(int(uid)):
+        cells = grid.cells_of_unit(int(uid))
+        mass = float(s) / max(1, len(cells)) if unit_mass == "unit" else float(s)
+        for i, j in cells:
             if win.i0 <= i < win.i0 + win.width and win.j0 <= j < win.j0 + win.height:
-                sources[(i, j)] = sources.get((i, j), 0.0) + float(s)
+                sources[(i, j)] = sources.get((i, j), 0.0) + mass
     h = np.zeros(win.shape)
     for r in range(win.height):
         for c in range(win.width):
@@ -233,6 +241,7 @@ def value_map(
     units: str = "both",
     sigma: float | None = None,
     window: Window | DenseOccupancy | None = None,
+    unit_mass: str | None = None,
 ) -> ValueMap:
     """Eq. 7 for a goal text over a GLMap: s_u = f_S(u, goal) for its instances and/or regions.
 
@@ -243,22 +252,35 @@ def value_map(
         units: 'both' | 'instances' | 'regions'.
         sigma: kernel bandwidth (m); default NavConfig().value_sigma.
         window: cells to evaluate; default the known map plus TRUNCATE sigma.
+        unit_mass: 'unit' | 'cells'; default NavConfig().unit_mass.
 
     Raises:
-        InvalidInputError: empty goal, unknown `units`, non-positive sigma.
+        InvalidInputError: empty goal, unknown `units` or `unit_mass`, non-positive sigma.
     """
     from glmap_tools.nav.config import NavConfig
     from glmap_tools.nav.scorers import check_goal, map_units
 
     check_goal(goal)
-    sigma = NavConfig().value_sigma if sigma is None else float(sigma)
+    defaults = NavConfig() if unit_mass is None else NavConfig(unit_mass=unit_mass)
+    sigma = defaults.value_sigma if sigma is None else float(sigma)
     if not (math.isfinite(sigma) and sigma > 0):
         raise InvalidInputError(f"sigma={sigma!r} must be a positive number of metres, e.g. 0.5.")
     unit_texts = map_units(glmap, units)
     scores = scorer.score(goal, unit_texts) if unit_texts else np.zeros(0)
     by_id = {u.unit_id: float(s) for u, s in zip(unit_texts, scores, strict=True)}
     win = as_window(window) if window is not None else map_window(glmap, TRUNCATE * sigma)
-    return value_map_from_scores(by_id, glmap.grid, win, sigma)
+    return value_map_from_scores(by_id, glmap.grid, win, sigma, unit_mass=defaults.unit_mass)
+
+
+def spread_scores(
+    scores: Mapping[int, float], grid: IndexGrid, unit_mass: str
+) -> Mapping[int, float]:
+    """The per-cell mass of each unit for `unit_mass` ('unit' or 'cells')."""
+    if unit_mass == "unit":
+        return per_unit_mass(scores, grid)
+    if unit_mass == "cells":
+        return scores
+    raise InvalidInputError(f"unit_mass={unit_mass!r} must be 'unit' or 'cells'.")
 
 
 def per_unit_mass(scores: Mapping[int, float], grid: IndexGrid) -> dict[int, float]:

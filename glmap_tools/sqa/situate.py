@@ -381,6 +381,7 @@ def situate(
         glmap.grid,
         window,
         sigma,
+        unit_mass="cells",  # as tuned for localisation (session 4); the nav default is 'unit'
     )
     h_o = None
     peak_o = None
@@ -390,6 +391,7 @@ def situate(
             glmap.grid,
             window,
             sigma,
+            unit_mass="cells",
         )
         peak_o = h_o.argmax_xy()
     anchors = _top(r_units, r_scores)
