@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from glmap_tools.errors import InvalidInputError
 from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
 from glmap_tools.nav import (
     GoalMatch,
@@ -141,6 +142,48 @@ def test_a_matched_unit_gives_the_nearest_navigable_cell_within_the_stop_distanc
     near = (40 * CELL - 0.5, 40 * CELL)
     wp = choose_waypoint(None, [], trav, near, match, config, occ=occ, distance=field)
     assert wp.kind == "goal" and wp.xy == near
+
+
+def test_a_stop_within_reach_but_behind_a_wall_moves_to_where_the_unit_is_in_sight() -> None:
+    from glmap_tools.nav.waypoint import in_clear_sight
+
+    occ = room_with_door(20)
+    occ.state[11:39, 34] = OBSTACLE  # a wall stub from the top wall, open below row 38
+    cells = np.array([(i, j) for i in range(38, 42) for j in range(20, 24)])  # right of it
+    match = GoalMatch(7, 0.9, 3, cells)
+    here = occ.index_to_world(21, 29)  # 0.43 m from the unit, the wall in between
+    trav = traversable(occ, RADIUS)
+    assert trav[21, 29]
+    field = agent_field(occ, here, NavConfig()).metres
+    sight = NavConfig(stop_in_sight=True)
+    assert not in_clear_sight(match, occ, np.array([[21, 29]]))[0]
+    assert in_clear_sight(match, occ, np.array([[21, 36], [45, 38], [45, 30]])).tolist() == [
+        True,
+        True,
+        False,  # its line to the unit crosses the stub
+    ]
+    # Without the check the agent stops here, as the old rule did; with it, it walks round.
+    stays = choose_waypoint(None, [], trav, here, match, NavConfig(), occ=occ, distance=field)
+    assert stays.xy == here
+    wp = choose_waypoint(None, [], trav, here, match, sight, occ=occ, distance=field)
+    assert wp.kind == "goal" and wp.xy is not None and wp.xy != here
+    assert "out of sight" in wp.reason
+    rc = occ.world_to_index(*wp.xy)
+    assert trav[rc] and in_clear_sight(match, occ, np.array([rc]))[0]
+    assert math.dist(wp.xy, (40 * CELL, 22 * CELL)) <= sight.stop_distance + 0.15
+    # Standing there, it stops.
+    there = choose_waypoint(None, [], trav, wp.xy, match, sight, occ=occ, distance=field)
+    assert there.xy == wp.xy and "within the stop distance" in there.reason
+    # With no cell in sight within reach (the unit boxed in), the old rule applies.
+    boxed = DenseOccupancy(occ.state.copy(), occ.origin, CELL)
+    boxed.state[15:29, 34:46] = OBSTACLE
+    boxed.state[18:26, 37:43] = FREE
+    trav_b = traversable(boxed, RADIUS)
+    field_b = agent_field(boxed, here, NavConfig()).metres
+    wp = choose_waypoint(None, [], trav_b, here, match, sight, occ=boxed, distance=field_b)
+    assert wp.xy == here
+    with pytest.raises(InvalidInputError, match="stop_in_sight='yes' must be true or false"):
+        NavConfig(stop_in_sight="yes")  # type: ignore[arg-type]
 
 
 def test_no_frontier_no_match_and_no_value_means_no_waypoint() -> None:

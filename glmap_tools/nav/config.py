@@ -40,6 +40,9 @@ class NavConfig:
         category_threshold: the score s_u that suffices when the margin check applies.
         stop_distance: metres from the matched unit's cells where the agent stops (kept below
             success_radius so footprint error in the map does not cost the episode).
+        stop_in_sight: stop only where the line to the matched unit's nearest cell crosses
+            no mapped obstacle, when such a reachable cell exists within stop_distance (the
+            success rule asks for a clear line to the footprint; nav/design.md).
         min_frontier_size: frontier clusters with fewer cells are dropped.
         lookahead: metres along the path to the point the agent turns toward.
         window_margin: metres of unknown space kept around the known map for planning.
@@ -79,6 +82,7 @@ class NavConfig:
     category_margin: float | None = None
     category_threshold: float = CATEGORY_STOP_THRESHOLD
     stop_distance: float = 0.75
+    stop_in_sight: bool = False
     min_frontier_size: int = 5
     lookahead: float = 0.5
     window_margin: float = 1.0
@@ -146,6 +150,11 @@ class NavConfig:
             raise InvalidInputError(
                 f"NavConfig.category_margin={self.category_margin!r} must be finite or None."
             )
+        for name in ("optimistic", "stop_in_sight"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidInputError(
+                    f"NavConfig.{name}={getattr(self, name)!r} must be true or false."
+                )
         if self.unit_mass not in UNIT_MASSES:
             raise InvalidInputError(
                 f"NavConfig.unit_mass={self.unit_mass!r} is not one of "

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from glmap_tools.map.occupancy import DenseOccupancy
+from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
 from glmap_tools.nav.config import NavConfig
 from glmap_tools.nav.frontiers import Frontier
 from glmap_tools.nav.value import ValueMap
@@ -133,6 +133,37 @@ def frontier_utility(
     return config.frontier_value_weight * value.scale * near - dist
 
 
+SIGHT_TOLERANCE_CELLS = 2  # obstacle cells this close to the unit's cells do not block sight
+
+
+def in_clear_sight(match: GoalMatch, occ: DenseOccupancy, points_rc: np.ndarray) -> np.ndarray:
+    """[K] bool: whether the straight line from each (row, col) cell centre to the nearest
+    cell of the matched unit crosses no obstacle of `occ` (obstacle cells within
+    `SIGHT_TOLERANCE_CELLS` of the unit's own cells, which the map draws around it, are
+    ignored). The simulator's success rule asks the same of the footprint's nearest point,
+    so a stop behind a door jamb, within reach but out of sight, fails."""
+    points_rc = np.asarray(points_rc, dtype=np.int64).reshape(-1, 2)
+    if len(points_rc) == 0:
+        return np.zeros(0, dtype=bool)
+    h, w = occ.state.shape
+    rc = _cells_to_window(match.cells, occ)
+    rc = rc[(rc[:, 0] >= 0) & (rc[:, 0] < h) & (rc[:, 1] >= 0) & (rc[:, 1] < w)]
+    if len(rc) == 0:
+        return np.zeros(len(points_rc), dtype=bool)
+    unit = np.zeros((h, w), dtype=bool)
+    unit[rc[:, 0], rc[:, 1]] = True
+    near_unit = ndimage.binary_dilation(unit, iterations=SIGHT_TOLERANCE_CELLS)
+    blocking = (occ.state == OBSTACLE) & ~near_unit
+    # The nearest unit cell of each point (Euclidean, in cells).
+    d2 = ((points_rc[:, None, :] - rc[None, :, :]) ** 2).sum(axis=2)
+    ends = rc[np.argmin(d2, axis=1)]
+    n = int(np.ceil(np.sqrt(d2.min(axis=1).max()) * 4)) + 2  # quarter-cell samples
+    f = np.linspace(0.0, 1.0, n)[None, :, None]
+    samples = points_rc[:, None, :] + f * (ends - points_rc)[:, None, :]
+    cells = np.clip(np.rint(samples).astype(np.int64), 0, [h - 1, w - 1])
+    return ~blocking[cells[..., 0], cells[..., 1]].any(axis=1)
+
+
 def choose_waypoint(
     value: ValueMap | None,
     fronts: Sequence[Frontier],
@@ -179,6 +210,29 @@ def choose_waypoint(
 
     if goal_match is not None:
         here = distance_to_cells(goal_match.cells, agent_xy, s)
+        cand = goal_cells_near(goal_match, occ, traversable, config.stop_distance - s)
+        if len(cand):
+            d = dist_of(cand)
+            cand = cand[np.isfinite(d)]
+        sight_note = ""
+        if config.stop_in_sight and len(cand):
+            clear = in_clear_sight(goal_match, occ, cand)
+            if clear.any():
+                cand = cand[clear]
+                agent_rc = np.array(
+                    [
+                        [
+                            math.floor(agent_xy[1] / s) - occ.origin[1],
+                            math.floor(agent_xy[0] / s) - occ.origin[0],
+                        ]
+                    ]
+                )
+                if (
+                    here <= config.stop_distance
+                    and not in_clear_sight(goal_match, occ, agent_rc)[0]
+                ):
+                    here = math.inf  # within reach but out of sight: move to where it is seen
+                    sight_note = " (it was within reach but out of sight here)"
         if here <= config.stop_distance:
             return Waypoint(
                 (float(agent_xy[0]), float(agent_xy[1])),
@@ -188,21 +242,20 @@ def choose_waypoint(
                 f"instance {goal_match.unit_id} matches the goal (score {goal_match.score:.2f}) "
                 f"and is {here:.2f} m away: within the stop distance.",
             )
-        cand = goal_cells_near(goal_match, occ, traversable, config.stop_distance - s)
         if len(cand):
-            d = dist_of(cand)
-            k = int(np.argmin(d))
-            if math.isfinite(float(d[k])):
-                xy = occ_xy(cand[k : k + 1])[0]
-                return Waypoint(
-                    (float(xy[0]), float(xy[1])),
-                    "goal",
-                    goal_match.unit_id,
-                    goal_match.score,
-                    f"instance {goal_match.unit_id} matches the goal (score "
-                    f"{goal_match.score:.2f}); heading to the nearest navigable cell within "
-                    f"{config.stop_distance:.2f} m of it.",
-                )
+            k = int(np.argmin(dist_of(cand)))
+            xy = occ_xy(cand[k : k + 1])[0]
+            return Waypoint(
+                (float(xy[0]), float(xy[1])),
+                "goal",
+                goal_match.unit_id,
+                goal_match.score,
+                f"instance {goal_match.unit_id} matches the goal (score "
+                f"{goal_match.score:.2f}); heading to the nearest navigable cell within "
+                f"{config.stop_distance:.2f} m of it"
+                + (" in clear sight of it" if config.stop_in_sight else "")
+                + f"{sight_note}.",
+            )
         # The match has no reachable cell near it yet: keep exploring (next best).
 
     usable: list[tuple[Frontier, np.ndarray]] = []  # (frontier, [K, 2] xy of its usable cells)
