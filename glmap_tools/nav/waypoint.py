@@ -212,49 +212,36 @@ def choose_waypoint(
         here = distance_to_cells(goal_match.cells, agent_xy, s)
         cand = goal_cells_near(goal_match, occ, traversable, config.stop_distance - s)
         if len(cand):
-            d = dist_of(cand)
-            cand = cand[np.isfinite(d)]
+            cand = cand[np.isfinite(dist_of(cand))]
         sight_note = ""
         if config.stop_in_sight and len(cand):
             clear = in_clear_sight(goal_match, occ, cand)
             if clear.any():
                 cand = cand[clear]
-                agent_rc = np.array(
-                    [
-                        [
-                            math.floor(agent_xy[1] / s) - occ.origin[1],
-                            math.floor(agent_xy[0] / s) - occ.origin[0],
-                        ]
-                    ]
-                )
+                agent_rc = np.array([occ.world_to_index(*agent_xy)])
                 if (
                     here <= config.stop_distance
                     and not in_clear_sight(goal_match, occ, agent_rc)[0]
                 ):
                     here = math.inf  # within reach but out of sight: move to where it is seen
                     sight_note = " (it was within reach but out of sight here)"
+        matched = f"instance {goal_match.unit_id} matches the goal (score {goal_match.score:.2f})"
         if here <= config.stop_distance:
-            return Waypoint(
-                (float(agent_xy[0]), float(agent_xy[1])),
-                "goal",
-                goal_match.unit_id,
-                goal_match.score,
-                f"instance {goal_match.unit_id} matches the goal (score {goal_match.score:.2f}) "
-                f"and is {here:.2f} m away: within the stop distance.",
-            )
-        if len(cand):
-            k = int(np.argmin(dist_of(cand)))
-            xy = occ_xy(cand[k : k + 1])[0]
-            return Waypoint(
-                (float(xy[0]), float(xy[1])),
-                "goal",
-                goal_match.unit_id,
-                goal_match.score,
-                f"instance {goal_match.unit_id} matches the goal (score "
-                f"{goal_match.score:.2f}); heading to the nearest navigable cell within "
+            reason = f"{matched} and is {here:.2f} m away: within the stop distance."
+            xy = np.array(agent_xy, dtype=float)
+        elif len(cand):
+            xy = occ_xy(cand[int(np.argmin(dist_of(cand)))][None])[0]
+            reason = (
+                f"{matched}; heading to the nearest navigable cell within "
                 f"{config.stop_distance:.2f} m of it"
                 + (" in clear sight of it" if config.stop_in_sight else "")
-                + f"{sight_note}.",
+                + f"{sight_note}."
+            )
+        else:
+            reason = ""
+        if reason:
+            return Waypoint(
+                (float(xy[0]), float(xy[1])), "goal", goal_match.unit_id, goal_match.score, reason
             )
         # The match has no reachable cell near it yet: keep exploring (next best).
 
