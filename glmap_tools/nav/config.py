@@ -42,7 +42,9 @@ class NavConfig:
             success_radius so footprint error in the map does not cost the episode).
         stop_in_sight: stop only where the line to the matched unit's nearest cell crosses
             no mapped obstacle, when such a reachable cell exists within stop_distance (the
-            success rule asks for a clear line to the footprint; nav/design.md).
+            success rule asks for a clear line to the footprint). Off: tune SR 0.60 vs 0.56
+            with it, but a chair whose unit covers only its back hides behind its own seat
+            (nav/design.md).
         min_frontier_size: frontier clusters with fewer cells are dropped.
         lookahead: metres along the path to the point the agent turns toward.
         window_margin: metres of unknown space kept around the known map for planning.
