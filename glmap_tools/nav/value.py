@@ -203,12 +203,10 @@ def value_map_reference(
     g = gaussian_kernel_1d(sigma / s_cell)
     radius = len(g) // 2
     sources: dict[tuple[int, int], float] = {}
-    for uid, s in scores.items():
-        cells = grid.cells_of_unit(int(uid))
-        mass = float(s) / max(1, len(cells)) if unit_mass == "unit" else float(s)
-        for i, j in cells:
+    for uid, mass in spread_scores(scores, grid, unit_mass).items():
+        for i, j in grid.cells_of_unit(int(uid)):
             if win.i0 <= i < win.i0 + win.width and win.j0 <= j < win.j0 + win.height:
-                sources[(i, j)] = sources.get((i, j), 0.0) + mass
+                sources[(i, j)] = sources.get((i, j), 0.0) + float(mass)
     h = np.zeros(win.shape)
     for r in range(win.height):
         for c in range(win.width):

@@ -210,19 +210,18 @@ def choose_waypoint(
 
     if goal_match is not None:
         here = distance_to_cells(goal_match.cells, agent_xy, s)
-        cand = goal_cells_near(goal_match, occ, traversable, config.stop_distance - s)
-        if len(cand):
-            cand = cand[np.isfinite(dist_of(cand))]
+        cand = np.zeros((0, 2), np.int64)
         sight_note = ""
+        if here > config.stop_distance or config.stop_in_sight:
+            cand = goal_cells_near(goal_match, occ, traversable, config.stop_distance - s)
+            d = dist_of(cand)
+            cand, d = cand[np.isfinite(d)], d[np.isfinite(d)]
         if config.stop_in_sight and len(cand):
-            clear = in_clear_sight(goal_match, occ, cand)
-            if clear.any():
-                cand = cand[clear]
-                agent_rc = np.array([occ.world_to_index(*agent_xy)])
-                if (
-                    here <= config.stop_distance
-                    and not in_clear_sight(goal_match, occ, agent_rc)[0]
-                ):
+            agent_rc = np.array(occ.world_to_index(*agent_xy))
+            clear = in_clear_sight(goal_match, occ, np.vstack([cand, agent_rc]))
+            if clear[:-1].any():
+                cand, d = cand[clear[:-1]], d[clear[:-1]]
+                if here <= config.stop_distance and not clear[-1]:
                     here = math.inf  # within reach but out of sight: move to where it is seen
                     sight_note = " (it was within reach but out of sight here)"
         matched = f"instance {goal_match.unit_id} matches the goal (score {goal_match.score:.2f})"
@@ -230,7 +229,7 @@ def choose_waypoint(
             reason = f"{matched} and is {here:.2f} m away: within the stop distance."
             xy = np.array(agent_xy, dtype=float)
         elif len(cand):
-            xy = occ_xy(cand[int(np.argmin(dist_of(cand)))][None])[0]
+            xy = occ_xy(cand[int(np.argmin(d))][None])[0]
             reason = (
                 f"{matched}; heading to the nearest navigable cell within "
                 f"{config.stop_distance:.2f} m of it"
