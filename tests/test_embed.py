@@ -147,6 +147,27 @@ def test_minilm_serves_repeated_texts_from_its_cache(
     np.testing.assert_array_equal(again[:2], first[::-1])
 
 
+def test_a_minilm_vector_does_not_depend_on_the_texts_batched_with_it() -> None:
+    # Padding to a batch's longest text, or a batch of one, used to move vectors by ~1e-7:
+    # enough to flip a value-map tie, so an episode depended on what its process embedded
+    # before. Bit for bit now, whatever the company and the batch size.
+    emb = MiniLMEmbedder(cache_size=0, batch_size=3)
+    lamp = "a table lamp with a yellow shade"
+    others = [
+        "a tv",
+        "a grey leather sofa under the window, with two cushions and a folded blanket",
+        "a table lamp with a green shade",  # as many tokens as the lamp
+        "a table lamp with a blue shade",
+        "a table lamp with a white shade",
+    ]
+    alone = emb.embed([lamp])[0]
+    for batch in ([lamp, *others], [*others, lamp], [others[1], lamp], [others[2], lamp]):
+        vecs = emb.embed(batch)
+        assert np.array_equal(vecs[batch.index(lamp)], alone)
+    wide = MiniLMEmbedder(cache_size=0)
+    assert np.array_equal(wide.embed([*others, lamp])[-1], alone)
+
+
 def test_minilm_cache_keeps_at_most_its_capacity() -> None:
     emb = MiniLMEmbedder(cache_size=2)  # shares the loaded model
     vecs = emb.embed(["one chair", "two chairs", "three chairs", "one chair"])

@@ -277,14 +277,40 @@ class MiniLMEmbedder:
         self._lock = threading.Lock()
 
     def _encode(self, texts: list[str]) -> np.ndarray:  # -> [N, dim]
-        vectors = self._model.encode(
-            texts,
-            batch_size=self.batch_size,
-            convert_to_numpy=True,
-            normalize_embeddings=True,
-            show_progress_bar=False,
-        )
-        return normalise_rows(np.asarray(vectors, dtype=np.float32).reshape(len(texts), self.dim))
+        """Vectors that depend on each text alone, never on the texts batched with it.
+
+        torch pads a batch to its longest text, and a batch of one takes another kernel;
+        either moves a vector by ~1e-7, enough to flip a tie in a value map, so an episode
+        played after others (the cache keeps what earlier batches gave) could differ from
+        the same episode in a fresh process. Texts are therefore encoded in batches of equal
+        token count (no padding), and a batch of one is sent twice: the vector is then the
+        same whatever else is embedded, at any thread count (tests/test_embed_minilm.py).
+        """
+        out = np.empty((len(texts), self.dim), dtype=np.float32)
+        if not texts:
+            return out
+        model = self._model
+        ids = model.tokenizer(
+            texts, add_special_tokens=True, truncation=True, max_length=model.max_seq_length
+        )["input_ids"]
+        by_length: dict[int, list[int]] = {}
+        for row, tokens in enumerate(ids):
+            by_length.setdefault(len(tokens), []).append(row)
+        for rows in by_length.values():
+            for k in range(0, len(rows), self.batch_size):
+                chunk = rows[k : k + self.batch_size]
+                batch = [texts[r] for r in chunk]
+                vectors = model.encode(
+                    batch * 2 if len(batch) == 1 else batch,
+                    batch_size=max(2, len(batch)),
+                    convert_to_numpy=True,
+                    normalize_embeddings=True,
+                    show_progress_bar=False,
+                )
+                out[chunk] = np.asarray(vectors, dtype=np.float32).reshape(-1, self.dim)[
+                    : len(chunk)
+                ]
+        return normalise_rows(out)
 
     def embed(self, texts: Sequence[str]) -> np.ndarray:  # -> [N, dim]
         """Embed `texts` into [N, dim] float32 L2-normalised rows; cached texts skip the model."""
