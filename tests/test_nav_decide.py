@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from glmap_tools import synthetic as scenes
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.map.occupancy import OBSTACLE
 from glmap_tools.nav import (
     ACTIONS,
     POLICIES,
@@ -21,6 +23,7 @@ from glmap_tools.nav import (
     decide,
     value_map,
 )
+from glmap_tools.nav.grid import structure_walls
 
 TEXTS = {
     1: ("chair", "a red chair with a wooden frame"),
@@ -69,6 +72,32 @@ def test_decide_heads_for_the_matched_instance_and_stops_within_reach(built: GLM
     # Standing next to the chair: stop.
     d = decide(built, (0.6, 1.3), 0.0, "a red chair", state=NavState(), config=CONFIG)
     assert (d.action, d.waypoint.kind) == ("stop", "goal")
+    # The same with stop_in_sight: the chair's unit covers its back, and its seat's obstacle
+    # cells lie on the line to it, but the seat is the chair's own (object pixels, not
+    # structure), so it does not hide the chair.
+    sight = replace(CONFIG, stop_in_sight=True)
+    d = decide(built, (0.6, 1.3), 0.0, "a red chair", state=NavState(), config=sight)
+    assert (d.action, d.waypoint.kind) == ("stop", "goal"), d.waypoint.reason
+
+
+def test_the_structure_layer_marks_walls_and_not_furniture(built: GLMap) -> None:
+    d = decide(built, (0.0, 0.0), 0.0, "a red chair", state=NavState(), config=CONFIG)
+    occ = d.occupancy
+    assert built.floor_z is not None
+    means = built.structure.gaussians().means
+    walls_here = structure_walls(means, built.floor_z, built.config.obstacle_band, occ)
+    obstacle = occ.state == OBSTACLE
+
+    def cells_in(x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
+        rows = slice(occ.world_to_index(0.0, y0)[0], occ.world_to_index(0.0, y1)[0] + 1)
+        cols = slice(occ.world_to_index(x0, 0.0)[1], occ.world_to_index(x1, 0.0)[1] + 1)
+        return np.s_[rows, cols]
+
+    top_wall = cells_in(-2.0, 2.0, ROOM - 0.1, ROOM)
+    chair = cells_in(0.95, 1.45, 1.05, 1.55)
+    assert obstacle[top_wall].sum() > 20 and walls_here[top_wall][obstacle[top_wall]].all()
+    assert obstacle[chair].sum() > 10
+    assert walls_here[chair][obstacle[chair]].mean() < 0.1
 
 
 def test_a_goal_nothing_in_the_map_resembles_sends_the_agent_to_the_nearest_frontier(

@@ -155,15 +155,20 @@ def test_a_stop_within_reach_but_behind_a_wall_moves_to_where_the_unit_is_in_sig
     trav = traversable(occ, RADIUS)
     assert trav[21, 29]
     field = agent_field(occ, here, NavConfig()).metres
-    sight = NavConfig(stop_in_sight=True)
+    sight = NavConfig()  # stop_in_sight is the default
+    assert sight.stop_in_sight
     assert not in_clear_sight(match, occ, np.array([[21, 29]]))[0]
+    # Only walls block: the same stub counted as furniture (not structure) hides nothing.
+    furniture = np.zeros_like(occ.state, dtype=bool)
+    assert in_clear_sight(match, occ, np.array([[21, 29]]), furniture)[0]
     assert in_clear_sight(match, occ, np.array([[21, 36], [45, 38], [45, 30]])).tolist() == [
         True,
         True,
         False,  # its line to the unit crosses the stub
     ]
     # Without the check the agent stops here, as the old rule did; with it, it walks round.
-    stays = choose_waypoint(None, [], trav, here, match, NavConfig(), occ=occ, distance=field)
+    off = NavConfig(stop_in_sight=False)
+    stays = choose_waypoint(None, [], trav, here, match, off, occ=occ, distance=field)
     assert stays.xy == here
     wp = choose_waypoint(None, [], trav, here, match, sight, occ=occ, distance=field)
     assert wp.kind == "goal" and wp.xy is not None and wp.xy != here
@@ -264,3 +269,33 @@ def test_the_previous_frontier_is_kept_unless_another_is_better_by_the_commit_ma
         better, fronts, trav, here, None, config, occ=occ, distance=field, previous=top
     )
     assert occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]
+
+
+def test_the_open_peak_rule_passes_over_a_peak_with_no_unknown_space_near_it() -> None:
+    # H peaks deep in the seen room (row 25, column 12), 1.25 m from the top doorway and
+    # 1.9 m from the right one, with a weaker value 0.3 m inside the right door. The paper
+    # rule heads for the top door, nearest the peak; with open_peak_radius = 0.6 m the
+    # peak is out of reach of every frontier and the weaker value by the right door leads.
+    occ, fronts, trav, field, here = two_door_setup((45, 25))
+    value = values_at(occ, {(25, 12): 1.0, (30, 44): 0.4})
+    paper = NavConfig()
+    wp = choose_waypoint(value, fronts, trav, here, None, paper, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[0] == 50  # type: ignore[misc]
+    open_rule = NavConfig(open_peak_radius=0.6)
+    wp = choose_waypoint(value, fronts, trav, here, None, open_rule, occ=occ, distance=field)
+    assert wp.kind == "frontier" and occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]
+    assert "within 0.6 m of a frontier" in wp.reason
+    # A radius that reaches the peak gives the paper's choice back.
+    wide = NavConfig(open_peak_radius=1.5)
+    wp = choose_waypoint(value, fronts, trav, here, None, wide, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[0] == 50  # type: ignore[misc]
+    # No value near any frontier: the nearest frontier (the top door, from here).
+    lone = values_at(occ, {(25, 12): 1.0})
+    wp = choose_waypoint(lone, fronts, trav, here, None, open_rule, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[0] == 50  # type: ignore[misc]
+    assert "no value within 0.6 m of any frontier" in wp.reason
+
+
+def test_open_peak_radius_must_be_a_number_at_least_zero() -> None:
+    with pytest.raises(InvalidInputError, match="open_peak_radius"):
+        NavConfig(open_peak_radius=-1.0)

@@ -183,3 +183,25 @@ def nav_masks(
     ok = (free | (occ.state == UNKNOWN)) if optimistic else free
     trav = clear_footprint(free & open_, rc, radius_cells)
     return trav, clear_footprint(ok & open_, rc, radius_cells)
+
+
+def structure_walls(
+    means: np.ndarray, floor_z: float, band: tuple[float, float], occ: DenseOccupancy
+) -> np.ndarray:
+    """[H, W] bool over `occ`'s window: cells within one cell of a structure Gaussian mean
+    ([N, 3], `GLMap.structure`: the pixels no object mask covers) whose height above the
+    floor lies in the obstacle `band`. Walls, not furniture: the cells an obstacle of the
+    occupancy must also be to block the sight line of `NavConfig.stop_in_sight`. One cell
+    of slack covers holes the structure layer's pixel stride leaves in a wall."""
+    h, w = occ.state.shape
+    out = np.zeros((h, w), dtype=bool)
+    if len(means) == 0:
+        return out
+    height = means[:, 2].astype(np.float64) - floor_z
+    pts = means[(height >= band[0]) & (height <= band[1])]
+    s = occ.cell_size
+    rows = np.floor(pts[:, 1].astype(np.float64) / s).astype(np.int64) - occ.origin[1]
+    cols = np.floor(pts[:, 0].astype(np.float64) / s).astype(np.int64) - occ.origin[0]
+    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    out[rows[inside], cols[inside]] = True
+    return ndimage.binary_dilation(out, structure=np.ones((3, 3), dtype=bool))

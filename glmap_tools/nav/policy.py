@@ -19,7 +19,7 @@ from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
 from glmap_tools.nav.config import NavConfig, check_policy
 from glmap_tools.nav.egocentric import EgocentricValueMap
 from glmap_tools.nav.frontiers import Frontier, frontiers
-from glmap_tools.nav.grid import agent_rc, known_window, nav_masks, reframe
+from glmap_tools.nav.grid import agent_rc, known_window, nav_masks, reframe, structure_walls
 from glmap_tools.nav.planner import (
     DistanceField,
     Plan,
@@ -322,8 +322,11 @@ def decide(
         waypoint = Waypoint(xy, "explore", None, 0.0, "looking around before the first move.")
         out = Plan(np.array([xy]), 0.0, "turn_left", False, xy)
     else:
+        walls = None
+        if config.stop_in_sight and match is not None:
+            walls = _walls(glmap, occ)
         waypoint, out = _choose_and_plan(
-            value, fronts, trav, xy, heading, match, occ, field, state, config
+            value, fronts, trav, xy, heading, match, occ, field, state, config, walls
         )
     out = _keep_turning(state, xy, out)
     out = _unstick(state, occ, xy, heading, out, config)
@@ -344,6 +347,15 @@ def decide(
     )
 
 
+def _walls(glmap: GLMap, occ: DenseOccupancy) -> np.ndarray | None:
+    """The structure obstacle cells over `occ` (None: the map keeps no structure, so every
+    obstacle cell counts as a wall)."""
+    if len(glmap.structure) == 0 or glmap.floor_z is None:
+        return None
+    means = glmap.structure.gaussians().means
+    return structure_walls(means, glmap.floor_z, glmap.config.obstacle_band, occ)
+
+
 def _choose_and_plan(
     value: ValueMap | None,
     fronts: list[Frontier],
@@ -355,6 +367,7 @@ def _choose_and_plan(
     field: DistanceField,
     state: NavState,
     config: NavConfig,
+    walls: np.ndarray | None = None,
 ) -> tuple[Waypoint, Plan]:
     """Choose a waypoint and plan to it; a frontier reached without effect is given up."""
     last = state.last_waypoint
@@ -371,6 +384,7 @@ def _choose_and_plan(
             distance=field.metres,
             avoid=state.avoid,
             previous=previous,
+            walls=walls,
         )
         if wp.xy is None and state.avoid and fronts:
             state.avoid.clear()  # every frontier was given up once: give them another chance

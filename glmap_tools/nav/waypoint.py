@@ -1,7 +1,9 @@
 """The waypoint rule: a frontier chosen by the value map H, or the matched goal unit.
 
 Paper 3.2: "the next waypoint is selected as the frontier closest to the location of the
-maximum value grid" (`NavConfig.waypoint_rule='paper'`, the default). The rule 'utility'
+maximum value grid" (`NavConfig.waypoint_rule='paper'`, the default). With
+`open_peak_radius` > 0 the maximum is taken only over the cells near a usable frontier
+(`open_peak`): a peak with no unknown space around it was already searched. The rule 'utility'
 takes the frontier cell c maximising `w * scale * max H(near c) - d(c)` (d geodesic
 metres) and keeps the previous waypoint unless another beats it by `commit_margin`
 (nav/design.md). Once an instance matches the goal (score >= stop_threshold, observed
@@ -136,12 +138,22 @@ def frontier_utility(
 SIGHT_TOLERANCE_CELLS = 2  # obstacle cells this close to the unit's cells do not block sight
 
 
-def in_clear_sight(match: GoalMatch, occ: DenseOccupancy, points_rc: np.ndarray) -> np.ndarray:
+def in_clear_sight(
+    match: GoalMatch,
+    occ: DenseOccupancy,
+    points_rc: np.ndarray,
+    walls: np.ndarray | None = None,
+) -> np.ndarray:
     """[K] bool: whether the straight line from each (row, col) cell centre to the nearest
     cell of the matched unit crosses no obstacle of `occ` (obstacle cells within
     `SIGHT_TOLERANCE_CELLS` of the unit's own cells, which the map draws around it, are
     ignored). The simulator's success rule asks the same of the footprint's nearest point,
-    so a stop behind a door jamb, within reach but out of sight, fails."""
+    so a stop behind a door jamb, within reach but out of sight, fails.
+
+    `walls` ([H, W] bool over `occ`'s window, from `nav.grid.structure_walls`), when given,
+    limits the blocking cells to obstacles that are structure: furniture (a chair's own
+    seat in front of the unit that covers its back) does not hide what stands behind it
+    from the success rule, walls do."""
     points_rc = np.asarray(points_rc, dtype=np.int64).reshape(-1, 2)
     if len(points_rc) == 0:
         return np.zeros(0, dtype=bool)
@@ -154,6 +166,8 @@ def in_clear_sight(match: GoalMatch, occ: DenseOccupancy, points_rc: np.ndarray)
     unit[rc[:, 0], rc[:, 1]] = True
     near_unit = ndimage.binary_dilation(unit, iterations=SIGHT_TOLERANCE_CELLS)
     blocking = (occ.state == OBSTACLE) & ~near_unit
+    if walls is not None:
+        blocking &= walls
     # The nearest unit cell of each point (Euclidean, in cells).
     d2 = ((points_rc[:, None, :] - rc[None, :, :]) ** 2).sum(axis=2)
     ends = rc[np.argmin(d2, axis=1)]
@@ -162,6 +176,37 @@ def in_clear_sight(match: GoalMatch, occ: DenseOccupancy, points_rc: np.ndarray)
     samples = points_rc[:, None, :] + f * (ends - points_rc)[:, None, :]
     cells = np.clip(np.rint(samples).astype(np.int64), 0, [h - 1, w - 1])
     return ~blocking[cells[..., 0], cells[..., 1]].any(axis=1)
+
+
+def open_peak(
+    value: ValueMap, frontier_xy: np.ndarray, radius: float
+) -> tuple[float, float] | None:
+    """(x, y) of the largest H within `radius` m of any of the [K, 2] frontier points.
+
+    None when H is 0 on every such cell: nothing scored lies near unexplored space.
+    """
+    if value.empty or len(frontier_xy) == 0:
+        return None
+    s = value.cell_size
+    h, w = value.values.shape
+    rows = np.floor(frontier_xy[:, 1] / s).astype(np.int64) - value.origin[1]
+    cols = np.floor(frontier_xy[:, 0] / s).astype(np.int64) - value.origin[0]
+    pad = int(math.ceil(radius / s))
+    r0, r1 = max(0, int(rows.min()) - pad), min(h, int(rows.max()) + pad + 1)
+    c0, c1 = max(0, int(cols.min()) - pad), min(w, int(cols.max()) + pad + 1)
+    if r1 <= r0 or c1 <= c0:
+        return None
+    seed = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    inside = (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
+    seed[rows[inside] - r0, cols[inside] - c0] = True
+    if not seed.any():
+        return None
+    near = ndimage.distance_transform_edt(~seed) * s <= radius
+    masked = np.where(near, value.values[r0:r1, c0:c1], 0.0)
+    if not (masked > 0).any():
+        return None
+    r, c = np.unravel_index(int(np.argmax(masked)), masked.shape)
+    return value.xy_of(int(r) + r0, int(c) + c0)
 
 
 def choose_waypoint(
@@ -176,6 +221,7 @@ def choose_waypoint(
     distance: np.ndarray | None = None,
     avoid: Sequence[tuple[float, float]] = (),
     previous: tuple[float, float] | None = None,
+    walls: np.ndarray | None = None,
 ) -> Waypoint:
     """Pick the next waypoint (see the module docstring).
 
@@ -194,6 +240,8 @@ def choose_waypoint(
         previous: (x, y) of the last frontier waypoint; rule 'utility' keeps the usable
             frontier cell nearest it (within 2 cells) unless another cell's utility is
             `config.commit_margin` higher.
+        walls: [H, W] bool, the obstacle cells that block sight (`stop_in_sight`); None =
+            every obstacle cell.
     """
     s = occ.cell_size
 
@@ -218,7 +266,7 @@ def choose_waypoint(
             cand, d = cand[np.isfinite(d)], d[np.isfinite(d)]
         if config.stop_in_sight and len(cand):
             agent_rc = np.array(occ.world_to_index(*agent_xy))
-            clear = in_clear_sight(goal_match, occ, np.vstack([cand, agent_rc]))
+            clear = in_clear_sight(goal_match, occ, np.vstack([cand, agent_rc]), walls)
             if clear[:-1].any():
                 cand, d = cand[clear[:-1]], d[clear[:-1]]
                 if here <= config.stop_distance and not clear[-1]:
@@ -257,6 +305,10 @@ def choose_waypoint(
     peak = value.argmax_xy() if value is not None else None
     if usable and value is not None and config.waypoint_rule == "utility":
         return _best_utility(value, usable, occ, dist_of, config, previous)
+    open_rule = bool(usable) and value is not None and config.open_peak_radius > 0
+    if open_rule:
+        assert value is not None
+        peak = open_peak(value, np.concatenate([c for _, c in usable]), config.open_peak_radius)
     if usable and peak is not None:
         best = None
         for f, xy in usable:
@@ -272,10 +324,17 @@ def choose_waypoint(
             "frontier",
             None,
             value.value_at(*xy_best) if value is not None else 0.0,
-            f"frontier closest ({gap:.2f} m) to the value-map maximum at "
-            f"({peak[0]:.2f}, {peak[1]:.2f}).",
+            f"frontier closest ({gap:.2f} m) to the value-map maximum"
+            + (f" within {config.open_peak_radius:.1f} m of a frontier" if open_rule else "")
+            + f" at ({peak[0]:.2f}, {peak[1]:.2f}).",
         )
     if usable:
+        if value is None:
+            why = "."
+        elif open_rule and not value.empty:
+            why = f"; no value within {config.open_peak_radius:.1f} m of any frontier."
+        else:
+            why = "; the value map is empty."
         f, xy = min(usable, key=lambda fx: (fx[0].distance, -fx[0].size))
         k = int(np.argmin(np.hypot(xy[:, 0] - f.target[0], xy[:, 1] - f.target[1])))
         return Waypoint(
@@ -283,9 +342,9 @@ def choose_waypoint(
             "frontier",
             None,
             0.0,
-            f"nearest frontier ({f.distance:.2f} m, {f.size} cells)"
-            + ("; the value map is empty." if value is not None else "."),
+            f"nearest frontier ({f.distance:.2f} m, {f.size} cells){why}",
         )
+    peak = value.argmax_xy() if value is not None else None
     if peak is not None and value is not None:
         cells = np.argwhere(traversable)
         if len(cells):
