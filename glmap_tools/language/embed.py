@@ -284,7 +284,7 @@ class MiniLMEmbedder:
         played after others (the cache keeps what earlier batches gave) could differ from
         the same episode in a fresh process. Texts are therefore encoded in batches of equal
         token count (no padding), and a batch of one is sent twice: the vector is then the
-        same whatever else is embedded, at any thread count (tests/test_embed_minilm.py).
+        same whatever else is embedded, at any thread count (tests/test_embed.py).
         """
         out = np.empty((len(texts), self.dim), dtype=np.float32)
         if not texts:

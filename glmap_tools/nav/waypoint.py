@@ -302,7 +302,8 @@ def choose_waypoint(
             keep &= np.hypot(xy[:, 0] - a[0], xy[:, 1] - a[1]) > config.stop_distance
         if keep.any():
             usable.append((f, xy[keep]))
-    peak = value.argmax_xy() if value is not None else None
+    global_peak = value.argmax_xy() if value is not None else None
+    peak = global_peak
     if usable and value is not None and config.waypoint_rule == "utility":
         return _best_utility(value, usable, occ, dist_of, config, previous)
     open_rule = bool(usable) and value is not None and config.open_peak_radius > 0
@@ -344,7 +345,7 @@ def choose_waypoint(
             0.0,
             f"nearest frontier ({f.distance:.2f} m, {f.size} cells){why}",
         )
-    peak = value.argmax_xy() if value is not None else None
+    peak = global_peak
     if peak is not None and value is not None:
         cells = np.argwhere(traversable)
         if len(cells):
