@@ -282,3 +282,35 @@ def test_the_cell_a_stopped_move_marks_lies_on_the_line_the_forward_check_looks_
         assert forward_is_free(occ, xy, heading, config)
         occ.state[cell[1] + 100, cell[0] + 100] = OBSTACLE
         assert not forward_is_free(occ, xy, heading, config), (xy, heading, cell)
+
+
+def test_a_blocked_step_towards_the_path_is_sidestepped_at_once_with_detour_when_blocked() -> None:
+    """Found on bench s04-005: a step the map shows free was refused, and the agent turned a
+    full circle in place (12 steps) before walking on, after every such bump."""
+    from glmap_tools.map.occupancy import FREE, DenseOccupancy
+    from glmap_tools.nav.planner import Plan
+    from glmap_tools.nav.policy import _unstick
+
+    s, xy = 0.05, (0.0, 0.0)
+    occ = DenseOccupancy(np.full((80, 80), FREE, dtype=np.int8), (-40, -40), s)
+    occ.state[40, 40 + 4] = OBSTACLE  # 0.2 m ahead on the path (+x): a bumped cell
+    path = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]])
+    turning = Plan(path, 2.0, "turn_right", True, (2.0, 0.0))
+    turn = math.radians(CONFIG.turn_angle_deg)
+
+    def actions(config: NavConfig) -> list[str]:
+        state = NavState(last_action="move_forward", last_xy=xy)
+        out, heading = [], 0.0
+        for _ in range(14):
+            a = _unstick(state, occ, xy, heading, turning, config).action
+            out.append(a)
+            if a == "move_forward":
+                break
+            state.last_action, state.last_xy = a, xy
+            heading -= turn
+        return out
+
+    # Facing the path the step is blocked; 30 deg off it is free: walk there.
+    assert actions(replace(CONFIG, detour_when_blocked=True)) == ["turn_right", "move_forward"]
+    # The default waits for a full turn in place: the 12th decision after the bump walks.
+    assert actions(CONFIG) == ["turn_right"] * 11 + ["move_forward"]

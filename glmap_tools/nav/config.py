@@ -68,6 +68,10 @@ class NavConfig:
         escape_after: forward moves stopped on the spot (with no forward move that moved in
             between) after which the agent turns around and steps back; 0 = never (default:
             measured worse on tune, SR 0.44 vs 0.52, see nav/design.md).
+        detour_when_blocked: after a forward step towards the path was found blocked during
+            a turn in place, walk on the first free heading within 90 deg of the path at
+            once instead of after a full turn (default off: measured worse on tune, SR 0.46
+            vs 0.58, see nav/design.md).
         open_peak_radius: metres; when > 0 the waypoint rule follows the maximum of H over
             the cells within this distance of a usable frontier cell instead of the global
             maximum (a peak with no unknown space left near it was seen from all sides: had
@@ -107,6 +111,7 @@ class NavConfig:
     escape_after: int = 0
     unit_mass: str = "unit"
     open_peak_radius: float = 0.0
+    detour_when_blocked: bool = False
 
     def __post_init__(self) -> None:
         positive = (

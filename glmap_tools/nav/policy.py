@@ -70,6 +70,8 @@ class NavState:
             between do not reset it).
         escape: actions still to take of an escape (turn around, step back) from a spot
             where forward moves keep being stopped.
+        path_blocked: during this turn in place the heading faced the path and a forward
+            step there was blocked (`NavConfig.detour_when_blocked`).
     """
 
     egocentric: EgocentricValueMap | None = None
@@ -89,6 +91,7 @@ class NavState:
     visited: list[tuple[float, float]] = field(default_factory=list)
     stalled: int = 0
     escape: list[str] = field(default_factory=list)
+    path_blocked: bool = False
 
 
 @dataclass(frozen=True)
@@ -439,14 +442,24 @@ def _unstick(
     Obstacles below the camera's view are only found by bumping into them; the cells they
     leave can block every heading near the path's direction while the planner, which clears
     the agent's own footprint, still routes through. Any free step towards the path helps.
+    With `config.detour_when_blocked` the agent does not wait for the full turn: once the
+    heading has faced the path and found the step blocked, the first free heading within
+    90 deg of the path is taken.
     """
     moved = state.last_xy is None or math.dist(xy, state.last_xy) >= BUMP_MOVE
     state.turns_in_place = 0 if moved or out.action not in TURNS else state.turns_in_place + 1
-    if state.turns_in_place < round(360 / config.turn_angle_deg):
-        return out
+    if moved or out.action not in TURNS:
+        state.path_blocked = False
     diff = heading_error(out.path, xy, heading, config.lookahead) if len(out.path) else None
-    if diff is not None and abs(diff) <= math.pi / 2 and forward_is_free(occ, xy, heading, config):
+    free = forward_is_free(occ, xy, heading, config)
+    if config.detour_when_blocked and out.action in TURNS and diff is not None and not free:
+        state.path_blocked |= abs(diff) <= config.turn_angle / 2 + 1e-9
+    full_turn = state.turns_in_place >= round(360 / config.turn_angle_deg)
+    if not (full_turn or state.path_blocked):
+        return out
+    if diff is not None and abs(diff) <= math.pi / 2 and free:
         state.turns_in_place = 0
+        state.path_blocked = False
         return replace(out, action="move_forward")
     return out
 
