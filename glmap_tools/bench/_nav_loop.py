@@ -136,8 +136,7 @@ def outcome(r: dict[str, Any], max_steps: int) -> str:
 
 def _run_one(args: tuple[str, int, str, int, dict[str, Any]]) -> dict[str, Any]:
     task, k, policy, max_steps, overrides = args
-    if os.nice(0) < 10:  # once per worker process (a pooled worker runs many episodes)
-        os.nice(10 - os.nice(0))
+    os.nice(max(0, 10 - os.nice(0)))  # to 10 once: a pooled worker runs many episodes
     be = load_split("tune", task)[k]
     r = run_episode(be, policy, max_steps=max_steps, overrides=overrides)
     r["policy"], r["index"] = policy, k

@@ -447,14 +447,18 @@ def _unstick(
     90 deg of the path is taken.
     """
     moved = state.last_xy is None or math.dist(xy, state.last_xy) >= BUMP_MOVE
-    state.turns_in_place = 0 if moved or out.action not in TURNS else state.turns_in_place + 1
-    if moved or out.action not in TURNS:
-        state.path_blocked = False
+    turning = out.action in TURNS
+    in_place = turning and not moved
+    state.turns_in_place = state.turns_in_place + 1 if in_place else 0
+    full_turn = state.turns_in_place >= round(360 / config.turn_angle_deg)
+    if not (full_turn or config.detour_when_blocked):
+        return out
     diff = heading_error(out.path, xy, heading, config.lookahead) if len(out.path) else None
     free = forward_is_free(occ, xy, heading, config)
-    if config.detour_when_blocked and out.action in TURNS and diff is not None and not free:
-        state.path_blocked |= abs(diff) <= config.turn_angle / 2 + 1e-9
-    full_turn = state.turns_in_place >= round(360 / config.turn_angle_deg)
+    if config.detour_when_blocked:
+        state.path_blocked &= in_place
+        if turning and diff is not None and not free:
+            state.path_blocked |= abs(diff) <= config.turn_angle / 2 + 1e-9
     if not (full_turn or state.path_blocked):
         return out
     if diff is not None and abs(diff) <= math.pi / 2 and free:
