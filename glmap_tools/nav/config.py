@@ -77,6 +77,9 @@ class NavConfig:
             maximum (a peak with no unknown space left near it was seen from all sides: had
             the goal been there it would have matched); no value near any frontier means the
             nearest frontier. 0 = the paper's rule (global argmax). See nav/design.md.
+        min_instance_score, min_region_score: an instance / region enters Eq. 7 only with
+            s_u at or above this (0 = every unit, the paper's sum); below it the score counts
+            as no evidence. With nothing left the waypoint is the nearest frontier.
         unit_mass: how a unit's score s_u enters Eq. 7: 'unit' (default: s_u / |cells| on each
             cell, so every unit carries the mass s_u, as the single delta at p_u of Eq. 7 does;
             tune SR 0.56 vs 0.38, nav/design.md) or 'cells' (s_u on each of its cells, so a
@@ -112,6 +115,8 @@ class NavConfig:
     unit_mass: str = "unit"
     open_peak_radius: float = 0.0
     detour_when_blocked: bool = False
+    min_instance_score: float = 0.0
+    min_region_score: float = 0.0
 
     def __post_init__(self) -> None:
         positive = (
@@ -167,6 +172,12 @@ class NavConfig:
             if not isinstance(getattr(self, name), bool):
                 raise InvalidInputError(
                     f"NavConfig.{name}={getattr(self, name)!r} must be true or false."
+                )
+        for name in ("min_instance_score", "min_region_score"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and 0.0 <= value <= 1.0):
+                raise InvalidInputError(
+                    f"NavConfig.{name}={value!r} must be a score in [0, 1] (0 = keep every unit)."
                 )
         if self.unit_mass not in UNIT_MASSES:
             raise InvalidInputError(

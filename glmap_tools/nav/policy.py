@@ -304,7 +304,12 @@ def decide(
     if policy in POLICY_UNITS:
         kinds = {"both": ("instance", "region"), "instances": ("instance",), "regions": ("region",)}
         keep = kinds[POLICY_UNITS[policy]]
-        used = {u.unit_id: by_id[u.unit_id] for u in units if u.kind in keep}
+        least = {"instance": config.min_instance_score, "region": config.min_region_score}
+        used = {
+            u.unit_id: by_id[u.unit_id]
+            for u in units
+            if u.kind in keep and by_id[u.unit_id] >= least[u.kind]
+        }
         if config.visited_discount < 1.0:
             used = discount_visited(
                 used, glmap.grid, state.visited, config.visited_radius, config.visited_discount
