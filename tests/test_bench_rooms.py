@@ -69,3 +69,13 @@ def test_the_bundled_embedder_ranks_the_goals_room_first_by_regions_on_the_tune_
     assert "100 episodes, 4 scenes" in out
     line = next(x for x in out.splitlines() if x.startswith("region units: goal's room"))
     assert line.endswith("MET"), line  # 0.91 when measured in session 11
+
+
+def test_the_llm_scorer_without_a_server_is_one_clear_line_and_status_2(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    args = ["--scorer", "llm", "--ollama-host", "http://127.0.0.1:9", "--llm-timeout", "5"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("bench rooms: Ollama is not reachable at http://127.0.0.1:9")
+    assert "Traceback" not in err

@@ -21,6 +21,7 @@ Use the tune split for choices; the bench split is for final figures only.
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -28,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from glmap_tools.bench.report import Report
-from glmap_tools.errors import InvalidInputError
+from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.nav.scorers import UnitText
 
 THRESHOLDS = (0.2, 0.3, 0.4, 0.5)
@@ -137,15 +138,19 @@ def main(argv: list[str] | None = None) -> int:
     layouts: dict[Any, Any] = {}
     cache: dict[tuple[Any, str, tuple[int, ...]], dict[str, RoomScores]] = {}
     rows = []
-    for be in load_split(args.split, args.task):
-        if be.layout_path not in layouts:
-            layouts[be.layout_path] = bench_layout(be.layout_path)
-        key = (be.layout_path, be.episode.goal_text, tuple(be.episode.goal_object_ids))
-        if key not in cache:
-            cache[key] = episode_room_scores(
-                scorer, be.episode.goal_text, layouts[be.layout_path], key[2]
-            )
-        rows.append(cache[key])
+    try:
+        for be in load_split(args.split, args.task):
+            if be.layout_path not in layouts:
+                layouts[be.layout_path] = bench_layout(be.layout_path)
+            key = (be.layout_path, be.episode.goal_text, tuple(be.episode.goal_object_ids))
+            if key not in cache:
+                cache[key] = episode_room_scores(
+                    scorer, be.episode.goal_text, layouts[be.layout_path], key[2]
+                )
+            rows.append(cache[key])
+    except GLMapError as error:  # no model server, a stale split: say so, no traceback
+        print(f"bench rooms: {error}", file=sys.stderr)
+        return 2
     report.info(f"{len(rows)} episodes, {len(layouts)} scenes, {len(cache)} scored goals")
     room_table(rows, report)
     return report.finish()
