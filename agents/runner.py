@@ -40,8 +40,14 @@ AGENTS = (
 )
 # llm-tools: a chat model through Ollama calls the tools itself (agents/llm_agent.py); its
 # model, server and prompt folder come from these environment variables (set by
-# `glmap eval --model/--ollama-host/--prompts`).
-LLM_ENV = {"model": "GLMAP_LLM_MODEL", "host": "OLLAMA_HOST", "prompts": "GLMAP_PROMPTS"}
+# `glmap eval --model/--ollama-host/--prompts`). "scorer" is the f_S of the eval workers'
+# in-memory servers (`glmap eval --scorer llm`), which then use the same model and prompts.
+LLM_ENV = {
+    "model": "GLMAP_LLM_MODEL",
+    "host": "OLLAMA_HOST",
+    "prompts": "GLMAP_PROMPTS",
+    "scorer": "GLMAP_SCORER",
+}
 DEFAULT_LLM_MODEL = "qwen3:8b"
 AGENT_SIZE = "320x240"
 

@@ -23,6 +23,7 @@ from glmap_tools.language.ollama_replay import (
     chat_reply,
 )
 from glmap_tools.language.transcript import Transcript
+from glmap_tools.nav.scorers import UnitText
 from tests import llm_scenarios as sc
 
 RECORDING = bool(os.environ.get(RECORD_ENV))
@@ -282,3 +283,20 @@ def test_the_llm_tools_agent_runs_through_the_runner_and_survives_an_unknown_too
     assert "there is no tool 'teleport'" in second[-1]["content"]
     events = [json.loads(line) for line in (tmp_path / "ep" / "transcript.jsonl").open()]
     assert [e["kind"] for e in events].count("llm_request") == 2
+
+
+def test_llm_scorer_scores_each_distinct_text_once_even_when_the_ids_collide() -> None:
+    """A frame's objects (the egocentric frame score) all carry id -1: each text still gets
+    its own score, named by its place in the batch."""
+    units = [
+        UnitText(-1, "instance", "a black flat-screen television"),
+        UnitText(-1, "instance", "a white bathtub"),
+        UnitText(-1, "instance", "a black flat-screen television"),
+    ]
+    with ScriptedOllama(sc.keyword_scores) as server:
+        scorer = LLMScorer(sc.client(server.host))
+        scores = scorer.score("tv", units)
+    assert scores.tolist() == [0.92, 0.05, 0.92]
+    assert scorer.calls == 1
+    prompt = server.requests[-1][2]["messages"][0]["content"]
+    assert "1: a black flat-screen television\n2: a white bathtub" in prompt

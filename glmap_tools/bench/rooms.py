@@ -14,8 +14,8 @@ units would be once seen. Printed per unit kind:
   and in another room (what `NavConfig.min_instance_score` / `min_region_score` keep).
 
 Ground truth comes from the layout files, so this reads no images and runs in seconds with
-the embedding scorer; `--scorer llm` asks the Ollama model (one call per scene and goal).
-Use the tune split for choices; the bench split is for final figures only.
+the embedding scorer; `--scorer llm` asks the Ollama model (the scene's regions and objects in
+batches, for each goal). Use the tune split for choices; the bench split is for final figures only.
 """
 
 from __future__ import annotations

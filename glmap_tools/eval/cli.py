@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from glmap_tools.eval.spec import SPLITS, TASKS
+from glmap_tools.language.backends import SCORERS
 
 DEFAULT_AGENTS = "glmap,glmap-instance,glmap-region,egocentric,frontier,random"
 
@@ -72,7 +73,15 @@ def _register_nav(kinds: argparse._SubParsersAction, task: str) -> None:
         help="the table counts only episodes that every listed agent finished",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    g = p.add_argument_group("the llm-tools agent (a model that calls the tools; needs Ollama)")
+    g = p.add_argument_group(
+        "language models (need Ollama): the llm-tools agent, and the llm scorer f_S"
+    )
+    g.add_argument(
+        "--scorer",
+        choices=SCORERS,
+        default="embedding",
+        help="f_S of every agent's value map: embedding cosine (offline) or llm (--model)",
+    )
     g.add_argument("--model", default="", help="Ollama model, e.g. qwen3:8b")
     g.add_argument("--ollama-host", default=None, help="Ollama URL ($OLLAMA_HOST or local)")
     g.add_argument("--prompts", type=Path, default=None, help="prompt override folder")
@@ -80,7 +89,8 @@ def _register_nav(kinds: argparse._SubParsersAction, task: str) -> None:
 
 
 def _llm_settings(args: argparse.Namespace, agents: tuple[str, ...]) -> tuple[str, str]:
-    """Model and prompt-set digest of the llm-tools agent; exported to the workers' env.
+    """Model and prompt-set digest of the llm-tools agent or the llm scorer; exported, with
+    the scorer, to the workers' env.
 
     Worker processes inherit the environment (local workers; Ray workers need the same
     variables in their runtime environment).
@@ -91,7 +101,8 @@ def _llm_settings(args: argparse.Namespace, agents: tuple[str, ...]) -> tuple[st
     from agents.runner import DEFAULT_LLM_MODEL, LLM_ENV
     from glmap_tools.language.prompts import PromptSet
 
-    if "llm-tools" not in agents:
+    os.environ[LLM_ENV["scorer"]] = args.scorer  # a value left in the shell must not differ
+    if "llm-tools" not in agents and args.scorer != "llm":
         return "", ""
     model = args.model or DEFAULT_LLM_MODEL
     prompts = PromptSet(args.prompts)
@@ -120,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         max_steps=args.max_steps,
         embedder=args.embedder,
+        scorer=args.scorer,
         llm_model=llm_model,
         prompts=prompts,
     )

@@ -189,7 +189,8 @@ def _write_summary(run: EvalRun) -> None:
         f"# {s.task} on the {s.split} split\n\n"
         f"Selection: the first {s.scenes or 'all'} scenes x {s.episodes_per_scene or 'all'} "
         f"episodes of each; seed {s.seed}, max_steps {s.max_steps}, embedder {s.embedder}, "
-        f"images {s.result_config()['image_size']}. Finished: "
+        + (f"scorer llm ({s.llm_model}), " if s.scorer == "llm" else "")
+        + f"images {s.result_config()['image_size']}. Finished: "
         f"{sum(len(r) for r in run.records.values())} of {run.total} (agent, episode) pairs"
         f"{' (only episodes every agent finished)' if run.complete_only else ''}.\n\n"
     )

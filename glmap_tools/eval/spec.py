@@ -12,12 +12,22 @@ from pathlib import Path
 from typing import Any
 
 from glmap_tools.errors import InvalidInputError, did_you_mean
+from glmap_tools.language.backends import SCORERS
 
 TASKS = ("objectnav", "instnav")
 SPLITS = ("tune", "bench")
 EMBEDDERS = ("minilm", "hashing")
 # Settings that change what one episode's result is; a results folder holds one set of them.
-RESULT_KEYS = ("task", "split", "seed", "max_steps", "embedder", "llm_model", "prompts")
+RESULT_KEYS = (
+    "task",
+    "split",
+    "seed",
+    "max_steps",
+    "embedder",
+    "scorer",
+    "llm_model",
+    "prompts",
+)
 
 
 def known_agents() -> tuple[str, ...]:
@@ -90,8 +100,10 @@ class EvalSpec:
         seed: base seed; each episode's seed is `episode_seed(seed, episode_id)`.
         max_steps: actions before an episode is cut off (500 in the benchmark).
         embedder: the server's text embedder, 'minilm' or 'hashing'.
-        llm_model: the Ollama model of the llm-tools agent ('' when none plays).
-        prompts: the prompt set it used, as a digest of every prompt's name@hash.
+        scorer: f_S of the servers' value maps, 'embedding' (offline) or 'llm' (Ollama).
+        llm_model: the Ollama model of the llm-tools agent or the llm scorer ('' when
+            neither plays).
+        prompts: the prompt set they used, as a digest of every prompt's name@hash.
     """
 
     task: str
@@ -102,6 +114,7 @@ class EvalSpec:
     seed: int = 0
     max_steps: int = 500
     embedder: str = "minilm"
+    scorer: str = "embedding"
     llm_model: str = ""
     prompts: str = ""
 
@@ -109,6 +122,7 @@ class EvalSpec:
         check_choice("task", self.task, TASKS)
         check_choice("split", self.split, SPLITS)
         check_choice("embedder", self.embedder, EMBEDDERS)
+        check_choice("scorer", self.scorer, SCORERS)
         for name in ("scenes", "episodes_per_scene", "max_steps"):
             value = getattr(self, name)
             if value is None and name != "max_steps":
@@ -124,7 +138,12 @@ class EvalSpec:
 
         d = asdict(self)
         # The model settings only count when a model plays (older folders lack them).
-        keys = [k for k in RESULT_KEYS if k not in ("llm_model", "prompts") or d[k]]
+        keys = [
+            k
+            for k in RESULT_KEYS
+            if (k not in ("llm_model", "prompts") or d[k])
+            and (k != "scorer" or d[k] != "embedding")
+        ]
         return {**{k: d[k] for k in keys}, "image_size": AGENT_SIZE}
 
 

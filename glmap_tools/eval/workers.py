@@ -58,6 +58,25 @@ def _prepare_process(compute_threads: int) -> None:
         os.environ.setdefault(var, str(compute_threads))
 
 
+def server_llm_settings() -> Any:
+    """The worker server's `LLMSettings`: the offline defaults, or with `GLMAP_SCORER=llm`
+    (set by `glmap eval --scorer llm`) the LLM scorer on the model, host and prompts of
+    `agents.runner.LLM_ENV`."""
+    from agents.runner import DEFAULT_LLM_MODEL, LLM_ENV
+    from glmap_tools.language.backends import LLMSettings
+
+    scorer = os.environ.get(LLM_ENV["scorer"]) or "embedding"
+    if scorer == "embedding":
+        return LLMSettings()
+    prompts = os.environ.get(LLM_ENV["prompts"])
+    return LLMSettings(
+        scorer=scorer,
+        model=os.environ.get(LLM_ENV["model"]) or DEFAULT_LLM_MODEL,
+        host=os.environ.get(LLM_ENV["host"]) or None,
+        prompts=Path(prompts) if prompts else None,
+    )
+
+
 class EpisodeWorker:
     """Plays jobs through one long-lived in-memory MCP session.
 
@@ -98,6 +117,7 @@ class EpisodeWorker:
             embedder=embedder,  # type: ignore[arg-type]
             warm_up=False,
             compute_threads=compute_threads,
+            llm=server_llm_settings(),
         )
         self._stop = asyncio.Event()
         async with open_session(config) as session:

@@ -11,6 +11,7 @@ It satisfies `glmap_tools.nav.Scorer`.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
@@ -24,6 +25,15 @@ MAX_UNIT_CHARS = 600  # characters of a unit's text shown to the model
 
 
 class UnitLike(Protocol):
+    unit_id: int
+    kind: str
+    text: str
+
+
+@dataclass
+class _Shown:
+    """A unit as the prompt shows it (the id it is named by there)."""
+
     unit_id: int
     kind: str
     text: str
@@ -138,13 +148,22 @@ class LLMScorer:
             else:
                 todo[u.kind].append((i, u))
         for kind, pending in todo.items():
-            for start in range(0, len(pending), self.batch_size):
-                chunk = pending[start : start + self.batch_size]
-                # Units with the same id are scored once per batch (ids key the reply).
-                by_id = {int(u.unit_id): u for _, u in chunk}
-                scores = self._score_batch(goal, kind, list(by_id.values()))
-                for i, u in chunk:
-                    p = float(scores[int(u.unit_id)])
-                    self.cache[(self.mode, goal, u.kind, u.text)] = p
-                    out[i] = p
+            # One score per distinct text (the cache's key). The prompt names each text by
+            # its unit's id unless those collide or are negative (a frame's objects, scored
+            # for the egocentric baseline, all carry -1): then by its place in the batch.
+            own: dict[str, int] = {}
+            for _, u in pending:
+                own.setdefault(u.text, int(u.unit_id))
+            texts = list(own)
+            for start in range(0, len(texts), self.batch_size):
+                chunk = texts[start : start + self.batch_size]
+                ids = [own[t] for t in chunk]
+                if len(set(ids)) < len(ids) or min(ids) < 0:
+                    ids = list(range(1, len(chunk) + 1))
+                shown = [_Shown(i, kind, t) for i, t in zip(ids, chunk, strict=True)]
+                scores = self._score_batch(goal, kind, shown)
+                for i, t in zip(ids, chunk, strict=True):
+                    self.cache[(self.mode, goal, kind, t)] = float(scores[i])
+            for i, u in pending:
+                out[i] = self.cache[(self.mode, goal, kind, u.text)]
         return out
