@@ -10,6 +10,8 @@ import pytest
 
 from agents.runner import LLM_ENV
 from glmap_tools import cli
+from glmap_tools.eval import EvalSpec
+from glmap_tools.eval.run import run_eval
 from glmap_tools.eval.workers import server_llm_settings
 from glmap_tools.language.backends import LLMSettings
 from glmap_tools.language.ollama_replay import ScriptedOllama
@@ -62,3 +64,17 @@ def test_eval_with_the_llm_scorer_asks_the_model_and_a_rerun_without_it_is_refus
     assert cli.main(argv) == 1  # the offline scorer is another setting: not mixed silently
     assert "scorer" in capsys.readouterr().err
     assert [p.name for p in (out / "episodes" / "glmap").glob("*.json")] == [record_file.name]
+
+
+def test_a_worker_that_scored_with_another_f_s_fails_its_episode_instead_of_mislabelling_it(
+    clean_llm_env: None, tmp_path: Path
+) -> None:
+    # The spec asks for the LLM scorer but nothing told the worker (GLMAP_SCORER unset).
+    spec = EvalSpec(
+        "objectnav", "tune", 1, 1, ("glmap",), max_steps=2, embedder="hashing",
+        scorer="llm", llm_model=sc.MODEL,
+    )  # fmt: skip
+    run = run_eval(spec, tmp_path, workers=0, progress=False)
+    assert run.ran == 0 and len(run.failures) == 1
+    assert "scored with f_S 'embedding', the run asks for 'llm'" in (run.failures[0].error or "")
+    assert not list((tmp_path / "episodes").glob("*/*.json"))

@@ -11,8 +11,11 @@ from pathlib import Path
 
 import pytest
 
+from agents.runner import LLM_ENV
 from glmap_tools.eval import EvalSpec
 from glmap_tools.eval.run import run_eval
+from glmap_tools.language.ollama_replay import ScriptedOllama
+from tests import llm_scenarios as sc
 
 KEYS = ("success", "spl", "distance_to_goal", "steps", "path_length", "collisions", "seed")
 
@@ -33,3 +36,32 @@ def test_a_local_ray_instance_plays_episodes_as_the_local_workers_do(tmp_path: P
         assert {k: ray_record[k] for k in KEYS} == {k: here_record[k] for k in KEYS}
     again = run_eval(spec, tmp_path / "ray", workers=1, ray_address="local", progress=False)
     assert (again.ran, again.skipped) == (0, 2)  # resuming needs no Ray start at all
+
+
+@pytest.mark.slow  # Ray start + 1 episode
+def test_actors_of_a_running_ray_instance_get_the_llm_settings_of_the_driver(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Ray starts before the settings exist, so its workers cannot inherit them (as on a
+    # cluster that was already running): only what run_ray hands each actor gets there.
+    import ray
+
+    for var in LLM_ENV.values():
+        monkeypatch.delenv(var, raising=False)
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+    try:
+        with ScriptedOllama(sc.keyword_scores) as model:
+            monkeypatch.setenv(LLM_ENV["scorer"], "llm")
+            monkeypatch.setenv(LLM_ENV["model"], sc.MODEL)
+            monkeypatch.setenv(LLM_ENV["host"], model.host)
+            spec = EvalSpec(
+                "objectnav", "tune", 1, 1, ("glmap",), max_steps=4, embedder="hashing",
+                scorer="llm", llm_model=sc.MODEL,
+            )  # fmt: skip
+            run = run_eval(spec, tmp_path, workers=1, ray_address="local", progress=False)
+    finally:
+        ray.shutdown()
+    assert run.failures == [] and run.ran == 1
+    assert any(path == "/api/chat" for _, path, _ in model.requests)
+    (record,) = run.records["glmap"].values()
+    assert "scorer_used" not in record

@@ -6,7 +6,10 @@ with `workers` CPUs), 'auto' (the cluster started here with `ray start --head`),
 (Ray Client, from anywhere). Before `ray.init`, the address is probed with the first call Ray
 itself makes, so one that does not answer fails within `CONNECT_TIMEOUT_S`, not after
 Ray's own retries (20 s and more). Every node needs glmap-tools (with
-its `ray` extra) installed.
+its `ray` extra) installed. The LLM settings of `glmap eval` (`--scorer llm`, `--model`,
+`--ollama-host`, `--prompts`: `agents.runner.LLM_ENV`) are handed to each actor, since actors
+on a cluster that was already running do not inherit the driver's environment; a `--prompts`
+folder must exist at the same path on every node.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from glmap_tools.errors import GLMapError, InvalidInputError
-from glmap_tools.eval.workers import EpisodeWorker, Job, Outcome
+from glmap_tools.eval.workers import EpisodeWorker, Job, Outcome, llm_environment
 
 CONNECT_TIMEOUT_S = 5.0
 
@@ -126,7 +129,8 @@ def check_address(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
 class _RayWorker:
     """The body of a Ray actor: an EpisodeWorker that lives as long as the actor."""
 
-    def __init__(self, embedder: str) -> None:
+    def __init__(self, embedder: str, llm_env: dict[str, str]) -> None:
+        os.environ.update(llm_env)  # the actor's own process: the driver's LLM settings
         self.worker = EpisodeWorker(embedder)
 
     def run(self, job: Job) -> Outcome:
@@ -152,7 +156,8 @@ def run_ray(jobs: Sequence[Job], workers: int, embedder: str, address: str) -> I
     try:
         actor_cls = ray.remote(num_cpus=1)(_RayWorker)
         n = max(1, min(workers, len(jobs)))
-        actors = [actor_cls.remote(embedder) for _ in range(n)]
+        llm_env = llm_environment()
+        actors = [actor_cls.remote(embedder, llm_env) for _ in range(n)]
         # As on local workers: actor k starts at the k-th block of the scene-ordered jobs.
         cursors = [k * len(jobs) // n for k in range(n)]
         taken = [False] * len(jobs)

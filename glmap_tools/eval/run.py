@@ -21,7 +21,7 @@ from glmap_tools.eval.spec import (
 )
 from glmap_tools.eval.stats import DEFAULT_RESAMPLES
 from glmap_tools.eval.table import Summary, markdown, summarize
-from glmap_tools.eval.workers import Job, Outcome, run_inline, run_local
+from glmap_tools.eval.workers import SCORER_USED, Job, Outcome, run_inline, run_local
 
 
 @dataclass
@@ -67,6 +67,22 @@ def _engine(
     if workers == 0:
         return run_inline(jobs, embedder)
     return run_local(jobs, workers, embedder, log_dir)
+
+
+def _check_scorer(outcome: Outcome, scorer: str) -> Outcome:
+    """The outcome without the worker's `SCORER_USED`; a failure when it is not `scorer`
+    (the run's LLM settings did not reach that worker), so no record is mislabelled."""
+    if outcome.record is None:
+        return outcome
+    record = dict(outcome.record)
+    used = record.pop(SCORER_USED, scorer)
+    if used != scorer:
+        error = (
+            f"the worker scored with f_S {used!r}, the run asks for {scorer!r}: its LLM "
+            "settings (GLMAP_SCORER, GLMAP_LLM_MODEL, OLLAMA_HOST) did not reach it"
+        )
+        return Outcome(outcome.job, None, error)
+    return Outcome(outcome.job, record)
 
 
 def run_eval(
@@ -153,6 +169,7 @@ def run_eval(
             for outcome in _engine(
                 jobs, workers, spec.embedder, ray_address, results.root / "logs"
             ):
+                outcome = _check_scorer(outcome, spec.scorer)
                 if outcome.record is None:
                     failures.append(outcome)
                     bar.set_postfix(failed=len(failures))

@@ -20,6 +20,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+SCORER_USED = "scorer_used"  # the f_S a worker's server scored with, in its records
+
 
 @dataclass(frozen=True)
 class Job:
@@ -77,6 +79,14 @@ def server_llm_settings() -> Any:
     )
 
 
+def llm_environment() -> dict[str, str]:
+    """The `agents.runner.LLM_ENV` variables set in this process: what `glmap eval` hands a
+    worker that does not inherit its environment (a Ray actor on a running cluster)."""
+    from agents.runner import LLM_ENV
+
+    return {var: os.environ[var] for var in LLM_ENV.values() if var in os.environ}
+
+
 class EpisodeWorker:
     """Plays jobs through one long-lived in-memory MCP session.
 
@@ -92,6 +102,7 @@ class EpisodeWorker:
         self._ready: Future[Any] = Future()
         self._stop: asyncio.Event | None = None
         self._session: Any = None
+        self.scorer = "embedding"
         self._thread = threading.Thread(
             target=self._serve, args=(embedder, compute_threads), daemon=True
         )
@@ -112,12 +123,14 @@ class EpisodeWorker:
         from agents.runner import open_session
         from glmap_tools.server import ServerConfig
 
+        llm = server_llm_settings()
+        self.scorer = llm.scorer
         config = ServerConfig(
             maps_dir=Path(self._tmp.name) / "maps",
             embedder=embedder,  # type: ignore[arg-type]
             warm_up=False,
             compute_threads=compute_threads,
-            llm=server_llm_settings(),
+            llm=llm,
         )
         self._stop = asyncio.Event()
         async with open_session(config) as session:
@@ -136,7 +149,8 @@ class EpisodeWorker:
             out_dir=Path(job.trace_dir) if job.trace_dir else None,
             max_steps=job.max_steps,
         )
-        return {**result.model_dump(), "scene": job.scene}
+        # SCORER_USED: checked against the run's setting by the driver, not stored.
+        return {**result.model_dump(), "scene": job.scene, SCORER_USED: self.scorer}
 
     def run(self, job: Job) -> Outcome:
         """Play one job; an exception becomes the Outcome's error text."""
