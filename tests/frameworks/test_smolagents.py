@@ -25,3 +25,22 @@ def test_smolagents_code_agent_plays_the_episode_through_tool_collection(tmp_pat
     # `required` and marks nothing nullable), and a reply is its first content block only.
     assert "episode" in out["required_sim_reset"] and "session" in out["required_sim_reset"]
     assert out["reply_type"] == "str"
+
+
+@pytest.mark.slow  # plays 29 simulator steps
+def test_smolagents_code_agent_plays_the_episode_with_the_in_process_tools(tmp_path):
+    # The same episode through Toolset.as_smolagents_tools() in this venv (no MCP adapter):
+    # smolagents' default agent calls them as Python functions and prints their text.
+    pytest.importorskip("smolagents")
+    from smolagents import CodeAgent
+
+    from glmap_tools.toolset import Toolset
+    from tests.frameworks.smolagents_model import ScriptedModel
+    from tests.test_server_fixtures import config
+
+    with Toolset(config(tmp_path)) as tools:
+        model = ScriptedModel()
+        agent = CodeAgent(tools=tools.as_smolagents_tools(), model=model, max_steps=12)
+        answer = agent.run(f"Find the goal of {episode.EPISODE}.")
+    assert answer == "episode over"
+    assert episode.problems(model.replies) == []
