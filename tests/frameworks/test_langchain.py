@@ -32,3 +32,20 @@ def test_langchain_default_get_tools_keeps_the_episode_with_the_map_option(tmp_p
 def test_langchain_explicit_session_plays_the_episode_on_one_server(tmp_path):
     out = played("session", str(tmp_path))
     assert episode.problems([tuple(r) for r in out["replies"]]) == []
+
+
+@pytest.mark.slow  # plays 29 simulator steps
+def test_langchain_loop_plays_the_episode_with_the_in_process_tools(tmp_path):
+    # The same loop and episode with Toolset.as_langchain_tools() in this venv (no adapter).
+    pytest.importorskip("langchain_core")
+    import asyncio
+
+    from glmap_tools.toolset import Toolset
+    from tests.frameworks.langchain_loop import play
+    from tests.test_server_fixtures import config
+
+    with Toolset(config(tmp_path)) as tools:
+        out = asyncio.run(play(tools.as_langchain_tools()))
+    assert out["answer"] == "episode over"
+    assert "episode" in out["tools"]["sim_reset"]
+    assert episode.problems([tuple(r) for r in out["replies"]]) == []
