@@ -271,6 +271,24 @@ def test_the_previous_frontier_is_kept_unless_another_is_better_by_the_commit_ma
     assert occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]
 
 
+def test_the_paper_rule_keeps_the_previous_frontier_within_peak_commit_of_the_closest() -> None:
+    # H peaks deep in the room: the top door is 1.25 m from the peak, the right one 1.9 m.
+    occ, fronts, trav, field, here = two_door_setup((45, 25))
+    value = values_at(occ, {(25, 12): 1.0})
+    right = next(f for f in fronts if occ.world_to_index(*f.target)[1] >= 45)
+    previous = tuple(float(v) for v in right.target)
+    for commit, row_or_col in ((0.0, (0, 50)), (0.5, (0, 50)), (1.0, (1, 50))):
+        config = NavConfig(peak_commit=commit)
+        wp = choose_waypoint(
+            value, fronts, trav, here, None, config, occ=occ, distance=field, previous=previous
+        )
+        axis, index = row_or_col
+        assert occ.world_to_index(*wp.xy)[axis] == index, commit  # type: ignore[misc]
+        assert ("the previous one" in wp.reason) == (commit == 1.0)
+    with pytest.raises(InvalidInputError, match="peak_commit=-1"):
+        NavConfig(peak_commit=-1)
+
+
 def test_the_open_peak_rule_passes_over_a_peak_with_no_unknown_space_near_it() -> None:
     # H peaks deep in the seen room (row 25, column 12), 1.25 m from the top doorway and
     # 1.9 m from the right one, with a weaker value 0.3 m inside the right door. The paper

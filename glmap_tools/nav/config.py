@@ -20,7 +20,7 @@ CATEGORY_STOP_THRESHOLD = 0.31
 POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
 ACTIONS = ("move_forward", "turn_left", "turn_right", "stop")
 WAYPOINT_RULES = ("utility", "paper")
-UNIT_MASSES = ("cells", "unit")
+UNIT_MASSES = ("cells", "unit", "point")
 
 
 @dataclass(frozen=True)
@@ -61,6 +61,8 @@ class NavConfig:
         frontier_value_radius: metres around a frontier cell whose best value counts for it.
         commit_margin: metres of utility by which another frontier must beat the previous
             waypoint before the agent switches (rule 'utility'; stops oscillation).
+        peak_commit: rule 'paper': metres by which another frontier must be closer to argmax H
+            than the previous waypoint before the agent switches (0 = off, the paper's rule).
         visited_discount: factor on the score s_u of a unit the agent has already been near
             (GLMap policies; 1 = off): the value map then points past what was searched.
         visited_radius: metres from the agent's past positions within which a unit's cells
@@ -83,7 +85,9 @@ class NavConfig:
         unit_mass: how a unit's score s_u enters Eq. 7: 'unit' (default: s_u / |cells| on each
             cell, so every unit carries the mass s_u, as the single delta at p_u of Eq. 7 does;
             tune SR 0.56 vs 0.38, nav/design.md) or 'cells' (s_u on each of its cells, so a
-            unit weighs with its area and large units and regions pull the argmax).
+            unit weighs with its area and large units and regions pull the argmax) or 'point'
+            (s_u on the one cell nearest the mean of its cells: the delta at p_u of Eq. 7
+            taken literally, so a region's mass is not thinned over its room).
     """
 
     agent_radius: float = 0.18
@@ -109,6 +113,7 @@ class NavConfig:
     frontier_value_weight: float = 10.0
     frontier_value_radius: float = 1.0
     commit_margin: float = 1.0
+    peak_commit: float = 0.0
     visited_discount: float = 1.0
     visited_radius: float = 1.5
     escape_after: int = 0
@@ -193,6 +198,7 @@ class NavConfig:
             "frontier_value_weight",
             "frontier_value_radius",
             "commit_margin",
+            "peak_commit",
             "open_peak_radius",
         ):
             value = getattr(self, name)

@@ -126,17 +126,35 @@ def unit_cell_array(grid: IndexGrid, unit_id: int) -> np.ndarray:
     return arr
 
 
+def unit_point_cell(grid: IndexGrid, unit_id: int) -> np.ndarray:
+    """[1, 2] the cell nearest the mean of a unit's cells (p_u of Eq. 7); [0, 2] if none."""
+    cells = unit_cell_array(grid, unit_id)
+    if not len(cells):
+        return cells
+    return np.floor(cells.mean(axis=0) + 0.5).astype(np.int64).reshape(1, 2)
+
+
+def source_cells(grid: IndexGrid, unit_id: int, unit_mass: str) -> np.ndarray:
+    """The cells a unit's mass goes on: its centre cell for 'point', else all its cells."""
+    if unit_mass == "point":
+        return unit_point_cell(grid, unit_id)
+    return unit_cell_array(grid, unit_id)
+
+
 def as_window(window: Window | DenseOccupancy) -> Window:
     return Window.of(window) if isinstance(window, DenseOccupancy) else window
 
 
-def score_image(scores: Mapping[int, float], grid: IndexGrid, window: Window) -> np.ndarray:
-    """[H, W] sum_u s_u delta(v - p_u): each unit's score added on each of its cells."""
+def score_image(
+    scores: Mapping[int, float], grid: IndexGrid, window: Window, unit_mass: str = "cells"
+) -> np.ndarray:
+    """[H, W] sum_u s_u delta(v - p_u): each unit's score added on each of its source cells
+    (`source_cells`: all its cells, or its centre cell for `unit_mass` 'point')."""
     ids = [int(uid) for uid, s in scores.items() if s > 0]
     img = np.zeros(window.shape, dtype=np.float64)
     if not ids:
         return img
-    arrays = [unit_cell_array(grid, uid) for uid in ids]
+    arrays = [source_cells(grid, uid, unit_mass) for uid in ids]
     counts = np.array([len(a) for a in arrays])
     cells = np.concatenate(arrays)
     vals = np.repeat(np.array([float(scores[uid]) for uid in ids]), counts)
@@ -169,12 +187,13 @@ def value_map_from_scores(
         grid: the index grid m holding each unit's cells.
         window: the cells to evaluate (units outside it do not contribute).
         sigma: kernel bandwidth, metres.
-        unit_mass: 'unit' (s_u / |cells| on each cell: every unit adds s_u in total) or
-            'cells' (s_u on each cell: a unit weighs with its area); see `NavConfig.unit_mass`.
+        unit_mass: 'unit' (s_u / |cells| on each cell: every unit adds s_u in total),
+            'cells' (s_u on each cell: a unit weighs with its area) or 'point' (s_u on the
+            unit's centre cell); see `NavConfig.unit_mass`.
     """
     check_scores(scores)
     win = as_window(window)
-    img = score_image(spread_scores(scores, grid, unit_mass), grid, win)
+    img = score_image(spread_scores(scores, grid, unit_mass), grid, win, unit_mass)
     g = gaussian_kernel_1d(sigma / grid.cell_size)
     # K_sigma is separable: filter along columns (only those holding a score), then rows.
     h = np.zeros_like(img)
@@ -204,7 +223,7 @@ def value_map_reference(
     radius = len(g) // 2
     sources: dict[tuple[int, int], float] = {}
     for uid, mass in spread_scores(scores, grid, unit_mass).items():
-        for i, j in grid.cells_of_unit(int(uid)):
+        for i, j in source_cells(grid, int(uid), unit_mass).tolist():
             if win.i0 <= i < win.i0 + win.width and win.j0 <= j < win.j0 + win.height:
                 sources[(i, j)] = sources.get((i, j), 0.0) + float(mass)
     h = np.zeros(win.shape)
@@ -250,7 +269,7 @@ def value_map(
         units: 'both' | 'instances' | 'regions'.
         sigma: kernel bandwidth (m); default NavConfig().value_sigma.
         window: cells to evaluate; default the known map plus TRUNCATE sigma.
-        unit_mass: 'unit' | 'cells'; default NavConfig().unit_mass.
+        unit_mass: 'unit' | 'cells' | 'point'; default NavConfig().unit_mass.
 
     Raises:
         InvalidInputError: empty goal, unknown `units` or `unit_mass`, non-positive sigma.
@@ -273,12 +292,13 @@ def value_map(
 def spread_scores(
     scores: Mapping[int, float], grid: IndexGrid, unit_mass: str
 ) -> Mapping[int, float]:
-    """The per-cell mass of each unit for `unit_mass` ('unit' or 'cells')."""
+    """The mass of each unit on each of its source cells for `unit_mass` ('unit', 'cells'
+    or 'point')."""
     if unit_mass == "unit":
         return per_unit_mass(scores, grid)
-    if unit_mass == "cells":
+    if unit_mass in ("cells", "point"):
         return scores
-    raise InvalidInputError(f"unit_mass={unit_mass!r} must be 'unit' or 'cells'.")
+    raise InvalidInputError(f"unit_mass={unit_mass!r} must be 'unit', 'cells' or 'point'.")
 
 
 def per_unit_mass(scores: Mapping[int, float], grid: IndexGrid) -> dict[int, float]:

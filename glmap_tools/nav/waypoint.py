@@ -320,12 +320,21 @@ def choose_waypoint(
                 best = (key, (float(xy[k, 0]), float(xy[k, 1])))
         assert best is not None
         (gap, _), xy_best = best
+        kept = ""
+        if previous is not None and config.peak_commit > 0:
+            cells = np.concatenate([c for _, c in usable])
+            near = np.hypot(cells[:, 0] - previous[0], cells[:, 1] - previous[1])
+            j = int(np.argmin(near))
+            gap_j = math.hypot(cells[j, 0] - peak[0], cells[j, 1] - peak[1])
+            if near[j] <= 2 * s and gap_j <= gap + config.peak_commit:
+                gap, xy_best = gap_j, (float(cells[j, 0]), float(cells[j, 1]))
+                kept = f" (the previous one, within {config.peak_commit:.1f} m of the closest)"
         return Waypoint(
             xy_best,
             "frontier",
             None,
             value.value_at(*xy_best) if value is not None else 0.0,
-            f"frontier closest ({gap:.2f} m) to the value-map maximum"
+            f"frontier closest ({gap:.2f} m){kept} to the value-map maximum"
             + (f" within {config.open_peak_radius:.1f} m of a frontier" if open_rule else "")
             + f" at ({peak[0]:.2f}, {peak[1]:.2f}).",
         )
