@@ -250,12 +250,10 @@ def test_the_navigator_memory_survives_its_json_form():
         avoid=[(1.0, 2.5)],
         rejected_units={4, 9},
         blocked={(3, -2), (0, 7)},
-        blocked_at={(3, -2): 5, (0, 7): 6},
         last_waypoint=Waypoint((0.5, -1.25), "frontier", None, 0.3, "the nearest frontier"),
         last_action="turn_left",
         last_xy=(0.1, 0.2),
         last_heading=1.5,
-        turns_in_place=2,
         since_progress=3,
         steps=7,
     )

@@ -59,6 +59,8 @@ def run_episode(
     goal_ids = set(be.episode.goal_object_ids)
     first_seen: int | None = None
     collisions = 0
+    motion = {"forward_moved": 0, "turns": 0, "longest_spin": 0}
+    spin = 0
     try:
         obs, info = env.reset(seed=0, options={"episode": be.episode})
         glmap = GLMap(MapConfig(), embedder=embedder())
@@ -92,6 +94,14 @@ def run_episode(
             t_decide.append((t2 - t1) * 1000)
             t_render.append((t3 - t2) * 1000)
             collisions += bool(info["collided"])
+            if d.action == "move_forward" and not info["collided"]:
+                motion["forward_moved"] += 1
+            if d.action in ("turn_left", "turn_right"):
+                motion["turns"] += 1
+                spin += 1
+                motion["longest_spin"] = max(motion["longest_spin"], spin)
+            else:
+                spin = 0
             if term or trunc:
                 break
     finally:
@@ -111,6 +121,7 @@ def run_episode(
         "last_action": d.action,
         "collisions": collisions,
         "goal_first_seen": first_seen,
+        **motion,
     }
     out["outcome"] = outcome(out, max_steps)
     if timings:
@@ -152,7 +163,7 @@ def tune_eval(
     overrides: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """Run every policy on the tune episodes `indices` with `workers` processes (<= 2 here);
-    `overrides`: NavConfig fields to change (e.g. {"visited_discount": 0.3})."""
+    `overrides`: NavConfig fields to change (e.g. {"clearance_cost": 2.0})."""
     import multiprocessing as mp
 
     jobs = [(task, k, p, max_steps, overrides or {}) for p in policies for k in indices]
@@ -191,9 +202,14 @@ def closed_loop(
         sr = np.mean([r["success"] for r in rows])
         spl = np.mean([r["spl"] for r in rows])
         classes = Counter(r["outcome"] for r in rows)
+        steps = sum(r["steps"] for r in rows)
         print(
             f"{policy}: SR {sr:.3f}, SPL {spl:.3f} over {len(rows)} tune episodes; "
-            + ", ".join(f"{k} {v}" for k, v in sorted(classes.items())),
+            + ", ".join(f"{k} {v}" for k, v in sorted(classes.items()))
+            + f"; forward moves {sum(r['forward_moved'] for r in rows) / max(steps, 1):.0%} "
+            f"of steps, turns {sum(r['turns'] for r in rows) / max(steps, 1):.0%}, median "
+            f"collisions {np.median([r['collisions'] for r in rows]):.0f}, longest spin "
+            f"{max(r['longest_spin'] for r in rows)}",
             flush=True,
         )
     if out:

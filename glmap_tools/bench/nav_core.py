@@ -30,7 +30,8 @@ from glmap_tools.errors import InvalidInputError, did_you_mean
 from glmap_tools.map.grid import IndexGrid
 from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
 from glmap_tools.nav import DIJKSTRA8_MAX_RATIO, NavConfig, frontiers, reference_geodesic
-from glmap_tools.nav.grid import nav_masks, plannable
+from glmap_tools.nav.grid import plannable
+from glmap_tools.nav.motion import clearance, masks
 from glmap_tools.nav.planner import distance_field, plan_on_field
 from glmap_tools.nav.value import value_map_from_scores
 from glmap_tools.nav.waypoint import choose_waypoint
@@ -92,8 +93,9 @@ def time_nav_part(report: Report, repeat: int, stride: int) -> None:
     for _ in range(repeat):
         w0 = time.perf_counter()
         t0 = time.process_time()
-        trav, ok = nav_masks(occ, rc, config.agent_radius, config.optimistic)
-        field = distance_field(occ, ok, rc, config.plan_stride)
+        clear = clearance(occ)
+        trav, ok, speed = masks(occ, clear, rc, config)
+        field = distance_field(occ, ok, rc, config.plan_stride, speed=speed)
         t1 = time.process_time()
         fronts = frontiers(
             occ, agent, config.agent_radius, config.min_frontier_size, field.metres, trav
@@ -107,7 +109,7 @@ def time_nav_part(report: Report, repeat: int, stride: int) -> None:
             value, fronts, trav, agent, None, config, occ=occ, distance=field.metres
         )
         assert wp.xy is not None, "the synthetic apartment has frontiers"
-        out = plan_on_field(occ, field, agent, 0.0, wp.xy, config)
+        out = plan_on_field(occ, field, agent, 0.0, wp.xy, config, clear)
         t4 = time.process_time()
         wall.append((time.perf_counter() - w0) * 1000)
         for name, dt in zip(parts, (t1 - t0, t2 - t1, t3 - t2, t4 - t3), strict=True):
@@ -135,9 +137,9 @@ def fmm_vs_reference(report: Report, stride: int) -> None:
     config = NavConfig(plan_stride=stride)
     agent = free_point(occ, config, 60, 60)
     rc = occ.world_to_index(*agent)
-    _, ok = nav_masks(occ, rc, config.agent_radius, config.optimistic)
-    field = distance_field(occ, ok, rc, stride).metres
-    ref = reference_geodesic(ok, rc, CELL)
+    _, ok, speed = masks(occ, clearance(occ), rc, config)
+    field = distance_field(occ, ok, rc, stride, speed=speed).metres
+    ref = reference_geodesic(ok, rc, CELL, speed)
     # Blocks carry up to half a block of offset at the source: compare from 2 m out.
     near = 0.5 if stride == 1 else 2.0
     far = np.isfinite(ref) & np.isfinite(field) & (ref >= near)
@@ -236,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
         action="append",
         default=[],
         metavar="FIELD=VALUE",
-        help="closed loop: change a NavConfig field (repeatable), e.g. visited_discount=0.3",
+        help="closed loop: change a NavConfig field (repeatable), e.g. clearance_cost=2",
     )
     args = parser.parse_args(argv)
     if args.calibrate:

@@ -11,7 +11,7 @@ units would be once seen. Printed per unit kind:
   goal object) scores above the best unit in every other room (a tie counts as a miss),
   next to what random scores would give (the goal room's share of the units);
 - for thresholds t: the share of episodes with some unit at or above t in the goal's room,
-  and in another room (what `NavConfig.min_instance_score` / `min_region_score` keep).
+  and in another room (what a score floor on the units would keep; nav/design.md).
 
 Ground truth comes from the layout files, so this reads no images and runs in seconds with
 the embedding scorer; `--scorer llm` asks the Ollama model (the scene's regions and objects in

@@ -9,13 +9,13 @@ from glmap_tools.nav.egocentric import EgocentricValueMap
 from glmap_tools.nav.errors import OutsideMapError, UnreachableGoalError
 from glmap_tools.nav.frontiers import Frontier, frontiers
 from glmap_tools.nav.grid import Window, inflate, plannable, traversable
+from glmap_tools.nav.motion import bump_cells, clearance, drive
 from glmap_tools.nav.planner import (
     DIJKSTRA8_MAX_RATIO,
     DistanceField,
     Plan,
     distance_field,
     geodesic,
-    next_action,
     plan,
     reference_geodesic,
 )
@@ -50,14 +50,16 @@ __all__ = [
     "Waypoint",
     "ValueMap",
     "Window",
+    "bump_cells",
     "choose_waypoint",
+    "clearance",
     "decide",
     "distance_field",
+    "drive",
     "frontiers",
     "geodesic",
     "inflate",
     "map_units",
-    "next_action",
     "plan",
     "plannable",
     "reference_geodesic",

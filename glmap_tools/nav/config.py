@@ -19,8 +19,7 @@ CATEGORY_MARGINS: dict[str, float | None] = {"objectnav": 0.0, "instnav": None}
 CATEGORY_STOP_THRESHOLD = 0.31
 POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
 ACTIONS = ("move_forward", "turn_left", "turn_right", "stop")
-WAYPOINT_RULES = ("utility", "paper")
-UNIT_MASSES = ("cells", "unit", "point")
+UNIT_MASSES = ("unit", "cells")
 
 
 @dataclass(frozen=True)
@@ -28,7 +27,8 @@ class NavConfig:
     """Settings of the navigation core (see nav/design.md for how each number was chosen).
 
     Attributes:
-        agent_radius: metres; obstacles are inflated by it.
+        agent_radius: metres; the simulator keeps the agent's centre this far from every
+            blocked cell's edge (`agent_radius + cell/2` from its centre: the body radius).
         success_radius: metres; an episode succeeds when the agent stops this close to the goal.
         forward_step: metres per move_forward.
         turn_angle_deg: degrees per turn_left / turn_right.
@@ -44,50 +44,23 @@ class NavConfig:
             no mapped wall, when such a reachable cell exists within stop_distance (the
             success rule asks for a clear line to the footprint). Walls are the obstacle
             cells the structure layer holds (not furniture: a chair's seat does not hide
-            the chair). On: tune SR 0.60 vs 0.56, SPL 0.287 vs 0.277 (nav/design.md).
+            the chair).
         min_frontier_size: frontier clusters with fewer cells are dropped.
-        lookahead: metres along the path to the point the agent turns toward.
         window_margin: metres of unknown space kept around the known map for planning.
         optimistic: whether plans may cross unknown cells (frontier exploration does).
         stuck_steps: steps without progress after which the waypoint is given up.
-        plan_stride: the FMM planner works on cells this many map cells wide (1 = map cells).
+        plan_stride: the FMM that finds frontiers and waypoints works on cells this many map
+            cells wide (the cost-to-go the agent follows is on map cells).
         initial_spin: turn_left steps taken first, to look around (12 x 30 deg = a full turn).
-        bump_memory: steps a cell where a forward move was stopped stays an obstacle.
-        waypoint_rule: 'paper' (default: the frontier closest to argmax H) or 'utility' (the
-            frontier cell with the best value near it less its geodesic distance; measured
-            worse on tune, SR 0.44 vs 0.56, see nav/design.md).
-        frontier_value_weight: metres of path one unit of score near a frontier is worth
-            (rule 'utility').
-        frontier_value_radius: metres around a frontier cell whose best value counts for it.
-        commit_margin: metres of utility by which another frontier must beat the previous
-            waypoint before the agent switches (rule 'utility'; stops oscillation).
-        peak_commit: rule 'paper': metres by which another frontier must be closer to argmax H
-            than the previous waypoint before the agent switches (0 = off, the paper's rule).
-        visited_discount: factor on the score s_u of a unit the agent has already been near
-            (GLMap policies; 1 = off): the value map then points past what was searched.
-        visited_radius: metres from the agent's past positions within which a unit's cells
-            count as visited (the share of its cells within it scales the discount).
-        escape_after: forward moves stopped on the spot (with no forward move that moved in
-            between) after which the agent turns around and steps back; 0 = never (default:
-            measured worse on tune, SR 0.44 vs 0.52, see nav/design.md).
-        detour_when_blocked: after a forward step towards the path was found blocked during
-            a turn in place, walk on the first free heading within 90 deg of the path at
-            once instead of after a full turn (default off: measured worse on tune, SR 0.46
-            vs 0.58, see nav/design.md).
-        open_peak_radius: metres; when > 0 the waypoint rule follows the maximum of H over
-            the cells within this distance of a usable frontier cell instead of the global
-            maximum (a peak with no unknown space left near it was seen from all sides: had
-            the goal been there it would have matched); no value near any frontier means the
-            nearest frontier. 0 = the paper's rule (global argmax). See nav/design.md.
-        min_instance_score, min_region_score: an instance / region enters Eq. 7 only with
-            s_u at or above this (0 = every unit, the paper's sum); below it the score counts
-            as no evidence. With nothing left the waypoint is the nearest frontier.
+        clearance: metres of clearance (cell centre to the nearest obstacle cell centre)
+            below which crossing a cell costs more (nav.motion).
+        clearance_cost: extra cost per metre at the body radius (quadratic in the shortfall).
+        safety_margin: metres beyond the body radius a forward step keeps from obstacles
+            when it can (map cells are a cell off the true surface either way).
+        turn_cost: cost-to-go metres one turn is worth when choosing a heading (nav.motion).
         unit_mass: how a unit's score s_u enters Eq. 7: 'unit' (default: s_u / |cells| on each
-            cell, so every unit carries the mass s_u, as the single delta at p_u of Eq. 7 does;
-            tune SR 0.56 vs 0.38, nav/design.md) or 'cells' (s_u on each of its cells, so a
-            unit weighs with its area and large units and regions pull the argmax) or 'point'
-            (s_u on the one cell nearest the mean of its cells: the delta at p_u of Eq. 7
-            taken literally, so a region's mass is not thinned over its room).
+            cell, so every unit carries the mass s_u, as the single delta at p_u of Eq. 7 does)
+            or 'cells' (s_u on each of its cells; situated localisation uses it).
     """
 
     agent_radius: float = 0.18
@@ -102,26 +75,16 @@ class NavConfig:
     stop_distance: float = 0.75
     stop_in_sight: bool = True
     min_frontier_size: int = 5
-    lookahead: float = 0.5
     window_margin: float = 1.0
     optimistic: bool = True
     stuck_steps: int = 12
     plan_stride: int = 2
     initial_spin: int = 12
-    bump_memory: int = 40
-    waypoint_rule: str = "paper"
-    frontier_value_weight: float = 10.0
-    frontier_value_radius: float = 1.0
-    commit_margin: float = 1.0
-    peak_commit: float = 0.0
-    visited_discount: float = 1.0
-    visited_radius: float = 1.5
-    escape_after: int = 0
+    clearance: float = 0.45
+    clearance_cost: float = 3.0
+    safety_margin: float = 0.05
+    turn_cost: float = 0.02
     unit_mass: str = "unit"
-    open_peak_radius: float = 0.0
-    detour_when_blocked: bool = False
-    min_instance_score: float = 0.0
-    min_region_score: float = 0.0
 
     def __post_init__(self) -> None:
         positive = (
@@ -131,7 +94,7 @@ class NavConfig:
             "turn_angle_deg",
             "value_sigma",
             "stop_distance",
-            "lookahead",
+            "clearance",
         )
         for name in positive:
             value = getattr(self, name)
@@ -156,15 +119,10 @@ class NavConfig:
             "min_frontier_size",
             "stuck_steps",
             "plan_stride",
-            "bump_memory",
         ):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= 1):
                 raise InvalidInputError(f"NavConfig.{name}={value!r} must be an integer >= 1.")
-        if not (isinstance(self.escape_after, int) and self.escape_after >= 0):
-            raise InvalidInputError(
-                f"NavConfig.escape_after={self.escape_after!r} must be an integer >= 0 (0 = never)."
-            )
         if not (isinstance(self.initial_spin, int) and self.initial_spin >= 0):
             raise InvalidInputError(
                 f"NavConfig.initial_spin={self.initial_spin!r} must be an integer >= 0."
@@ -178,45 +136,15 @@ class NavConfig:
                 raise InvalidInputError(
                     f"NavConfig.{name}={getattr(self, name)!r} must be true or false."
                 )
-        for name in ("min_instance_score", "min_region_score"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and 0.0 <= value <= 1.0):
-                raise InvalidInputError(
-                    f"NavConfig.{name}={value!r} must be a score in [0, 1] (0 = keep every unit)."
-                )
         if self.unit_mass not in UNIT_MASSES:
             raise InvalidInputError(
                 f"NavConfig.unit_mass={self.unit_mass!r} is not one of "
                 f"{list(UNIT_MASSES)}.{did_you_mean(self.unit_mass, UNIT_MASSES)}"
             )
-        if self.waypoint_rule not in WAYPOINT_RULES:
-            raise InvalidInputError(
-                f"NavConfig.waypoint_rule={self.waypoint_rule!r} is not one of "
-                f"{list(WAYPOINT_RULES)}.{did_you_mean(self.waypoint_rule, WAYPOINT_RULES)}"
-            )
-        for name in (
-            "frontier_value_weight",
-            "frontier_value_radius",
-            "commit_margin",
-            "peak_commit",
-            "open_peak_radius",
-        ):
+        for name in ("clearance_cost", "safety_margin", "turn_cost"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
                 raise InvalidInputError(f"NavConfig.{name}={value!r} must be a number >= 0.")
-        if not (isinstance(self.visited_discount, int | float) and 0 <= self.visited_discount <= 1):
-            raise InvalidInputError(
-                f"NavConfig.visited_discount={self.visited_discount!r} must be in [0, 1] "
-                "(1 = no discount)."
-            )
-        if not (
-            isinstance(self.visited_radius, int | float)
-            and math.isfinite(self.visited_radius)
-            and self.visited_radius > 0
-        ):
-            raise InvalidInputError(
-                f"NavConfig.visited_radius={self.visited_radius!r} must be a positive number."
-            )
         if self.window_margin < 0:
             raise InvalidInputError(f"NavConfig.window_margin={self.window_margin!r} must be >= 0.")
 

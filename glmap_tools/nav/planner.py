@@ -16,23 +16,30 @@ import skfmm
 from scipy import sparse
 from scipy.sparse import csgraph
 
-from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
+from glmap_tools.map.occupancy import DenseOccupancy
 from glmap_tools.nav.config import NavConfig
 from glmap_tools.nav.errors import UnreachableGoalError
-from glmap_tools.nav.grid import agent_rc, clear_footprint, plannable
+from glmap_tools.nav.grid import agent_rc
 
 # Dijkstra-8 / true length lies in [1, DIJKSTRA8_MAX_RATIO] for a straight, free path.
 DIJKSTRA8_MAX_RATIO = math.cos(math.pi / 8) + (math.sqrt(2) - 1) * math.sin(math.pi / 8)
 _STEPS = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
 
 
-def geodesic(trav: np.ndarray, goal_rc: tuple[int, int], cell_size: float) -> np.ndarray:
-    """[H, W] geodesic metres from the centre of `goal_rc` over `trav`; inf where unreachable.
+def geodesic(
+    trav: np.ndarray,
+    goal_rc: tuple[int, int],
+    cell_size: float,
+    speed: np.ndarray | None = None,
+) -> np.ndarray:
+    """[H, W] geodesic cost from the centre of `goal_rc` over `trav`; inf where unreachable.
 
     Args:
         trav: [H, W] bool cells one may cross.
         goal_rc: (row, col) source cell (made crossable if it is not).
         cell_size: metres.
+        speed: [H, W] > 0 on `trav` (1 / cost per metre, `nav.motion.masks`); None = 1
+            everywhere, so the cost is metres.
     """
     trav = np.asarray(trav, dtype=bool)
     mask = ~trav
@@ -43,21 +50,34 @@ def geodesic(trav: np.ndarray, goal_rc: tuple[int, int], cell_size: float) -> np
         return out
     phi = np.ones(trav.shape)
     phi[goal_rc] = -1.0
-    dist = skfmm.distance(np.ma.MaskedArray(phi, mask), dx=cell_size)
+    if speed is None:
+        dist = skfmm.distance(np.ma.MaskedArray(phi, mask), dx=cell_size)
+        source_speed = 1.0
+    else:
+        f = np.where(mask | ~(speed > 0), 1.0, speed)
+        dist = skfmm.travel_time(np.ma.MaskedArray(phi, mask), f, dx=cell_size)
+        source_speed = float(f[goal_rc])
     # The zero level set lies half a cell around the source centre.
-    out = np.ma.filled(dist, np.inf).astype(np.float64) + 0.5 * cell_size
+    out = np.ma.filled(dist, np.inf).astype(np.float64) + 0.5 * cell_size / source_speed
     out[goal_rc] = 0.0
     return out
 
 
-def reference_geodesic(trav: np.ndarray, goal_rc: tuple[int, int], cell_size: float) -> np.ndarray:
+def reference_geodesic(
+    trav: np.ndarray,
+    goal_rc: tuple[int, int],
+    cell_size: float,
+    speed: np.ndarray | None = None,
+) -> np.ndarray:
     """Slow reference of `geodesic`: Dijkstra on the 8-connected grid (no corner cutting).
 
-    Args and returns as `geodesic`; lengths are those of 8-direction grid paths.
+    Args and returns as `geodesic`; a step between two cells costs its length times the
+    mean of their costs per metre (1 / speed), so lengths are those of 8-direction paths.
     """
     trav = np.asarray(trav, dtype=bool).copy()
     trav[goal_rc] = True
     h, w = trav.shape
+    per_m = np.ones((h, w)) if speed is None else 1.0 / np.where(speed > 0, speed, 1.0)
     index = np.arange(h * w).reshape(h, w)
     src, dst, cost = [], [], []
     for dr, dc in _STEPS:
@@ -70,7 +90,8 @@ def reference_geodesic(trav: np.ndarray, goal_rc: tuple[int, int], cell_size: fl
             ok &= trav[r0 + dr : r1 + dr, c0:c1] & trav[r0:r1, c0 + dc : c1 + dc]
         src.append(index[r0:r1, c0:c1][ok])
         dst.append(index[r0 + dr : r1 + dr, c0 + dc : c1 + dc][ok])
-        cost.append(np.full(int(ok.sum()), math.hypot(dr, dc) * cell_size))
+        mean = (per_m[r0:r1, c0:c1][ok] + per_m[r0 + dr : r1 + dr, c0 + dc : c1 + dc][ok]) / 2
+        cost.append(mean * math.hypot(dr, dc) * cell_size)
     graph = sparse.csr_matrix(
         (np.concatenate(cost), (np.concatenate(src), np.concatenate(dst))), shape=(h * w, h * w)
     )
@@ -147,27 +168,41 @@ def pool_any(mask: np.ndarray, stride: int) -> np.ndarray:
     return np.asarray(blocks.any(axis=(1, 3)))
 
 
+def pool_max(values: np.ndarray, stride: int) -> np.ndarray:
+    """[ceil(H/s), ceil(W/s)]: the largest value of each stride x stride block."""
+    h, w = values.shape
+    m = np.pad(values, ((0, -h % stride), (0, -w % stride)))
+    blocks = m.reshape(m.shape[0] // stride, stride, m.shape[1] // stride, stride)
+    return np.asarray(blocks.max(axis=(1, 3)))
+
+
 def distance_field(
     occ: DenseOccupancy,
     ok: np.ndarray,
     source_rc: tuple[int, int],
     stride: int = 1,
     optimistic: bool = True,
+    speed: np.ndarray | None = None,
 ) -> DistanceField:
-    """FMM geodesic metres from `source_rc` over the plannable cells `ok` of `occ`.
+    """FMM geodesic cost from `source_rc` over the plannable cells `ok` of `occ`.
 
     With stride > 1 the FMM runs on stride x stride blocks, a block plannable when any of
-    its cells is: when unknown cells are plannable (`optimistic`), the only blocked cells
-    are inflated obstacles, at least 2 x agent radius thick, so no block joins the two
-    sides of a wall, and a passage one agent wide stays open. Without optimism a thin line
-    of unknown cells could be jumped, so the FMM then runs on map cells (stride 1).
+    its cells is (at the fastest of their speeds): when unknown cells are plannable
+    (`optimistic`), the only blocked cells are inflated obstacles, at least 2 x agent radius
+    thick, so no block joins the two sides of a wall, and a passage one agent wide stays
+    open. Without optimism a thin line of unknown cells could be jumped, so the FMM then
+    runs on map cells (stride 1). `speed` ([H, W], `nav.motion.masks`) weighs cells by
+    their clearance cost; None: the cost is metres.
     """
     s = occ.cell_size
     if stride == 1 or not optimistic:
-        coarse = geodesic(ok, source_rc, s)
+        coarse = geodesic(ok, source_rc, s, speed)
         return DistanceField(coarse, coarse, 1, occ.origin, s)
     blocks = pool_any(ok, stride)
-    coarse = geodesic(blocks, (source_rc[0] // stride, source_rc[1] // stride), s * stride)
+    block_speed = None if speed is None else pool_max(np.where(ok, speed, 0.0), stride)
+    coarse = geodesic(
+        blocks, (source_rc[0] // stride, source_rc[1] // stride), s * stride, block_speed
+    )
     h, w = ok.shape
     fine = np.repeat(np.repeat(coarse, stride, axis=0), stride, axis=1)[:h, :w]
     return DistanceField(np.where(ok, fine, np.inf), coarse, stride, occ.origin, s)
@@ -179,11 +214,12 @@ class Plan:
 
     Attributes:
         path: [K, 2] world (x, y) metres from the agent to the goal (cell centres).
-        length: geodesic metres from the agent to the goal (FMM); inf when unreachable.
+        length: metres along `path`; inf when nothing can be reached.
         action: 'move_forward' | 'turn_left' | 'turn_right' | 'stop' ('stop' = arrived).
         reachable: whether the path ends at the goal (False: it ends at `goal_xy`'s nearest
             reachable point, see `goal_xy`).
         goal_xy: (x, y) the path ends at.
+        boxed: no heading offers an open step (`nav.motion.drive`).
     """
 
     path: np.ndarray  # [K, 2]
@@ -191,43 +227,7 @@ class Plan:
     action: str
     reachable: bool
     goal_xy: tuple[float, float]
-
-
-def heading_error(
-    path: np.ndarray, agent_xy: tuple[float, float], heading: float, lookahead: float
-) -> float | None:
-    """Radians to turn (counter-clockwise +) to face the path point `lookahead` m away."""
-    d = np.hypot(path[:, 0] - agent_xy[0], path[:, 1] - agent_xy[1])
-    ahead = np.flatnonzero(d >= lookahead)
-    target = path[ahead[0]] if len(ahead) else path[-1]
-    if math.hypot(target[0] - agent_xy[0], target[1] - agent_xy[1]) < 1e-6:
-        return None
-    want = math.atan2(target[1] - agent_xy[1], target[0] - agent_xy[0])
-    return (want - heading + math.pi) % (2 * math.pi) - math.pi
-
-
-def next_action(
-    path: np.ndarray,
-    agent_xy: tuple[float, float],
-    heading: float,
-    config: NavConfig,
-    arrived: bool,
-    blocked_ahead: bool = False,
-) -> str:
-    """The discrete action that follows `path` ([K, 2] world xy from the agent).
-
-    'stop' when `arrived`; otherwise turn toward the path point `config.lookahead` metres
-    ahead until the heading is within half a turn of it, then move forward, unless
-    `blocked_ahead` (a forward step would enter blocked space): then turn toward the path.
-    """
-    if arrived or len(path) == 0:
-        return "stop"
-    diff = heading_error(path, agent_xy, heading, config.lookahead)
-    if diff is None:
-        return "stop"
-    if abs(diff) <= config.turn_angle / 2 + 1e-9 and not blocked_ahead:
-        return "move_forward"
-    return "turn_left" if diff >= 0 else "turn_right"
+    boxed: bool = False
 
 
 def plan_on_field(
@@ -237,76 +237,50 @@ def plan_on_field(
     heading: float,
     goal_xy: tuple[float, float],
     config: NavConfig,
+    clear: np.ndarray | None = None,
 ) -> Plan:
-    """Plan with a distance `field` whose source is the agent: descend from the goal to it."""
+    """Plan with a distance `field` whose source is the agent; act on the cost-to-go.
+
+    `field` says whether `goal_xy` can be reached (else the plan ends at its nearest
+    reachable cell). The cost-to-go from that end is solved on map cells with the clearance
+    cost, the path descends it from the agent, and `nav.motion.drive` picks the action.
+    `clear` is `nav.motion.clearance(occ)` when the caller has it already.
+    """
+    from glmap_tools.nav.motion import clearance, drive, masks
+
     goal_rc = occ.world_to_index(float(goal_xy[0]), float(goal_xy[1]))
     h, w = field.metres.shape
     inside = 0 <= goal_rc[0] < h and 0 <= goal_rc[1] < w
-    length = float(field.metres[goal_rc]) if inside else math.inf
-    reachable = math.isfinite(length)
+    reachable = inside and math.isfinite(float(field.metres[goal_rc]))
     goal = (float(goal_xy[0]), float(goal_xy[1]))
     end_rc: tuple[int, int] | None = goal_rc
     if not reachable:
         end_rc = nearest_finite(field.metres, goal_rc)
         if end_rc is None:
             return Plan(np.zeros((0, 2)), math.inf, "stop", False, goal)
-        length = float(field.metres[end_rc])
     assert end_rc is not None
-    blocks = descend(field.coarse, field.block_of(end_rc))[::-1]
-    path = field.block_xy(blocks)
-    path[0] = agent_xy
     end_xy = goal if reachable else occ.index_to_world(*end_rc)
-    path[-1] = end_xy
-    arrived = length <= config.forward_step / 2
-    blocked = not forward_is_free(occ, agent_xy, heading, config)
-    action = next_action(path, agent_xy, heading, config, arrived, blocked)
-    if action in ("turn_left", "turn_right") and not blocked:
-        # The path leaves between this heading and the next turn, and that turn faces a
-        # blocked step: go on this way (the plan is redone every step).
-        diff = heading_error(path, agent_xy, heading, config.lookahead)
-        turned = heading + (config.turn_angle if action == "turn_left" else -config.turn_angle)
-        if (
-            diff is not None
-            and abs(diff) <= config.turn_angle
-            and not forward_is_free(occ, agent_xy, turned, config)
-        ):
-            action = "move_forward"
-    return Plan(path, length, action, reachable, end_xy)
-
-
-def forward_points(
-    agent_xy: tuple[float, float], heading: float, config: NavConfig, cell_size: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Points along one forward step, a quarter cell apart: ([n, 2] world xy, [n] metres).
-
-    `forward_is_free` checks the cells of these points and a stopped move marks the cell
-    of one of them, so the mark always lies on the line the check looks along.
-    """
-    n = max(1, math.ceil(config.forward_step / (cell_size / 4)))
-    t = config.forward_step * np.arange(1, n + 1) / n
-    xy = np.stack(
-        [agent_xy[0] + t * math.cos(heading), agent_xy[1] + t * math.sin(heading)], axis=1
-    )
-    return xy, t
-
-
-def forward_is_free(
-    occ: DenseOccupancy,
-    agent_xy: tuple[float, float],
-    heading: float,
-    config: NavConfig,
-) -> bool:
-    """Whether one forward step stays off obstacle cells (seen, or where a move was stopped).
-
-    Only hard evidence counts: the inflated margin is for planning, and an agent that ended
-    up inside it (noise, a cleared footprint) must still be able to move out.
-    """
-    xy, _ = forward_points(agent_xy, heading, config, occ.cell_size)
-    r = np.floor(xy[:, 1] / occ.cell_size).astype(np.int64) - occ.origin[1]
-    c = np.floor(xy[:, 0] / occ.cell_size).astype(np.int64) - occ.origin[0]
-    h, w = occ.state.shape
-    inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-    return not bool((occ.state[r[inside], c[inside]] == OBSTACLE).any())
+    clear = clearance(occ) if clear is None else clear
+    rc = agent_rc(occ, agent_xy)
+    _, ok, speed = masks(occ, clear, rc, config)
+    to_go = geodesic(ok, end_rc, occ.cell_size, speed)
+    if not math.isfinite(float(to_go[rc])):
+        # Joined on the planning blocks only (a gap narrower than a block): follow them.
+        to_go = distance_field(occ, ok, end_rc, field.stride, config.optimistic, speed).metres
+    cells = descend(to_go, rc)
+    path = np.array(
+        [occ.index_to_world(int(r), int(c)) for r, c in cells], dtype=np.float64
+    ).reshape(-1, 2)
+    path[0] = agent_xy
+    if len(path) > 1 and tuple(cells[-1]) == tuple(end_rc):
+        path[-1] = end_xy
+    else:
+        path = np.vstack([path, np.array(end_xy)[None]])
+    length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+    if math.dist(agent_xy, end_xy) <= config.forward_step / 2:
+        return Plan(path, length, "stop", reachable, end_xy)
+    step = drive(occ, clear, to_go, agent_xy, heading, config)
+    return Plan(path, length, step.action, reachable, end_xy, boxed=not step.open)
 
 
 def nearest_finite(field: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] | None:
@@ -319,13 +293,18 @@ def nearest_finite(field: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] | 
 
 
 def agent_field(
-    occ: DenseOccupancy, agent_xy: tuple[float, float], config: NavConfig
+    occ: DenseOccupancy,
+    agent_xy: tuple[float, float],
+    config: NavConfig,
+    clear: np.ndarray | None = None,
 ) -> DistanceField:
-    """FMM geodesic metres from the agent over the plannable cells of `occ`."""
+    """FMM geodesic cost from the agent over the plannable cells of `occ`."""
+    from glmap_tools.nav.motion import clearance, masks
+
     rc = agent_rc(occ, agent_xy)
-    ok = plannable(occ, config.agent_radius, config.optimistic)
-    ok = clear_footprint(ok, rc, config.agent_radius / occ.cell_size)
-    return distance_field(occ, ok, rc, config.plan_stride, config.optimistic)
+    clear = clearance(occ) if clear is None else clear
+    _, ok, speed = masks(occ, clear, rc, config)
+    return distance_field(occ, ok, rc, config.plan_stride, config.optimistic, speed)
 
 
 def plan(
@@ -337,7 +316,8 @@ def plan(
     *,
     strict: bool = True,
 ) -> Plan:
-    """Shortest path from the agent to `goal_xy` on the inflated occupancy, and the next action.
+    """Shortest path from the agent to `goal_xy` on the occupancy (clearance cost), and the
+    next action.
 
     Args:
         occ: dense occupancy window holding the agent and the goal.
@@ -353,18 +333,21 @@ def plan(
         UnreachableGoalError: `strict` and no path leads to the goal (names the nearest
             reachable point).
     """
+    from glmap_tools.nav.motion import clearance
+
     config = config or NavConfig()
     agent_rc(occ, goal_xy, "goal")
-    field = agent_field(occ, agent_xy, config)
-    out = plan_on_field(occ, field, agent_xy, agent_heading_rad, goal_xy, config)
+    clear = clearance(occ)
+    field = agent_field(occ, agent_xy, config, clear)
+    out = plan_on_field(occ, field, agent_xy, agent_heading_rad, goal_xy, config, clear)
     if strict and not out.reachable:
         near = out.goal_xy if len(out.path) else None
         where = f"({near[0]:.2f}, {near[1]:.2f})" if near else "nowhere (the agent is boxed in)"
         raise UnreachableGoalError(
             f"goal ({goal_xy[0]:.2f}, {goal_xy[1]:.2f}) cannot be reached from the agent at "
             f"({agent_xy[0]:.2f}, {agent_xy[1]:.2f}): it is blocked or enclosed by obstacles "
-            f"(inflated by the agent radius {config.agent_radius} m). Nearest reachable "
-            f"point: {where}.",
+            f"(the agent needs {config.agent_radius + occ.cell_size / 2:.3f} m of clearance). "
+            f"Nearest reachable point: {where}.",
             (float(goal_xy[0]), float(goal_xy[1])),
             near,
         )

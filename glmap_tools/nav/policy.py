@@ -9,7 +9,7 @@ an instance whose score reaches `stop_threshold` after `min_observations` frames
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,23 +19,11 @@ from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
 from glmap_tools.nav.config import NavConfig, check_policy
 from glmap_tools.nav.egocentric import EgocentricValueMap
 from glmap_tools.nav.frontiers import Frontier, frontiers
-from glmap_tools.nav.grid import agent_rc, known_window, nav_masks, reframe, structure_walls
-from glmap_tools.nav.planner import (
-    DistanceField,
-    Plan,
-    distance_field,
-    forward_is_free,
-    forward_points,
-    heading_error,
-    plan_on_field,
-)
+from glmap_tools.nav.grid import agent_rc, known_window, reframe, structure_walls
+from glmap_tools.nav.motion import bump_cells, clearance, masks
+from glmap_tools.nav.planner import DistanceField, Plan, distance_field, plan_on_field
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
-from glmap_tools.nav.value import (
-    ValueMap,
-    discount_visited,
-    unit_cell_array,
-    value_map_from_scores,
-)
+from glmap_tools.nav.value import ValueMap, unit_cell_array, value_map_from_scores
 from glmap_tools.nav.waypoint import GoalMatch, Waypoint, choose_waypoint
 
 if TYPE_CHECKING:
@@ -45,53 +33,36 @@ if TYPE_CHECKING:
 
 POLICY_UNITS = {"glmap": "both", "glmap-instance": "instances", "glmap-region": "regions"}
 PROGRESS = 0.25  # metres of progress toward the waypoint that reset the stuck counter
-BUMP_MOVE = 0.02  # metres: a move_forward that moved less than this did not move
 SHORT_MOVE = 0.0125  # metres: a move_forward this much short of a full step was stopped
-ESCAPE_STEPS = 2  # forward steps back the way it came
-VISITED_SPACING = 0.25  # metres between the positions NavState.visited keeps
-TURNS = {"turn_left": "turn_right", "turn_right": "turn_left"}  # each turn and its opposite
+FORGET_NEAR = 0.5  # metres: bump marks this close are forgotten when no step is open
 
 
 @dataclass
 class NavState:
-    """Per-episode memory of a policy: the egocentric map, given-up waypoints, stuck counter.
+    """Per-episode memory of a policy: the egocentric map, given-up waypoints, bump marks.
 
     Attributes:
         egocentric: the VLFM-like accumulator (policy 'egocentric' only).
         avoid: (x, y) of waypoints given up (stuck, or reached without clearing them).
         rejected_units: matched instances given up (no way to reach them).
-        blocked: (i, j) cells where a forward move was stopped (obstacles the map missed).
-        blocked_at: the step each blocked cell was added (it is forgotten after
-            `NavConfig.bump_memory` steps).
+        blocked: (i, j) cells where a forward move was stopped (obstacles the map missed);
+            they stay obstacles for the episode (`nav.motion.bump_cells`).
         last_waypoint: the previous step's waypoint.
         steps: decisions taken.
-        visited: positions the agent has been at, one per `VISITED_SPACING` metres walked.
-        stalled: forward moves stopped on the spot since the last one that moved (turns in
-            between do not reset it).
-        escape: actions still to take of an escape (turn around, step back) from a spot
-            where forward moves keep being stopped.
-        path_blocked: during this turn in place the heading faced the path and a forward
-            step there was blocked (`NavConfig.detour_when_blocked`).
     """
 
     egocentric: EgocentricValueMap | None = None
     avoid: list[tuple[float, float]] = field(default_factory=list)
     rejected_units: set[int] = field(default_factory=set)
     blocked: set[tuple[int, int]] = field(default_factory=set)
-    blocked_at: dict[tuple[int, int], int] = field(default_factory=dict)
     last_waypoint: Waypoint | None = None
     last_action: str | None = None
     last_xy: tuple[float, float] | None = None
     last_heading: float = 0.0
     best_distance: float = math.inf
-    turns_in_place: int = 0
     since_progress: int = 0
     steps: int = 0
     scorer: Scorer | None = None
-    visited: list[tuple[float, float]] = field(default_factory=list)
-    stalled: int = 0
-    escape: list[str] = field(default_factory=list)
-    path_blocked: bool = False
 
 
 @dataclass(frozen=True)
@@ -119,35 +90,17 @@ class NavDecision:
     scores: dict[int, float]
 
 
-def _bump(
-    state: NavState, agent_xy: tuple[float, float], heading: float, config: NavConfig, s: float
-) -> None:
-    """After a forward move that was stopped short, remember the cell just ahead as blocked.
-
-    The simulator stops the centre where its inflated free space ends (on the spot, or part
-    way along the step), so the obstacle is about one agent radius ahead. One cell,
-    inflated like any obstacle, turns the agent aside; marking the whole front would seal
-    doorways whose frame the agent grazed. The memory fades after `config.bump_memory`
-    steps, so a wrong guess does not last.
-    """
-    for cell in [c for c, k in state.blocked_at.items() if state.steps - k > config.bump_memory]:
-        state.blocked.discard(cell)
-        del state.blocked_at[cell]
-    for cell in state.blocked:  # cells added by a caller (e.g. a walk) age from now
-        state.blocked_at.setdefault(cell, state.steps)
+def _bump(state: NavState, occ: DenseOccupancy, xy: tuple[float, float], config: NavConfig) -> bool:
+    """After a forward move the simulator stopped short, mark where the body touched
+    (`nav.motion.bump_cells`); True when cells were added."""
     if state.last_action != "move_forward" or state.last_xy is None:
-        return
-    moved = math.hypot(agent_xy[0] - state.last_xy[0], agent_xy[1] - state.last_xy[1])
+        return False
+    moved = math.dist(xy, state.last_xy)
     if moved >= config.forward_step - SHORT_MOVE:
-        return
-    # The point of the forward check's line nearest one agent radius and half a cell ahead:
-    # marked anywhere else, the check could pass beside its own mark (tune s03-005: 439
-    # stopped moves on one spot, the mark one cell off the line at a cell corner).
-    xy, t = forward_points(agent_xy, heading, config, s)
-    x, y = xy[int(np.argmin(np.abs(t - (config.agent_radius + s / 2))))]
-    cell = (math.floor(x / s), math.floor(y / s))
-    state.blocked.add(cell)
-    state.blocked_at[cell] = state.steps
+        return False
+    before = len(state.blocked)
+    state.blocked.update(bump_cells(occ, xy, state.last_heading, config))
+    return len(state.blocked) > before
 
 
 def _window(
@@ -167,16 +120,18 @@ def _window(
 
 def _surroundings(
     glmap: GLMap, xy: tuple[float, float], state: NavState, config: NavConfig
-) -> tuple[DenseOccupancy, np.ndarray, DistanceField, list[Frontier]]:
-    """The occupancy window, traversable cells, distance field and frontiers around the agent."""
+) -> tuple[DenseOccupancy, np.ndarray, np.ndarray, DistanceField, list[Frontier]]:
+    """The occupancy window (bump marks included), its clearance, traversable cells,
+    distance field and frontiers around the agent."""
     occ = _window(glmap, xy, state, config)
+    clear = clearance(occ)
     rc = agent_rc(occ, xy)
-    trav, plan_ok = nav_masks(occ, rc, config.agent_radius, config.optimistic)
-    field = distance_field(occ, plan_ok, rc, config.plan_stride, config.optimistic)
+    trav, ok, speed = masks(occ, clear, rc, config)
+    field = distance_field(occ, ok, rc, config.plan_stride, config.optimistic, speed)
     fronts = frontiers(
         occ, xy, config.agent_radius, config.min_frontier_size, field.metres, trav=trav
     )
-    return occ, trav, field, fronts
+    return occ, clear, trav, field, fronts
 
 
 def find_goal_match(
@@ -283,17 +238,15 @@ def decide(
             state.scorer = EmbeddingScorer(glmap.embedder)
         scorer = state.scorer
     s = glmap.grid.cell_size
-    _bump(state, xy, heading, config, s)
-    if not state.visited or math.dist(state.visited[-1], xy) >= VISITED_SPACING:
-        state.visited.append(xy)
+    if state.last_action == "move_forward":
+        _bump(state, _window(glmap, xy, NavState(), config), xy, config)
 
-    occ, trav, field, fronts = _surroundings(glmap, xy, state, config)
+    occ, clear, trav, field, fronts = _surroundings(glmap, xy, state, config)
     if not fronts and state.blocked:
         # Bumps may have sealed the only way on (a doorway the map already draws narrow):
         # forget them before concluding there is nothing left to explore.
         state.blocked.clear()
-        state.blocked_at.clear()
-        occ, trav, field, fronts = _surroundings(glmap, xy, state, config)
+        occ, clear, trav, field, fronts = _surroundings(glmap, xy, state, config)
 
     units = map_units(glmap, "instances" if policy not in ("glmap", "glmap-region") else "both")
     scores = scorer.score(goal, units) if units else np.zeros(0)
@@ -304,16 +257,7 @@ def decide(
     if policy in POLICY_UNITS:
         kinds = {"both": ("instance", "region"), "instances": ("instance",), "regions": ("region",)}
         keep = kinds[POLICY_UNITS[policy]]
-        least = {"instance": config.min_instance_score, "region": config.min_region_score}
-        used = {
-            u.unit_id: by_id[u.unit_id]
-            for u in units
-            if u.kind in keep and by_id[u.unit_id] >= least[u.kind]
-        }
-        if config.visited_discount < 1.0:
-            used = discount_visited(
-                used, glmap.grid, state.visited, config.visited_radius, config.visited_discount
-            )
+        used = {u.unit_id: by_id[u.unit_id] for u in units if u.kind in keep}
         value = value_map_from_scores(
             used, glmap.grid, occ, config.value_sigma, unit_mass=config.unit_mass
         )
@@ -334,11 +278,14 @@ def decide(
         if config.stop_in_sight and match is not None:
             walls = _walls(glmap, occ)
         waypoint, out = _choose_and_plan(
-            value, fronts, trav, xy, heading, match, occ, field, state, config, walls
+            value, fronts, trav, xy, heading, match, occ, clear, field, state, config, walls
         )
-    out = _keep_turning(state, xy, out)
-    out = _unstick(state, occ, xy, heading, out, config)
-    out = _escape(state, waypoint, xy, out, config)
+        if out.boxed and _forget_near(state, xy, s):
+            # No step is open: bump marks close by box the agent in; forget them and replan.
+            occ, clear, trav, field, fronts = _surroundings(glmap, xy, state, config)
+            waypoint, out = _choose_and_plan(
+                value, fronts, trav, xy, heading, match, occ, clear, field, state, config, walls
+            )
     _track_progress(state, waypoint, out, config)
     state.last_waypoint, state.last_action = waypoint, out.action
     state.last_xy, state.last_heading = xy, heading
@@ -353,6 +300,17 @@ def decide(
         occ,
         by_id,
     )
+
+
+def _forget_near(state: NavState, xy: tuple[float, float], cell_size: float) -> bool:
+    """Drop the bump marks within `FORGET_NEAR` of the agent; True when any were dropped."""
+    near = {
+        c
+        for c in state.blocked
+        if math.dist(((c[0] + 0.5) * cell_size, (c[1] + 0.5) * cell_size), xy) <= FORGET_NEAR
+    }
+    state.blocked -= near
+    return bool(near)
 
 
 def _walls(glmap: GLMap, occ: DenseOccupancy) -> np.ndarray | None:
@@ -372,14 +330,13 @@ def _choose_and_plan(
     heading: float,
     match: GoalMatch | None,
     occ: DenseOccupancy,
+    clear: np.ndarray,
     field: DistanceField,
     state: NavState,
     config: NavConfig,
     walls: np.ndarray | None = None,
 ) -> tuple[Waypoint, Plan]:
     """Choose a waypoint and plan to it; a frontier reached without effect is given up."""
-    last = state.last_waypoint
-    previous = last.xy if last is not None and last.kind == "frontier" else None
     for _ in range(8):
         wp = choose_waypoint(
             value,
@@ -391,7 +348,6 @@ def _choose_and_plan(
             occ=occ,
             distance=field.metres,
             avoid=state.avoid,
-            previous=previous,
             walls=walls,
         )
         if wp.xy is None and state.avoid and fronts:
@@ -405,7 +361,7 @@ def _choose_and_plan(
             return wp, Plan(np.zeros((0, 2)), math.inf, "stop", False, xy)
         if wp.kind == "goal" and wp.xy == xy:
             return wp, Plan(np.array([xy]), 0.0, "stop", True, xy)
-        out = plan_on_field(occ, field, xy, heading, wp.xy, config)
+        out = plan_on_field(occ, field, xy, heading, wp.xy, config, clear)
         if wp.kind == "goal" and not out.reachable:
             assert match is not None
             state.rejected_units.add(match.unit_id)
@@ -413,94 +369,10 @@ def _choose_and_plan(
             continue
         if out.action == "stop" and wp.kind != "goal":
             state.avoid.append(wp.xy)  # reached, yet still a frontier: look elsewhere
-            previous = None
             continue
         return wp, out
     look = Waypoint(xy, "explore", None, 0.0, "every nearby waypoint was given up: look around.")
     return look, Plan(np.array([xy]), 0.0, "turn_left", False, xy)
-
-
-def _keep_turning(state: NavState, xy: tuple[float, float], out: Plan) -> Plan:
-    """Turn on the way the agent already turns, in place: left-right-left never gets out.
-
-    Flip-flopping happens when the path leaves straight ahead but the step ahead is blocked
-    (turning either way then points away from the path), or the path leaves straight behind.
-    """
-    last = state.last_action
-    if last not in TURNS or out.action != TURNS[last] or state.last_xy is None:
-        return out
-    if math.hypot(xy[0] - state.last_xy[0], xy[1] - state.last_xy[1]) < BUMP_MOVE:
-        return replace(out, action=str(last))
-    return out
-
-
-def _unstick(
-    state: NavState,
-    occ: DenseOccupancy,
-    xy: tuple[float, float],
-    heading: float,
-    out: Plan,
-    config: NavConfig,
-) -> Plan:
-    """After a full turn in place, walk on the first free heading within 90 deg of the path.
-
-    Obstacles below the camera's view are only found by bumping into them; the cells they
-    leave can block every heading near the path's direction while the planner, which clears
-    the agent's own footprint, still routes through. Any free step towards the path helps.
-    With `config.detour_when_blocked` the agent does not wait for the full turn: once the
-    heading has faced the path and found the step blocked, the first free heading within
-    90 deg of the path is taken.
-    """
-    moved = state.last_xy is None or math.dist(xy, state.last_xy) >= BUMP_MOVE
-    turning = out.action in TURNS
-    in_place = turning and not moved
-    state.turns_in_place = state.turns_in_place + 1 if in_place else 0
-    full_turn = state.turns_in_place >= round(360 / config.turn_angle_deg)
-    if not (full_turn or config.detour_when_blocked):
-        return out
-    diff = heading_error(out.path, xy, heading, config.lookahead) if len(out.path) else None
-    free = forward_is_free(occ, xy, heading, config)
-    if config.detour_when_blocked:
-        state.path_blocked &= in_place
-        if turning and diff is not None and not free:
-            state.path_blocked |= abs(diff) <= config.turn_angle / 2 + 1e-9
-    if not (full_turn or state.path_blocked):
-        return out
-    if diff is not None and abs(diff) <= math.pi / 2 and free:
-        state.turns_in_place = 0
-        state.path_blocked = False
-        return replace(out, action="move_forward")
-    return out
-
-
-def _escape(
-    state: NavState, waypoint: Waypoint, xy: tuple[float, float], out: Plan, config: NavConfig
-) -> Plan:
-    """Turn around and step back after `config.escape_after` forward moves were stopped on
-    the spot with no forward move that moved in between (0: never; the default, see
-    nav/design.md).
-
-    The map can draw free space where the agent cannot pass (furniture below the camera's
-    view, a footprint grazing a corner): the bump cells then seal every frontier, are
-    forgotten, and the planner sends the agent into the same spot again (tune s00-008: 249
-    collisions in 500 steps). The way the agent came is free, so it turns around and walks
-    back `ESCAPE_STEPS` steps; the waypoint it was pushing towards is given up.
-    """
-    moved = state.last_xy is None or math.dist(xy, state.last_xy) >= BUMP_MOVE
-    if state.last_action == "move_forward":
-        state.stalled = 0 if moved else state.stalled + 1
-    if state.escape:
-        return replace(out, action=state.escape.pop(0))
-    if not config.escape_after or state.stalled < config.escape_after:
-        return out
-    if out.action != "move_forward":
-        return out
-    state.stalled = 0
-    if waypoint.xy is not None and waypoint.kind != "goal":
-        state.avoid.append(waypoint.xy)
-    turns = round(180 / config.turn_angle_deg)
-    state.escape = ["turn_left"] * (turns - 1) + ["move_forward"] * ESCAPE_STEPS
-    return replace(out, action="turn_left")
 
 
 def _track_progress(state: NavState, wp: Waypoint, out: Plan, config: NavConfig) -> None:

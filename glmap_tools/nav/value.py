@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -126,21 +126,6 @@ def unit_cell_array(grid: IndexGrid, unit_id: int) -> np.ndarray:
     return arr
 
 
-def unit_point_cell(grid: IndexGrid, unit_id: int) -> np.ndarray:
-    """[1, 2] the cell nearest the mean of a unit's cells (p_u of Eq. 7); [0, 2] if none."""
-    cells = unit_cell_array(grid, unit_id)
-    if not len(cells):
-        return cells
-    return np.floor(cells.mean(axis=0) + 0.5).astype(np.int64).reshape(1, 2)
-
-
-def source_cells(grid: IndexGrid, unit_id: int, unit_mass: str) -> np.ndarray:
-    """The cells a unit's mass goes on: its centre cell for 'point', else all its cells."""
-    if unit_mass == "point":
-        return unit_point_cell(grid, unit_id)
-    return unit_cell_array(grid, unit_id)
-
-
 def as_window(window: Window | DenseOccupancy) -> Window:
     return Window.of(window) if isinstance(window, DenseOccupancy) else window
 
@@ -148,13 +133,12 @@ def as_window(window: Window | DenseOccupancy) -> Window:
 def score_image(
     scores: Mapping[int, float], grid: IndexGrid, window: Window, unit_mass: str = "cells"
 ) -> np.ndarray:
-    """[H, W] sum_u s_u delta(v - p_u): each unit's score added on each of its source cells
-    (`source_cells`: all its cells, or its centre cell for `unit_mass` 'point')."""
+    """[H, W] sum_u s_u delta(v - p_u): each unit's mass added on each of its cells."""
     ids = [int(uid) for uid, s in scores.items() if s > 0]
     img = np.zeros(window.shape, dtype=np.float64)
     if not ids:
         return img
-    arrays = [source_cells(grid, uid, unit_mass) for uid in ids]
+    arrays = [unit_cell_array(grid, uid) for uid in ids]
     counts = np.array([len(a) for a in arrays])
     cells = np.concatenate(arrays)
     vals = np.repeat(np.array([float(scores[uid]) for uid in ids]), counts)
@@ -187,9 +171,8 @@ def value_map_from_scores(
         grid: the index grid m holding each unit's cells.
         window: the cells to evaluate (units outside it do not contribute).
         sigma: kernel bandwidth, metres.
-        unit_mass: 'unit' (s_u / |cells| on each cell: every unit adds s_u in total),
-            'cells' (s_u on each cell: a unit weighs with its area) or 'point' (s_u on the
-            unit's centre cell); see `NavConfig.unit_mass`.
+        unit_mass: 'unit' (s_u / |cells| on each cell: every unit adds s_u in total) or
+            'cells' (s_u on each cell: a unit weighs with its area); see `NavConfig.unit_mass`.
     """
     check_scores(scores)
     win = as_window(window)
@@ -223,7 +206,7 @@ def value_map_reference(
     radius = len(g) // 2
     sources: dict[tuple[int, int], float] = {}
     for uid, mass in spread_scores(scores, grid, unit_mass).items():
-        for i, j in source_cells(grid, int(uid), unit_mass).tolist():
+        for i, j in unit_cell_array(grid, int(uid)).tolist():
             if win.i0 <= i < win.i0 + win.width and win.j0 <= j < win.j0 + win.height:
                 sources[(i, j)] = sources.get((i, j), 0.0) + float(mass)
     h = np.zeros(win.shape)
@@ -269,7 +252,7 @@ def value_map(
         units: 'both' | 'instances' | 'regions'.
         sigma: kernel bandwidth (m); default NavConfig().value_sigma.
         window: cells to evaluate; default the known map plus TRUNCATE sigma.
-        unit_mass: 'unit' | 'cells' | 'point'; default NavConfig().unit_mass.
+        unit_mass: 'unit' | 'cells'; default NavConfig().unit_mass.
 
     Raises:
         InvalidInputError: empty goal, unknown `units` or `unit_mass`, non-positive sigma.
@@ -292,13 +275,12 @@ def value_map(
 def spread_scores(
     scores: Mapping[int, float], grid: IndexGrid, unit_mass: str
 ) -> Mapping[int, float]:
-    """The mass of each unit on each of its source cells for `unit_mass` ('unit', 'cells'
-    or 'point')."""
+    """The mass of each unit on each of its cells for `unit_mass` ('unit' or 'cells')."""
     if unit_mass == "unit":
         return per_unit_mass(scores, grid)
-    if unit_mass in ("cells", "point"):
+    if unit_mass == "cells":
         return scores
-    raise InvalidInputError(f"unit_mass={unit_mass!r} must be 'unit', 'cells' or 'point'.")
+    raise InvalidInputError(f"unit_mass={unit_mass!r} must be 'unit' or 'cells'.")
 
 
 def per_unit_mass(scores: Mapping[int, float], grid: IndexGrid) -> dict[int, float]:
@@ -308,32 +290,3 @@ def per_unit_mass(scores: Mapping[int, float], grid: IndexGrid) -> dict[int, flo
         int(uid): float(s) / max(1, len(unit_cell_array(grid, int(uid))))
         for uid, s in scores.items()
     }
-
-
-def discount_visited(
-    scores: Mapping[int, float],
-    grid: IndexGrid,
-    visited: Sequence[tuple[float, float]],
-    radius: float,
-    discount: float,
-) -> dict[int, float]:
-    """Scores with units near where the agent has been discounted.
-
-    s_u <- s_u * (1 - (1 - discount) * f_u), with f_u the share of unit u's cells within
-    `radius` metres of a visited (x, y). A goal near a unit the agent walked past would most
-    likely have been seen and matched, so the value map should point past what was searched.
-    """
-    out = {int(uid): float(s) for uid, s in scores.items()}
-    if discount >= 1.0 or not visited:
-        return out
-    from scipy.spatial import cKDTree
-
-    tree = cKDTree(np.asarray(visited, dtype=np.float64))
-    for uid, s in out.items():
-        cells = unit_cell_array(grid, uid)
-        if s <= 0 or not len(cells):
-            continue
-        centres = (cells + 0.5) * grid.cell_size
-        near, _ = tree.query(centres, k=1, distance_upper_bound=radius)
-        out[uid] = s * (1.0 - (1.0 - discount) * float(np.isfinite(near).mean()))
-    return out

@@ -1,12 +1,7 @@
 """The waypoint rule: a frontier chosen by the value map H, or the matched goal unit.
 
 Paper 3.2: "the next waypoint is selected as the frontier closest to the location of the
-maximum value grid" (`NavConfig.waypoint_rule='paper'`, the default). With
-`open_peak_radius` > 0 the maximum is taken only over the cells near a usable frontier
-(`open_peak`): a peak with no unknown space around it was already searched. The rule 'utility'
-takes the frontier cell c maximising `w * scale * max H(near c) - d(c)` (d geodesic
-metres) and keeps the previous waypoint unless another beats it by `commit_margin`
-(nav/design.md). Once an instance matches the goal (score >= stop_threshold, observed
+maximum value grid". Once an instance matches the goal (score >= stop_threshold, observed
 in >= min_observations frames) the waypoint becomes the nearest navigable cell within
 `stop_distance` (< success radius) of that unit's cells.
 """
@@ -14,7 +9,7 @@ in >= min_observations frames) the waypoint becomes the nearest navigable cell w
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -101,40 +96,6 @@ def goal_cells_near(
     return np.stack([rows + r0, cols + c0], axis=1)
 
 
-def frontier_utility(
-    value: ValueMap, rc: np.ndarray, dist: np.ndarray, occ: DenseOccupancy, config: NavConfig
-) -> np.ndarray:
-    """[K] utility in metres of the frontier cells rc ([K, 2] (row, col) in `occ`'s window).
-
-    `w * scale * Hr(c) - d(c)`: Hr(c) the largest H within `frontier_value_radius` of c
-    (square window), `scale * Hr` in score units, w = `frontier_value_weight` metres per unit
-    of score, d(c) = `dist` ([K] geodesic metres). With nothing scored it is -d: the
-    nearest frontier.
-    """
-    if value.empty or value.scale <= 0:
-        return -dist
-    r = value.values.shape
-    rows = rc[:, 0] + occ.origin[1] - value.origin[1]
-    cols = rc[:, 1] + occ.origin[0] - value.origin[0]
-    half = int(round(config.frontier_value_radius / value.cell_size))
-    near = np.zeros(len(rc))
-    inside = (rows >= 0) & (rows < r[0]) & (cols >= 0) & (cols < r[1])
-    if inside.any():
-        r0, r1 = (
-            max(0, int(rows[inside].min()) - half),
-            min(r[0], int(rows[inside].max()) + half + 1),
-        )
-        c0, c1 = (
-            max(0, int(cols[inside].min()) - half),
-            min(r[1], int(cols[inside].max()) + half + 1),
-        )
-        patch = ndimage.maximum_filter(
-            value.values[r0:r1, c0:c1], size=2 * half + 1, mode="constant"
-        )
-        near[inside] = patch[rows[inside] - r0, cols[inside] - c0]
-    return config.frontier_value_weight * value.scale * near - dist
-
-
 SIGHT_TOLERANCE_CELLS = 2  # obstacle cells this close to the unit's cells do not block sight
 
 
@@ -178,37 +139,6 @@ def in_clear_sight(
     return ~blocking[cells[..., 0], cells[..., 1]].any(axis=1)
 
 
-def open_peak(
-    value: ValueMap, frontier_xy: np.ndarray, radius: float
-) -> tuple[float, float] | None:
-    """(x, y) of the largest H within `radius` m of any of the [K, 2] frontier points.
-
-    None when H is 0 on every such cell: nothing scored lies near unexplored space.
-    """
-    if value.empty or len(frontier_xy) == 0:
-        return None
-    s = value.cell_size
-    h, w = value.values.shape
-    rows = np.floor(frontier_xy[:, 1] / s).astype(np.int64) - value.origin[1]
-    cols = np.floor(frontier_xy[:, 0] / s).astype(np.int64) - value.origin[0]
-    pad = int(math.ceil(radius / s))
-    r0, r1 = max(0, int(rows.min()) - pad), min(h, int(rows.max()) + pad + 1)
-    c0, c1 = max(0, int(cols.min()) - pad), min(w, int(cols.max()) + pad + 1)
-    if r1 <= r0 or c1 <= c0:
-        return None
-    seed = np.zeros((r1 - r0, c1 - c0), dtype=bool)
-    inside = (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
-    seed[rows[inside] - r0, cols[inside] - c0] = True
-    if not seed.any():
-        return None
-    near = ndimage.distance_transform_edt(~seed) * s <= radius
-    masked = np.where(near, value.values[r0:r1, c0:c1], 0.0)
-    if not (masked > 0).any():
-        return None
-    r, c = np.unravel_index(int(np.argmax(masked)), masked.shape)
-    return value.xy_of(int(r) + r0, int(c) + c0)
-
-
 def choose_waypoint(
     value: ValueMap | None,
     fronts: Sequence[Frontier],
@@ -220,7 +150,6 @@ def choose_waypoint(
     occ: DenseOccupancy,
     distance: np.ndarray | None = None,
     avoid: Sequence[tuple[float, float]] = (),
-    previous: tuple[float, float] | None = None,
     walls: np.ndarray | None = None,
 ) -> Waypoint:
     """Pick the next waypoint (see the module docstring).
@@ -237,9 +166,6 @@ def choose_waypoint(
             reach are skipped (next best is taken); None = straight-line distances.
         avoid: (x, y) of waypoints given up earlier (stuck, or reached without effect);
             frontiers within `config.stop_distance` of one are skipped.
-        previous: (x, y) of the last frontier waypoint; rule 'utility' keeps the usable
-            frontier cell nearest it (within 2 cells) unless another cell's utility is
-            `config.commit_margin` higher.
         walls: [H, W] bool, the obstacle cells that block sight (`stop_in_sight`); None =
             every obstacle cell.
     """
@@ -304,12 +230,6 @@ def choose_waypoint(
             usable.append((f, xy[keep]))
     global_peak = value.argmax_xy() if value is not None else None
     peak = global_peak
-    if usable and value is not None and config.waypoint_rule == "utility":
-        return _best_utility(value, usable, occ, dist_of, config, previous)
-    open_rule = bool(usable) and value is not None and config.open_peak_radius > 0
-    if open_rule:
-        assert value is not None
-        peak = open_peak(value, np.concatenate([c for _, c in usable]), config.open_peak_radius)
     if usable and peak is not None:
         best = None
         for f, xy in usable:
@@ -320,31 +240,16 @@ def choose_waypoint(
                 best = (key, (float(xy[k, 0]), float(xy[k, 1])))
         assert best is not None
         (gap, _), xy_best = best
-        kept = ""
-        if previous is not None and config.peak_commit > 0:
-            cells = np.concatenate([c for _, c in usable])
-            near = np.hypot(cells[:, 0] - previous[0], cells[:, 1] - previous[1])
-            j = int(np.argmin(near))
-            gap_j = math.hypot(cells[j, 0] - peak[0], cells[j, 1] - peak[1])
-            if near[j] <= 2 * s and gap_j <= gap + config.peak_commit:
-                gap, xy_best = gap_j, (float(cells[j, 0]), float(cells[j, 1]))
-                kept = f" (the previous one, within {config.peak_commit:.1f} m of the closest)"
         return Waypoint(
             xy_best,
             "frontier",
             None,
             value.value_at(*xy_best) if value is not None else 0.0,
-            f"frontier closest ({gap:.2f} m){kept} to the value-map maximum"
-            + (f" within {config.open_peak_radius:.1f} m of a frontier" if open_rule else "")
-            + f" at ({peak[0]:.2f}, {peak[1]:.2f}).",
+            f"frontier closest ({gap:.2f} m) to the value-map maximum at "
+            f"({peak[0]:.2f}, {peak[1]:.2f}).",
         )
     if usable:
-        if value is None:
-            why = "."
-        elif open_rule and not value.empty:
-            why = f"; no value within {config.open_peak_radius:.1f} m of any frontier."
-        else:
-            why = "; the value map is empty."
+        why = "." if value is None else "; the value map is empty."
         f, xy = min(usable, key=lambda fx: (fx[0].distance, -fx[0].size))
         k = int(np.argmin(np.hypot(xy[:, 0] - f.target[0], xy[:, 1] - f.target[1])))
         return Waypoint(
@@ -375,42 +280,3 @@ def choose_waypoint(
                     "maximum.",
                 )
     return Waypoint(None, "none", None, 0.0, "no frontier left, no match and no value to follow.")
-
-
-def _best_utility(
-    value: ValueMap,
-    usable: Sequence[tuple[Frontier, np.ndarray]],
-    occ: DenseOccupancy,
-    dist_of: Callable[[np.ndarray], np.ndarray],
-    config: NavConfig,
-    previous: tuple[float, float] | None,
-) -> Waypoint:
-    """Rule 'utility': the frontier cell with the best `frontier_utility`, with commitment."""
-    xy = np.concatenate([c for _, c in usable])
-    s = occ.cell_size
-    rc = np.stack(
-        [
-            np.floor(xy[:, 1] / s).astype(np.int64) - occ.origin[1],
-            np.floor(xy[:, 0] / s).astype(np.int64) - occ.origin[0],
-        ],
-        axis=1,
-    )
-    dist = dist_of(rc)
-    util = np.where(np.isfinite(dist), frontier_utility(value, rc, dist, occ, config), -np.inf)
-    k = int(np.argmax(util))
-    reason = "best frontier utility"
-    if previous is not None:
-        gap = np.hypot(xy[:, 0] - previous[0], xy[:, 1] - previous[1])
-        j = int(np.argmin(gap))
-        if gap[j] <= 2 * s and np.isfinite(util[j]) and util[j] >= util[k] - config.commit_margin:
-            k, reason = j, "keeping the previous frontier (within the commit margin of the best)"
-    x, y = float(xy[k, 0]), float(xy[k, 1])
-    h = value.value_at(x, y)
-    return Waypoint(
-        (x, y),
-        "frontier",
-        None,
-        h,
-        f"{reason}: {util[k]:.2f} m (value {value.scale * h:.2f} here, {float(dist[k]):.2f} m "
-        "away).",
-    )

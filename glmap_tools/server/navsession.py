@@ -222,14 +222,14 @@ def window(glmap: GLMap, config: Any, blocked: set[tuple[int, int]] | None = Non
     return occ
 
 
-def mark_bump(nav: NavSession, agent: tuple[float, float, float], cell: float) -> None:
-    """Remember the cells just ahead of an agent whose forward move was stopped as blocked."""
-    x, y, heading = agent
-    for t in (nav.config.agent_radius + cell, nav.config.agent_radius + 2 * cell):
-        for side in (-cell, 0.0, cell):
-            px = x + t * math.cos(heading) - side * math.sin(heading)
-            py = y + t * math.sin(heading) + side * math.cos(heading)
-            nav.state.blocked.add((math.floor(px / cell), math.floor(py / cell)))
+def mark_bump(session: Session, nav: NavSession, agent: tuple[float, float, float]) -> None:
+    """Remember where a forward move stopped short touched something the map missed
+    (`nav.motion.bump_cells`: a cell near a mapped obstacle, else a body-wide edge)."""
+    from glmap_tools.nav import bump_cells
+
+    with locked(session) as glmap:
+        occ = window(glmap, nav.config)
+    nav.state.blocked.update(bump_cells(occ, agent[:2], agent[2], nav.config))
 
 
 def check_inside(occ: Any, xy: tuple[float, float], what: str) -> None:
@@ -359,7 +359,6 @@ def walk_to(
     steps = bumps = in_a_row = 0
     walked = 0.0
     outcome = "step budget"
-    last = ""
     while True:
         if _arrived(agent, target, cell):
             outcome = "reached"
@@ -373,18 +372,13 @@ def walk_to(
         if steps >= max_steps:
             break
         action = plan.action if plan.action != "stop" else "move_forward"
-        if {action, last} == {"turn_left", "turn_right"}:
-            # The path's direction lies between two headings a turn apart (or a new frame
-            # moved it): the heading is within one turn of it, so step instead of dithering.
-            action = "move_forward"
-        last = action
         simulator.step(sim, action)
         integrate(session, sim)
         steps += 1
         moved = simulator.agent_pose(sim)
         walked += math.hypot(moved[0] - agent[0], moved[1] - agent[1])
         if sim.info["collided"]:
-            mark_bump(nav, moved, cell)
+            mark_bump(session, nav, moved)
             bumps += 1
             in_a_row += 1
             if in_a_row >= BLOCKED_AFTER or bumps >= MAX_BUMPS:
