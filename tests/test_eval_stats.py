@@ -137,3 +137,15 @@ def test_the_table_does_not_depend_on_the_order_results_were_read_in() -> None:
     a = summarize({"x": episodes}, ["x"], resamples=300)
     b = summarize({"x": shuffled}, ["x"], resamples=300)
     assert a.rows["x"]["spl"] == b.rows["x"]["spl"]
+
+
+def test_episodes_needed_for_a_paired_difference_follow_the_discordance() -> None:
+    from glmap_tools.eval.stats import episodes_needed
+
+    # 27% of episodes disagree, +6 points: (1.96 + 0.84)^2 (0.27 - 0.0036) / 0.0036 = 581.
+    assert episodes_needed(0.27, 0.06) == 581
+    assert episodes_needed(0.27, -0.06) == 581
+    assert episodes_needed(0.10, 0.06) < episodes_needed(0.27, 0.06)  # less chaos, fewer
+    assert episodes_needed(0.27, 0.06, power=0.5) == 285  # the interval just excludes 0
+    with pytest.raises(InvalidInputError, match="difference=0.3 must be"):
+        episodes_needed(0.27, 0.3)

@@ -286,3 +286,31 @@ def test_the_cells_a_stopped_move_marks_close_the_step_that_was_stopped() -> Non
             occ.state[j + 100, i + 100] = OBSTACLE
         after = steps_open(occ, clearance(occ), xy, np.array([heading]), config)[0]
         assert not after, (xy, heading, cells, before)
+
+
+def test_units_scoring_below_the_value_floors_leave_the_value_map_and_the_nearest_frontier_leads(
+    built: GLMap,
+) -> None:
+    # Eq. 7 as written (no floors); the chair is scored, never matched.
+    no_stop = replace(CONFIG, stop_threshold=1.0, min_instance_score=0.0, min_region_score=0.0)
+    follow = decide(built, (0.0, 0.0), math.pi, "a red chair", state=NavState(), config=no_stop)
+    chair = float(follow.scores[1])
+    assert 0.0 < chair < 1.0 and follow.value is not None and not follow.value.empty
+    assert math.dist(follow.value.argmax_xy(), (1.2, 1.3)) < 0.4  # type: ignore[arg-type]
+
+    kept = replace(no_stop, min_instance_score=chair)  # at the floor: still evidence
+    same = decide(built, (0.0, 0.0), math.pi, "a red chair", state=NavState(), config=kept)
+    np.testing.assert_array_equal(same.value.values, follow.value.values)  # type: ignore[union-attr]
+
+    floored = replace(no_stop, min_instance_score=min(1.0, chair + 0.01))
+    d = decide(built, (0.0, 0.0), math.pi, "a red chair", state=NavState(), config=floored)
+    assert d.value is not None and d.value.empty
+    assert d.waypoint.kind == "frontier" and d.waypoint.reason.startswith("nearest frontier")
+    assert d.scores == follow.scores  # the floors change what H holds, not the scores
+
+
+@pytest.mark.parametrize("field", ["min_instance_score", "min_region_score"])
+@pytest.mark.parametrize("bad", [-0.1, 1.5, math.nan])
+def test_a_value_floor_outside_zero_to_one_is_refused(field: str, bad: float) -> None:
+    with pytest.raises(InvalidInputError, match=f"NavConfig.{field}=.*must be a score in"):
+        NavConfig(**{field: bad})

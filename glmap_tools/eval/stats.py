@@ -138,3 +138,28 @@ def paired_difference(
             "keep only the episodes both agents finished."
         )
     return bootstrap_mean(a - b, resamples=resamples, confidence=confidence, seed=seed)
+
+
+def episodes_needed(discordance: float, difference: float, power: float = 0.8) -> int:
+    """Paired episodes for a success-rate difference to show at 95% with the given power.
+
+    A paired difference of two success rates is the mean of per-episode values in {-1, 0, 1};
+    its variance is d - D^2 with d the share of episodes where the agents disagree
+    (`discordance`) and D the difference, so n = (z_0.975 + z_power)^2 (d - D^2) / D^2.
+
+    Raises:
+        InvalidInputError: a share outside (0, 1], a difference not in (0, discordance].
+    """
+    from statistics import NormalDist
+
+    if not (0.0 < discordance <= 1.0):
+        raise InvalidInputError(f"discordance={discordance!r} must be a share in (0, 1].")
+    if not (0.0 < abs(difference) <= discordance):
+        raise InvalidInputError(
+            f"difference={difference!r} must be non-zero and at most the discordance "
+            f"{discordance} (agents can differ only where they disagree)."
+        )
+    if not (0.5 <= power < 1.0):
+        raise InvalidInputError(f"power={power!r} must be in [0.5, 1).")
+    z = NormalDist().inv_cdf(0.975) + NormalDist().inv_cdf(power)
+    return math.ceil(z * z * (discordance - difference**2) / difference**2)

@@ -58,6 +58,10 @@ class NavConfig:
         safety_margin: metres beyond the body radius a forward step keeps from obstacles
             when it can (map cells are a cell off the true surface either way).
         turn_cost: cost-to-go metres one turn is worth when choosing a heading (nav.motion).
+        min_instance_score, min_region_score: an instance / region enters Eq. 7 only with
+            s_u at or above this (0 = every unit, Eq. 7 as written); with no unit left the
+            waypoint is the nearest frontier. The evidence gate: with the offline scorer most
+            scores are weak and their argmax points nowhere (nav/design.md "Evidence gate").
         unit_mass: how a unit's score s_u enters Eq. 7: 'unit' (default: s_u / |cells| on each
             cell, so every unit carries the mass s_u, as the single delta at p_u of Eq. 7 does)
             or 'cells' (s_u on each of its cells; situated localisation uses it).
@@ -84,6 +88,8 @@ class NavConfig:
     clearance_cost: float = 3.0
     safety_margin: float = 0.05
     turn_cost: float = 0.02
+    min_instance_score: float = 0.5
+    min_region_score: float = 0.3
     unit_mass: str = "unit"
 
     def __post_init__(self) -> None:
@@ -141,6 +147,12 @@ class NavConfig:
                 f"NavConfig.unit_mass={self.unit_mass!r} is not one of "
                 f"{list(UNIT_MASSES)}.{did_you_mean(self.unit_mass, UNIT_MASSES)}"
             )
+        for name in ("min_instance_score", "min_region_score"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and 0.0 <= value <= 1.0):
+                raise InvalidInputError(
+                    f"NavConfig.{name}={value!r} must be a score in [0, 1] (0 = keep every unit)."
+                )
         for name in ("clearance_cost", "safety_margin", "turn_cost"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):

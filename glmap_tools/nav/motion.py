@@ -236,6 +236,20 @@ def bump_cells(
     return sorted(cells)
 
 
+def forget_marks_near(
+    marks: set[tuple[int, int]], xy: tuple[float, float], cell_size: float, radius: float
+) -> bool:
+    """Drop the (i, j) bump marks whose cell centre is within `radius` m of `xy` (in place);
+    True when any were dropped."""
+    near = {
+        c
+        for c in marks
+        if math.dist(((c[0] + 0.5) * cell_size, (c[1] + 0.5) * cell_size), xy) <= radius
+    }
+    marks -= near
+    return bool(near)
+
+
 def footprint(shape: tuple[int, int], rc: tuple[int, int], radius_cells: float) -> np.ndarray:
     """[H, W] bool: the cells under a disk of `radius_cells` around (row, col) `rc`."""
     out = np.zeros(shape, dtype=bool)

@@ -20,7 +20,7 @@ from glmap_tools.nav.config import NavConfig, check_policy
 from glmap_tools.nav.egocentric import EgocentricValueMap
 from glmap_tools.nav.frontiers import Frontier, frontiers
 from glmap_tools.nav.grid import agent_rc, known_window, reframe, structure_walls
-from glmap_tools.nav.motion import bump_cells, clearance, masks
+from glmap_tools.nav.motion import bump_cells, clearance, forget_marks_near, masks
 from glmap_tools.nav.planner import DistanceField, Plan, distance_field, plan_on_field
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
 from glmap_tools.nav.value import ValueMap, unit_cell_array, value_map_from_scores
@@ -35,6 +35,7 @@ POLICY_UNITS = {"glmap": "both", "glmap-instance": "instances", "glmap-region": 
 PROGRESS = 0.25  # metres of progress toward the waypoint that reset the stuck counter
 SHORT_MOVE = 0.0125  # metres: a move_forward this much short of a full step was stopped
 FORGET_NEAR = 0.5  # metres: bump marks this close are forgotten when no step is open
+HOLD_AFTER_TURNS = 6  # turns in place after which the waypoint is held until the agent moves
 
 
 @dataclass
@@ -48,6 +49,7 @@ class NavState:
         blocked: (i, j) cells where a forward move was stopped (obstacles the map missed);
             they stay obstacles for the episode (`nav.motion.bump_cells`).
         last_waypoint: the previous step's waypoint.
+        turns_in_place: turns in a row without moving, after the initial look around.
         steps: decisions taken.
     """
 
@@ -61,6 +63,7 @@ class NavState:
     last_heading: float = 0.0
     best_distance: float = math.inf
     since_progress: int = 0
+    turns_in_place: int = 0
     steps: int = 0
     scorer: Scorer | None = None
 
@@ -257,7 +260,12 @@ def decide(
     if policy in POLICY_UNITS:
         kinds = {"both": ("instance", "region"), "instances": ("instance",), "regions": ("region",)}
         keep = kinds[POLICY_UNITS[policy]]
-        used = {u.unit_id: by_id[u.unit_id] for u in units if u.kind in keep}
+        least = {"instance": config.min_instance_score, "region": config.min_region_score}
+        used = {
+            u.unit_id: by_id[u.unit_id]
+            for u in units
+            if u.kind in keep and by_id[u.unit_id] >= least[u.kind]
+        }
         value = value_map_from_scores(
             used, glmap.grid, occ, config.value_sigma, unit_mass=config.unit_mass
         )
@@ -280,13 +288,16 @@ def decide(
         waypoint, out = _choose_and_plan(
             value, fronts, trav, xy, heading, match, occ, clear, field, state, config, walls
         )
-        if out.boxed and _forget_near(state, xy, s):
+        if out.boxed and forget_marks_near(state.blocked, xy, s, FORGET_NEAR):
             # No step is open: bump marks close by box the agent in; forget them and replan.
             occ, clear, trav, field, fronts = _surroundings(glmap, xy, state, config)
             waypoint, out = _choose_and_plan(
                 value, fronts, trav, xy, heading, match, occ, clear, field, state, config, walls
             )
     _track_progress(state, waypoint, out, config)
+    spinning = state.steps >= config.initial_spin and out.action in ("turn_left", "turn_right")
+    stayed = state.last_xy is not None and math.dist(xy, state.last_xy) < SHORT_MOVE
+    state.turns_in_place = state.turns_in_place + 1 if spinning and stayed else 0
     state.last_waypoint, state.last_action = waypoint, out.action
     state.last_xy, state.last_heading = xy, heading
     state.steps += 1
@@ -300,17 +311,6 @@ def decide(
         occ,
         by_id,
     )
-
-
-def _forget_near(state: NavState, xy: tuple[float, float], cell_size: float) -> bool:
-    """Drop the bump marks within `FORGET_NEAR` of the agent; True when any were dropped."""
-    near = {
-        c
-        for c in state.blocked
-        if math.dist(((c[0] + 0.5) * cell_size, (c[1] + 0.5) * cell_size), xy) <= FORGET_NEAR
-    }
-    state.blocked -= near
-    return bool(near)
 
 
 def _walls(glmap: GLMap, occ: DenseOccupancy) -> np.ndarray | None:
@@ -336,7 +336,24 @@ def _choose_and_plan(
     config: NavConfig,
     walls: np.ndarray | None = None,
 ) -> tuple[Waypoint, Plan]:
-    """Choose a waypoint and plan to it; a frontier reached without effect is given up."""
+    """Choose a waypoint and plan to it; a frontier reached without effect is given up.
+
+    After `HOLD_AFTER_TURNS` turns in place with no match, the previous frontier waypoint is
+    kept while it can be reached: a value map that changes with every view (the egocentric
+    one, or units seen for the first time while turning) must not turn the agent round
+    for ever (tune s03-019, egocentric: 477 turns in a row).
+    """
+    last = state.last_waypoint
+    if (
+        state.turns_in_place >= HOLD_AFTER_TURNS
+        and match is None
+        and last is not None
+        and last.kind == "frontier"
+        and last.xy is not None
+    ):
+        held = plan_on_field(occ, field, xy, heading, last.xy, config, clear)
+        if held.reachable and held.action != "stop":
+            return last, held
     for _ in range(8):
         wp = choose_waypoint(
             value,

@@ -224,7 +224,7 @@ def window(glmap: GLMap, config: Any, blocked: set[tuple[int, int]] | None = Non
 
 def mark_bump(session: Session, nav: NavSession, agent: tuple[float, float, float]) -> None:
     """Remember where a forward move stopped short touched something the map missed
-    (`nav.motion.bump_cells`: a cell near a mapped obstacle, else a body-wide edge)."""
+    (`nav.motion.bump_cells`: a cell near a mapped obstacle, else a 0.6 m edge)."""
     from glmap_tools.nav import bump_cells
 
     with locked(session) as glmap:
@@ -350,6 +350,9 @@ def walk_to(
     Raises:
         OutsideMapError, UnreachableGoalError: before the first step.
     """
+    from glmap_tools.nav.motion import forget_marks_near
+    from glmap_tools.nav.policy import FORGET_NEAR
+
     nav = of(session)
     assert nav is not None
     cell = session.live.glmap.occupancy.cell_size
@@ -389,6 +392,8 @@ def walk_to(
         agent = moved
         if not sim.over:
             plan = plan_to(session, agent, target, config, strict=False)
+            if plan.boxed and forget_marks_near(nav.state.blocked, agent[:2], cell, FORGET_NEAR):
+                plan = plan_to(session, agent, target, config, strict=False)
     return {
         "outcome": outcome,
         "walk_steps": steps,
