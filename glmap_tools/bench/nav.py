@@ -173,7 +173,7 @@ def _table(report: Report, args: argparse.Namespace) -> None:
         args.table_split,
         args.scenes,
         args.episodes_per_scene,
-        ALL_AGENTS,
+        tuple(args.agents.split(",")),
         embedder=args.embedder,
     )
     run = run_eval(spec, args.out, workers=args.workers, progress=True)
@@ -259,6 +259,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenes", type=int, help="table: first N scenes (default all)")
     p.add_argument("--episodes-per-scene", type=int, help="table: first K (default all)")
     p.add_argument("--workers", type=int, default=2, help="table: worker processes")
+    p.add_argument("--agents", default=",".join(ALL_AGENTS), help="table: comma-separated")
     p.add_argument("--out", type=Path, help="table results (default out/eval/SPLIT-TASK)")
     args = p.parse_args(argv)
     args.out = args.out or Path("out/eval") / f"{args.table_split}-{args.task}"
