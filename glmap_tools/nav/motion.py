@@ -252,14 +252,9 @@ def forget_marks_near(
 
 def footprint(shape: tuple[int, int], rc: tuple[int, int], radius_cells: float) -> np.ndarray:
     """[H, W] bool: the cells under a disk of `radius_cells` around (row, col) `rc`."""
-    out = np.zeros(shape, dtype=bool)
-    k = int(math.floor(radius_cells))
-    dr, dc = np.mgrid[-k : k + 1, -k : k + 1]
-    inside = dr**2 + dc**2 <= radius_cells**2 + 1e-9
-    r, c = dr[inside] + rc[0], dc[inside] + rc[1]
-    keep = (r >= 0) & (r < shape[0]) & (c >= 0) & (c < shape[1])
-    out[r[keep], c[keep]] = True
-    return out
+    from glmap_tools.nav.grid import clear_footprint
+
+    return clear_footprint(np.zeros(shape, dtype=bool), rc, radius_cells)
 
 
 def masks(

@@ -238,13 +238,15 @@ def plan_on_field(
     goal_xy: tuple[float, float],
     config: NavConfig,
     clear: np.ndarray | None = None,
+    plannable: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Plan:
     """Plan with a distance `field` whose source is the agent; act on the cost-to-go.
 
     `field` says whether `goal_xy` can be reached (else the plan ends at its nearest
     reachable cell). The cost-to-go from that end is solved on map cells with the clearance
     cost, the path descends it from the agent, and `nav.motion.drive` picks the action.
-    `clear` is `nav.motion.clearance(occ)` when the caller has it already.
+    `clear` is `nav.motion.clearance(occ)` and `plannable` the (plannable, speed) of
+    `nav.motion.masks` for the agent, when the caller has them already.
     """
     from glmap_tools.nav.motion import clearance, drive, masks
 
@@ -262,7 +264,7 @@ def plan_on_field(
     end_xy = goal if reachable else occ.index_to_world(*end_rc)
     clear = clearance(occ) if clear is None else clear
     rc = agent_rc(occ, agent_xy)
-    _, ok, speed = masks(occ, clear, rc, config)
+    ok, speed = masks(occ, clear, rc, config)[1:] if plannable is None else plannable
     to_go = geodesic(ok, end_rc, occ.cell_size, speed)
     if not math.isfinite(float(to_go[rc])):
         # Joined on the planning blocks only (a gap narrower than a block): follow them.

@@ -121,11 +121,23 @@ def _window(
     return occ
 
 
+@dataclass(frozen=True)
+class Surroundings:
+    """The occupancy window (bump marks included) around the agent and what is derived
+    from it: clearance, traversable cells, (plannable, speed), distance field, frontiers."""
+
+    occ: DenseOccupancy
+    clear: np.ndarray
+    trav: np.ndarray
+    plannable: tuple[np.ndarray, np.ndarray]
+    field: DistanceField
+    fronts: list[Frontier]
+
+
 def _surroundings(
     glmap: GLMap, xy: tuple[float, float], state: NavState, config: NavConfig
-) -> tuple[DenseOccupancy, np.ndarray, np.ndarray, DistanceField, list[Frontier]]:
-    """The occupancy window (bump marks included), its clearance, traversable cells,
-    distance field and frontiers around the agent."""
+) -> Surroundings:
+    """The `Surroundings` of the agent at `xy`."""
     occ = _window(glmap, xy, state, config)
     clear = clearance(occ)
     rc = agent_rc(occ, xy)
@@ -134,7 +146,7 @@ def _surroundings(
     fronts = frontiers(
         occ, xy, config.agent_radius, config.min_frontier_size, field.metres, trav=trav
     )
-    return occ, clear, trav, field, fronts
+    return Surroundings(occ, clear, trav, (ok, speed), field, fronts)
 
 
 def find_goal_match(
@@ -244,12 +256,13 @@ def decide(
     if state.last_action == "move_forward":
         _bump(state, _window(glmap, xy, NavState(), config), xy, config)
 
-    occ, clear, trav, field, fronts = _surroundings(glmap, xy, state, config)
-    if not fronts and state.blocked:
+    sur = _surroundings(glmap, xy, state, config)
+    if not sur.fronts and state.blocked:
         # Bumps may have sealed the only way on (a doorway the map already draws narrow):
         # forget them before concluding there is nothing left to explore.
         state.blocked.clear()
-        occ, clear, trav, field, fronts = _surroundings(glmap, xy, state, config)
+        sur = _surroundings(glmap, xy, state, config)
+    occ = sur.occ
 
     units = map_units(glmap, "instances" if policy not in ("glmap", "glmap-region") else "both")
     scores = scorer.score(goal, units) if units else np.zeros(0)
@@ -285,15 +298,11 @@ def decide(
         walls = None
         if config.stop_in_sight and match is not None:
             walls = _walls(glmap, occ)
-        waypoint, out = _choose_and_plan(
-            value, fronts, trav, xy, heading, match, occ, clear, field, state, config, walls
-        )
+        waypoint, out = _choose_and_plan(value, sur, xy, heading, match, state, config, walls)
         if out.boxed and forget_marks_near(state.blocked, xy, s, FORGET_NEAR):
             # No step is open: bump marks close by box the agent in; forget them and replan.
-            occ, clear, trav, field, fronts = _surroundings(glmap, xy, state, config)
-            waypoint, out = _choose_and_plan(
-                value, fronts, trav, xy, heading, match, occ, clear, field, state, config, walls
-            )
+            sur = _surroundings(glmap, xy, state, config)
+            waypoint, out = _choose_and_plan(value, sur, xy, heading, match, state, config, walls)
     _track_progress(state, waypoint, out, config)
     spinning = state.steps >= config.initial_spin and out.action in ("turn_left", "turn_right")
     stayed = state.last_xy is not None and math.dist(xy, state.last_xy) < SHORT_MOVE
@@ -306,9 +315,9 @@ def decide(
         waypoint,
         out,
         value,
-        fronts,
+        sur.fronts,
         match.unit_id if match is not None and waypoint.kind == "goal" else None,
-        occ,
+        sur.occ,
         by_id,
     )
 
@@ -322,16 +331,22 @@ def _walls(glmap: GLMap, occ: DenseOccupancy) -> np.ndarray | None:
     return structure_walls(means, glmap.floor_z, glmap.config.obstacle_band, occ)
 
 
+def _plan(
+    sur: Surroundings,
+    xy: tuple[float, float],
+    heading: float,
+    goal: tuple[float, float],
+    config: NavConfig,
+) -> Plan:
+    return plan_on_field(sur.occ, sur.field, xy, heading, goal, config, sur.clear, sur.plannable)
+
+
 def _choose_and_plan(
     value: ValueMap | None,
-    fronts: list[Frontier],
-    trav: np.ndarray,
+    sur: Surroundings,
     xy: tuple[float, float],
     heading: float,
     match: GoalMatch | None,
-    occ: DenseOccupancy,
-    clear: np.ndarray,
-    field: DistanceField,
     state: NavState,
     config: NavConfig,
     walls: np.ndarray | None = None,
@@ -351,26 +366,26 @@ def _choose_and_plan(
         and last.kind == "frontier"
         and last.xy is not None
     ):
-        held = plan_on_field(occ, field, xy, heading, last.xy, config, clear)
+        held = _plan(sur, xy, heading, last.xy, config)
         if held.reachable and held.action != "stop":
             return last, held
     for _ in range(8):
         wp = choose_waypoint(
             value,
-            fronts,
-            trav,
+            sur.fronts,
+            sur.trav,
             xy,
             match,
             config,
-            occ=occ,
-            distance=field.metres,
+            occ=sur.occ,
+            distance=sur.field.metres,
             avoid=state.avoid,
             walls=walls,
         )
-        if wp.xy is None and state.avoid and fronts:
+        if wp.xy is None and state.avoid and sur.fronts:
             state.avoid.clear()  # every frontier was given up once: give them another chance
             continue
-        if wp.xy is None and fronts:
+        if wp.xy is None and sur.fronts:
             # Frontiers the planner cannot reach yet (a pinch left by bumps): look around.
             look = Waypoint(xy, "explore", None, 0.0, "no frontier can be reached: look around.")
             return look, Plan(np.array([xy]), 0.0, "turn_left", False, xy)
@@ -378,7 +393,7 @@ def _choose_and_plan(
             return wp, Plan(np.zeros((0, 2)), math.inf, "stop", False, xy)
         if wp.kind == "goal" and wp.xy == xy:
             return wp, Plan(np.array([xy]), 0.0, "stop", True, xy)
-        out = plan_on_field(occ, field, xy, heading, wp.xy, config, clear)
+        out = _plan(sur, xy, heading, wp.xy, config)
         if wp.kind == "goal" and not out.reachable:
             assert match is not None
             state.rejected_units.add(match.unit_id)
