@@ -85,8 +85,9 @@ def test_the_background_embedder_has_its_models_name_and_size_before_it_loads():
         return HashingEmbedder(64)
 
     task = background.start(EMBEDDER, load)
-    embedder = BackgroundEmbedder(task, "hashing-64", 64, 0.44)
+    embedder = BackgroundEmbedder(task, HashingEmbedder(64))
     assert (embedder.name, embedder.dim) == ("hashing-64", 64) and not task.done
+    assert embedder.default_tau_match == HashingEmbedder.default_tau_match
     gate.set()
     assert embedder.embed(["a chair"]).shape == (1, 64)
 

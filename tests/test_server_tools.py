@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import dataclasses
 import io
 import json
 from typing import Any
@@ -73,6 +74,26 @@ async def test_find_instance_ranks_the_described_chair_first_with_its_geometry(t
         assert abs(x - -1.6) < 0.3 and abs(y - 0.4) < 0.3
         one = await client.call_tool("find_instance", {"query": "chair", "top_k": 1})
         assert len(one.structured_content["hits"]) == 1
+
+
+@pytest.mark.parametrize(
+    "embedder", ["hashing", pytest.param("minilm", marks=pytest.mark.slow)]
+)  # hashing loads in the request; minilm loads on the background task
+async def test_every_hit_carries_a_calibrated_match_flag_over_mcp(tmp_path, embedder):
+    from glmap_tools.language.embed import HashingEmbedder, MiniLMEmbedder
+
+    tau = {"hashing": HashingEmbedder, "minilm": MiniLMEmbedder}[embedder].default_tau_match
+    server = build_server(dataclasses.replace(config(tmp_path), embedder=embedder))
+    async with Client(server) as client:
+        await client.call_tool("observe_frame", frame_args())
+        chair = await client.call_tool("find_instance", {"query": "a blue office chair"})
+        bath = await client.call_tool("find_instance", {"query": "a white bathtub"})
+        region = await client.call_tool("find_region", {"query": "dining corner"})
+    for result in (chair, bath, region):
+        for hit in result.structured_content["hits"]:
+            assert hit["match"] is (hit["score"] >= tau), hit
+    assert chair.structured_content["hits"][0]["match"] is True
+    assert not any(h["match"] for h in bath.structured_content["hits"])
 
 
 async def test_find_region_returns_the_region_with_its_member_instances(tmp_path):

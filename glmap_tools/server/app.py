@@ -251,9 +251,7 @@ def opened_state(
             task = background.start(
                 EMBEDDER, lambda: load_embedder(config.embedder, config.compute_threads)
             )
-            embedder = BackgroundEmbedder(
-                task, MiniLMEmbedder.name, MiniLMEmbedder.dim, MiniLMEmbedder.default_tau_s
-            )
+            embedder = BackgroundEmbedder(task, MiniLMEmbedder)
         if config.warm_up:
             background.start(KERNELS, warm_kernels)
         registry = SessionRegistry(config, embedder)

@@ -123,21 +123,21 @@ class Background:
 class BackgroundEmbedder:
     """An `Embedder` whose model loads on a background thread; `embed` waits for it.
 
-    `name`, `dim` and `default_tau_s` are known before the model loads (they are the
-    bundled model's), so maps can be created and opened at once.
+    `name`, `dim`, `default_tau_s` and `default_tau_match` are known before the model
+    loads (they are the bundled model's class attributes), so maps can be created and
+    opened at once, and search hits carry their calibrated `match` flag.
 
     Args:
         task: the background task returning the real embedder.
-        name: the real embedder's name.
-        dim: its embedding width.
-        default_tau_s: its calibrated similarity threshold.
+        model: the real embedder's class (or any object with those four attributes).
     """
 
-    def __init__(self, task: Task, name: str, dim: int, default_tau_s: float) -> None:
+    def __init__(self, task: Task, model: Any) -> None:
         self.task = task
-        self.name = name
-        self.dim = dim
-        self.default_tau_s = default_tau_s
+        self.name: str = model.name
+        self.dim: int = model.dim
+        self.default_tau_s: float = model.default_tau_s
+        self.default_tau_match: float = model.default_tau_match
 
     def embed(self, texts: Sequence[str]) -> np.ndarray:  # -> [N, dim]
         """Embed with the real model (waiting for it to load the first time).
