@@ -108,6 +108,8 @@ class NavAgent:
                 args = {
                     "policy": self.policy,
                     "actions": self.actions_per_call,
+                    "execute_stop": True,
+                    "details": True,
                     "images": images,
                 }
                 record = await client.call("nav_step", args, keep_images=images)

@@ -24,6 +24,9 @@ from glmap_tools.nav import (
     value_map,
 )
 from glmap_tools.nav.grid import structure_walls
+from glmap_tools.nav.policy import approach
+from glmap_tools.nav.value import unit_cell_array
+from glmap_tools.nav.waypoint import GoalMatch, distance_to_cells
 
 TEXTS = {
     1: ("chair", "a red chair with a wooden frame"),
@@ -314,3 +317,45 @@ def test_units_scoring_below_the_value_floors_leave_the_value_map_and_the_neares
 def test_a_value_floor_outside_zero_to_one_is_refused(field: str, bad: float) -> None:
     with pytest.raises(InvalidInputError, match=f"NavConfig.{field}=.*must be a score in"):
         NavConfig(**{field: bad})
+
+
+def _unit(glmap: GLMap, unit_id: int) -> GoalMatch:
+    return GoalMatch(unit_id, 1.0, 0, unit_cell_array(glmap.grid, unit_id))
+
+
+def test_approach_walks_a_unit_to_within_stop_distance_in_sight_and_then_stops(
+    built: GLMap,
+) -> None:
+    config, state = NavConfig(), NavState()
+    chair = _unit(built, 1)
+    far = approach(built, (-1.5, 1.0), 0.0, chair, state, config)
+    assert not far.arrived and far.action in ("move_forward", "turn_left", "turn_right")
+    assert far.aim is not None and far.plan.reachable
+    assert distance_to_cells(chair.cells, far.aim, built.grid.cell_size) <= config.stop_distance
+    assert far.unit_distance == pytest.approx(
+        distance_to_cells(chair.cells, (-1.5, 1.0), built.grid.cell_size)
+    )
+    close = approach(built, far.aim, 0.0, chair, NavState(), config)
+    assert close.arrived and close.action == "stop" and close.in_sight
+    assert close.unit_distance <= config.stop_distance
+
+
+def test_approach_to_a_unit_behind_a_wall_heads_for_its_nearest_reachable_point(
+    built: GLMap,
+) -> None:
+    """A unit whose every nearby cell is out of the map's reach: walk as close as the map allows."""
+    config = NavConfig(optimistic=False)
+    s = built.grid.cell_size
+    i, j = math.floor(3.5 / s), math.floor(2.0 / s)  # 1 m behind the right wall, unmapped
+    outside = GoalMatch(99, 1.0, 0, np.array([[i, j]], np.int64))
+    step = approach(built, (0.0, 0.0), 0.0, outside, NavState(), config)
+    assert not step.arrived and "nearest reachable point" in step.reason
+    assert step.unit_distance > config.stop_distance
+
+
+def test_approach_to_a_point_counts_one_step_away_as_arrived(built: GLMap) -> None:
+    config = NavConfig()
+    there = approach(built, (0.0, 0.0), 0.0, (0.2, 0.0), NavState(), config)
+    going = approach(built, (0.0, 0.0), 0.0, (1.0, 0.0), NavState(), config)
+    assert there.arrived and there.action == "stop"
+    assert not going.arrived and going.action == "move_forward" and going.aim == (1.0, 0.0)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from mcp import Client
 
-from glmap_tools.server import build_server
+from glmap_tools.server import ServerConfig, build_server
 from glmap_tools.sim.benchmark import load_split
 from tests.test_server_fixtures import config, counts, frame_args
 
@@ -59,8 +59,40 @@ async def chat_episode(client: Client, reset: dict, budget: int = 10) -> tuple[d
     return await call("sim_step", {"action": "stop"}), calls
 
 
+async def policy_episode(client: Client, episode: str, budget: int = 10) -> tuple[dict, list[str]]:  # type: ignore[type-arg]
+    """A chat client that lets the server's policy walk: nav_step until the policy would stop,
+    walk closer only when goal_unit says a stop would not count, then stop."""
+    calls: list[str] = []
+
+    async def call(tool: str, args: dict) -> dict:  # type: ignore[type-arg]
+        calls.append(tool)
+        return ok(await client.call_tool(tool, args))
+
+    await call("sim_reset", {"episode": episode})
+    while len(calls) < budget - 2:
+        walked = await call("nav_step", {"actions": 150})
+        if walked["outcome"] == "policy would stop here":
+            goal = walked["goal_unit"]
+            if not goal["would_succeed"]:
+                await call("navigate_to", {"unit_id": goal["id"]})
+            break
+    return await call("sim_step", {"action": "stop"}), calls
+
+
+@pytest.mark.slow  # loads MiniLM; plays six bench episodes
+async def test_a_chat_client_finishes_bench_episodes_of_five_scenes_in_at_most_ten_calls(tmp_path):
+    episodes = [f"bench/objectnav/s{k:02d}-000" for k in (0, 1, 4, 5, 7)]
+    episodes.append("bench/instnav/s01-000")
+    defaults = ServerConfig(maps_dir=tmp_path / "maps", warm_up=False)  # MiniLM, 320x240
+    async with Client(build_server(defaults)) as client:
+        played = [await policy_episode(client, e) for e in episodes]
+    for episode, (final, calls) in zip(episodes, played, strict=True):
+        assert final["status"] == "success", (episode, final, calls)
+        assert len(calls) <= 10 and calls[0] == "sim_reset" and calls[-1] == "sim_step"
+
+
 @pytest.mark.slow  # loads MiniLM (the hashing embedder does not match goals well)
-async def test_a_chat_client_finishes_an_objectnav_episode_in_at_most_ten_calls(tmp_path):
+async def test_a_chat_client_steering_with_value_map_and_navigate_to_needs_ten_calls(tmp_path):
     minilm = dataclasses.replace(config(tmp_path), embedder="minilm")  # scores goals well
     server = build_server(dataclasses.replace(minilm, sim_size=(160, 120)))
     async with Client(server) as client:
@@ -118,6 +150,9 @@ async def test_navigate_to_walks_next_to_a_unit_and_every_frame_goes_into_the_ma
         frames, _, _ = await counts(client)
         stop = ok(await client.call_tool("sim_step", {"action": "stop"}))
     assert walk["outcome"] == "reached" and walk["walk_steps"] > 0 and walk["walked_m"] > 0
+    assert walk["unit_id"] == sofa["id"] and walk["would_succeed"] and walk["in_sight"]
+    assert walk["unit_distance_m"] <= 0.75 and walk["remaining_m"] == 0.0
+    assert "blocked_by" not in walk
     assert walk["steps"] == 12 + walk["walk_steps"]
     assert frames == 13 + walk["walk_steps"]
     assert stop["status"] == "success"
@@ -173,14 +208,18 @@ async def test_nav_step_acts_with_a_policy_and_attaches_images_on_request(tmp_pa
     async with Client(server) as client:
         ok(await client.call_tool("sim_reset", {"episode": EPISODE}))
         quiet = await client.call_tool("nav_step", {"policy": "frontier", "actions": 3})
+        detailed = await client.call_tool("nav_step", {"policy": "frontier", "details": True})
         shown = await client.call_tool("nav_step", {"policy": "glmap", "images": True})
         wrong = await client.call_tool("nav_step", {"policy": "glmapp"})
-    steps = ok(quiet)
-    assert [d["step"] for d in steps["decisions"]] == [1, 2, 3] and len(quiet.content) == 1
-    for d in steps["decisions"]:
-        assert d["action"] in ("move_forward", "turn_left", "turn_right", "stop")
-        assert d["waypoint"]["kind"] and d["waypoint"]["reason"]
-    assert ok(shown)["steps"] == 4
+    summary = ok(quiet)
+    assert summary["outcome"] == "actions done" and sum(summary["actions"].values()) == 3
+    assert [d["step"] for d in summary["last"]] == [1, 2, 3] and "decisions" not in summary
+    assert len(quiet.content) == 1 and len(quiet.content[0].text) < 1500
+    assert summary["waypoint"]["kind"] and summary["waypoint"]["reason"]
+    (d,) = ok(detailed)["decisions"]
+    assert d["step"] == 4 and d["action"] in ("move_forward", "turn_left", "turn_right")
+    assert d["waypoint"]["kind"] and d["waypoint"]["reason"]
+    assert ok(shown)["steps"] == 5
     assert [b.mime_type for b in shown.content[1:]] == ["image/jpeg", "image/png"]
     assert wrong.is_error and "glmap" in wrong.content[0].text
 

@@ -51,9 +51,11 @@ simulator with sim_reset / sim_step), then ask: find_instance and find_region by
 what_is_at by position, describe_unit by id, render_view to see, map_summary for counts
 and a top-down image. Maps can be saved and reopened by name (save_map, load_map), and
 exported as 3D Gaussian Splatting PLY files (export_ply). In the simulator: sim_reset, then
-look_around, value_map and navigate_to (or nav_step, or sim_step), and sim_step('stop') at
-the goal. Results are compact text (key: value lines, floats rounded to 3 decimals) with
-the exact values as structured content."""
+nav_step(actions=150) until it says the policy would stop (its goal_unit.would_succeed says
+whether stopping counts), then sim_step('stop'); or steer yourself with look_around,
+find_instance, value_map and navigate_to (its would_succeed likewise). Results are
+compact text (key: value lines, floats rounded to 3 decimals) with the exact values as
+structured content."""
 
 # Tools that render or integrate also wait for the kernels; every tool waits for the embedder.
 KERNEL_TOOLS = (

@@ -1,9 +1,9 @@
-"""A session's navigation state (goal, NavState, path walked) and walking to a point.
+"""A session's navigation state (goal, NavState, path walked) and walking to a target.
 
 Every simulator frame goes through `integrate`: into the session's map, and (scored
 against the goal) into the egocentric baseline's accumulator of the NavState. `walk_to`
-is navigate_to's loop: plan with the FMM planner on the map's occupancy, take the next
-action, integrate the new frame, replan, until arrived, blocked or out of steps.
+is navigate_to's loop: the policy's motion (`nav.policy.approach`) towards a point or a
+unit, one action and one integrated frame at a time, until arrived, blocked or out of steps.
 """
 
 from __future__ import annotations
@@ -25,9 +25,6 @@ if TYPE_CHECKING:
     from glmap_tools.perception.semantics import FrameSemantics
 
 NAV_KEY = "nav"
-BLOCKED_AFTER = 3  # consecutive collisions that end a walk as blocked
-ARRIVE_SLACK = 0.15  # metres beyond `Target.near` still counted as next to a unit
-MAX_BUMPS = 10  # collisions in one walk that end it as blocked
 
 
 @dataclass
@@ -187,17 +184,18 @@ def relative(agent: tuple[float, float, float], xy: tuple[float, float]) -> dict
 
 @dataclass(frozen=True)
 class Target:
-    """Where navigate_to goes: a point, or the cells of a unit (arrive within `near` of them).
+    """Where navigate_to goes: a point, or a unit of the map.
 
     Attributes:
         xy: the point (m), or the unit's centroid.
-        unit_cells: [K, 2] (i, j) index-grid cells of the unit, or None for a point.
-        near: metres from the point / the unit's cells that count as arrived.
+        unit_id: the unit's id, or None for a point.
+        unit_cells: [K, 2] (i, j) index-grid cells of the unit (of its member instances for
+            a region), or None for a point.
     """
 
     xy: tuple[float, float]
-    unit_cells: np.ndarray | None
-    near: float
+    unit_id: int | None = None
+    unit_cells: np.ndarray | None = None
 
 
 def window(glmap: GLMap, config: Any, blocked: set[tuple[int, int]] | None = None) -> Any:
@@ -222,16 +220,6 @@ def window(glmap: GLMap, config: Any, blocked: set[tuple[int, int]] | None = Non
     return occ
 
 
-def mark_bump(session: Session, nav: NavSession, agent: tuple[float, float, float]) -> None:
-    """Remember where a forward move stopped short touched something the map missed
-    (`nav.motion.bump_cells`: a cell near a mapped obstacle, else a 0.6 m edge)."""
-    from glmap_tools.nav import bump_cells
-
-    with locked(session) as glmap:
-        occ = window(glmap, nav.config)
-    nav.state.blocked.update(bump_cells(occ, agent[:2], agent[2], nav.config))
-
-
 def check_inside(occ: Any, xy: tuple[float, float], what: str) -> None:
     """Raise OutsideMapError naming the map's extent when `xy` lies outside the window."""
     from glmap_tools.nav.errors import OutsideMapError
@@ -247,161 +235,155 @@ def check_inside(occ: Any, xy: tuple[float, float], what: str) -> None:
         )
 
 
-def agent_distances(occ: Any, agent: tuple[float, float, float], config: Any) -> np.ndarray:
-    """[H, W] FMM geodesic metres from the agent over the cells a plan may cross (inf: none).
-
-    The agent's own footprint counts as crossable, so a pose grazing an obstacle still plans.
-    """
-    from glmap_tools.nav import geodesic, plannable
-
-    r0, c0 = occ.world_to_index(agent[0], agent[1])
-    ok = plannable(occ, config.agent_radius, config.optimistic)
-    rr, cc = np.ogrid[: ok.shape[0], : ok.shape[1]]
-    ok |= (rr - r0) ** 2 + (cc - c0) ** 2 <= (config.agent_radius / occ.cell_size) ** 2
-    return np.asarray(geodesic(ok, (r0, c0), occ.cell_size))
-
-
-def _unit_goal(occ: Any, field: np.ndarray, target: Target) -> tuple[float, float] | None:
-    """The reachable cell within `target.near` of the unit's cells that is closest to the agent."""
-    from scipy import ndimage
-
-    assert target.unit_cells is not None
-    mask = np.zeros(occ.state.shape, bool)
-    rows = target.unit_cells[:, 1] - occ.origin[1]
-    cols = target.unit_cells[:, 0] - occ.origin[0]
-    ok = (rows >= 0) & (rows < mask.shape[0]) & (cols >= 0) & (cols < mask.shape[1])
-    mask[rows[ok], cols[ok]] = True
-    if not mask.any():
-        return None
-    near = ndimage.distance_transform_edt(~mask) * occ.cell_size <= target.near
-    cost = np.where(near, field, np.inf)
-    if not np.isfinite(cost).any():
-        return None
-    r, c = np.unravel_index(int(np.argmin(cost)), cost.shape)
-    return occ.index_to_world(int(r), int(c))
-
-
-def _arrived(agent: tuple[float, float, float], target: Target, cell: float) -> bool:
-    if target.unit_cells is None:
-        return math.hypot(agent[0] - target.xy[0], agent[1] - target.xy[1]) <= target.near
-    centres = (target.unit_cells + 0.5) * cell
-    d = np.hypot(centres[:, 0] - agent[0], centres[:, 1] - agent[1])
-    return bool(d.min() <= target.near + ARRIVE_SLACK)
-
-
-def plan_to(
-    session: Session,
-    agent: tuple[float, float, float],
-    target: Target,
-    config: Any,
-    strict: bool = True,
-) -> Any:
-    """One `glmap_tools.nav.Plan` from the agent to the target on the session's map.
-
-    Args:
-        session: the session (its map and NavState's blocked cells).
-        agent: (x, y, heading).
-        target: where to go.
-        config: NavConfig.
-        strict: raise when the target cannot be reached; else plan to the nearest
-            reachable point (`Plan.reachable` False).
+def check_point(
+    session: Session, agent: tuple[float, float, float], xy: tuple[float, float], config: Any
+) -> None:
+    """Raise before any step when the point `xy` is outside the map or cannot be reached.
 
     Raises:
-        OutsideMapError: the target point is outside the map.
+        OutsideMapError: outside the map (names its extent).
         UnreachableGoalError: nothing leads there (names the nearest reachable point).
     """
     from glmap_tools.nav import plan
-    from glmap_tools.nav.errors import UnreachableGoalError
 
     nav = of(session)
     with locked(session) as glmap:
         occ = window(glmap, config, nav.state.blocked if nav is not None else None)
-    check_inside(occ, target.xy, "target")
-    goal: tuple[float, float] | None = target.xy
-    if target.unit_cells is not None:
-        goal = _unit_goal(occ, agent_distances(occ, agent, config), target)
-        if goal is None and strict:
-            raise UnreachableGoalError(
-                f"no free cell within {target.near} m of the unit can be reached from "
-                f"({agent[0]:.2f}, {agent[1]:.2f}); walk towards it (navigate_to its centroid "
-                "with the nearest reachable point, look_around) and try again.",
-                target.xy,
-                None,
-            )
-    # Not strict: the planner heads for the nearest reachable point of an unreachable goal.
-    return plan(occ, agent[:2], agent[2], goal or target.xy, config, strict=strict)
+    check_inside(occ, xy, "target")
+    plan(occ, agent[:2], agent[2], xy, config, strict=True)
+
+
+def no_progress_steps(config: Any) -> int:
+    """Steps without `PROGRESS` m of progress after which a walk ends as blocked."""
+    return 2 * int(config.stuck_steps)
 
 
 def walk_to(
     session: Session, sim: simulator.SimEpisode, target: Target, max_steps: int, config: Any
 ) -> dict[str, Any]:
-    """Plan, act and integrate until arrived, blocked or `max_steps`; return what happened.
+    """Walk to `target` until arrived, blocked or `max_steps`; return what happened.
 
-    The first plan is checked before any step, so an unreachable target changes nothing.
-    When new frames show the target blocked, the walk goes on to the nearest reachable
-    point. A forward move stopped by something the map missed marks the cells ahead as
-    obstacles (NavState.blocked) and the walk replans around them.
+    Each step is `glmap_tools.nav.policy.approach` on the session's map (the policy's own
+    motion: bump marks, clearance cost, the drive controller), so a collision marks what the
+    map missed and the next step plans round it. A point that is outside the map or cannot
+    be reached is refused before any step. A unit is approached to a free cell within
+    `stop_distance` of it in clear sight of it, the simulator's success rule with a margin.
 
     Returns:
         {"outcome": 'reached' | 'reached the nearest reachable point' | 'blocked' |
         'step budget' | 'episode over', "walk_steps", "walked_m", "walk_collisions",
-        "planned_m" (the first plan's length), "end_xy" (where the last plan ended)}.
+        "planned_m", "aim_xy", "remaining_m", "reason"}; for a unit also "unit_id",
+        "unit_distance_m", "in_sight", "would_succeed"; when not reached, "blocked_by".
 
     Raises:
-        OutsideMapError, UnreachableGoalError: before the first step.
+        OutsideMapError, UnreachableGoalError: a point target, before the first step.
     """
-    from glmap_tools.nav.motion import forget_marks_near
-    from glmap_tools.nav.policy import FORGET_NEAR
+    from glmap_tools.nav import GoalMatch
+    from glmap_tools.nav.policy import PROGRESS, approach
 
     nav = of(session)
     assert nav is not None
-    cell = session.live.glmap.occupancy.cell_size
     agent = simulator.agent_pose(sim)
-    plan = plan_to(session, agent, target, config)
-    planned = plan.length
-    steps = bumps = in_a_row = 0
-    walked = 0.0
+    unit = target.unit_cells is not None
+    goal: Any = target.xy
+    if target.unit_cells is not None:
+        goal = GoalMatch(int(target.unit_id or 0), 1.0, 0, target.unit_cells)
+    else:
+        check_point(session, agent, target.xy, config)
+
+    def next_step(agent: tuple[float, float, float]) -> Any:
+        with locked(session) as glmap:
+            return approach(glmap, agent[:2], agent[2], goal, nav.state, config)
+
+    step = next_step(agent)
+    planned = step.plan.length
+    steps = bumps = since = 0
+    best, walked = step.plan.length, 0.0
     outcome = "step budget"
     while True:
-        if _arrived(agent, target, cell):
+        if step.arrived:
             outcome = "reached"
             break
-        if not plan.reachable and plan.action == "stop":
-            outcome = "reached the nearest reachable point" if len(plan.path) else "blocked"
+        if step.action == "stop":
+            outcome = "reached the nearest reachable point" if step.aim else "blocked"
             break
         if sim.over:
             outcome = "episode over"
             break
         if steps >= max_steps:
             break
-        action = plan.action if plan.action != "stop" else "move_forward"
-        simulator.step(sim, action)
+        if since >= no_progress_steps(config):
+            outcome = "blocked"
+            break
+        simulator.step(sim, step.action)
         integrate(session, sim)
         steps += 1
         moved = simulator.agent_pose(sim)
         walked += math.hypot(moved[0] - agent[0], moved[1] - agent[1])
-        if sim.info["collided"]:
-            mark_bump(session, nav, moved)
-            bumps += 1
-            in_a_row += 1
-            if in_a_row >= BLOCKED_AFTER or bumps >= MAX_BUMPS:
-                outcome = "blocked"
-                break
-        else:
-            in_a_row = 0
+        bumps += bool(sim.info["collided"])
         agent = moved
-        if not sim.over:
-            plan = plan_to(session, agent, target, config, strict=False)
-            if plan.boxed and forget_marks_near(nav.state.blocked, agent[:2], cell, FORGET_NEAR):
-                plan = plan_to(session, agent, target, config, strict=False)
-    return {
+        if sim.over:
+            continue
+        step = next_step(agent)
+        if step.plan.length < best - PROGRESS:
+            best, since = step.plan.length, 0
+        else:
+            since += 1
+    out: dict[str, Any] = {
         "outcome": outcome,
         "walk_steps": steps,
         "walked_m": round(walked, 2),
         "walk_collisions": bumps,
-        "planned_m": round(float(planned), 2),
-        "end_xy": [round(float(v), 2) for v in plan.goal_xy],
+        "planned_m": _metres(planned),
+        "aim_xy": [round(float(v), 2) for v in step.aim] if step.aim else None,
+        "remaining_m": 0.0 if step.arrived else _metres(step.plan.length),
+        "reason": step.reason,
     }
+    if unit:
+        out["unit_id"] = target.unit_id
+        out["unit_distance_m"] = _metres(step.unit_distance)
+        out["in_sight"] = step.in_sight
+        out["would_succeed"] = bool(step.unit_distance <= config.success_radius and step.in_sight)
+    if outcome not in ("reached", "step budget", "episode over"):
+        out["blocked_by"] = _blocked_by(step, outcome, bumps, steps, agent, target, config)
+    return out
+
+
+def _metres(value: float) -> float | None:
+    return round(float(value), 2) if math.isfinite(value) else None
+
+
+def _blocked_by(
+    step: Any,
+    outcome: str,
+    bumps: int,
+    steps: int,
+    agent: tuple[float, float, float],
+    target: Target,
+    config: Any,
+) -> str:
+    """One sentence: what stopped the walk short of the target, and what to try."""
+    what = f"unit {target.unit_id}" if target.unit_id is not None else "the point"
+    if step.action == "stop" and step.aim:
+        gap = math.dist(step.aim, target.xy)
+        return (
+            f"no free path on the map leads closer to {what}: this is the nearest reachable "
+            f"point, {gap:.2f} m from its centre (obstacles or unmapped space in between). "
+            "look_around to map more, or go round through another frontier."
+        )
+    if step.action == "stop":
+        return "no step is open from here: the agent is boxed in by obstacles on the map."
+    where = f"({agent[0]:.2f}, {agent[1]:.2f})"
+    if bumps:
+        return (
+            f"no progress in the last {no_progress_steps(config)} steps; {bumps} collisions "
+            f"near {where} with something the map does not show (low furniture?). Try another "
+            "side of the target or a frontier."
+        )
+    return (
+        f"no progress in the last {no_progress_steps(config)} steps near {where}: the way "
+        "changes as the map grows. look_around, then try again."
+    )
 
 
 def from_agent(session: Session, units: list[Any]) -> list[dict[str, Any]]:

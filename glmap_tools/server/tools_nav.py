@@ -135,10 +135,10 @@ async def frontiers(
     top_k: Annotated[int, Field(ge=1, le=50)] = 8,
     session: SessionArg = "",
 ) -> ImageResult:
-    """The top_k nearest reachable edges of explored free space: point, size, path length,
-    bearing (+ = left)."""
-    from glmap_tools.nav import NavConfig
-    from glmap_tools.nav import frontiers as find_frontiers
+    """Reachable edges of explored space, nearest first: xy, path_m (walk to the nearest
+    cell), distance_m, bearing_deg (straight to xy)."""
+    from glmap_tools.nav import NavConfig, NavState
+    from glmap_tools.nav.policy import surroundings
 
     target = session_of(ctx, session)
 
@@ -146,10 +146,9 @@ async def frontiers(
         agent = _agent(target)
         nav = navsession.of(target)
         config = nav.config if nav is not None else NavConfig()
+        state = nav.state if nav is not None else NavState()
         with locked(target) as glmap:
-            occ = navsession.window(glmap, config)
-        field = navsession.agent_distances(occ, agent, config)
-        found = find_frontiers(occ, agent[:2], config.agent_radius, config.min_frontier_size, field)
+            found = surroundings(glmap, agent[:2], state, config).fronts
         rows = []
         for f in found[:top_k]:
             row = {"xy": [round(float(v), 2) for v in f.target], "cells": int(f.size)}
@@ -171,8 +170,8 @@ async def navigate_to(
     max_steps: Annotated[int, Field(ge=1, le=500)] = 100,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Walk (simulator) to world (x, y) or next to unit_id in at most max_steps actions,
-    replanning each frame; frames go into the map; stop with sim_step."""
+    """Walk (simulator) to (x, y), or within 0.75 m of unit_id in clear sight, replanning
+    round collisions. would_succeed: stop here counts if the unit is the goal."""
     target = session_of(ctx, session)
     if (unit_id is None) == (x is None or y is None) or (x is None) != (y is None):
         raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
@@ -187,15 +186,14 @@ async def navigate_to(
                 centroid = glmap.unit_details(unit_id).centroid
             goal = navsession.Target(
                 (float(centroid[0]), float(centroid[1])),
+                int(unit_id),
                 np.array(cells, np.int64).reshape(-1, 2),
-                nav.config.stop_distance,
             )
         else:
-            point = (float(x), float(y))  # type: ignore[arg-type]
-            goal = navsession.Target(point, None, nav.config.forward_step)
+            goal = navsession.Target((float(x), float(y)))  # type: ignore[arg-type]
         with locked(target):
             walk = navsession.walk_to(target, sim, goal, max_steps, nav.config)
-        info = {"outcome": walk.pop("outcome"), **walk, **simulator.status(sim)}
+        info = {**walk, **simulator.status(sim)}
         info.pop("camera_pose", None)
         return ImageResult(data=info, images=[Picture(format="jpeg", data=jpeg(sim.obs["rgb"]))])
 
@@ -229,26 +227,58 @@ async def look_around(ctx: Context, session: SessionArg = "") -> ImageResult:
     return await in_thread(run)
 
 
+def _goal_unit(session: Session, decision: Any, config: Any) -> dict[str, Any] | None:
+    """The matched goal unit of `decision` and whether stopping here would count."""
+    from glmap_tools.nav import GoalMatch
+    from glmap_tools.nav.policy import unit_reach, walls_of
+    from glmap_tools.nav.value import unit_cell_array
+
+    unit_id = decision.matched_unit
+    if unit_id is None:
+        return None
+    agent = _agent(session)
+    with locked(session) as glmap:
+        cells = unit_cell_array(glmap.grid, unit_id)
+        occ = decision.occupancy
+        here, sight = unit_reach(
+            occ, GoalMatch(unit_id, 1.0, 0, cells), agent[:2], walls_of(glmap, occ)
+        )
+    return {
+        "id": int(unit_id),
+        "score": round(float(decision.waypoint.score), 3),
+        "unit_distance_m": round(here, 2),
+        "in_sight": sight,
+        "would_succeed": bool(here <= config.success_radius and sight),
+    }
+
+
 async def nav_step(
     ctx: Context,
     policy: Policy = "glmap",
-    actions: Annotated[int, Field(ge=1, le=50)] = 1,
+    actions: Annotated[int, Field(ge=1, le=200)] = 1,
+    execute_stop: bool = False,
+    details: bool = False,
     images: bool = False,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Let a policy take `actions` steps (simulator), replanning each: glmap* = value map
-    of both/instance/region units, egocentric = VLFM-like, frontier = nearest frontier.
-    images: attach the view and the value map."""
+    """A policy acts up to `actions` steps (simulator; glmap*: Eq. 7 over both/instance/
+    region units, egocentric: VLFM-like, frontier: nearest). Returns before the policy's
+    stop (goal_unit.would_succeed: it would count) unless execute_stop."""
     target = session_of(ctx, session)
 
     def run() -> ImageResult:
         sim, nav = navsession.running(target)
         decisions = []
         decision: Any = None
-        agent = simulator.agent_pose(sim)
+        agent = start = simulator.agent_pose(sim)
+        collisions = sim.collisions
+        outcome = "actions done"
         with locked(target):
             for _ in range(actions):
                 decision, agent = _decide(target, nav.goal, policy)
+                if decision.action == "stop" and not execute_stop:
+                    outcome = "policy would stop here"
+                    break
                 simulator.step(sim, decision.action)
                 navsession.integrate(target, sim)
                 after = simulator.agent_pose(sim)
@@ -256,21 +286,43 @@ async def nav_step(
                     {
                         "step": int(sim.info["steps"]),
                         "action": decision.action,
-                        "position": [round(after[0], 3), round(after[1], 3)],
-                        "heading_deg": round(math.degrees(after[2]), 1),
+                        "position": [round(after[0], 2), round(after[1], 2)],
+                        "heading_deg": round(math.degrees(after[2])),
                         "waypoint": _waypoint(decision, agent),
                     }
                 )
                 if sim.over:
+                    outcome = "episode over"
                     break
-        info = {"decisions": decisions, **simulator.status(sim)}
+        counts: dict[str, int] = {}
+        for d in decisions:
+            counts[d["action"]] = counts.get(d["action"], 0) + 1
+        end = simulator.agent_pose(sim)
+        info: dict[str, Any] = {
+            "outcome": outcome,
+            "actions": counts,
+            "moved_m": round(math.dist(start[:2], end[:2]), 2),
+            "new_collisions": sim.collisions - collisions,
+            "waypoint": _waypoint(decision, agent) if decision is not None else None,
+        }
+        goal_unit = _goal_unit(target, decision, nav.config) if decision is not None else None
+        if goal_unit is not None and not sim.over:
+            info["goal_unit"] = goal_unit
+        if details:
+            info["decisions"] = decisions
+        else:
+            info["last"] = [
+                {k: d[k] for k in ("step", "action", "position", "heading_deg")}
+                for d in decisions[-3:]
+            ]
+        info.update(simulator.status(sim))
         info.pop("camera_pose", None)
         pictures = (
             [
                 Picture(format="jpeg", data=jpeg(sim.obs["rgb"])),
                 Picture(format="png", data=_nav_png(target, decision, agent)),
             ]
-            if images
+            if images and decision is not None
             else []
         )
         return ImageResult(data=info, images=pictures)

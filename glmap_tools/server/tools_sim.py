@@ -53,9 +53,9 @@ async def sim_reset(
     keep_map: bool = False,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Start a simulator episode (apartment `scene`, episode `seed`, or a benchmark
-    `episode` id) and show the agent's view. objectnav: reach any object of the goal's
-    category; instnav: the described one. Frames go into a new map (keep_map: current)."""
+    """Start a simulator episode (`scene` and `seed`, or a benchmark `episode` id);
+    objectnav: reach any object of the goal's category, instnav: the described one.
+    Frames go into a new map (keep_map: the current one)."""
     state = app_state(ctx)
     target = session_of(ctx, session)
     wh = tuple(int(v) for v in size.split("x")) if size else state.config.sim_size
@@ -101,8 +101,8 @@ async def sim_step(
     repeat: Annotated[int, Field(ge=1, le=20)] = 1,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Act `repeat` times: move 0.25 m, turn 30 deg, or stop (success: goal within 1 m);
-    frames go into the map. Returns the view, pose, collisions; at the end success, SPL."""
+    """Act `repeat` times: move 0.25 m, turn 30 deg, or stop (success: within 1 m of a goal's
+    footprint, no wall between). At the end: success, SPL, distance_to_goal."""
     target = session_of(ctx, session)
     sim = target.extras.get(SIM_KEY)
     if sim is None:

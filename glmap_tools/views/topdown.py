@@ -257,6 +257,7 @@ def draw_topdown(
     metres_per_pixel: float | None = None,
     frame: TopDownFrame | None = None,
     window: Sequence[float] | None = None,
+    ticks: bool = True,
 ) -> TopDownImage:
     """Draw the map's index grid from above as a labelled image with metre ticks.
 
@@ -280,6 +281,8 @@ def draw_topdown(
         frame: a previous image's frame, kept when everything still fits in it.
         window: (x0, y0, x1, y1) metres: draw only this part of the map (a crop around
             the agent); ids are written for the instances whose centroid lies inside.
+        ticks: draw the metre ticks on the image's left and bottom edges (False: the
+            caller draws axes outside it).
 
     Raises:
         InvalidInputError: nothing to draw (no instances and no observed space), a bad
@@ -326,7 +329,8 @@ def draw_topdown(
             legend.append(f"Heat overlay: blue = {drawn[0]:.3g} .. red = {drawn[1]:.3g}.")
     image = canvas.image()
     writer = Labels(image)
-    draw_ticks(image, frame, writer)
+    if ticks:
+        draw_ticks(image, frame, writer)
     if window is not None:  # ids only for what the crop shows
         cells = {
             u: c
