@@ -6,7 +6,6 @@ import os
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
-import numpy as np
 import pytest
 
 from glmap_tools.sim.generator import generate_apartment
@@ -52,11 +51,19 @@ def test_map_eval_reports_duplicate_instances_and_duplicate_regions() -> None:
     result = evaluate_instances(glmap, layout, seen)
     assert result.duplicate_instances == {obj_id: [copy_id]}
     assert copy_id in result.spurious and result.precision < clean.precision
+    dining, other = glmap.embedder.embed(["dining area: a table and chairs", "zebra crossing"])
     region = map_module.RegionUnit(
-        id=copy_id + 1, text="dining area: a table and chairs", embedding=np.zeros(4, np.float32),
-        instance_ids=(inst_id,), observations=1, first_frame=0, last_frame=0,
+        id=copy_id + 1, text="dining area: a table and chairs", embedding=dining,
+        instance_ids=(copy_id,), observations=1, first_frame=0, last_frame=0,
     )  # fmt: skip
     glmap.regions[copy_id + 1] = region
-    glmap.regions[copy_id + 2] = dataclasses.replace(region, id=copy_id + 2)
-    glmap.regions[copy_id + 3] = dataclasses.replace(region, id=copy_id + 3, text="another text")
+    # The same description and an overlapping member set: a duplicate.
+    glmap.regions[copy_id + 2] = dataclasses.replace(
+        region, id=copy_id + 2, instance_ids=(copy_id, copy_id + 10)
+    )
+    # Another description, or no shared member: not a duplicate.
+    glmap.regions[copy_id + 3] = dataclasses.replace(
+        region, id=copy_id + 3, text="zebra crossing", embedding=other
+    )
+    glmap.regions[copy_id + 4] = dataclasses.replace(region, id=copy_id + 4, instance_ids=(-1,))
     assert duplicate_regions(glmap) == [[copy_id + 1, copy_id + 2]]

@@ -21,6 +21,7 @@ from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry.backproject import backproject
 from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.language.text_merger import DELIMITER, append_text
+from glmap_tools.map.dedup import fuse_instances, fuse_regions, normalised, with_members_renamed
 from glmap_tools.map.grid import Cell, unit_cells
 from glmap_tools.map.report import SkippedObservation, UnitChange, UpdateReport
 from glmap_tools.map.structure import ChunkKey, StructureChunk
@@ -52,14 +53,10 @@ class FramePlan:
     cells: dict[int, frozenset[Cell]] = field(default_factory=dict)
     occupancy: dict[tuple[int, int], np.ndarray] = field(default_factory=dict)
     structure: dict[ChunkKey, StructureChunk] = field(default_factory=dict)
+    removed: set[int] = field(default_factory=set)  # units fused into an older one
     next_id: int = 1
     floor_z: float | None = None
     report: UpdateReport | None = None
-
-
-def _normalised(v: np.ndarray) -> np.ndarray:
-    n = float(np.linalg.norm(v))
-    return (v / n).astype(np.float32) if n > 0 else v.astype(np.float32)
 
 
 def _boxes_touch(a: GaussianSet, b: GaussianSet, margin: float) -> bool:
@@ -154,9 +151,56 @@ def _plan_structure(
     return glmap.structure.compute_update(fitted), len(fitted)
 
 
-def _members_index(glmap: GLMap) -> dict[frozenset[int], int]:
-    """Member set -> region id of the map's regions (the highest id if several share one)."""
-    return {frozenset(r.instance_ids): rid for rid, r in sorted(glmap.regions.items())}
+def _members_index(regions: dict[int, RegionUnit]) -> dict[frozenset[int], int]:
+    """Member set -> region id of these regions (the highest id if several share one)."""
+    return {frozenset(r.instance_ids): rid for rid, r in sorted(regions.items())}
+
+
+def _fuse_instances(glmap: GLMap, plan: FramePlan, report: UpdateReport) -> None:
+    """Fuse the frame's instances with map instances of the same object (map/dedup.py)."""
+    fused, absorbed = fuse_instances(
+        {**glmap.instances, **plan.instances},
+        plan.instances,
+        set(report.local_to_global.values()),
+        glmap.tau_s,
+        glmap.estimator.config,
+        lambda buffer, text: _merged_text(glmap, buffer, text),
+    )
+    plan.instances = {i: u for i, u in plan.instances.items() if i not in absorbed} | fused
+    plan.removed |= absorbed.keys() & glmap.instances.keys()
+    report.local_to_global = {k: absorbed.get(v, v) for k, v in report.local_to_global.items()}
+    _report_fused(report.instances_added, report.instances_merged, absorbed, plan, report)
+
+
+def _fuse_regions(glmap: GLMap, plan: FramePlan, report: UpdateReport, observed: set[int]) -> None:
+    """Fuse the frame's regions with map regions that are the same region (map/dedup.py)."""
+    fused, absorbed = fuse_regions(
+        {**glmap.regions, **plan.regions},
+        plan.regions,
+        observed,
+        glmap.tau_s,
+        lambda buffer, text: _merged_text(glmap, buffer, text),
+    )
+    plan.regions = {i: r for i, r in plan.regions.items() if i not in absorbed} | fused
+    plan.removed |= absorbed.keys() & glmap.regions.keys()
+    _report_fused(report.regions_added, report.regions_merged, absorbed, plan, report)
+
+
+def _report_fused(
+    added: list[UnitChange],
+    merged: list[UnitChange],
+    absorbed: dict[int, int],
+    plan: FramePlan,
+    report: UpdateReport,
+) -> None:
+    """Point the report at surviving ids; a unit added and fused at once counts as merged."""
+    report.fused.update({i: s for i, s in absorbed.items() if i in plan.removed})
+    for change in merged:
+        change.global_id = absorbed.get(change.global_id, change.global_id)
+    for change in [c for c in added if c.global_id in absorbed]:
+        added.remove(change)
+        change.global_id = absorbed[change.global_id]
+        merged.append(change)
 
 
 def plan_frame(
@@ -238,7 +282,7 @@ def plan_frame(
             uid = plan.next_id
             plan.next_id += 1
             staged[uid] = InstanceUnit(
-                uid, label, text, _normalised(e), gaussians, 1, frame_index, frame_index
+                uid, label, text, normalised(e), gaussians, 1, frame_index, frame_index
             )
             report.instances_added.append(UnitChange(local_id=local_id, global_id=uid, text=text))
         else:
@@ -250,7 +294,7 @@ def plan_frame(
                 uid,
                 label or unit.label,
                 _merged_text(glmap, unit.text, text),
-                _normalised(unit.embedding * n + e),
+                normalised(unit.embedding * n + e),
                 remerge(GaussianSet.concat([unit.gaussians, gaussians]), glmap.estimator.config),
                 n if seen_now else n + 1,
                 unit.first_frame,
@@ -262,15 +306,18 @@ def plan_frame(
         report.local_to_global[local_id] = uid
         report.gaussians_added += len(gaussians)
     plan.instances = staged
-    for uid, unit in staged.items():
+    _fuse_instances(glmap, plan, report)
+    for uid, unit in plan.instances.items():
         plan.cells[uid] = unit_cells(unit.gaussians, cfg.cell_size)
 
     # Regions: local member ids -> global. A region with the same member set is the same
     # region; otherwise match by text AND a shared instance (paper), and never let a merge
-    # make a region's members equal another region's (issue 12: duplicated regions).
+    # make a region's members equal another region's. Regions that held a fused instance
+    # hold its survivor instead.
     rids, rmatrix = glmap.region_matrix()
-    staged_regions: dict[int, RegionUnit] = {}
-    by_members = _members_index(glmap)
+    staged_regions = with_members_renamed(glmap.regions, report.fused)
+    by_members = _members_index({**glmap.regions, **staged_regions})
+    observed_regions: set[int] = set()
     for k, group in enumerate(semantics.groups):
         members = {report.local_to_global[m] for m in group.members if m in report.local_to_global}
         if not members:
@@ -302,9 +349,10 @@ def plan_frame(
             rid = plan.next_id
             plan.next_id += 1
             staged_regions[rid] = RegionUnit(
-                rid, text, _normalised(e), tuple(sorted(members)), 1, frame_index, frame_index
+                rid, text, normalised(e), tuple(sorted(members)), 1, frame_index, frame_index
             )
             by_members[frozenset(members)] = rid
+            observed_regions.add(rid)
             report.regions_added.append(
                 UnitChange(local_id=group.local_id, global_id=rid, text=text)
             )
@@ -316,7 +364,7 @@ def plan_frame(
             staged_regions[region.id] = RegionUnit(
                 region.id,
                 _merged_text(glmap, region.text, text),
-                _normalised(region.embedding * n + e),
+                normalised(region.embedding * n + e),
                 union,
                 n if seen_now else n + 1,
                 region.first_frame,
@@ -325,23 +373,26 @@ def plan_frame(
             if by_members.get(frozenset(region.instance_ids)) == region.id:
                 del by_members[frozenset(region.instance_ids)]
             by_members[frozenset(union)] = region.id
+            observed_regions.add(region.id)
             report.regions_merged.append(
                 UnitChange(local_id=group.local_id, global_id=region.id, text=text, similarity=sim)
             )
     plan.regions = staged_regions
+    _fuse_regions(glmap, plan, report, observed_regions)
+    staged_regions = plan.regions
 
     # Region cells: the union of their instances' cells (also for regions whose members moved).
     touched = set(staged_regions)
-    for uid in staged:
+    for uid in plan.instances:
         touched |= glmap.regions_of_instance(uid)
-    for rid in touched:
+    for rid in touched - plan.removed:
         region = staged_regions.get(rid) or glmap.regions[rid]
         cells: set[Cell] = set()
         for iid in region.instance_ids:
             cells |= plan.cells.get(iid) or glmap.grid.cells_of_unit(iid)
         plan.cells[rid] = frozenset(cells)
 
-    report.num_instances = len(glmap.instances) + sum(i not in glmap.instances for i in staged)
-    report.num_regions = len(glmap.regions) + sum(r not in glmap.regions for r in staged_regions)
+    report.num_instances = len((glmap.instances.keys() | plan.instances.keys()) - plan.removed)
+    report.num_regions = len((glmap.regions.keys() | plan.regions.keys()) - plan.removed)
     plan.report = report
     return plan

@@ -152,6 +152,13 @@ class GLMap:
             for iid in region.instance_ids:
                 self._regions_by_instance.setdefault(iid, set()).add(rid)
             self.regions[rid] = region
+        for uid in sorted(plan.removed):  # fused into an older unit
+            gone = self.regions.pop(uid, None)
+            for iid in gone.instance_ids if gone else ():
+                self._regions_by_instance.get(iid, set()).discard(uid)
+            self.instances.pop(uid, None)
+            self._regions_by_instance.pop(uid, None)
+            self.grid.remove_unit(uid)
         for uid, cells in plan.cells.items():
             self.grid.set_unit(uid, cells)
         self.occupancy.apply(plan.occupancy)

@@ -38,6 +38,11 @@ class UpdateReport(BaseModel):
     local_to_global: dict[int, int] = Field(
         default_factory=dict, description="instance local id -> global id (the mapping T_t)"
     )
+    fused: dict[int, int] = Field(
+        default_factory=dict,
+        description="id of a unit fused into an older unit of the same object or region -> "
+        "the older unit's id; the fused id no longer exists",
+    )
     gaussians_added: int = 0
     structure_gaussians: int = Field(
         default=0, description="structure (background) Gaussians fitted from this frame"

@@ -366,6 +366,10 @@ class MapStore:
                     self._write_instance(u)
                 for r in plan.regions.values():
                     self._write_region(r)
+                for table in ("instances", "regions"):  # units fused into an older one
+                    self.conn.executemany(
+                        f"DELETE FROM {table} WHERE id = ?", [(i,) for i in sorted(plan.removed)]
+                    )
                 self._write_chunks(plan.occupancy)
                 self._write_structure(plan.structure)
                 self._write_embedder(glmap)

@@ -266,7 +266,7 @@ def run_map_eval(args: argparse.Namespace) -> int:
             + " besides the matched one"
         )
     for group in result.duplicate_regions:
-        print(f"    regions {', '.join(str(i) for i in group)}: same members and text")
+        print(f"    regions {', '.join(str(i) for i in group)}: shared members and description")
     return 0
 
 

@@ -7,7 +7,8 @@ Recall: matched objects / objects listed in at least one frame's annotation.
 
 Duplicates are reported per map: duplicate instances are map instances that hold most of
 their mass in an object another instance was matched to (several instances for one object);
-duplicate regions are regions with the same member set and the same text.
+duplicate regions are regions that share a member instance and a description (one in common,
+or text cosine >= the map's tau_s).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
 from glmap_tools.geometry.frame import RGBDFrame
+from glmap_tools.language.text_merger import split_buffer
 from glmap_tools.perception.annotated import semantics_from_annotation
 from glmap_tools.perception.semantics import FrameSemantics
 from glmap_tools.sim.annotate import annotate_view
@@ -48,7 +50,7 @@ class MapEvaluation:
     spurious: list[int]  # map instances matched to no object (or a duplicate)
     # layout object id -> the other map instances that fit it (beyond the matched one)
     duplicate_instances: dict[int, list[int]] = field(default_factory=dict)
-    # groups of region ids with the same member set and text
+    # groups of region ids that share members and a description
     duplicate_regions: list[list[int]] = field(default_factory=list)
 
 
@@ -125,11 +127,29 @@ def evaluate_instances(glmap: GLMap, layout: Layout, visible: set[int]) -> MapEv
 
 
 def duplicate_regions(glmap: GLMap) -> list[list[int]]:
-    """Groups (ids ascending) of map regions with the same member set and the same text."""
-    groups: dict[tuple[tuple[int, ...], str], list[int]] = {}
-    for rid, region in sorted(glmap.regions.items()):
-        key = (tuple(sorted(region.instance_ids)), region.text.strip())
-        groups.setdefault(key, []).append(rid)
+    """Groups (ids ascending) of map regions linked by shared members and a description.
+
+    Two regions are linked when they share a member instance and a description: one in
+    common, or a text cosine >= the map's tau_s. A group is a connected set of links.
+    """
+    regions = sorted(glmap.regions.values(), key=lambda r: r.id)
+    group_of = {r.id: r.id for r in regions}
+
+    def root(i: int) -> int:
+        while group_of[i] != i:
+            i = group_of[i]
+        return i
+
+    for k, a in enumerate(regions):
+        for b in regions[k + 1 :]:
+            if not set(a.instance_ids) & set(b.instance_ids):
+                continue
+            same_text = bool(set(split_buffer(a.text)) & set(split_buffer(b.text)))
+            if same_text or float(a.embedding @ b.embedding) >= glmap.tau_s:
+                group_of[max(root(a.id), root(b.id))] = min(root(a.id), root(b.id))
+    groups: dict[int, list[int]] = {}
+    for r in regions:
+        groups.setdefault(root(r.id), []).append(r.id)
     return [ids for ids in groups.values() if len(ids) > 1]
 
 
