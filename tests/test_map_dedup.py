@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from glmap_tools import synthetic as scenes
+from glmap_tools.errors import UnknownIdError
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, InstanceUnit, MapConfig
 from glmap_tools.perception import FrameSemantics, GroupObservation, ObjectObservation
@@ -81,6 +82,8 @@ def test_two_parts_of_one_table_that_touch_become_one_unit_and_the_file_agrees(t
 
     assert list(glmap.instances) == [1] and report.fused == {3: 1, 4: 2}
     assert list(glmap.regions) == [2] and glmap.regions[2].instance_ids == (1,)
+    with pytest.raises(UnknownIdError, match="fused into unit 1"):
+        glmap.unit(3)
     xs = glmap.instances[1].gaussians.means[:, 0]
     assert xs.min() < -0.5 and xs.max() > 0.5  # the whole table top
     _assert_consistent(glmap)

@@ -80,6 +80,7 @@ class GLMap:
         self.trajectory: list[np.ndarray] = []  # [4, 4] poses of integrated frames
         self.store: MapStore | None = None
         self._regions_by_instance: dict[int, set[int]] = {}
+        self.fused_into: dict[int, int] = {}  # fused id -> the unit it became (this process)
         self._matrix_cache: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
     # ----------------------------------------------------------------- persistence
@@ -152,6 +153,8 @@ class GLMap:
             for iid in region.instance_ids:
                 self._regions_by_instance.setdefault(iid, set()).add(rid)
             self.regions[rid] = region
+        if plan.report is not None:
+            self.fused_into.update(plan.report.fused)
         for uid in sorted(plan.removed):  # fused into an older unit
             gone = self.regions.pop(uid, None)
             for iid in gone.instance_ids if gone else ():
@@ -254,9 +257,18 @@ class GLMap:
         """The instance or region with this id.
 
         Raises:
-            UnknownIdError: no such unit; the message suggests the closest existing id.
+            UnknownIdError: no such unit; the message names the unit a fused id became, or
+                suggests the closest existing id.
         """
         found = self.instances.get(unit_id) or self.regions.get(unit_id)
+        if found is None and unit_id in self.fused_into:
+            live = unit_id
+            while live in self.fused_into:
+                live = self.fused_into[live]
+            raise UnknownIdError(
+                f"unit id {unit_id!r} was fused into unit {live} (the same object or region "
+                f"seen again); use id {live}."
+            )
         if found is None:
             ids = sorted(self.instances) + sorted(self.regions)
             if not ids:
