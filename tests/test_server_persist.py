@@ -6,6 +6,7 @@ in-memory server given the same calls; plus the lock, and bad names and files.
 
 from __future__ import annotations
 
+import dataclasses
 import fcntl
 import json
 import os
@@ -160,6 +161,20 @@ def test_a_corrupt_map_file_is_refused_and_left_as_it_is(tmp_path, capsys):
         conn.execute("CREATE TABLE meta (key TEXT, value TEXT)")
     err = refused(["--map", "other", "--maps-dir", str(maps), "--embedder", "hashing"], capsys)
     assert "not a GLMap store" in err
+
+
+async def test_a_relative_maps_dir_opens_the_saved_map_on_every_later_launch(tmp_path, monkeypatch):
+    from glmap_tools.server.cli import check_pinned_map
+
+    monkeypatch.chdir(tmp_path)
+    pinned = dataclasses.replace(config(tmp_path), maps_dir=Path("maps"), map_name="flat-3")
+    assert pinned.maps_dir == tmp_path / "maps"
+    for _ in range(2):  # the first launch makes the file, the second opens it
+        check_pinned_map(pinned)
+        async with Client(build_server(pinned)) as client:
+            result = await client.call_tool("map_summary", {"include_image": False})
+        assert not result.is_error, result.content[0].text
+    assert (tmp_path / "maps" / "flat-3.glmap").is_file()
 
 
 async def test_a_map_made_with_another_embedder_or_voxel_size_is_refused(tmp_path, capsys):

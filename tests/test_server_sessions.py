@@ -50,6 +50,24 @@ def test_one_client_starting_sessions_cannot_drop_a_session_in_use(tmp_path):
     registry.close()
 
 
+async def test_the_default_session_can_be_named_from_the_first_call(tmp_path):
+    async with Client(build_server(config(tmp_path))) as client:
+        named = await client.call_tool("observe_frame", {**frame_args(), "session": "default"})
+        plain = await client.call_tool("find_instance", {"query": "chair"})
+    assert not named.is_error, named.content[0].text
+    assert named.structured_content["session"] == "default"
+    assert plain.structured_content["hits"]  # the frame went into the default session's map
+
+
+def test_with_a_pinned_map_every_connection_works_on_it_unless_it_names_a_session(tmp_path):
+    registry = SessionRegistry(config(tmp_path, map_name="flat-3"), HashingEmbedder())
+    a, b = registry.resolve(None, "connection-a"), registry.resolve(None, "connection-b")
+    own = registry.start_session()
+    assert a is b and a.handle == "default" and registry.resolve("default", None) is a
+    assert registry.resolve(own.handle, "connection-a") is own
+    registry.close()
+
+
 async def test_list_maps_shows_only_map_files_in_the_maps_folder_never_symlinked_ones(tmp_path):
     outside = tmp_path / "secret.txt"
     outside.write_text("x" * 12345)

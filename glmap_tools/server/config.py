@@ -83,7 +83,9 @@ class ServerConfig:
     map_wait_s: float = 10.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "maps_dir", Path(self.maps_dir).expanduser())
+        # Absolute from the start: a relative folder would change meaning with the working
+        # directory, and SQLite's read-only URI needs an absolute path.
+        object.__setattr__(self, "maps_dir", Path(self.maps_dir).expanduser().absolute())
         if self.embedder not in EMBEDDERS:
             raise InvalidInputError(
                 f"embedder={self.embedder!r} is not one of {list(EMBEDDERS)}; use 'minilm' "

@@ -116,7 +116,7 @@ def check_saved_map(path: Path, name: str, config: MapConfig, embedder: str) -> 
     if not path.is_file():
         raise StoreError(f"--map {name!r}: {path.name} is not a file; choose another name.")
     try:
-        conn = sqlite3.connect(f"{path.as_uri()}?mode=ro", uri=True)
+        conn = sqlite3.connect(f"{path.absolute().as_uri()}?mode=ro", uri=True)
         try:
             meta = dict(conn.execute("SELECT key, value FROM meta").fetchall())
         finally:

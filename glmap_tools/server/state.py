@@ -8,7 +8,9 @@ A *session* is what one client works in. Its key comes from the transport:
 - otherwise the server's *default* session (stdio and in-memory serve one client each).
 
 With `glmap-mcp --map NAME` the default session is pinned to the saved map NAME, shared
-with other processes through its file (glmap_tools.server.persist).
+with other processes through its file (glmap_tools.server.persist), and every call that
+names no session works in it, whatever its connection. `session="default"` always names
+the default session.
 
 Each session starts on its own in-memory scratch map. A saved (named) map is one `LiveMap`
 shared by every session that opened it, behind one lock, so concurrent sessions stay
@@ -299,12 +301,18 @@ class SessionRegistry:
     def save_map(self, session: Session, name: str, overwrite: bool) -> tuple[LiveMap, bool]:
         """Write `session`'s map to `name` (atomically) and keep committing every frame there.
 
+        Saving a map under the name it already commits to writes nothing unless `overwrite`
+        (then the whole map is written afresh, which mends a file damaged on disk); a damaged
+        file is refused rather than reported saved.
+
         Returns:
             (the live map, whether a file was written; False when it already commits there).
 
         Raises:
             InvalidInputError: a bad name.
-            StoreError: `name` exists and `overwrite` is false, or another map has it open.
+            StoreError: `name` exists and `overwrite` is false, another map has it open, the
+                file of the map itself is damaged and `overwrite` is false, or the write
+                failed (the old file is then unchanged).
         """
         from glmap_tools.map.store import MapStore
 
@@ -312,10 +320,17 @@ class SessionRegistry:
             path = self.map_path(name)
             stem = path.name[: -len(MAP_SUFFIX)]
             live = session.live
-            if live.name == stem:
+            if live.name == stem and not overwrite:
+                store = live.glmap.store
+                damage = store.damage() if store is not None else None
+                if damage is not None:
+                    raise StoreError(
+                        f"the file of map {stem!r} is damaged ({damage}) and was not saved; "
+                        "pass overwrite=true to write the map in memory over it."
+                    )
                 return live, False
             other = self._named.get(stem)
-            if other is not None:
+            if other is not None and other is not live:
                 raise StoreError(
                     f"map {stem!r} is open in another session; save under another name."
                 )
@@ -354,7 +369,11 @@ class SessionRegistry:
             StoreError: a new session is needed but every slot is in recent use.
         """
         with self._lock:
-            if handle is not None:
+            if handle == DEFAULT_HANDLE or (handle is None and self.pin is not None):
+                # Results name the default session, so it may be asked for by name; with
+                # --map every connection works on the pinned map unless it names another.
+                session = self.default_session()
+            elif handle is not None:
                 session = self._sessions.get(handle)
                 if session is None:
                     why = (
