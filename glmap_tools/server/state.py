@@ -369,6 +369,7 @@ class SessionRegistry:
             StoreError: a new session is needed but every slot is in recent use.
         """
         with self._lock:
+            session: Session | None
             if handle == DEFAULT_HANDLE or (handle is None and self.pin is not None):
                 # Results name the default session, so it may be asked for by name; with
                 # --map every connection works on the pinned map unless it names another.
