@@ -112,3 +112,81 @@ async def test_a_file_that_is_not_a_map_is_a_store_error_and_stays_untouched(tmp
         assert result.is_error and "is not a GLMap store" in result.content[0].text
         assert await counts(client) == (0, 0, 0)
     assert (maps / "junk.glmap").read_bytes() == b"not sqlite at all" * 10
+
+
+def truncate(path: Path) -> None:
+    """Cut a file to half its size, as a crash or a full disk in another program might."""
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+async def test_saving_with_overwrite_over_its_own_damaged_file_writes_the_map_afresh(tmp_path):
+    # Issue 27 item 3: this answered ok with written: false and left the file corrupt.
+    path = tmp_path / "maps" / "flat.glmap"
+    async with Client(build_server(config(tmp_path))) as client:
+        await client.call_tool("observe_frame", frame_args())
+        await client.call_tool("save_map", {"name": "flat"})
+        truncate(path)
+        plain = await client.call_tool("save_map", {"name": "flat"})
+        assert plain.is_error and "damaged" in plain.content[0].text
+        assert "overwrite=true" in plain.content[0].text
+        assert str(tmp_path) not in plain.content[0].text
+        saved = await client.call_tool("save_map", {"name": "flat", "overwrite": True})
+        assert not saved.is_error and saved.structured_content["written"] is True
+    async with Client(build_server(config(tmp_path))) as client:
+        loaded = await client.call_tool("load_map", {"name": "flat"})
+        assert not loaded.is_error, loaded.content[0].text
+        assert await counts(client) == (1, 3, 1)
+
+
+async def test_a_commit_to_a_damaged_file_is_an_error_that_names_no_server_path(tmp_path):
+    path = tmp_path / "maps" / "flat.glmap"
+    async with Client(build_server(config(tmp_path))) as client:
+        await client.call_tool("observe_frame", frame_args())
+        await client.call_tool("save_map", {"name": "flat"})
+        truncate(path)
+        res = await client.call_tool("observe_frame", frame_args((0.3, -2.6, 1.4)))
+        assert res.is_error
+        assert str(tmp_path) not in res.content[0].text, res.content[0].text
+        assert "flat.glmap" in res.content[0].text
+
+
+@pytest.mark.parametrize("where", ["rename", "sqlite"])
+async def test_a_save_that_fills_the_disk_is_an_error_and_leaves_the_old_file(
+    tmp_path, monkeypatch, where
+):
+    import errno
+    import os
+    import sqlite3
+
+    from glmap_tools.map import store
+
+    path = tmp_path / "maps" / "flat.glmap"
+    async with Client(build_server(config(tmp_path))) as client:
+        await client.call_tool("observe_frame", frame_args())
+        await client.call_tool("save_map", {"name": "flat"})
+        before = path.read_bytes()
+        await client.call_tool("new_map", {})
+        await client.call_tool("observe_frame", frame_args((0.3, -2.6, 1.4), groups=False))
+        if where == "rename":
+            real = os.replace
+
+            def full(src: str, dst: str) -> None:
+                if str(dst).endswith(".glmap"):
+                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), src, None, dst)
+                real(src, dst)
+
+            monkeypatch.setattr(store.os, "replace", full)
+        else:
+
+            def full_db(self: store.MapStore, glmap: object) -> None:
+                raise sqlite3.OperationalError("database or disk is full")
+
+            monkeypatch.setattr(store.MapStore, "_write_everything", full_db)
+        res = await client.call_tool("save_map", {"name": "flat", "overwrite": True})
+        assert res.is_error, res.content[0].text
+        text = res.content[0].text
+        assert "could not write" in text and "old file is unchanged" in text
+        assert str(tmp_path) not in text
+    assert path.read_bytes() == before
+    assert files(tmp_path / "maps") == {"flat.glmap"}  # no temporary file left

@@ -166,10 +166,19 @@ class MapStore:
                 else:
                     store._write_meta({"next_id": "1", "floor_z": json.dumps(config.floor_z)})
             conn.close()
+            _fsync(Path(tmp))
             os.replace(tmp, path)
-        except BaseException:
+        except BaseException as exc:  # no partial file: the target is the old one or none
             Path(tmp).unlink(missing_ok=True)
+            if isinstance(exc, OSError | sqlite3.Error):
+                why = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+                kept = "the old file is unchanged" if path.exists() else "no file was made"
+                raise StoreError(
+                    f"could not write the map file {str(path)!r}: {why}; {kept}. Check disk "
+                    "space and permissions, then save again."
+                ) from None
             raise
+        _fsync(path.parent)  # the rename itself survives a crash
         return cls(path, _connect(path), config, SCHEMA_VERSION)
 
     @classmethod
@@ -206,6 +215,18 @@ class MapStore:
     def mark_seen(self) -> None:
         """Take the file as it is now as the state `changed_elsewhere` compares with."""
         self._seen = self._fingerprint()
+
+    def damage(self) -> str | None:
+        """What is wrong with the file on disk (missing, truncated, corrupt), or None if it
+        passes SQLite's quick check; costs one read of the file."""
+        if not self.path.is_file():
+            return "the file is missing"
+        try:
+            rows = self.conn.execute("PRAGMA quick_check").fetchall()
+        except sqlite3.Error as exc:
+            return str(exc)
+        problems = [str(r[0]) for r in rows if r and r[0] != "ok"]
+        return "; ".join(problems[:3]) or None
 
     def _changed(self, frame_index: int) -> StoreError:
         return StoreError(
@@ -421,6 +442,23 @@ class MapStore:
             state.floor_z,
             state.trajectory,
         )
+
+
+def _fsync(path: Path) -> None:
+    """Flush a file's (or a folder's) data to the disk; folders that cannot be opened pass."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        if path.is_dir():
+            return
+        raise
+    try:
+        os.fsync(fd)
+    except OSError:
+        if not path.is_dir():
+            raise
+    finally:
+        os.close(fd)
 
 
 def _connect(path: Path) -> sqlite3.Connection:

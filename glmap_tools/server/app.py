@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import inspect
 import logging
+import os
 from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from contextlib import asynccontextmanager, contextmanager
 from typing import Any
@@ -37,7 +38,7 @@ from glmap_tools.server.results import (
     pictures_of,
     strip_descriptions,
 )
-from glmap_tools.server.runtime import AppState, PerceptionBackend, ToolSpec
+from glmap_tools.server.runtime import AppState, PerceptionBackend, ToolSpec, app_state
 from glmap_tools.server.state import SessionRegistry
 from glmap_tools.server.threads import limited_threads
 
@@ -210,7 +211,7 @@ def mcp_tool(spec: ToolSpec) -> Callable[..., Awaitable[Any]]:
         try:
             result = await fn(*args, **kwargs)
         except GLMapError as exc:
-            raise ToolError(str(exc)) from exc
+            raise ToolError(hide_maps_folder(str(exc), [*args, *kwargs.values()])) from exc
         return mcp_result(result)
 
     call.__name__ = call.__qualname__ = fn.__name__
@@ -221,6 +222,20 @@ def mcp_tool(spec: ToolSpec) -> Callable[..., Awaitable[Any]]:
     call.__signature__ = signature  # type: ignore[attr-defined]
     call.__annotations__ = {**fn.__annotations__, "return": signature.return_annotation}
     return call
+
+
+def hide_maps_folder(message: str, arguments: list[Any]) -> str:
+    """`message` with the server's maps folder cut out (its path is none of a client's
+    business), whichever module raised it; `arguments` are the call's, its Context among
+    them."""
+    for value in arguments:
+        if isinstance(value, Context):
+            try:
+                folder = str(app_state(value).registry.maps_dir)
+            except (AttributeError, AssertionError, ValueError):
+                return message
+            return message.replace(folder + os.sep, "").replace(folder, "<maps folder>")
+    return message
 
 
 def add_tools(server: MCPServer, tools: tuple[ToolSpec, ...] | None = None) -> None:
