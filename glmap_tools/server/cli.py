@@ -117,9 +117,10 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("perception of frames without annotations")
     g.add_argument(
         "--perception",
-        choices=["pending", "geometric+mllm", "mllm"],
+        choices=["pending", "geometric", "geometric+mllm", "mllm"],
         default="pending",
-        help="pending: model-free segments the calling agent names with label_segments; "
+        help="pending (= geometric): model-free segments the calling agent names with "
+        "label_segments; "
         "geometric+mllm: an Ollama vision model names them; mllm: MLLM + GroundingDINO + SAM",
     )
     g.add_argument("--detector", type=Path, help="GroundingDINO model folder (--perception mllm)")
@@ -276,7 +277,7 @@ def perception_from_args(args: argparse.Namespace) -> Any:
     agent names them with label_segments. geometric+mllm: an Ollama vision model names the
     segments; mllm: the paper's MLLM + GroundingDINO + SAM (local model folders).
     """
-    if args.perception == "pending":
+    if args.perception in ("pending", "geometric"):  # the segments wait for label_segments
         return None
     from glmap_tools.perception.backends import model_perception
 
@@ -313,7 +314,12 @@ def main(argv: list[str] | None = None) -> int:
 
         relay = start_relay()  # answers the handshake while the SDK imports
         relay.serve(build(config, perception))
-        return 0
+        # Stdin closed and every session closed (maps committed): leave without tearing
+        # down torch and the numba/GL libraries, which took ~3-5 s; clients that launch a
+        # server per call wait 2 s before killing it.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0)
     host = args.host or "127.0.0.1"
     if host not in LOOPBACK and not token:
         print(
