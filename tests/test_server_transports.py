@@ -5,6 +5,7 @@ Everything is bounded: processes are polled for readiness with a timeout, never 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import queue
 import shutil
@@ -66,6 +67,19 @@ async def test_glmap_mcp_over_stdio_serves_a_real_client_session(tmp_path):
 @pytest.fixture
 def http_server(tmp_path: Path) -> Iterator[str]:
     """A glmap-mcp process on 127.0.0.1 with a bearer token; yields its URL."""
+    with serving(tmp_path) as url:
+        yield url
+
+
+@pytest.fixture
+def pinned_http_server(tmp_path: Path) -> Iterator[str]:
+    """The same with --map shared: the saved map every connection works on."""
+    with serving(tmp_path, "--map", "shared") as url:
+        yield url
+
+
+@contextlib.contextmanager
+def serving(tmp_path: Path, *extra: str) -> Iterator[str]:
     command = [
         *server_command(),
         "--transport",
@@ -79,6 +93,7 @@ def http_server(tmp_path: Path) -> Iterator[str]:
         "--maps-dir",
         str(tmp_path / "maps"),
         *FAST,
+        *extra,
     ]
     proc = subprocess.Popen(command, cwd=REPO, stderr=subprocess.PIPE, text=True)
     lines: queue.Queue[str] = queue.Queue()
@@ -158,6 +173,22 @@ async def test_two_clients_at_once_over_http_each_keep_their_own_map(http_server
             await two.call_tool("observe_frame", {**frame_args((0.4, -2.5, 1.4)), "session": h2})
             summary = await one.call_tool("map_summary", {"include_image": False, "session": h1})
             assert json.loads(summary.content[0].text)["summary"]["frames"] == 2
+
+
+async def test_with_map_every_http_connection_sees_the_saved_map_and_new_map_spares_it(
+    pinned_http_server,
+):
+    with anyio.fail_after(120):
+        async with connect(pinned_http_server, "legacy") as one:
+            observed = await one.call_tool("observe_frame", frame_args())
+            assert not observed.is_error, observed.content[0].text
+        async with connect(pinned_http_server, "legacy") as two:
+            seen = await instances_of(two)  # a new connection, no session argument
+            fresh = await two.call_tool("new_map", {})
+            handle = fresh.structured_content["session"]
+            assert await instances_of(two, session=handle) == []
+            assert await instances_of(two) == seen  # the saved map was not started anew
+    assert len(seen) == 3 and handle != "default"
 
 
 async def test_http_refuses_requests_without_the_token_and_bodies_over_the_limit(http_server):

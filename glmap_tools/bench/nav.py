@@ -1,4 +1,4 @@
-"""Navigation speed and the SR/SPL table against the issue's targets, each MET or MISSED.
+"""Navigation speed and the SR/SPL table against their targets, each MET or MISSED.
 
     python -m glmap_tools.bench nav                       # speed figures (tune split)
     python -m glmap_tools.bench nav --table --scenes 12 --episodes-per-scene 20

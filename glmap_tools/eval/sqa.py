@@ -35,7 +35,7 @@ import numpy as np
 from glmap_tools.errors import GLMapError, InvalidInputError, did_you_mean
 
 SQA_AGENTS = ("glmap", "gt-pose", "random-pose", "text-only")
-LOCALISED_M, LOCALISED_DEG = 1.0, 45.0  # the localisation target
+LOCALISED_M, LOCALISED_DEG = 1.0, 45.0  # a pose counts as localised within these
 
 
 @dataclass(frozen=True)

@@ -128,13 +128,14 @@ def session_of(ctx: Context, handle: str | None) -> Session:
 def session_for_new_map(ctx: Context, handle: str | None) -> Session:
     """The session new_map/load_map act on.
 
-    On a stateless HTTP call with no handle (several clients may share the server) a new
-    session is started rather than replacing the shared default map.
+    Over HTTP with no handle (several clients may share the server) a new session is
+    started rather than replacing the shared default map: on a stateless call, and on any
+    connection when --map pins the default session to a saved map.
     """
     transport_id, is_http = transport_session_id(ctx)
     registry = app_state(ctx).registry
     handle = handle or None
-    if handle is None and is_http and transport_id is None:
+    if handle is None and is_http and (transport_id is None or registry.pin is not None):
         return registry.start_session()
     return registry.resolve(handle, transport_id, restart=True)
 

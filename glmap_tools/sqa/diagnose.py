@@ -3,7 +3,7 @@
 For every situation of a split's generated QA set, `situate()` on the scene's map is
 compared with the ground-truth pose, and each miss gets one cause:
 
-- ok:            within 1 m and 45 degrees (the issue's target);
+- ok:            within 1 m and 45 degrees (the localisation target);
 - unlocated:     situate() raised (no match);
 - wrong anchor:  the anchor unit that placed the agent is not the named object (its centre
                  is more than 0.5 m from the object's footprint), or a region placed it;
