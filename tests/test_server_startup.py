@@ -57,6 +57,21 @@ async def test_tools_list_answers_while_loading_and_the_first_call_waits_saying_
     assert not result[0].is_error
 
 
+async def test_listing_maps_and_reading_the_map_answer_while_the_embedder_loads(tmp_path):
+    server = build_server(config(tmp_path))
+    release = threading.Event()
+    server.background.start(EMBEDDER, lambda: release.wait(30))  # an embedder still loading
+    try:
+        async with Client(server) as client:
+            with anyio.fail_after(10):
+                listed = await client.call_tool("list_maps", {})
+                summary = await client.call_tool("map_summary", {"include_image": False})
+                near = await client.call_tool("what_is_at", {"x": 0.0, "y": 0.0})
+        assert not listed.is_error and not summary.is_error and not near.is_error
+    finally:
+        release.set()
+
+
 async def test_a_failed_embedder_load_is_reported_by_calls_and_failed_kernels_are_not_fatal(
     tmp_path,
 ):

@@ -58,7 +58,9 @@ find_instance, value_map and navigate_to (its would_succeed likewise). Results a
 compact text (key: value lines, floats rounded to 3 decimals) with the exact values as
 structured content."""
 
-# Tools that render or integrate also wait for the kernels; every tool waits for the embedder.
+# Tools that render or integrate also wait for the kernels; every tool that may embed text
+# waits for the embedder. These read files and stored numbers only: they never wait.
+NO_WAIT_TOOLS = ("list_maps", "map_summary", "describe_unit", "what_is_at")
 KERNEL_TOOLS = (
     "observe_frame",
     "render_view",
@@ -73,6 +75,8 @@ KERNEL_TOOLS = (
 
 def needed_tasks(name: str) -> tuple[str, ...]:
     """The start-up tasks a call of tool `name` waits for."""
+    if name in NO_WAIT_TOOLS:
+        return ()
     return (EMBEDDER, KERNELS) if name in KERNEL_TOOLS else (EMBEDDER,)
 
 
