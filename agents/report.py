@@ -16,6 +16,13 @@ from typing import Any
 from agents.objectnav import Play, StepRecord
 
 MAX_ROWS = 80
+LEGEND = (
+    "Each step shows the agent's view, then the value map from above: the heat is the value "
+    "H of paper Eq. 7 (colour bar on the right), light grey never observed, white seen free, "
+    "dark grey obstacles, coloured cells instance footprints with their ids; the red arrow "
+    "is the agent, cyan circles frontiers, the magenta cross the waypoint and the green line "
+    "the planned path. Axes in metres."
+)
 RESULT_KEYS = ("status", "success", "spl", "distance_to_goal", "steps", "path_length", "collisions")
 
 
@@ -44,6 +51,7 @@ def write_report(
     facts.update({k: result[k] for k in ("tool_calls", "wall_s", "seed") if k in result})
     goal = play.start.get("goal", "")
     md = [f"# {title}", "", f"Goal: **{goal}**", "", "```json", json.dumps(facts), "```", ""]
+    md += [LEGEND, ""]
     md += ["## Start", ""] + [f"![start view]({img})" for img in start_images] + [""]
     for s in play.steps:
         if not s.images:
@@ -73,7 +81,7 @@ def write_report(
         "margin:auto}img{margin:4px;border:1px solid #ccc;vertical-align:top}"
         "td,th{padding:2px 8px;text-align:left}pre{background:#f4f4f4;padding:8px}</style>",
         f"</head><body><h1>{e(title)}</h1><p>Goal: <b>{e(goal)}</b></p>",
-        f"<pre>{e(json.dumps(facts, indent=1))}</pre><h2>Start</h2>",
+        f"<pre>{e(json.dumps(facts, indent=1))}</pre><p>{e(LEGEND)}</p><h2>Start</h2>",
     ]
     parts += [f"<img src='{e(img)}'>" for img in start_images]
     for s in play.steps:

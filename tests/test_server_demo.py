@@ -39,6 +39,8 @@ async def test_the_demo_episode_is_driven_by_the_glmap_agent_and_reported_with_v
     md = (out / "transcript.md").read_text()
     page = (out / "transcript.html").read_text()
     assert "played by the GLMap agent" in md and "episode/report.html" in md
+    assert "<a href='episode/report.html'>" in page and "](" not in page  # links, not Markdown
+    assert "colour bar" in (out / "episode" / "report.html").read_text()  # the legend
     shown = re.findall(r"\]\((episode/images/[^)]+\.png)\)", md)
     assert shown and all(f"src='{i}'" in page for i in shown)
     called = re.findall(r"^## \d+\. `(\w+)`", md, flags=re.M)

@@ -17,6 +17,7 @@ import base64
 import html
 import json
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -52,6 +53,17 @@ def _elide(value: Any) -> Any:
     if isinstance(value, str) and len(value) > 4 * ELIDE:
         return f"{value[:ELIDE]}... ({len(value)} characters)"
     return value
+
+
+LINK = re.compile(r"\[([^\]]+)\]\(([^)\s]+)\)")
+CODE = re.compile(r"`([^`]+)`")
+
+
+def inline_html(line: str) -> str:
+    """One line of Markdown as HTML: escaped, with its links and `code` spans rendered."""
+    out = html.escape(line, quote=False)
+    out = LINK.sub(lambda m: f"<a href='{html.escape(m.group(2))}'>{m.group(1)}</a>", out)
+    return CODE.sub(r"<code>\1</code>", out)
 
 
 class Recorder:
@@ -123,7 +135,7 @@ class Recorder:
             f"<title>{html.escape(title)}</title><style>body{{font-family:sans-serif;"
             "max-width:1100px;margin:auto}pre{background:#f4f4f4;padding:8px;overflow:auto;"
             "max-height:420px}img{margin:4px;border:1px solid #ccc}.err{color:#b00}</style>",
-            f"</head><body><h1>{html.escape(title)}</h1><p>{html.escape(intro)}</p>",
+            f"</head><body><h1>{html.escape(title)}</h1><p>{inline_html(intro)}</p>",
         ]
         for line in extra or []:
             if line.startswith("!["):
@@ -131,7 +143,7 @@ class Recorder:
             elif line.startswith("## "):
                 parts.append(f"<h2>{html.escape(line[3:])}</h2>")
             elif line:
-                parts.append(f"<p>{html.escape(line)}</p>")
+                parts.append(f"<p>{inline_html(line)}</p>")
         for e in self.entries:
             cls = " class='err'" if e.is_error else ""
             parts.append(
