@@ -72,6 +72,40 @@ def test_ollama_converts_every_function_keeping_names_arguments_and_descriptions
     assert props["top_k"].type == "integer" and "(default 5)" in props["top_k"].description
 
 
+def test_ollama_keeps_the_flattened_schemas_whole_and_flattened_calls_work(toolset):
+    from ollama._types import Tool
+
+    for tool in toolset.ollama_tools():
+        kept = Tool.model_validate(tool).model_dump(exclude_none=True, by_alias=True)
+        assert json.loads(json.dumps(kept)) == json.loads(json.dumps(tool))  # nothing dropped
+    by_name = {t["function"]["name"]: t["function"]["parameters"] for t in toolset.ollama_tools()}
+    nav = by_name["nav_step"]["properties"]
+    assert (
+        "1..200" in nav["actions"]["description"] and "default 1" in nav["actions"]["description"]
+    )
+    frame = by_name["observe_frame"]
+    assert {"rgb__base64", "rgb__path", "pose__matrix", "annotations__objects"} <= set(
+        frame["properties"]
+    )
+    assert (
+        frame["properties"]["annotations__objects"]["items"]["properties"]["id"]["maximum"] == 65535
+    )
+
+    flat: dict = {}
+    for key, value in frame_args().items():  # what a model reading the flat schema sends
+        if isinstance(value, dict):
+            for k, v in value.items():
+                if k == "mask":
+                    flat.update({f"{key}__mask__{m}": x for m, x in v.items()})
+                else:
+                    flat[f"{key}__{k}"] = v
+        else:
+            flat[key] = value
+    assert set(flat) <= set(frame["properties"])
+    report = toolset.call("observe_frame", flat)
+    assert len(report.report.instances_added) == 3
+
+
 async def test_a_call_answers_the_same_text_through_both_faces(tmp_path, toolset):
     async with Client(build_server(config(tmp_path / "served"))) as client:
         await client.call_tool("observe_frame", frame_args())

@@ -32,6 +32,7 @@ from glmap_tools.server.runtime import (
     ToolSpec,
 )
 from glmap_tools.toolset.catalog import TOOLS
+from glmap_tools.toolset.flat import SEP, flat_schema, unflatten
 
 if TYPE_CHECKING:
     from anyio.from_thread import BlockingPortal
@@ -139,7 +140,10 @@ class Toolset:
         """
         spec = self._spec(name)
         meta = self._infos[name].fn_metadata
-        args = tidy_arguments(name, dict(arguments or {}), list(meta.arg_model.model_fields))
+        given = dict(arguments or {})
+        if any(SEP in key for key in given):  # flattened by `ollama_tools`' schemas
+            given = unflatten(given)
+        args = tidy_arguments(name, given, list(meta.arg_model.model_fields))
         try:
             validated = meta.validate_arguments(args)
         except ValidationError as exc:
@@ -198,7 +202,8 @@ class Toolset:
         return dict(compact_schema(self._infos[name].parameters))
 
     def openai_tools(self) -> list[dict[str, Any]]:
-        """The tools in the OpenAI function-tool format (also accepted by `ollama.chat`)."""
+        """The tools in the OpenAI function-tool format (for `ollama.chat`, use
+        `ollama_tools`: ollama drops what its own schema model does not know)."""
         return [
             {
                 "type": "function",
@@ -206,6 +211,23 @@ class Toolset:
                     "name": n,
                     "description": self.description(n),
                     "parameters": self.input_schema(n),
+                },
+            }
+            for n in self.names
+        ]
+
+    def ollama_tools(self) -> list[dict[str, Any]]:
+        """The tools for `ollama.chat(tools=...)`, whose `Tool` model keeps only the type,
+        description, enum and items of each argument: object arguments are flattened
+        (`pose__matrix`; `call` nests them back) and bounds and defaults are written into
+        the descriptions (glmap_tools.toolset.flat)."""
+        return [
+            {
+                "type": "function",
+                "function": {
+                    "name": n,
+                    "description": self.description(n),
+                    "parameters": flat_schema(self._infos[n].parameters),
                 },
             }
             for n in self.names
