@@ -69,3 +69,32 @@ def test_pydantic_ai_default_mcp_toolset_plays_an_objectnav_episode(tmp_path):
     assert episode.problems(model.replies) == []
     assert model.images["sim_reset"] >= 1  # the agent's view reaches the model as an image
     assert model.images["value_map"] >= 1
+
+
+def _stumbling_model(bad: int):  # type: ignore[no-untyped-def]
+    """A model that sends `bad` malformed calls in a row to one tool, then a good one."""
+    calls = [("sim_reset", {"episode": episode.EPISODE, "size": "96x72"})]
+    calls += [("sim_step", {"action": "jump"})] * bad + [("sim_step", {"action": "stop"})]
+
+    def model(messages: list[ModelMessage], info: AgentInfo) -> ModelResponse:
+        if calls:
+            name, args = calls.pop(0)
+            return ModelResponse(parts=[ToolCallPart(name, args)])
+        return ModelResponse(parts=[TextPart("episode over")])
+
+    return FunctionModel(model)
+
+
+@pytest.mark.slow  # starts glmap-mcp twice
+def test_pydantic_ai_needs_max_retries_to_survive_two_bad_calls_in_a_row(tmp_path):
+    from pydantic_ai.exceptions import UnexpectedModelBehavior
+
+    def server() -> StdioTransport:
+        args = ["--maps-dir", str(tmp_path), "--embedder", "hashing"]
+        return StdioTransport(command=str(GLMAP_MCP), args=args)
+
+    default = Agent(_stumbling_model(2), toolsets=[MCPToolset(server())])
+    with pytest.raises(UnexpectedModelBehavior, match="max retries"):
+        default.run_sync("Stop at once.")
+    patient = Agent(_stumbling_model(2), toolsets=[MCPToolset(server(), max_retries=3)])
+    assert patient.run_sync("Stop at once.").output == "episode over"
