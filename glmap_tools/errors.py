@@ -25,6 +25,10 @@ class StoreError(GLMapError):
     """A map file cannot be opened, read or written."""
 
 
+class LimitError(GLMapError):
+    """A call would take the server past one of its documented limits (memory held, ...)."""
+
+
 def did_you_mean(bad: str, choices: Iterable[str]) -> str:
     """Return ' Did you mean X?' for the closest choice, or '' when none is close."""
     close = difflib.get_close_matches(str(bad), [str(c) for c in choices], n=1, cutoff=0.5)

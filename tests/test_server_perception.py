@@ -149,3 +149,29 @@ async def test_an_unannotated_frame_without_valid_depth_is_refused_and_nothing_w
             "label_segments", {"frame": "f1", "labels": [{"segments": [1], "label": "chair"}]}
         )
         assert late.is_error and "Pending frames: none" in late.content[0].text
+
+
+async def test_a_frame_past_the_pending_memory_cap_is_refused_and_changes_nothing(
+    tmp_path, monkeypatch
+):
+    # Issue 27 item 2: pending frames had no byte cap (two sessions took a server to 5 GB).
+    from glmap_tools.perception import pending
+
+    args, ids = _unannotated()
+    monkeypatch.setattr(pending, "MAX_SERVER_PENDING_BYTES", ids.size * 8 * 3 // 2, raising=False)
+    async with Client(build_server(config(tmp_path))) as client:
+        first = await client.call_tool("observe_frame", args)
+        assert not first.is_error, first.content[0].text
+        before = await counts(client)
+        second = await client.call_tool("observe_frame", args)
+        assert second.is_error
+        assert "would pass its cap of" in second.content[0].text
+        assert "label_segments" in second.content[0].text
+        assert await counts(client) == before  # refused before the geometry went in
+        frame_id = first.structured_content["pending"]["frame"]
+        labelled = await client.call_tool(
+            "label_segments", {"frame": frame_id, "labels": [{"segments": [1], "label": "x"}]}
+        )
+        assert not labelled.is_error, labelled.content[0].text
+        third = await client.call_tool("observe_frame", args)  # room again
+        assert not third.is_error, third.content[0].text

@@ -40,6 +40,7 @@ from glmap_tools.errors import (
     did_you_mean,
 )
 from glmap_tools.server.config import ServerConfig
+from glmap_tools.server.memory import trim
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
@@ -163,6 +164,9 @@ class SessionRegistry:
         self._named: dict[str, LiveMap] = {}
         self._dropped: OrderedDict[str, float] = OrderedDict()  # handles and transport ids
         self.pin: Any = None  # the PinnedMap of --map, if given
+        # Called with a session's handle when its map is replaced or the session ends (what
+        # the server keeps for it beside the map, e.g. pending frames, can go).
+        self.on_drop: list[Callable[[str], None]] = []
         if config.map_name is not None:
             from glmap_tools.server.persist import PinnedMap
 
@@ -218,7 +222,13 @@ class SessionRegistry:
         old = session.live
         session.live = live
         if old is not live:
+            self._dropped_by(session)
             self._release(old)
+            trim()  # the old map and what the session kept beside it, back to the system
+
+    def _dropped_by(self, session: Session) -> None:
+        for forget in self.on_drop:
+            forget(session.handle)
 
     def new_map(self, session: Session, name: str | None) -> LiveMap:
         """Give `session` a fresh empty map: scratch, or a new store file `name`.
@@ -467,7 +477,9 @@ class SessionRegistry:
         closer: Callable[[], None] | None = session.extras.pop("close", None)
         if closer is not None:
             closer()
+        self._dropped_by(session)
         self._release(session.live)
+        trim()
 
     def close(self) -> None:
         """Close every session and map (lifespan exit)."""

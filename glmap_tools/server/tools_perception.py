@@ -22,7 +22,7 @@ from glmap_tools.perception.labelling import (
     SegmentLabel,
     semantics_from_labels,
 )
-from glmap_tools.perception.pending import PendingFrames
+from glmap_tools.perception.pending import PendingFrames, pending_bytes
 from glmap_tools.perception.semantics import FrameSemantics
 from glmap_tools.server.inputs import MAX_GROUPS, MAX_OBJECTS, SessionArg
 from glmap_tools.server.results import ObserveResult, Picture
@@ -79,8 +79,14 @@ class GroupInput(BaseModel):
 
 
 def pending_frames(state: AppState) -> PendingFrames:
-    """The server's pending frames (made on first use)."""
-    return state.extras.setdefault(PENDING_KEY, PendingFrames())
+    """The server's pending frames (made on first use); a session's go when its map is
+    replaced or the session ends."""
+    store = state.extras.get(PENDING_KEY)
+    if store is None:
+        store = state.extras.setdefault(PENDING_KEY, PendingFrames())
+        if store.forget not in state.registry.on_drop:
+            state.registry.on_drop.append(store.forget)
+    return store
 
 
 def _describe(segments: "list[Segment]") -> list[PendingSegment]:
@@ -112,35 +118,40 @@ async def observe_unannotated(
     """Integrate `frame` as geometry, park its segments, return them with a contact sheet."""
     from glmap_tools.perception.geometric import segment_frame  # scipy: off the handshake
 
-    segments = (await in_thread(lambda: segment_frame(frame)))[:MAX_OBJECTS]
     store = pending_frames(state)
-
-    def integrate() -> PendingObserveResult:
-        with locked(target) as glmap:
-            report = glmap.integrate(frame, FrameSemantics())
-            pending = (
-                store.add(target.handle, glmap, frame, segments, report.frame_index)
-                if segments
-                else None
-            )
-            name = target.live.name
-        return PendingObserveResult(
-            session=target.handle,
-            map_name=name,
-            summary=f"{report.summary()}; {len(segments)} segments wait for label_segments",
-            report=report,
-            pending=PendingSegments(
-                frame=pending.token, segments=_describe(segments), expires_in_s=store.max_age_s
-            )
-            if pending is not None
-            else None,
-        )
-
-    result = await in_thread(integrate)
+    # Room for the frame first: one past the memory cap is refused before any work.
+    with store.room(target.handle, pending_bytes(*frame.depth.shape)):
+        segments = (await in_thread(lambda: segment_frame(frame)))[:MAX_OBJECTS]
+        result = await in_thread(lambda: _park(store, target, frame, segments))
     if segments:
         png = await in_thread(lambda: _sheet_png(frame, segments))
         result.sheet = Picture(format="png", data=png)
     return result
+
+
+def _park(
+    store: PendingFrames, target: Session, frame: RGBDFrame, segments: "list[Segment]"
+) -> PendingObserveResult:
+    """Integrate the frame's geometry and park its segments, under the map's lock."""
+    with locked(target) as glmap:
+        report = glmap.integrate(frame, FrameSemantics())
+        pending = (
+            store.add(target.handle, glmap, frame, segments, report.frame_index)
+            if segments
+            else None
+        )
+        name = target.live.name
+    return PendingObserveResult(
+        session=target.handle,
+        map_name=name,
+        summary=f"{report.summary()}; {len(segments)} segments wait for label_segments",
+        report=report,
+        pending=PendingSegments(
+            frame=pending.token, segments=_describe(segments), expires_in_s=store.max_age_s
+        )
+        if pending is not None
+        else None,
+    )
 
 
 async def label_segments(
@@ -159,8 +170,9 @@ async def label_segments(
     def run() -> ObserveResult:
         with locked(target) as glmap:
             pending = store.get(target.handle, frame, glmap)
+            named = [sid for e in labels if e.label.strip().lower() != IGNORE for sid in e.segments]
             semantics = semantics_from_labels(
-                pending.segments,
+                pending.segments(named),
                 [SegmentLabel(tuple(e.segments), e.label, e.description) for e in labels],
                 [SegmentGroup(tuple(g.members), g.description) for g in groups],
             )

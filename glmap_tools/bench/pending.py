@@ -1,0 +1,135 @@
+"""`python -m glmap_tools.bench pending`: server memory with every session's frames pending.
+
+Issue 27 item 2: each unlabelled 2048 x 2048 frame kept for label_segments took ~245 MB
+(a full-size bool mask per segment), and two sessions took a server from 676 MB to 5 GB.
+Here `--sessions` sessions of one in-process server (the tools as the MCP server runs them)
+each send `--frames` unannotated `--size` x `--size` frames (more than a session may keep)
+and label none. Printed: the bytes the pending frames hold, the process's resident memory
+before, at its peak and after every session started a new map, and how many frames were
+refused. Targets: the pending frames hold at most their documented cap
+(MAX_SERVER_PENDING_BYTES); resident memory grows by at most PEAK_FACTOR times that cap
+(the rest is the sessions' maps, which hold the frames' geometry, and calls in flight); a
+new map lets go of the frames, and the memory goes back to the system (a quarter of the
+cap at most remains).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+MIB = 1 << 20
+PEAK_FACTOR = 1.5  # resident growth at the peak, in pending caps (maps, calls in flight)
+
+
+def rss_mib() -> tuple[float, float]:
+    """(resident, peak resident) MiB of this process (Linux /proc; 0 elsewhere)."""
+    now = peak = 0.0
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                now = int(line.split()[1]) / 1024
+            elif line.startswith("VmHWM:"):
+                peak = int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return now, peak
+
+
+def reset_peak() -> None:
+    """Start VmHWM afresh (Linux >= 4.0: write 5 to clear_refs); no-op elsewhere."""
+    with contextlib.suppress(OSError):
+        Path("/proc/self/clear_refs").write_text("5")
+
+
+def scene_arguments(size: int) -> dict[str, Any]:
+    """observe_frame arguments (no annotations) of a `size` x `size` view of the test room."""
+    from glmap_tools import synthetic as sy
+    from glmap_tools.server.frames import observe_arguments
+
+    boxes = sy.floor() + sy.chair(0.0, 0.5, object_id=1) + sy.table(1.3, 0.8, 2)
+    boxes += sy.chair(-1.0, 1.0, object_id=3)
+    frame, _ = sy.view(boxes, (0.3, -2.0, 1.4), (0.3, 0.8, 0.4), size, size)
+    return observe_arguments(frame)
+
+
+def main(argv: list[str] | None = None) -> int:
+    from glmap_tools.bench.report import Report
+    from glmap_tools.perception import pending
+    from glmap_tools.server import ServerConfig
+    from glmap_tools.server.tools_perception import pending_frames
+    from glmap_tools.toolset import Toolset
+
+    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench pending")
+    parser.add_argument("--sessions", type=int, default=32)
+    parser.add_argument("--frames", type=int, default=pending.MAX_PENDING_FRAMES)
+    parser.add_argument("--size", type=int, default=1024, help="frame width and height (px)")
+    args = parser.parse_args(argv)
+
+    report = Report("bench pending")
+    cap = pending.MAX_SERVER_PENDING_BYTES / MIB
+    per_frame = pending.pending_bytes(args.size, args.size) / MIB
+    report.info(
+        f"{args.sessions} sessions x {args.frames} unannotated {args.size}x{args.size} frames "
+        f"({per_frame:.1f} MiB each pending); caps {pending.MAX_SESSION_PENDING_BYTES / MIB:.0f}"
+        f" MiB a session, {cap:.0f} MiB in all"
+    )
+    call = scene_arguments(args.size)
+    with tempfile.TemporaryDirectory() as tmp:
+        config = ServerConfig(maps_dir=Path(tmp), embedder="hashing", warm_up=False)
+        with Toolset(config) as tools:
+            registry = tools.state.registry
+            # Warm-up: one frame observed and labelled, to measure one call's working memory.
+            warm = registry.start_session()
+            tools.call("observe_frame", {**call, "session": warm.handle})
+            tools.call("new_map", {"session": warm.handle})
+            base, _ = rss_mib()
+            reset_peak()
+            res = tools.call("observe_frame", {**call, "session": warm.handle})
+            _, warm_peak = rss_mib()
+            working = max(0.0, warm_peak - base - per_frame)
+            tools.call("new_map", {"session": warm.handle})
+            del res
+            store = pending_frames(tools.state)
+            base, _ = rss_mib()
+            reset_peak()
+            sessions = [registry.start_session() for _ in range(args.sessions - 1)] + [warm]
+            refused = kept = 0
+            start = time.perf_counter()
+            for k in range(args.frames):
+                for session in sessions:
+                    try:
+                        tools.call("observe_frame", {**call, "session": session.handle})
+                        kept += 1
+                    except pending.LimitError:
+                        refused += 1
+                report.info(
+                    f"round {k + 1}: pending frames hold {store.held() / MIB:.0f} MiB, "
+                    f"resident {rss_mib()[0]:.0f} MiB, {refused} frames refused so far"
+                )
+            took = time.perf_counter() - start
+            held = store.held() / MIB
+            now, peak = rss_mib()
+            for session in sessions:
+                tools.call("new_map", {"session": session.handle})
+            after, _ = rss_mib()
+            released = store.held() / MIB
+    report.info(
+        f"{kept} frames kept, {refused} refused in {took:.1f} s; resident memory {base:.0f} MiB "
+        f"before, {peak:.0f} MiB at the peak, {now:.0f} MiB at the end, {after:.0f} MiB after "
+        f"new_map in every session; one call's working memory {working:.0f} MiB"
+    )
+    report.check("bytes the pending frames hold", held, "<=", cap, "MiB")
+    # Beside the pending frames: 32 sessions' maps (the frames' geometry) and calls in flight.
+    report.check("peak resident growth", peak - base, "<=", PEAK_FACTOR * cap, "MiB")
+    report.check("pending bytes after new_map", released, "<=", 1.0, "MiB")
+    report.check("resident growth after new_map", after - base, "<=", 0.25 * cap, "MiB")
+    return report.finish()
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
