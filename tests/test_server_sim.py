@@ -86,3 +86,55 @@ async def test_the_image_size_and_step_limit_can_be_chosen_at_reset(tmp_path):
     assert cv2.imdecode(jpeg, cv2.IMREAD_COLOR).shape == (120, 160, 3)
     assert first["max_steps"] == 2 and last["status"] == "out of steps"
     assert bad.is_error and "320x240" in bad.content[0].text
+
+
+def test_an_action_on_an_episode_a_reset_replaced_is_refused_saying_so():
+    # Issue 27 item 4: sim_step racing sim_reset answered "this SceneRenderer was closed".
+    from glmap_tools.errors import InvalidInputError
+    from glmap_tools.server import simulator
+
+    sim = simulator.open_episode("objectnav", 0, (96, 72), 20)
+    simulator.reset(sim, 0, None)
+    seen = sim.resets
+    simulator.step(sim, "turn_left", seen)
+    simulator.reset(sim, 1, None)  # same env, a new episode
+    with pytest.raises(InvalidInputError, match="was reset by another call"):
+        simulator.step(sim, "turn_left", seen)
+    assert len(sim.actions) == 0  # nothing was played in the new episode
+    sim.close()  # another scene's sim_reset closes the env
+    with pytest.raises(InvalidInputError, match="was reset by another call"):
+        simulator.step(sim, "turn_left")
+
+
+async def test_sim_step_racing_sim_reset_on_one_session_finishes_or_says_it_was_reset(tmp_path):
+    import anyio
+
+    server = build_server(config(tmp_path, sim_size=(96, 72), sim_max_steps=50))
+    async with Client(server) as client:
+        status(await client.call_tool("sim_reset", {"scene": 0, "seed": 3}))
+        stepping = anyio.Event()
+        out: dict[str, object] = {}
+
+        async def progress(done: float, total: float | None, message: str | None) -> None:
+            if done >= 1:
+                stepping.set()
+
+        async def step() -> None:
+            out["step"] = await client.call_tool(
+                "sim_step", {"action": "turn_left", "repeat": 20}, progress_callback=progress
+            )
+
+        async def reset() -> None:
+            await stepping.wait()
+            out["reset"] = await client.call_tool("sim_reset", {"scene": 1, "seed": 0})
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(step)
+            tg.start_soon(reset)
+        status(out["reset"])
+        stepped = out["step"]
+        if stepped.is_error:  # type: ignore[attr-defined]
+            text = stepped.content[0].text  # type: ignore[attr-defined]
+            assert "was reset by another call" in text and "SceneRenderer" not in text, text
+        after = status(await client.call_tool("sim_step", {"action": "turn_right"}))
+        assert after["steps"] == 1, after

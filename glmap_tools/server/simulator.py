@@ -31,9 +31,20 @@ ACTIONS = ("stop", "move_forward", "turn_left", "turn_right")  # the env's actio
 SIM_KEY = "sim"  # where a session keeps its SimEpisode (Session.extras)
 TASKS = ("objectnav", "instnav")
 MAX_GOALS_LISTED = 25
+EPISODE_RESET = (
+    "the episode was reset by another call (sim_reset) while this action waited, so it was "
+    "not taken; look at the new episode (sim_reset's reply, or map_summary) and act again."
+)
 
 _thread_lock = threading.Lock()
 _thread: ThreadPoolExecutor | None = None
+
+
+def episode_lock(extras: dict[str, Any]) -> threading.RLock:
+    """The lock that serialises a session's sim_reset and sim_step (its `Session.extras`)."""
+    with _thread_lock:
+        lock: threading.RLock = extras.setdefault("sim_lock", threading.RLock())
+    return lock
 
 
 def on_sim_thread(fn: Any, *args: Any) -> Any:
@@ -76,6 +87,9 @@ class SimEpisode:
         collisions: steps of this episode that bumped into something.
         started: (seed, goal) of the latest reset, None before one.
         actions: the action numbers taken since it (with `started`, a replay of the episode).
+        resets: how many times it was reset (an action asked for before a reset it did not
+            see is refused, not played in the new episode).
+        closed: the env was closed (a sim_reset to another scene replaced it).
     """
 
     task: str
@@ -91,13 +105,20 @@ class SimEpisode:
     started: tuple[int, str | None] | None = None
     actions: list[int] = field(default_factory=list)
     pool: list[tuple[str, tuple[int, ...], np.ndarray]] | None = None
+    resets: int = 0
+    closed: bool = False
 
     def run(self, fn: Any, *args: Any) -> Any:
         """Run fn(*args) on the simulator thread and return its result."""
         return on_sim_thread(fn, *args)
 
     def close(self) -> None:
-        self.run(self.env.close)
+        def shut() -> None:
+            if not self.closed:
+                self.closed = True
+                self.env.close()
+
+        self.run(shut)
 
 
 def open_episode(task: str, scene: int, size: tuple[int, int], max_steps: int) -> SimEpisode:
@@ -198,24 +219,34 @@ def reset(sim: SimEpisode, seed: int, goal: str | None) -> None:
         sim.collisions = 0
         sim.started = (seed, goal)
         sim.actions = []
+        sim.resets += 1
 
     sim.run(run)
 
 
-def step(sim: SimEpisode, action: str) -> None:
+def step(sim: SimEpisode, action: str, resets: int | None = None) -> None:
     """Take one action.
 
+    Args:
+        sim: the episode.
+        action: one of ACTIONS.
+        resets: `sim.resets` when the caller looked at the episode; the action is refused if
+            the episode was reset since (None: not checked).
+
     Raises:
-        InvalidInputError: an unknown action, or the episode is over.
+        InvalidInputError: an unknown action, the episode is over, or it was reset or
+            replaced by another call since the caller looked (nothing is done then).
     """
     if action not in ACTIONS:
         raise InvalidInputError(
             f"action {action!r} is not one of {list(ACTIONS)}.{did_you_mean(action, ACTIONS)}"
         )
-    if sim.over:
-        raise InvalidInputError("the episode is over; call sim_reset to start another.")
 
-    def run() -> None:
+    def run() -> None:  # on the simulator thread, where close and reset run too
+        if sim.closed or (resets is not None and sim.resets != resets):
+            raise InvalidInputError(EPISODE_RESET)
+        if sim.over:
+            raise InvalidInputError("the episode is over; call sim_reset to start another.")
         sim.obs, _, terminated, truncated, sim.info = sim.env.step(ACTIONS.index(action))
         sim.over = bool(terminated or truncated)
         sim.truncated = bool(truncated)

@@ -65,6 +65,10 @@ async def sim_reset(
         raise InvalidInputError("give episode or goal, not both: an episode has its goal.")
 
     def run() -> ImageResult:
+        with simulator.episode_lock(target.extras):  # a sim_step in flight finishes first
+            return reset()
+
+    def reset() -> ImageResult:
         sim = target.extras.get(SIM_KEY)
         if bench is not None:
             key: tuple[object, ...] = ("bench", str(bench.layout_path), bench.task, wh, steps)
@@ -104,17 +108,22 @@ async def sim_step(
     """Act `repeat` times: move 0.25 m, turn 30 deg, or stop (success: within 1 m of a goal's
     footprint, no wall between). At the end: success, SPL, distance_to_goal."""
     target = session_of(ctx, session)
-    sim = target.extras.get(SIM_KEY)
+    sim: simulator.SimEpisode | None = target.extras.get(SIM_KEY)
     if sim is None:
         raise InvalidInputError("no simulator episode in this session; call sim_reset first.")
+    episode = sim
+    resets = sim.resets  # the episode this call acts in; a sim_reset meanwhile refuses it
     updates: list[str] = []
     for i in range(repeat):
         await ctx.report_progress(i, repeat, f"{action} {i + 1}/{repeat}")
 
         def one() -> str:
-            with locked(target):  # one step and its integration at a time per session
-                simulator.step(sim, action)
-                return _integrate(target, sim)
+            # One step and its integration at a time per session, never across a sim_reset.
+            with simulator.episode_lock(target.extras), locked(target):
+                if target.extras.get(SIM_KEY) is not sim:
+                    raise InvalidInputError(simulator.EPISODE_RESET)
+                simulator.step(episode, action, resets)
+                return _integrate(target, episode)
 
         updates.append(await in_thread(one))
         if sim.over:
