@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from mcp import Client
 
+from glmap_tools.bench.calls import play
 from glmap_tools.server import ServerConfig, build_server
 from glmap_tools.sim.benchmark import load_split
 from tests.test_server_fixtures import config, counts, frame_args
@@ -59,33 +60,13 @@ async def chat_episode(client: Client, reset: dict, budget: int = 10) -> tuple[d
     return await call("sim_step", {"action": "stop"}), calls
 
 
-async def policy_episode(client: Client, episode: str, budget: int = 10) -> tuple[dict, list[str]]:  # type: ignore[type-arg]
-    """A chat client that lets the server's policy walk: nav_step until the policy would stop,
-    walk closer only when goal_unit says a stop would not count, then stop."""
-    calls: list[str] = []
-
-    async def call(tool: str, args: dict) -> dict:  # type: ignore[type-arg]
-        calls.append(tool)
-        return ok(await client.call_tool(tool, args))
-
-    await call("sim_reset", {"episode": episode})
-    while len(calls) < budget - 2:
-        walked = await call("nav_step", {"actions": 150})
-        if walked["outcome"] == "policy would stop here":
-            goal = walked["goal_unit"]
-            if not goal["would_succeed"]:
-                await call("navigate_to", {"unit_id": goal["id"]})
-            break
-    return await call("sim_step", {"action": "stop"}), calls
-
-
 @pytest.mark.slow  # loads MiniLM; plays six bench episodes
 async def test_a_chat_client_finishes_bench_episodes_of_five_scenes_in_at_most_ten_calls(tmp_path):
     episodes = [f"bench/objectnav/s{k:02d}-000" for k in (0, 1, 4, 5, 7)]
     episodes.append("bench/instnav/s01-000")
     defaults = ServerConfig(maps_dir=tmp_path / "maps", warm_up=False)  # MiniLM, 320x240
     async with Client(build_server(defaults)) as client:
-        played = [await policy_episode(client, e) for e in episodes]
+        played = [await play(client, e) for e in episodes]  # as docs/mcp.md tells a client
     for episode, (final, calls) in zip(episodes, played, strict=True):
         assert final["status"] == "success", (episode, final, calls)
         assert len(calls) <= 10 and calls[0] == "sim_reset" and calls[-1] == "sim_step"
