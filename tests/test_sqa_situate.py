@@ -288,3 +288,47 @@ def test_relation_phrases_split_the_object_from_its_relations():
         "the potted plant in a green pot",
         [],
     )
+
+
+@pytest.mark.parametrize(
+    ("text", "west"),
+    [
+        ("I am standing at the navy kitchen cabinet, the white refrigerator is on my right.", True),
+        ("I am standing at the navy kitchen cabinet. The brown table is behind me.", False),
+    ],
+)
+def test_with_nothing_faced_the_egocentric_constraints_pick_the_anchor_and_the_heading(
+    related_map, text, west
+):
+    s = situate(related_map, text)
+    assert related_map.instances[s.anchor_id].label == "kitchen cabinet"
+    assert (s.x < 2.0) == west, (s.x, s.y, s.notes)
+    if west:
+        assert abs(_bearing(s, (-0.6, 0.0)) + 90.0) <= 30.0, s.notes  # fridge on the right
+    else:
+        assert abs(abs(_bearing(s, (4.0, 2.0))) - 180.0) <= 30.0, s.notes  # table behind
+    assert any("scored against" in n for n in s.notes)
+
+
+def test_a_clock_direction_turns_the_agent_so_the_object_lies_at_that_hour(glmap):
+    s = situate(glmap, "I am standing by the television. The sofa is at my 3 o'clock.")
+    sofa = glmap.instances[next(u.id for u in glmap.instances.values() if u.label == "sofa")]
+    c = sofa.gaussians.means[:, :2].mean(axis=0)
+    assert abs(_bearing(s, c) + 90.0) <= 25.0, s.notes
+    assert s.reading is not None and s.reading.constraints[0].clock == 3
+
+
+def test_a_leading_facing_clause_places_the_agent_by_what_it_faces_not_at_the_words_i_am(glmap):
+    s = situate(glmap, "I am facing the sofa, and the bed is on my right.")
+    assert s.reading is not None and (s.reading.anchor, s.reading.facing) == ("", "sofa")
+    assert abs(_bearing(s, (3.0, 0.0))) <= 20.0
+    assert _bearing(s, (0.0, 0.0)) < -30.0, s.notes  # the bed on the right
+
+
+def test_a_caller_reading_replaces_the_offline_one(glmap):
+    from glmap_tools.sqa.reading import SituationReading
+
+    reading = SituationReading(anchor="bed", relation="at", facing="television")
+    s = situate(glmap, "", reading=reading)
+    assert s.reading == reading
+    assert abs(_bearing(s, (0.0, 3.2))) <= 20.0

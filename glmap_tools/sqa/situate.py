@@ -53,6 +53,8 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError, NoMatchError
 from glmap_tools.map.occupancy import FREE
+from glmap_tools.sqa.constrain import constrained_pose, reading_text, targets
+from glmap_tools.sqa.reading import SituationReading, read_situation
 from glmap_tools.sqa.relations import prefer_related, relation_phrases
 from glmap_tools.sqa.sight import SEEN_MIN, SightCheck
 from glmap_tools.sqa.stand import front_stand_point
@@ -155,6 +157,7 @@ class Situation:
     notes: list[str] = field(default_factory=list)
     anchor_id: int | None = None
     facing_id: int | None = None
+    reading: SituationReading | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """A compact JSON-ready summary (no heat maps)."""
@@ -169,6 +172,7 @@ class Situation:
             "anchors": [[u.unit_id, u.kind, round(u.score, 3), u.text[:80]] for u in self.anchors],
             "facing": [[u.unit_id, u.kind, round(u.score, 3), u.text[:80]] for u in self.facing],
             "notes": self.notes,
+            "reading": self.reading.as_dict() if self.reading is not None else None,
         }
 
 
@@ -296,6 +300,7 @@ def situate(
     sight: bool = True,
     relate: bool = True,
     backrest: bool = True,
+    reading: SituationReading | None = None,
 ) -> Situation:
     """Locate the situation `text` in `glmap`.
 
@@ -317,6 +322,10 @@ def situate(
             earlier rule).
         backrest: let a rising edge (backrest, headboard) mark the anchor's back
             (`glmap_tools.sqa.stand`); False: the floor around it alone (the earlier rule).
+        reading: the text already read (`glmap_tools.sqa.reading`; an LLM's or a
+            caller's); default: the offline reader's. Its anchor and facing are the
+            phrases scored, and its egocentric constraints score the candidate poses
+            (`glmap_tools.sqa.constrain`). With a reading, `text` may be empty.
 
     Raises:
         InvalidInputError: empty or overlong text, or an empty map.
@@ -326,6 +335,8 @@ def situate(
     from glmap_tools.nav.scorers import EmbeddingScorer, map_units
     from glmap_tools.nav.value import TRUNCATE, map_window, value_map_from_scores
 
+    if reading is not None and (not isinstance(text, str) or not text.strip()):
+        text = reading_text(reading)
     if not isinstance(text, str) or not text.strip():
         raise InvalidInputError(
             "the situation text is empty; describe where you are, e.g. 'sitting on the "
@@ -341,8 +352,14 @@ def situate(
         scorer = EmbeddingScorer(glmap.embedder)
     if split_text is None:
         split_text = isinstance(scorer, EmbeddingScorer)
+    if reading is None:
+        reading = read_situation(text)
     if split_text:
-        location, facing = (core_phrase(p) if p else p for p in split_situation(text))
+        location, facing = reading.anchor, reading.facing or ""
+        if not location and not facing and reading.constraints:
+            location = reading.constraints[0].object  # "the lamp is on my left": by the lamp
+        if not location and not facing:
+            location = core_phrase(split_situation(text)[0])
     else:
         location = facing = text.strip()
     instances, regions = map_units(glmap, "instances"), map_units(glmap, "regions")
@@ -353,10 +370,12 @@ def situate(
     loc_head, loc_rels = relation_phrases(location) if parse else (location, [])
     face_head, face_rels = relation_phrases(facing) if parse and facing else (facing, [])
     p_o = scorer.score(face_head or facing, instances) if facing else np.zeros(len(instances))
-    p_r = scorer.score(location, regions) if regions else np.zeros(0)
+    p_r = scorer.score(location, regions) if regions and location else np.zeros(len(regions))
     # Offline: the anchor object the location phrase names joins the regions in H_r.
     p_anchor = (
-        scorer.score(loc_head or location, instances) if split_text else np.zeros(len(instances))
+        scorer.score(loc_head or location, instances)
+        if split_text and location
+        else np.zeros(len(instances))
     )
     if parse:
         p_anchor = prefer_related(glmap, scorer, instances, regions, p_anchor, loc_rels, TIE, notes)
@@ -439,6 +458,23 @@ def situate(
     else:
         heading = math.atan2(peak_r[1] - y, peak_r[0] - x) if (x, y) != peak_r else 0.0
         notes.append("no facing target: heading towards the anchor")
+    tgts = targets(glmap, scorer, instances, reading.constraints, TIE, MIN_SCORE)
+    if tgts:
+        x, y, heading, a_id, f_id = constrained_pose(
+            glmap,
+            instances,
+            tgts,
+            (x, y, heading),
+            anchor_ids[0] if anchor_ids else None,
+            p_anchor if split_text and float(p_anchor.max(initial=0.0)) >= MIN_SCORE else None,
+            p_o if peak_o is not None else None,
+            facing_id,
+            anchor_from_facing=best_r < MIN_SCORE,
+            backrest=backrest,
+            notes=notes,
+        )
+        anchor_ids = [a_id] if a_id is not None else anchor_ids
+        facing_id = f_id
     confidence = min(best_r, best_o) if facing else best_r
     return Situation(
         x=x,
@@ -457,4 +493,5 @@ def situate(
         notes=notes,
         anchor_id=anchor_ids[0] if anchor_ids else None,
         facing_id=facing_id,
+        reading=reading,
     )

@@ -1,0 +1,457 @@
+"""A situation text read into one structured form: where I am, what I face, what is around.
+
+People write situations many ways (SQA3D style): a posture at an object ("I am sitting on
+the couch"), an activity ("I am rinsing a cup at the kitchen sink", "I am closing the
+curtains"), a leading facing clause ("I am facing a bookshelf, and a lamp is on my right"),
+egocentric clauses ("the door is on my left", "to my right is a desk", "the bed is behind
+me", "my back is facing the window", "the lamp is in my 2 o'clock direction"). They all
+say the same three things, which `SituationReading` holds:
+
+- position: the anchor object (its words, with any qualifying relations: "white cabinet
+  next to the fridge"), the relation to it ("at", "on", "in front of", "between", ...),
+  and the posture or activity;
+- facing: the object faced, or None;
+- constraints: (object, side) with side left / right / behind / front, or (object, clock
+  hour), 12 o'clock straight ahead and 3 o'clock to the right.
+
+`read_situation` is the offline reader: rules over clauses, no model. An LLM (or a caller)
+can produce the same form and hand it to `situate` (`glmap_tools.sqa.situate`) directly.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from glmap_tools.errors import InvalidInputError
+
+Side = Literal["left", "right", "behind", "front"]
+SIDES: tuple[str, ...] = ("left", "right", "behind", "front")
+SIDE_BEARING = {"front": 0.0, "left": 90.0, "right": -90.0, "behind": 180.0}  # deg, + = left
+# index = hour (0 and 12 both "twelve")
+HOUR_WORDS = tuple(
+    [
+        "twelve",
+        "one",
+        "two",
+        "three",
+        "four",
+        "five",
+        "six",
+        "seven",
+        "eight",
+        "nine",
+        "ten",
+        "eleven",
+        "twelve",
+    ]
+)
+POSTURES = (
+    "standing",
+    "sitting",
+    "seated",
+    "sat",
+    "lying",
+    "laying",
+    "crouching",
+    "kneeling",
+    "squatting",
+    "leaning",
+    "resting",
+    "waiting",
+    "perched",
+    "stood",
+    "hovering",
+)
+BASE_POSTURES = {
+    "sit": "sitting",
+    "stand": "standing",
+    "lie": "lying",
+    "kneel": "kneeling",
+    "crouch": "crouching",
+    "lean": "leaning",
+    "squat": "squatting",
+    "wait": "waiting",
+    "rest": "resting",
+}
+# Longest first: "in front of" before "in", "on top of" before "on".
+RELATIONS = (
+    "in front of",
+    "on top of",
+    "at the side of",
+    "by the side of",
+    "on the edge of",
+    "at the edge of",
+    "at the foot of",
+    "at the end of",
+    "at the corner of",
+    "across from",
+    "opposite to",
+    "opposite",
+    "next to",
+    "close to",
+    "right next to",
+    "beside",
+    "besides",
+    "near",
+    "by",
+    "at",
+    "on",
+    "in",
+    "inside",
+    "into",
+    "under",
+    "underneath",
+    "below",
+    "beneath",
+    "behind",
+    "between",
+    "against",
+    "along",
+    "over",
+    "from",
+    "with",
+    "to",
+)
+ROOMS = (
+    "kitchen",
+    "bedroom",
+    "bathroom",
+    "living room",
+    "lounge",
+    "hallway",
+    "hall",
+    "corridor",
+    "office",
+    "study",
+    "dining room",
+    "room",
+    "toilet room",
+    "laundry room",
+)
+_DET = re.compile(r"^(?:the|a|an|some|my|this|that|one|two|three|several|few|of)\s+")
+_LEAD = re.compile(
+    r"^(?:(?:i am|i'm|im|i|am|we are|currently|right now|now|just|here|also|there)\b\s*)+"
+)
+_FACE_VERB = (
+    r"(?:facing away from|facing towards?|facing|face|looking (?:at|towards?|into|out of|out)|"
+    r"look(?:ing)? towards?|watching|turned (?:to|towards?)|staring at|gazing at|"
+    r"with my (?:face|eyes) (?:to|towards?)|my face is towards?|i see|i can see)"
+)
+_NUM = r"(?P<h>\d{1,2}|" + "|".join(HOUR_WORDS[1:12]) + r"|twelve)"
+_CLOCK_TAIL = r"(?:\s*o'?clock)(?:\s+(?:direction|position|orientation))?"
+_SIDE = r"(?P<s>left|right)(?:[- ]hand)?(?: side)?(?: of me)?"
+
+_IS = r"(?:is |are |stands |sits |lies )?"  # "the lamp (is) on my left"
+_THERE = r",? (?:is |are |there is |there are |there's |i (?:can )?see |i have |stands |sits )?"
+_JUST = r"(?:right |directly |straight |immediately |just )?"
+_AHEAD = r"(?:in front of me|ahead of me|before me|straight ahead|ahead)"
+_PATTERNS: list[tuple[str, re.Pattern[str]]] = [
+    (
+        "behind",
+        re.compile(
+            r"^(?:with )?my back (?:is )?(?:facing|turned to|to|towards?|against) (?P<x>.+)$"
+        ),
+    ),
+    ("behind", re.compile(r"^(?:i am )?facing away from (?P<x>.+)$")),
+    ("behind", re.compile(r"^" + _JUST + r"behind me" + _THERE + r"(?P<x>.+)$")),
+    ("behind", re.compile(r"^(?P<x>.+?) " + _IS + _JUST + r"behind me$")),
+    ("behind", re.compile(r"^(?:i have )?(?P<x>.+?) at my back$")),
+    (
+        "clock",
+        re.compile(r"^(?:at|in|on|to) (?:my |the )?" + _NUM + _CLOCK_TAIL + _THERE + r"(?P<x>.+)$"),
+    ),
+    (
+        "clock",
+        re.compile(
+            r"^(?P<x>.+?) " + _IS + r"(?:at|in|on|to) (?:my |the )?" + _NUM + _CLOCK_TAIL + r"$"
+        ),
+    ),
+    ("clock", re.compile(r"^(?P<x>.+?) " + _IS + _NUM + _CLOCK_TAIL + r"(?: (?:of|from) me)?$")),
+    ("side", re.compile(r"^(?:to|on|at) (?:my|the) " + _SIDE + _THERE + r"(?P<x>.+)$")),
+    ("side", re.compile(r"^my " + _SIDE + r" (?:is|faces|is facing|is next to|has) (?P<x>.+)$")),
+    (
+        "side",
+        re.compile(
+            r"^(?:i have )?(?P<x>.+?) "
+            + _IS
+            + r"(?:located )?"
+            + _JUST
+            + r"(?:to|on|at|by) (?:my|the) "
+            + _SIDE
+            + r"$"
+        ),
+    ),
+    ("side", re.compile(r"^(?:i have )?(?P<x>.+?) " + _IS + r"(?P<s>left|right) of me$")),
+    ("front", re.compile(r"^" + _JUST + _AHEAD + _THERE + r"(?P<x>.+)$")),
+    ("front", re.compile(r"^(?:i have )?(?P<x>.+?) " + _IS + _JUST + _AHEAD + r"$")),
+]
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """An object at an egocentric side (left / right / behind / front) or clock hour.
+
+    Attributes:
+        object: its words ("lamp", "white door").
+        side: left / right / behind / front, or None when `clock` is given.
+        clock: 1..12 (12 straight ahead, 3 to the right), or None when `side` is given.
+    """
+
+    object: str
+    side: Side | None = None
+    clock: int | None = None
+
+    def __post_init__(self) -> None:
+        if (self.side is None) == (self.clock is None):
+            raise InvalidInputError(
+                f"constraint on {self.object!r}: give exactly one of side "
+                f"({'/'.join(SIDES)}) and clock (1..12)."
+            )
+        if self.side is not None and self.side not in SIDES:
+            raise InvalidInputError(f"side {self.side!r} is not one of {list(SIDES)}.")
+        if self.clock is not None and not 1 <= self.clock <= 12:
+            raise InvalidInputError(f"clock {self.clock!r} must be an hour 1..12.")
+
+    @property
+    def bearing_deg(self) -> float:
+        """Where the object should lie, degrees from straight ahead (+ = left)."""
+        if self.side is not None:
+            return SIDE_BEARING[self.side]
+        b = -30.0 * (self.clock or 12)
+        return (b + 180.0) % 360.0 - 180.0 if b != -180.0 else 180.0
+
+
+@dataclass(frozen=True)
+class SituationReading:
+    """Where a situation puts me: position, facing and egocentric constraints.
+
+    Attributes:
+        anchor: the object (or room) I am at, with its qualifying relations ("kitchen
+            sink", "white cabinet next to the fridge"); '' when the text names none.
+        relation: how I am placed to the anchor ("at", "on", "in front of", "between", ...).
+        posture: standing / sitting / lying / ..., or None.
+        activity: what I am doing ("rinsing a cup"), or None.
+        near: other objects the position names ("between the sofa and the table": table).
+        facing: the object I face, or None.
+        constraints: objects at egocentric sides or clock hours.
+    """
+
+    anchor: str = ""
+    relation: str = ""
+    posture: str | None = None
+    activity: str | None = None
+    near: tuple[str, ...] = ()
+    facing: str | None = None
+    constraints: tuple[Constraint, ...] = field(default_factory=tuple)
+
+    @property
+    def clean(self) -> bool:
+        """An anchor and something that fixes the heading (facing or a constraint)."""
+        return bool(self.anchor) and (self.facing is not None or bool(self.constraints))
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready form (the shape `from_dict` and `locate_situation` accept)."""
+        return {
+            "anchor": self.anchor,
+            "relation": self.relation,
+            "posture": self.posture,
+            "activity": self.activity,
+            "near": list(self.near),
+            "facing": self.facing,
+            "constraints": [
+                {"object": c.object, "side": c.side, "clock": c.clock} for c in self.constraints
+            ],
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> SituationReading:
+        """The reading from `as_dict`'s shape (missing keys take their defaults)."""
+        if not isinstance(data, dict):
+            raise InvalidInputError(
+                f"a situation reading is a JSON object, not {type(data).__name__}."
+            )
+        unknown = set(data) - {
+            "anchor",
+            "relation",
+            "posture",
+            "activity",
+            "near",
+            "facing",
+            "constraints",
+        }
+        if unknown:
+            raise InvalidInputError(f"unknown situation reading keys {sorted(unknown)}.")
+        cons = tuple(
+            Constraint(str(c["object"]), c.get("side"), c.get("clock"))
+            for c in data.get("constraints") or []
+        )
+        return cls(
+            anchor=str(data.get("anchor") or ""),
+            relation=str(data.get("relation") or ""),
+            posture=data.get("posture"),
+            activity=data.get("activity"),
+            near=tuple(str(n) for n in data.get("near") or ()),
+            facing=(str(data["facing"]) if data.get("facing") else None),
+            constraints=cons,
+        )
+
+
+def object_words(phrase: str) -> str:
+    """The object's words: no leading article or 'there is', no trailing 'of me'."""
+    p = phrase.strip(" .,;:!?\"'")
+    p = re.sub(r"^(?:there (?:is|are)|there's|i (?:can )?see|i have|is|are)\s+", "", p)
+    p = re.sub(r"\s+(?:of me|from me|to me|as well|too)$", "", p)
+    prev = None
+    while prev != p:
+        prev = p
+        p = _DET.sub("", p)
+    return p.strip(" .,;:")
+
+
+def _hour(h: str) -> int:
+    if h.isdigit():
+        return int(h) % 12 or 12
+    return HOUR_WORDS.index(h) or 12
+
+
+def _clauses(text: str) -> list[str]:
+    t = " " + " ".join(text.lower().replace("’", "'").replace("`", "'").split()) + " "
+    t = re.sub(r"\bi'm\b", "i am", t)
+    t = re.sub(r"\bo ?clock\b|\bo' clock\b", "o'clock", t)
+    # "between the X and the Y" keeps its "and" (marked) through the clause split.
+    t = re.sub(r"\bbetween ((?:the |a |an )?[\w -]+?) and ", r"between \1 & ", t)
+    parts = re.split(
+        r"[.;!?]+\s*|,\s*(?:and |while |with |but |so |whereas )?|"
+        r"\s+(?:and|while|whilst|but|whereas|with)\s+(?=(?:i|i am|my|the|a|an|there|to|on|in|at|"
+        r"behind|facing|looking)\b)",
+        t,
+    )
+    return [p.strip() for p in parts if p and p.strip()]
+
+
+def _position(clause: str, out: dict[str, Any]) -> None:
+    """Fill posture / activity / relation / anchor from a position clause."""
+    rest = _LEAD.sub("", clause).strip()
+    words = rest.split()
+    if words and (words[0] in POSTURES or words[0] in BASE_POSTURES):
+        w = BASE_POSTURES.get(words[0], words[0])
+        out.setdefault("posture", "sitting" if w in ("seated", "sat") else w)
+        rest = " ".join(words[1:])
+        rest = re.sub(r"^(?:up|down|here|there)\s+", "", rest)
+    elif words and words[0].endswith("ing") and words[0] not in ("facing", "looking"):
+        # An activity: "rinsing a cup at the kitchen sink", "closing the curtains".
+        m = re.search(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s", " " + rest + " ")
+        loc = None
+        if m and m.start() > 0:
+            head = rest[: m.start() - 1].strip() if m.start() > 0 else ""
+            tail = rest[m.start() :].strip()
+            if m.group(1) not in ("with", "to", "from", "into", "over") or not head.split()[1:]:
+                out.setdefault("activity", head or words[0])
+                loc = tail
+        if loc is None:
+            out.setdefault("activity", rest)
+            obj = object_words(" ".join(words[1:]))
+            if obj and not out.get("anchor"):
+                out["anchor"], out["relation"] = obj, "at"
+            return
+        rest = loc
+    m = re.match(r"^(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s+(.+)$", rest)
+    if not m:
+        obj = object_words(rest)
+        if obj and not out.get("anchor") and len(obj.split()) <= 6:
+            out["anchor"], out["relation"] = obj, out.get("relation") or "at"
+        return
+    rel, obj = m.group(1), m.group(2)
+    if rel == "between" and "&" in obj:
+        a, b = (object_words(x) for x in obj.split("&", 1))
+        out.setdefault("near", []).append(b)
+        obj = a
+    obj = object_words(obj)
+    # "in the kitchen next to the fridge": the object, not the room, is the anchor.
+    sub = re.match(r"^(.+?)\s+(next to|beside|near|by|at|in front of|close to|on)\s+(.+)$", obj)
+    if sub and object_words(sub.group(1)) in ROOMS:
+        room, rel, obj = object_words(sub.group(1)), sub.group(2), object_words(sub.group(3))
+        obj = f"{obj} in the {room}"
+    if obj and (not out.get("anchor") or out.get("relation") == "in" and obj not in ROOMS):
+        if out.get("anchor") and out.get("relation") == "in":
+            obj = f"{obj} in the {out['anchor']}"
+        out["anchor"], out["relation"] = obj, rel
+
+
+def read_situation(text: str) -> SituationReading:
+    """The offline reading of a situation text (rules, no model).
+
+    >>> r = read_situation("I am facing a bookshelf, and a lamp is on my right.")
+    >>> (r.anchor, r.facing, [(c.object, c.side) for c in r.constraints])
+    ('', 'bookshelf', [('lamp', 'right')])
+
+    Raises:
+        InvalidInputError: empty text.
+    """
+    if not isinstance(text, str) or not text.strip():
+        raise InvalidInputError(
+            "the situation text is empty; describe where you are, e.g. 'sitting on the "
+            "bed, facing the window'."
+        )
+    out: dict[str, Any] = {}
+    cons: list[Constraint] = []
+    fronts: list[str] = []
+    for clause in _clauses(text):
+        clause = re.sub(r"^(?:and|while|with|but|so|also|then)\s+", "", clause)
+        hit = False
+        for kind, pat in _PATTERNS:
+            m = pat.match(clause)
+            if not m:
+                continue
+            obj = object_words(m.group("x"))
+            if not obj or obj in ("i", "me", "it"):
+                continue
+            if kind == "behind":
+                cons.append(Constraint(obj, side="behind"))
+            elif kind == "clock":
+                hour = _hour(m.group("h"))
+                if hour == 12:
+                    fronts.append(obj)
+                else:
+                    cons.append(Constraint(obj, clock=hour))
+            elif kind == "side":
+                cons.append(Constraint(obj, side=m.group("s")))  # type: ignore[arg-type]
+            else:
+                fronts.append(obj)
+            hit = True
+            break
+        if hit:
+            continue
+        m = re.search(r"(?:^|\s)" + _FACE_VERB + r"\s+(?P<x>.+)$", clause)
+        if m:
+            before = clause[: m.start()].strip()
+            target = m.group("x")
+            verb = clause[m.start() : m.start("x")].strip()
+            if not _LEAD.sub("", before).strip():
+                # "Watching tv on the couch": the place after the faced object.
+                split = re.match(
+                    r"^(.+?)\s+((?:on|at|in|from|by|next to|beside|near)\s+.+)$", target
+                )
+                if split and not verb.startswith(("i see", "i can see")):
+                    target, before = split.group(1), "i am " + split.group(2)
+            if verb.startswith("facing away"):
+                cons.append(Constraint(object_words(target), side="behind"))
+            elif object_words(target):
+                fronts.append(object_words(target))
+            if before:
+                _position(before, out)
+            continue
+        _position(clause, out)
+    facing = fronts[0] if fronts else None
+    cons += [Constraint(f, side="front") for f in fronts[1:]]
+    return SituationReading(
+        anchor=out.get("anchor", ""),
+        relation=out.get("relation", ""),
+        posture=out.get("posture"),
+        activity=out.get("activity"),
+        near=tuple(out.get("near", ())),
+        facing=facing,
+        constraints=tuple(cons),
+    )
