@@ -310,7 +310,10 @@ def run_sqa_eval(
         for s in todo:
             keep(answer_scene(spec, s, layouts[s], str(out)))
     else:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
+        from glmap_tools.eval.orphans import exit_with_parent
+
+        # Each pool process exits as soon as this one is gone (killed), instead of answering on.
+        with ProcessPoolExecutor(max_workers=workers, initializer=exit_with_parent) as pool:
             futures = [pool.submit(answer_scene, spec, s, layouts[s], str(out)) for s in todo]
             for f in futures:
                 keep(f.result())

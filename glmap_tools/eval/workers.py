@@ -190,7 +190,11 @@ def _process_main(
     embedder: str, jobs: list[dict], start: int, claimed: Any, outcomes: Any, log: str | None
 ) -> None:
     """A local worker process: walk the job list from `start` (wrapping around), play each
-    job no other worker has claimed, and put an Outcome (as a dict) for each."""
+    job no other worker has claimed, and put an Outcome (as a dict) for each. Exits at once
+    when the parent process is gone (killed), instead of playing on."""
+    from glmap_tools.eval.orphans import exit_with_parent
+
+    exit_with_parent()
     if log:
         _log_to(Path(log))
     try:
