@@ -35,7 +35,8 @@ async def test_a_situation_comes_back_as_a_pose_a_heat_map_and_four_captioned_vi
         assert await counts(client) == before  # read-only
     sit = info["situation"]
     assert {"x", "y", "heading_deg", "confidence", "anchors", "facing"} <= set(sit)
-    assert sit["facing_text"] == "the blue chair"
+    assert sit["facing_text"] == "blue chair"
+    assert sit["reading"]["anchor"] == "dining table" and sit["reading"]["facing"] == "blue chair"
     # The blue chair stands at (-1.6, 0.4): the pose faces it.
     assert [v[0] for v in info["views"]] == ["front", "left", "back", "right"]
     assert info["map_answer"]["type"] == "reach" and info["map_answer"]["answer"] == "yes"
@@ -75,3 +76,27 @@ async def test_a_situation_on_an_empty_map_or_matching_nothing_is_a_clear_error(
             "locate_situation", {"situation": "in the garage facing the car"}
         )
         assert none.is_error and "nothing in the map matches" in none.content[0].text
+
+
+async def test_a_callers_own_reading_is_used_and_comes_back_for_correction(tmp_path):
+    async with Client(build_server(config(tmp_path))) as client:
+        for eye in ((0.0, -2.6, 1.4), (-2.5, 1.5, 1.4)):
+            assert not (await client.call_tool("observe_frame", frame_args(eye))).is_error
+        reading = {
+            "anchor": "dining table",
+            "facing": None,
+            "constraints": [{"object": "blue chair", "clock": 12}],
+        }
+        result = await client.call_tool("locate_situation", {"reading": reading})
+        assert not result.is_error, result.content[0].text
+        sit = json.loads(result.content[0].text)["situation"]
+        assert sit["reading"]["constraints"] == [
+            {"object": "blue chair", "side": None, "clock": 12}
+        ]
+        assert any("scored against 'blue chair' at 0 deg" in n for n in sit["notes"])
+        bad = await client.call_tool(
+            "locate_situation", {"reading": {"constraints": [{"object": "lamp"}]}}
+        )
+        assert bad.is_error and "exactly one of side" in bad.content[0].text
+        none = await client.call_tool("locate_situation", {})
+        assert none.is_error and "or a reading" in none.content[0].text
