@@ -12,7 +12,8 @@ longest of those calls is how long the map stayed locked (plus one cheap call). 
 LOCK_TARGET_S.
 
 The same frame must not hold other sessions either (issue 27 item 1): they share the
-server's text embedder. A second client, on its own map, calls find_instance with a query
+server's text embedder. A second session of the same server (the tools run in-process, as
+glmap-mcp runs them, on one app state), on its own map, calls find_instance with a query
 never seen before (so it runs the model) in a loop meanwhile; its longest call is the
 cross-session wait. Target: LOCK_TARGET_S.
 
@@ -80,11 +81,10 @@ def made_up_words(rng: np.random.Generator, n: int) -> list[str]:
 
 
 async def observed_with_probe(
-    client: Any, call: dict[str, Any], other: Any = None
+    tools: Any, call: dict[str, Any], other: str
 ) -> tuple[float, list[float], Any, list[float]]:
-    """Call observe_frame while another task calls what_is_at on the same map in a loop,
-    and (when `other`, a client of another session, is given) a third calls find_instance
-    there with fresh queries.
+    """Call observe_frame while another task calls what_is_at on the same map in a loop and
+    a third calls find_instance, with a query never seen before, in session `other`.
 
     Returns:
         (observe_frame seconds, seconds of each what_is_at call, the observe_frame result,
@@ -99,15 +99,17 @@ async def observed_with_probe(
 
     async def observe() -> None:
         start = time.perf_counter()
-        out["res"] = await client.call_tool("observe_frame", call)
-        out["s"] = time.perf_counter() - start
-        done.set()
+        try:
+            out["res"] = await tools.acall("observe_frame", call)
+        finally:
+            out["s"] = time.perf_counter() - start
+            done.set()
 
     async def probe() -> None:
         await anyio.sleep(0.05)
         while not done.is_set():
             start = time.perf_counter()
-            await client.call_tool("what_is_at", {"x": 0.0, "y": 0.0, "radius": 0.1})
+            await tools.acall("what_is_at", {"x": 0.0, "y": 0.0, "radius": 0.1})
             waits.append(time.perf_counter() - start)
             await anyio.sleep(0.05)
 
@@ -116,25 +118,22 @@ async def observed_with_probe(
         while not done.is_set():
             query = f"a {SYLLABLES[len(across) % 12]} lamp number {len(across)} {time.time()}"
             start = time.perf_counter()
-            res = await other.call_tool("find_instance", {"query": query, "top_k": 1})
+            await tools.acall("find_instance", {"query": query, "top_k": 1, "session": other})
             across.append(time.perf_counter() - start)
-            assert not res.is_error, res.content[0].text
             await anyio.sleep(0.05)
 
     async with anyio.create_task_group() as tg:
         tg.start_soon(observe)
         tg.start_soon(probe)
-        if other is not None:
-            tg.start_soon(probe_other)
+        tg.start_soon(probe_other)
     return out["s"], waits, out["res"], across
 
 
 async def run(args: argparse.Namespace) -> int:
-    from mcp import Client
-
     from glmap_tools.bench.report import Report, load_average
-    from glmap_tools.server import ServerConfig, build_server
+    from glmap_tools.server import ServerConfig
     from glmap_tools.server.frames import observe_arguments
+    from glmap_tools.toolset import Toolset
 
     report = Report("bench lock")
     frame, ids = tiled_frame(args.objects, args.width, args.height)
@@ -148,14 +147,16 @@ async def run(args: argparse.Namespace) -> int:
     worst = worst_other = 0.0
     with tempfile.TemporaryDirectory() as tmp:
         config = ServerConfig(maps_dir=Path(tmp), embedder=args.embedder, warm_up=False)
-        server = build_server(config)
-        # Two connections to one server process: each its own session and map, one embedder.
-        async with Client(server) as client, Client(server) as other:
+        # One server (one embedder, as glmap-mcp has), two sessions, each on its own map.
+        with Toolset(config) as tools:
+            other = tools.state.registry.start_session().handle
             # Warm-up (embedder load, JIT) on a one-object frame, then a fresh map.
             one = [{"id": 1, "label": "thing", "description": "a thing"}]
-            await client.call_tool("observe_frame", observe_arguments(frame, ids == 1, one))
-            await other.call_tool("observe_frame", observe_arguments(frame, ids == 1, one))
-            await client.call_tool("new_map", {})
+            await tools.acall("observe_frame", observe_arguments(frame, ids == 1, one))
+            await tools.acall(
+                "observe_frame", {**observe_arguments(frame, ids == 1, one), "session": other}
+            )
+            await tools.acall("new_map", {})
             for sighting in range(args.sightings):
                 objects = [
                     {
@@ -174,19 +175,16 @@ async def run(args: argparse.Namespace) -> int:
                     for g in range(args.groups)
                 ]
                 call = observe_arguments(frame, ids, objects, groups)
-                observe_s, waits, res, across = await observed_with_probe(client, call, other)
-                if res.is_error:
-                    report.info(f"observe_frame failed: {res.content[0].text}")
-                    return 1
-                update = (res.structured_content or {})["report"]
+                observe_s, waits, res, across = await observed_with_probe(tools, call, other)
+                update = res.report
                 held = max(waits, default=0.0)
                 worst = max(worst, held)
                 held_other = max(across, default=0.0)
                 worst_other = max(worst_other, held_other)
                 report.info(
                     f"sighting {sighting + 1}: observe_frame {observe_s:.2f} s, "
-                    f"{len(update['instances_merged'])} instances and "
-                    f"{len(update['regions_merged'])} regions merged; longest wait of a "
+                    f"{len(update.instances_merged)} instances and "
+                    f"{len(update.regions_merged)} regions merged; longest wait of a "
                     f"concurrent what_is_at {held:.2f} s ({len(waits)} calls), of a "
                     f"find_instance in another session {held_other:.2f} s ({len(across)} "
                     f"calls, median {float(np.median(across or [0.0])):.2f} s); {load_average()}"

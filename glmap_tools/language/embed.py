@@ -201,10 +201,14 @@ class FairLock:
             return self._next - self._serving
 
 
-@functools.lru_cache(maxsize=4)
+_MODEL_LOCKS: dict[str, FairLock] = {}
+_LOADING = threading.Lock()  # one loader at a time: two threads must not load two models
+
+
 def _shared_model_lock(path: str) -> FairLock:
     """The one lock of the model loaded from `path`, shared by every embedder using it."""
-    return FairLock()
+    with _LOADING:
+        return _MODEL_LOCKS.setdefault(path, FairLock())
 
 
 def _bundled_model_path() -> Path:
@@ -312,7 +316,8 @@ class MiniLMEmbedder:
                     "saved sentence-transformers model, or None for the bundled MiniLM."
                 )
             self.name = path.name
-        self._model = _load_sentence_transformer(str(path.resolve()), "cpu")
+        with _LOADING:
+            self._model = _load_sentence_transformer(str(path.resolve()), "cpu")
         if hasattr(self._model, "get_embedding_dimension"):  # sentence-transformers >= 6
             dim = self._model.get_embedding_dimension()
         else:
@@ -409,7 +414,17 @@ class MiniLMEmbedder:
         return len(self._cache), self.cache_size
 
 
-@functools.lru_cache(maxsize=1)
+_DEFAULT: list[MiniLMEmbedder] = []
+_DEFAULT_LOCK = threading.Lock()
+
+
 def default_embedder() -> MiniLMEmbedder:
-    """The process-wide bundled MiniLM embedder, loaded on the first call only."""
-    return MiniLMEmbedder()
+    """The process-wide bundled MiniLM embedder, loaded on the first call only.
+
+    Thread-safe: two servers' start-up threads asking at once get one embedder (and so one
+    model and one cache), not two.
+    """
+    with _DEFAULT_LOCK:
+        if not _DEFAULT:
+            _DEFAULT.append(MiniLMEmbedder())
+        return _DEFAULT[0]
