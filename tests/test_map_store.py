@@ -257,6 +257,10 @@ CRAFTED = {
     ),
     "next-id-abc": ("UPDATE meta SET value = 'abc' WHERE key = 'next_id'",),
     "next-id-reused": ("UPDATE meta SET value = '2' WHERE key = 'next_id'",),
+    "next-id-equal-to-the-largest-id": (
+        "UPDATE meta SET value = (SELECT CAST(MAX(id) AS TEXT) FROM "
+        "(SELECT id FROM instances UNION SELECT id FROM regions)) WHERE key = 'next_id'",
+    ),
     "missing-table": ("DROP TABLE regions",),
     "dangling-region-members": ("UPDATE regions SET instance_ids = '[1, 2, 99]'",),
     "wrong-embedding-size": (

@@ -77,6 +77,22 @@ def test_a_frontier_behind_a_wall_is_not_reachable_and_is_left_out() -> None:
 def test_clusters_smaller_than_min_size_are_dropped() -> None:
     occ = room_with_door(20)
     assert frontiers(occ, centre(occ), RADIUS, min_size=15) == []
+    # The doorway's cluster has 14 cells: min_size 14 keeps it, 15 drops it.
+    assert [f.size for f in frontiers(occ, centre(occ), RADIUS, min_size=14)] == [14]
+
+
+def test_a_diagonal_pinch_is_no_way_through() -> None:
+    """Reachability is 4-connected, as the FMM marches: two rooms touching at a corner cell
+    are two places."""
+    state = np.full((40, 40), UNKNOWN, dtype=np.int8)
+    state[5:35, 5:35] = OBSTACLE
+    state[6:19, 6:19] = FREE  # room A
+    state[19:34, 19:34] = FREE  # room B, touching A only at the corner (18, 18)-(19, 19)
+    state[19:34, 34] = UNKNOWN  # B's right wall is unseen
+    occ = DenseOccupancy(state, (0, 0), CELL)
+    a, b = occ.index_to_world(12, 12), occ.index_to_world(26, 26)
+    assert frontiers(occ, a, 0.0, min_size=1) == []  # B's frontier is behind the pinch
+    assert [f.size for f in frontiers(occ, b, 0.0, min_size=1)] == [15]
 
 
 def two_door_room() -> DenseOccupancy:

@@ -170,6 +170,16 @@ def test_plan_stops_at_the_goal_and_turns_when_the_goal_is_behind() -> None:
     assert plan(occ, here, math.pi, behind).action == "move_forward"
 
 
+def test_plan_stops_within_half_a_step_of_the_goal_and_not_beyond() -> None:
+    occ = occ_of(room())
+    here = occ.index_to_world(30, 40)
+    half = NavConfig().forward_step / 2
+    near = (here[0] + half - 0.005, here[1])
+    far = (here[0] + half + 0.005, here[1])
+    assert plan(occ, here, 0.0, near).action == "stop"
+    assert plan(occ, here, 0.0, far).action == "move_forward"
+
+
 def test_an_enclosed_goal_is_unreachable_and_the_error_names_the_nearest_reachable_point() -> None:
     state = room()
     state[20:40, 50] = state[20:40, 70] = state[20, 50:71] = state[40, 50:71] = OBSTACLE

@@ -48,6 +48,24 @@ def test_the_fast_value_map_equals_the_explicit_double_sum_of_eq_7(
     assert fast.origin == (0, 0) and fast.values.shape == (16, 18)
 
 
+@pytest.mark.parametrize("sigma_cells", [2.0, 4.0])
+def test_one_scored_cell_spreads_as_the_gaussian_of_eq_7_analytically(sigma_cells: float) -> None:
+    """H(l) / H(p_u) = exp(-|l - p_u|^2 / (2 sigma^2)) around a lone one-cell unit: the kernel's
+    own width, checked against the closed form (fast and reference share the kernel)."""
+    cell = 0.05
+    grid = IndexGrid(cell)
+    grid.set_unit(1, [(20, 20)])
+    vm = value_map_from_scores({1: 0.8}, grid, Window(0, 0, 41, 41), sigma_cells * cell)
+    row = vm.values[20]  # the unit's row; H = 1 at its cell (Z = the peak)
+    d = np.arange(41) - 20
+    expected = np.exp(-(d**2) / (2 * sigma_cells**2))
+    inside = np.abs(d) <= math.ceil(3 * sigma_cells)  # the kernel is cut at 3 sigma
+    np.testing.assert_allclose(row[inside], expected[inside], rtol=1e-9, atol=1e-12)
+    assert not row[~inside].any()
+    diagonal = vm.values[20 + 2, 20 + 2]  # separable: the product of the axes' factors
+    assert diagonal == pytest.approx(math.exp(-8 / (2 * sigma_cells**2)), rel=1e-9)
+
+
 def test_the_value_map_peaks_on_the_best_unit_and_lists_separate_top_cells() -> None:
     grid = small_grid()
     vm = value_map_from_scores({1: 0.2, 2: 0.9}, grid, Window(0, 0, 16, 18), 0.1)

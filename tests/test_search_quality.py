@@ -179,3 +179,13 @@ def test_metrics_count_top1_mrr_and_top_hit_matches():
     assert m.top1 == 0.5 and m.mrr == pytest.approx(0.75)
     assert m.match_precision == 0.5 and m.match_recall == 1.0
     assert m.hit_precision == pytest.approx(2 / 3) and m.hit_recall == 1.0
+
+
+@pytest.mark.slow  # embeds the tuning half of the query set with MiniLM (about 10 s)
+@pytest.mark.parametrize("make", [HashingEmbedder, default_embedder], ids=["hashing", "minilm"])
+def test_each_embedders_match_threshold_is_what_calibration_finds(make):
+    """The declared `default_tau_match` is `calibrate()` on the tuning half, to 2 decimals."""
+    embedder = make()
+    tune = [q for q in se.load_queries() if q.split == "tune"]
+    found, _ = se.calibrate(se.run_queries(tune, embedder))
+    assert round(found, 2) == embedder.default_tau_match

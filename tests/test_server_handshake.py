@@ -190,3 +190,49 @@ def test_the_command_line_imports_neither_the_sdk_nor_pydantic():
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True
     )
     assert done.stdout.strip() == "", done.stdout
+
+
+def messages_until(peer: StdioPeer, request_id: int) -> list[dict[str, Any]]:
+    """Every message the server sends up to and including its answer to `request_id`."""
+    seen: list[dict[str, Any]] = []
+    while not seen or seen[-1].get("id") != request_id or "method" in seen[-1]:
+        line = peer.lines.get(timeout=STARTUP_TIMEOUT)
+        assert line, "the server exited:\n" + "".join(peer.stderr[-20:])
+        seen.append(json.loads(line))
+    return seen
+
+
+@pytest.mark.parametrize("version", [VERSION, MODERN_VERSIONS[0]])
+def test_every_request_gets_exactly_one_answer_through_the_relay(prepared, tmp_path, version):
+    """Prepared answers stand in for the SDK's: never both, and a paginated tools/list
+    (a cursor the prepared answer cannot know) is the SDK's alone."""
+    cache = prepared[0]
+    peer = launch(tmp_path, cache)
+    first, *rest = opening_requests(version, "test")
+    meta = rest[-1]["params"].get("_meta")
+    paged = {"cursor": "page-2", **({"_meta": meta} if meta else {})}
+    summary = {"name": "map_summary", "arguments": {}, **({"_meta": meta} if meta else {})}
+    seen: list[dict[str, Any]] = []
+    try:
+        peer.send(first)
+        if version not in MODERN_VERSIONS:
+            seen += messages_until(peer, 1)
+        for message in rest:
+            peer.send(message)
+        peer.send({"jsonrpc": "2.0", "id": 3, "method": "tools/list", "params": paged})
+        peer.send({"jsonrpc": "2.0", "id": 4, "method": "tools/call", "params": summary})
+        while not {1, 2, 3, 4} <= {m.get("id") for m in seen if "method" not in m}:
+            line = peer.lines.get(timeout=STARTUP_TIMEOUT)
+            assert line, "the server exited:\n" + "".join(peer.stderr[-20:])
+            seen.append(json.loads(line))
+    finally:
+        peer.close()
+    while not peer.lines.empty():  # anything sent after the last answer
+        line = peer.lines.get()
+        if line:
+            seen.append(json.loads(line))
+    answered = sorted(m["id"] for m in seen if "id" in m and "method" not in m)
+    assert answered == [1, 2, 3, 4]  # one answer each, none twice
+    by_id = {m["id"]: m for m in seen if "id" in m and "method" not in m}
+    assert "result" in by_id[3] or "error" in by_id[3]
+    assert not by_id[4]["result"].get("isError"), by_id[4]
