@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 from glmap_tools.sqa.surroundings import Nearby, Surroundings, surroundings
@@ -189,15 +189,27 @@ class MapAnswer:
     evidence: str
 
 
+_WHAT = r"\bwhat(?: object| thing| furniture)?(?:'s| is| are| can i see| do i see| stands| lies)?"
+_AT = r"(?: (?:located|placed|standing|directly|right|immediately))?"
 QUESTION_TYPES: list[tuple[str, re.Pattern[str]]] = [
-    ("left", re.compile(r"\bwhat(?:'s| is) (?:to|on) my left\b")),
-    ("right", re.compile(r"\bwhat(?:'s| is) (?:to|on) my right\b")),
-    ("behind", re.compile(r"\bwhat(?:'s| is) behind me\b")),
-    ("front", re.compile(r"\bwhat(?:'s| is) in front of me\b")),
-    ("room", re.compile(r"\bwhich room\b")),
+    ("left", re.compile(_WHAT + _AT + r" (?:to|on|at) (?:my|the) left\b(?![- ]side of)")),
+    ("right", re.compile(_WHAT + _AT + r" (?:to|on|at) (?:my|the) right\b(?![- ]side of)")),
+    ("behind", re.compile(_WHAT + _AT + r" (?:behind me|at my back)\b")),
+    (
+        "front",
+        re.compile(
+            _WHAT + _AT + r" (?:in front of me|ahead of me|straight ahead)\b"
+            r"|\bwhat am i (?:facing|looking at)\b"
+        ),
+    ),
+    ("room", re.compile(r"\bwhich room\b|\bwhat (?:kind of |type of )?room\b|^where am i\b")),
     (
         "color",
-        re.compile(r"\bwhat colou?r is (?:the )?(?P<object>.+?)(?: in the (?P<room>.+?))?\?"),
+        re.compile(
+            r"\bwhat colou?r (?:is|are|does) (?:the )?(?P<object>.+?)(?: in the (?P<room>.+?))?"
+            r"(?: have)?\?"
+            r"|\bwhat is the colou?r of (?:the )?(?P<object2>.+?)(?: in the (?P<room2>.+?))?\?"
+        ),
     ),
     (
         "count",
@@ -205,7 +217,10 @@ QUESTION_TYPES: list[tuple[str, re.Pattern[str]]] = [
             r"\bhow many (?P<object>.+?) are (?:there )?(?:in|on|at) (?:the )?(?P<where>.+?)\?"
         ),
     ),
-    ("on", re.compile(r"\bwhat is on (?:the )?(?P<object>.+?)\?")),
+    (
+        "on",
+        re.compile(r"\bwhat (?:is|are|sits|stands|lies) on (?:top of )?(?:the )?(?P<object>.+?)\?"),
+    ),
     (
         "reach",
         re.compile(
@@ -218,11 +233,17 @@ QUESTION_TYPES: list[tuple[str, re.Pattern[str]]] = [
 
 def question_type(question: str) -> tuple[str, dict[str, str]]:
     """(type, named parts) of a question; ("unknown", {}) when no rule reads it."""
-    q = " ".join(question.lower().split())
+    from glmap_tools.sqa.families import family
+
+    found = family(question)
+    if found is not None:
+        return found
+    q = " ".join(question.lower().replace("’", "'").split())
     for name, pattern in QUESTION_TYPES:
         m = pattern.search(q)
         if m:
-            return name, {k: v for k, v in m.groupdict().items() if v}
+            parts = {k.rstrip("2"): v for k, v in m.groupdict().items() if v}
+            return name, parts
     return "unknown", {}
 
 
@@ -274,9 +295,18 @@ class OfflineAnswerer:
             where: the map around the situated pose.
             exclude: unit ids not to answer with (the anchor one stands at).
         """
+        from glmap_tools.sqa.families import FAMILIES, answer_family, in_side, split_side
+
         kind, parts = question_type(question)
         skip = set(exclude) | set(where.walled)  # what one stands at; what a wall hides
         labels = list(where.labels.values())
+        if kind in {name for name, _ in FAMILIES}:
+            return answer_family(kind, parts, where, skip, _match_label, _room)
+        # "the chair on my left": the side picks which chair.
+        phrase, side = split_side(parts.get("object", ""))
+        if side is not None:
+            parts["object"] = phrase
+            where = replace(where, nearby=tuple(n for n in where.nearby if in_side(n, side)))
         if kind in ("left", "right"):
             lo, hi = SIDE_SECTORS[kind]
             n = _nearest_in(where.nearby, lo, hi, skip)

@@ -1,0 +1,337 @@
+"""The SQA3D question families beyond 'what is on my left': directions, visibility, counts
+and parity with egocentric filters, yes/no, turning, arm's reach, shape and state.
+
+Each family is a pattern over the lower-cased question and an answer from `Surroundings`
+(bearings in degrees, + = left; distances in metres):
+
+- direction: "Which direction should I go/turn to reach the X?" -> forward (|b| <= 45),
+  left (45..135), right (-135..-45) or backward, for the nearest X no wall hides;
+- see: "Can I see the X?" -> yes when an X no wall hides lies within FOV/2 of ahead;
+- count / parity: "How many X are on my left / behind me / around me?", "Is the number of
+  X in this room even or odd?" -> the Xs within AROUND m no wall hides, in the sector;
+- exists: "Is there (another) X on my right / near me?" -> yes/no, same filter;
+- in_room: "Am I in the kitchen?" -> yes when the room read from what stands around
+  (`answer._room`) is that kind;
+- turn: "If I turn around / to my left, what is in front of me / on my right?" -> the
+  nearest unit at the direction asked after the turn;
+- touch: "Can I touch/reach the X without getting up / moving?" -> yes within ARM m;
+- beside: "What is on the left side of the wardrobe?" -> the nearest unit within BESIDE m
+  of it on that side as I see it;
+- shape / state: "What shape is the X?", "Is the X open or closed?" -> the word when the
+  unit's description says it, else supported=False: the map cannot tell.
+
+A side filter ("the chair on my left") also narrows which unit the colour and 'on'
+questions are about (`side_of`, `pick_at`).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from glmap_tools.sqa.answer import MapAnswer
+    from glmap_tools.sqa.surroundings import Nearby, Surroundings
+
+FOV = 120.0  # deg: what one sees without turning the head far
+ARM = 0.9  # m: within reach without getting up or stepping
+AROUND = 4.0  # m: "around me", "in this room" (walls cut it further)
+BESIDE = 1.5  # m between centres: "on the left side of the wardrobe"
+DIRECTION_OF = {"front": 0.0, "left": 90.0, "right": -90.0, "behind": 180.0}
+SHAPES = ("round", "circular", "square", "rectangular", "oval", "triangular", "l-shaped")
+STATES = ("open", "closed", "shut", "on", "off")
+
+_SIDE = (
+    r"(?:(?:on|to|at) (?:my|the) (?P<side>left|right)(?:[- ]hand)?(?: side)?(?: of me)?"
+    r"|(?P<behind>behind me)|(?P<front>in front of me|ahead of me)"
+    r"|(?P<around>around me|near me|nearby|close to me|in (?:this|the) room|here|in here))"
+)
+_OBJ = r"(?:the |a |an |any |some |another |other )*(?P<object>[a-z][a-z -]*?)"
+_TURN = (
+    r"^(?:if|when|after) i (?:turn|rotate|spin)(?: myself)? (?P<turn>around|back|180 degrees|"
+    r"(?:to )?(?:my |the )?left|(?:to )?(?:my |the )?right|(?:90 degrees )?(?:to (?:my |the )?)?"
+    r"(?:left|right))"
+)
+FAMILIES: list[tuple[str, re.Pattern[str]]] = [
+    (
+        "turn",
+        re.compile(
+            _TURN + r",? (?:what|which object)(?: is| will be|'s| would be| do i see| will i see)?"
+            r"(?: (?:directly |right )?(?P<ask>in front of me|ahead|on my left|to my left|"
+            r"on my right|to my right|behind me))?"
+        ),
+    ),
+    (
+        "direction",
+        re.compile(
+            r"^(?:which|what) (?:direction|way|side)(?: should| do| would| can| must)? i "
+            r"(?:go|turn|walk|head|move|face|look)(?: to| towards?| in order to)?"
+            r"(?: (?:go to|get to|reach|find|see|face|look at|sit on|use|open|get))? "
+            + _OBJ
+            + r"\?*$"
+        ),
+    ),
+    (
+        "direction",
+        re.compile(
+            r"^(?:which|what) (?:direction|way|side) is " + _OBJ + r"(?: in| from me| at)?\?*$"
+        ),
+    ),
+    ("direction", re.compile(r"^where is " + _OBJ + r" (?:from|relative to) me\?*$")),
+    (
+        "direction",
+        re.compile(
+            r"^should i (?:go|turn|walk) (?:left|right)(?: or (?:left|right|forward|straight))?"
+            r"(?: to (?:go to|get to|reach|find|see))? " + _OBJ + r"\?*$"
+        ),
+    ),
+    (
+        "parity",
+        re.compile(
+            r"^is the (?:number|amount|count) of " + _OBJ + r"(?: " + _SIDE + r")?"
+            r" (?:even or odd|odd or even)\?*$"
+        ),
+    ),
+    (
+        "parity",
+        re.compile(
+            r"^(?:do|are) (?:the )?" + _OBJ + r"(?: " + _SIDE + r")? (?:come in|number) "
+            r"(?:an )?(?:even or odd|odd or even)(?: number)?\?*$"
+        ),
+    ),
+    (
+        "count",
+        re.compile(
+            r"^how many " + _OBJ + r" (?:are|is|can i see|do i see|do i have|are there)"
+            r"(?: there)? " + _SIDE + r"\?*$"
+        ),
+    ),
+    (
+        "in_room",
+        re.compile(
+            r"^am i (?:in|inside|standing in|sitting in) (?:the |a |an )?(?P<room>[a-z ]+?)\?*$"
+        ),
+    ),
+    (
+        "exists",
+        re.compile(r"^(?:is|are) there " + _OBJ + r"(?: " + _SIDE + r")?\?*$"),
+    ),
+    (
+        "see",
+        re.compile(
+            r"^(?:can|could|do) i (?:see|spot|view|notice) " + _OBJ + r"(?: (?:from (?:here|where"
+            r" i am)|without turning(?: around)?|right now|now))?\?*$"
+        ),
+    ),
+    (
+        "see",
+        re.compile(
+            r"^is " + _OBJ + r" (?:visible|in (?:my )?(?:view|sight|field of view))"
+            r"(?: (?:from (?:here|where i am)|to me))?\?*$"
+        ),
+    ),
+    (
+        "touch",
+        re.compile(
+            r"^can i (?:touch|reach|grab|get|pick up|put my hand on) "
+            + _OBJ
+            + r" (?:without (?:getting up|standing up|moving|walking|taking a step|stepping)"
+            r"|from (?:here|where i (?:am|sit|stand))|with my hands?|by (?:just )?stretching"
+            r"(?: out)?(?: my arms?)?)\?*$"
+        ),
+    ),
+    (
+        "beside",
+        re.compile(
+            r"^what(?: object)? is (?:on|to|at) the (?P<side>left|right)(?: side| hand side)? "
+            r"of " + _OBJ + r"\?*$"
+        ),
+    ),
+    ("shape", re.compile(r"^what (?:shape|form) (?:is|are|does) " + _OBJ + r"(?: have)?\?*$")),
+    (
+        "state",
+        re.compile(
+            r"^(?:is|are) " + _OBJ + r" (?:open or closed|closed or open|opened or closed|"
+            r"on or off|off or on|open|closed|shut)\?*$"
+        ),
+    ),
+]
+
+
+def family(question: str) -> tuple[str, dict[str, str]] | None:
+    """(family, named parts) when one of FAMILIES reads the question, else None."""
+    q = " ".join(question.lower().replace("’", "'").split()).strip()
+    for name, pattern in FAMILIES:
+        m = pattern.search(q)
+        if m:
+            return name, {k: v for k, v in m.groupdict().items() if v}
+    return None
+
+
+def side_of(parts: dict[str, str]) -> str | None:
+    """left / right / behind / front / around from a matched side phrase, or None."""
+    if "side" in parts:
+        return parts["side"]
+    for k in ("behind", "front", "around"):
+        if k in parts:
+            return k
+    return None
+
+
+def in_side(n: Nearby, side: str | None) -> bool:
+    """Is the unit in the sector (sides 45..135 degrees; front / behind within 45)."""
+    if side is None or side == "around":
+        return n.distance <= AROUND
+    b = n.bearing
+    if side == "left":
+        return 45.0 <= b <= 135.0
+    if side == "right":
+        return -135.0 <= b <= -45.0
+    if side == "front":
+        return abs(b) <= 45.0
+    return abs(b) >= 135.0
+
+
+def split_side(phrase: str) -> tuple[str, str | None]:
+    """('chair', 'left') from 'chair on my left'; (phrase, None) without a side."""
+    m = re.search(r"\s+" + _SIDE + r"\s*$", phrase)
+    if not m:
+        return phrase, None
+    return phrase[: m.start()], side_of({k: v for k, v in m.groupdict().items() if v})
+
+
+def direction_word(bearing: float) -> str:
+    """forward / left / right / backward for a bearing in degrees (+ = left)."""
+    if abs(bearing) <= 45.0:
+        return "forward"
+    if 45.0 < bearing <= 135.0:
+        return "left"
+    if -135.0 <= bearing < -45.0:
+        return "right"
+    return "backward"
+
+
+def answer_family(
+    kind: str,
+    parts: dict[str, str],
+    where: Surroundings,
+    skip: set[int],
+    match: Callable[[str, Sequence[str]], str | None],
+    room: Callable[[Surroundings], MapAnswer],
+) -> MapAnswer:
+    """The answer to a question of family `kind` (see the module docstring).
+
+    Args:
+        kind, parts: from `family`.
+        where: the map around the pose.
+        skip: units not to answer with (the anchor; what walls hide).
+        match: the label matcher (`answer._match_label`).
+        room: the room reader (`answer._room`).
+    """
+    from glmap_tools.sqa.answer import MapAnswer
+
+    labels = list(where.labels.values())
+    near = [n for n in where.nearby if n.unit_id not in skip]
+    if kind == "in_room":
+        r = room(where)
+        if not r.supported:
+            return MapAnswer("", kind, False, r.evidence)
+        asked = parts.get("room", "")
+        same = asked.replace("room", "").strip() in r.answer or r.answer in asked
+        return MapAnswer("yes" if same else "no", kind, True, f"I am in the {r.answer}")
+    if kind == "turn":
+        turn = parts.get("turn", "around")
+        t = (
+            180.0
+            if ("around" in turn or "back" in turn or "180" in turn)
+            else (90.0 if "left" in turn else -90.0)
+        )
+        ask = parts.get("ask", "in front of me")
+        a = next((v for k, v in DIRECTION_OF.items() if k in ask), 0.0)
+        if "ahead" in ask:
+            a = 0.0
+        centre = math.remainder(math.radians(a + t), math.tau)
+        c = math.degrees(centre)
+        hits = [
+            n
+            for n in near
+            if abs(math.remainder(math.radians(n.bearing - c), math.tau)) <= math.pi / 4
+        ]
+        if not hits:
+            return MapAnswer("nothing", kind, True, f"nothing within 45 deg of {c:.0f} deg")
+        h = hits[0]
+        return MapAnswer(h.label, kind, True, f"after a {t:.0f} deg turn: unit {h.unit_id}")
+    obj = parts.get("object", "")
+    label = match(obj, labels)
+    if kind in ("count", "parity", "exists"):
+        side = side_of(parts)
+        if label is None:
+            if kind == "exists":
+                return MapAnswer("no", kind, True, f"no unit is a {obj!r}")
+            return MapAnswer("", kind, False, f"no unit is a {obj!r}")
+        units = [n for n in near if n.label == label and n.distance <= AROUND and in_side(n, side)]
+        count = len(units)
+        why = f"{count} x {label} ({side or 'around'}, within {AROUND:.0f} m)"
+        if kind == "count":
+            return MapAnswer(str(count), kind, True, why)
+        if kind == "parity":
+            return MapAnswer("even" if count % 2 == 0 else "odd", kind, True, why)
+        return MapAnswer("yes" if count else "no", kind, True, why)
+    if label is None:
+        if kind == "see":
+            return MapAnswer("no", kind, True, f"no unit is a {obj!r}")
+        return MapAnswer("", kind, False, f"no unit is a {obj!r}")
+    cands = [n for n in near if n.label == label]
+    if kind == "direction":
+        if not cands:
+            return MapAnswer("", kind, False, f"no {label} within {AROUND:.0f} m in this room")
+        n = cands[0]
+        return MapAnswer(
+            direction_word(n.bearing), kind, True, f"unit {n.unit_id} at {n.bearing:.0f} deg"
+        )
+    if kind == "see":
+        seen = [n for n in cands if abs(n.bearing) <= FOV / 2]
+        why = f"{len(seen)} {label} within {FOV / 2:.0f} deg of ahead, no wall between"
+        return MapAnswer("yes" if seen else "no", kind, True, why)
+    if kind == "touch":
+        if not cands:
+            return MapAnswer("no", kind, True, f"no {label} nearby")
+        n = cands[0]
+        ok = n.distance <= ARM
+        return MapAnswer("yes" if ok else "no", kind, True, f"unit {n.unit_id} {n.distance:.1f} m")
+    if kind == "beside":
+        if not cands:
+            return MapAnswer("", kind, False, f"no {label} nearby")
+        base = cands[0]
+        sign = 1.0 if parts.get("side") == "left" else -1.0
+        bx, by = (
+            (base.footprint[0] + base.footprint[2]) / 2,
+            (base.footprint[1] + base.footprint[3]) / 2,
+        )
+        by_it = []
+        for n in near:
+            if n.unit_id == base.unit_id:
+                continue
+            cx, cy = (n.footprint[0] + n.footprint[2]) / 2, (n.footprint[1] + n.footprint[3]) / 2
+            gap = math.hypot(cx - bx, cy - by)
+            if gap <= BESIDE and sign * (n.bearing - base.bearing) > 0:
+                by_it.append((gap, n))
+        if not by_it:
+            return MapAnswer(
+                "nothing", kind, True, f"nothing within {BESIDE} m of unit {base.unit_id}"
+            )
+        gap, n = min(by_it, key=lambda t: t[0])
+        return MapAnswer(n.label, kind, True, f"unit {n.unit_id} {gap:.1f} m from {base.unit_id}")
+    if kind in ("shape", "state"):
+        words = SHAPES if kind == "shape" else STATES
+        for n in cands or []:
+            found = [w for w in re.findall(r"[a-z-]+", n.text.lower()) if w in words]
+            if found:
+                w = "closed" if found[0] == "shut" else found[0]
+                return MapAnswer(w, kind, True, f"unit {n.unit_id}: {n.text[:60]!r}")
+        return MapAnswer(
+            "", kind, False, f"cannot tell from the map: no {kind} in the {label}'s description"
+        )
+    return MapAnswer("", kind, False, "no rule for this kind of question")
