@@ -205,3 +205,94 @@ def test_the_token_comes_from_a_file_or_the_environment_and_on_the_command_line_
     with pytest.raises(InvalidInputError, match="cannot be read") as err:
         cli.read_token(args(token_file=tmp_path / "missing"), {})
     assert str(tmp_path) not in str(err.value)
+
+
+def test_a_request_head_over_16_kib_is_refused_with_431(guarded_server):
+    # Issue 27 item 6: a 200 KB header sent in one write was parsed and accepted.
+    url, _ = guarded_server
+    parsed = urlparse(url)
+    for head_kib in (200, 17):
+        with socket.create_connection((parsed.hostname, parsed.port), timeout=10) as sock:
+            sock.sendall(
+                b"POST /mcp HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: "
+                + b"a" * (head_kib * 1024)
+                + b"\r\nContent-Length: 0\r\n\r\n"
+            )
+            reply = sock.recv(4096)
+        assert reply.startswith(b"HTTP/1.1 431"), (head_kib, reply[:200])
+    with socket.create_connection((parsed.hostname, parsed.port), timeout=10) as sock:
+        sock.sendall(b"POST /mcp HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Small: " + b"a" * 8000)
+        sock.sendall(b"\r\nContent-Length: 0\r\n\r\n")  # a head of 8 KB in two writes: fine
+        reply = sock.recv(4096)
+    assert reply.startswith(b"HTTP/1.1 401"), reply[:200]  # on to the token check
+
+
+def test_a_token_file_other_users_can_read_is_warned_about(tmp_path):
+    from glmap_tools.server.http import token_file_warning
+
+    token = tmp_path / "token"
+    token.write_text("secret\n")
+    token.chmod(0o644)
+    warning = token_file_warning(token)
+    assert warning is not None and "chmod 600 token" in warning and "0644" in warning
+    assert str(tmp_path) not in warning
+    token.chmod(0o600)
+    assert token_file_warning(token) is None
+
+
+class _Transport(asyncio.Transport):
+    """Records what the protocol writes; no socket."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.written, self.closed = b"", False
+
+    def write(self, data: bytes) -> None:  # type: ignore[override]
+        self.written += data
+
+    def close(self) -> None:
+        self.closed = True
+
+    def is_closing(self) -> bool:
+        return self.closed
+
+    def get_extra_info(self, name: str, default: object = None) -> object:
+        return {"peername": ("127.0.0.1", 50000), "sockname": ("127.0.0.1", 8000)}.get(name)
+
+    def pause_reading(self) -> None:
+        pass
+
+    def resume_reading(self) -> None:
+        pass
+
+
+def test_a_200_kb_request_head_arriving_in_one_read_is_refused_with_431():
+    # h11 limits a head that arrives in pieces; one read of 200 KB was parsed and served.
+    import uvicorn
+    from uvicorn.server import ServerState
+
+    from glmap_tools.server.http import guarded_protocol
+
+    async def app(scope: dict, receive: object, send: object) -> None:  # type: ignore[type-arg]
+        raise AssertionError("the request reached the app")
+
+    async def main() -> _Transport:
+        config = uvicorn.Config(app, log_level="warning")
+        config.load()
+        protocol = guarded_protocol(5.0, 8)(
+            config=config,
+            server_state=ServerState(),
+            app_state={},
+            _loop=asyncio.get_running_loop(),
+        )
+        transport = _Transport()
+        protocol.connection_made(transport)
+        protocol.data_received(
+            b"GET /mcp HTTP/1.1\r\nHost: x\r\nX-Big: " + b"a" * 200_000 + b"\r\n\r\n"
+        )
+        protocol.connection_lost(None)
+        return transport
+
+    transport = asyncio.run(main())
+    assert transport.written.startswith(b"HTTP/1.1 431"), transport.written[:80]
+    assert transport.closed

@@ -175,3 +175,13 @@ async def test_a_frame_past_the_pending_memory_cap_is_refused_and_changes_nothin
         assert not labelled.is_error, labelled.content[0].text
         third = await client.call_tool("observe_frame", args)  # room again
         assert not third.is_error, third.content[0].text
+
+
+async def test_control_characters_in_a_segment_label_are_refused_naming_the_field(tmp_path):
+    async with Client(build_server(config(tmp_path))) as client:
+        result, _ = await _observe(client)
+        frame_id = result.structured_content["pending"]["frame"]
+        bad = {"frame": frame_id, "labels": [{"segments": [1], "label": "chair\x1b[2J"}]}
+        res = await client.call_tool("label_segments", bad)
+        assert res.is_error and "labels.0.label" in res.content[0].text
+        assert "control characters" in res.content[0].text

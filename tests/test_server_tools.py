@@ -320,3 +320,21 @@ def test_image_sizes_read_from_the_headers_match_the_decoded_images(size):
         _, hw, hh, _, _ = image_header(encoded)
         decoded = cv2.imdecode(np.frombuffer(encoded, np.uint8), cv2.IMREAD_UNCHANGED)
         assert (hw, hh) == (decoded.shape[1], decoded.shape[0])
+
+
+@pytest.mark.parametrize(
+    ("where", "label", "description"),
+    [("label", "chair\x00\x1b[2J", "a chair"), ("description", "chair", "a chair\x1b[2J")],
+)
+async def test_control_characters_in_annotations_are_refused_naming_the_field(
+    tmp_path, where, label, description
+):
+    # Issue 27 item 6: "\x00\x1b[2J" was stored and shown to every client.
+    args = frame_args()
+    args["annotations"]["objects"][0].update(label=label, description=description)
+    async with Client(build_server(config(tmp_path))) as client:
+        res = await client.call_tool("observe_frame", args)
+        assert res.is_error
+        text = res.content[0].text
+        assert f"objects.0.{where}" in text and "control characters" in text, text
+        assert await counts(client) == (0, 0, 0)

@@ -11,7 +11,9 @@ Here each connection is an `h11` protocol that
   first byte, or is closed;
 - counts against `max_connections`: a new connection over the cap closes the oldest one
   still sending its request (never one whose request has arrived and is being answered), so
-  an attacker's half-sent requests cannot lock out a client that sends whole requests.
+  an attacker's half-sent requests cannot lock out a client that sends whole requests;
+- may send a request line and headers of at most MAX_HEADER_BYTES (16 KiB), else gets 431
+  and is closed.
 
 `RepeatFilter` lets the same log message through a few times a minute and then counts it.
 """
@@ -20,7 +22,9 @@ from __future__ import annotations
 
 import logging
 import socket
+import stat
 import time
+from pathlib import Path
 from typing import Any
 
 import h11
@@ -29,6 +33,7 @@ from uvicorn.protocols.http.h11_impl import H11Protocol
 from glmap_tools.server.config import MAX_CONNECTIONS, REQUEST_TIMEOUT_S
 
 LISTEN_BACKLOG = 128
+MAX_HEADER_BYTES = 16 * 1024  # request line and headers; h11's own limit for a head in pieces
 
 
 def listening_socket(host: str, port: int) -> socket.socket:
@@ -41,12 +46,31 @@ def listening_socket(host: str, port: int) -> socket.socket:
     return sock
 
 
+def token_file_warning(path: Path) -> str | None:
+    """A warning when the token file at `path` can be read by its group or by others.
+
+    glmap-mcp's `--token-file` reading (server/cli.py `read_token`) prints it on stderr.
+    """
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return None  # the read itself reports what is wrong
+    if mode & (stat.S_IRWXG | stat.S_IRWXO):
+        return (
+            f"glmap-mcp: warning: --token-file {path.name!r} can be read by other users "
+            f"(mode {stat.S_IMODE(mode):04o}); run `chmod 600 {path.name}`."
+        )
+    return None
+
+
 class GuardedH11Protocol(H11Protocol):
     """uvicorn's h11 protocol with TCP_NODELAY, a request deadline and a connection cap."""
 
     request_timeout: float = REQUEST_TIMEOUT_S
     max_connections: int = MAX_CONNECTIONS
+    max_header_bytes: int = MAX_HEADER_BYTES
     closed_slow = 0  # connections closed for a late request, process-wide (for tests and logs)
+    closed_header = 0  # requests refused for an overlong head
     closed_over_cap = 0
 
     def connection_made(self, transport: Any) -> None:  # type: ignore[override]
@@ -56,9 +80,33 @@ class GuardedH11Protocol(H11Protocol):
         super().connection_made(transport)
         self.opened = time.monotonic()
         self._deadline: Any = None
+        self._head_bytes = 0  # bytes of the current request's head received so far
+        self._tail = b""  # the last bytes received, to find a head's end across reads
         self._arm()
         if len(self.connections) > self.max_connections:
             self._close_one_receiving()
+
+    def _head_too_long(self, data: bytes) -> bool:
+        """Answer 431 and close if this request's line and headers pass MAX_HEADER_BYTES.
+
+        h11 limits only a head that arrives in pieces; one sent whole (200 KB in one write)
+        was parsed and accepted (issue 27 item 6).
+        """
+        end = (self._tail + data).find(b"\r\n\r\n")
+        size = self._head_bytes + (len(data) if end < 0 else max(0, end - len(self._tail)))
+        self._tail = data[-3:]
+        if size <= self.max_header_bytes:
+            self._head_bytes = size if end < 0 else 0
+            return False
+        type(self).closed_header += 1
+        body = f"request line and headers over {self.max_header_bytes} bytes\n".encode()
+        self.transport.write(
+            b"HTTP/1.1 431 Request Header Fields Too Large\r\ncontent-type: text/plain\r\n"
+            + f"content-length: {len(body)}\r\nconnection: close\r\n\r\n".encode()
+            + body
+        )
+        self.transport.close()
+        return True
 
     def _receiving(self) -> bool:
         """Still sending its request: its headers, or a body the app is waiting for."""
@@ -94,7 +142,11 @@ class GuardedH11Protocol(H11Protocol):
 
     def data_received(self, data: bytes) -> None:
         self._arm()  # a request starts (or goes on): it has request_timeout to finish
+        if self.conn.their_state is h11.IDLE and self._head_too_long(data):
+            return
         super().data_received(data)
+        if self.conn.their_state is not h11.IDLE:
+            self._head_bytes = 0  # the request's head is parsed; the next one counts anew
         if not self._receiving():
             self._disarm()
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import base64
 import binascii
 import difflib
+import unicodedata
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +43,27 @@ def _handle(value: str) -> str:
             f"a session handle has at most {MAX_HANDLE} characters; pass the one new_map returned"
         )
     return value
+
+
+def _no_control(allowed: str) -> Any:
+    """A validator refusing control characters (NUL, ESC, ...) other than `allowed`."""
+
+    def check(value: str) -> str:
+        bad = sorted({c for c in value if unicodedata.category(c) == "Cc" and c not in allowed})
+        if bad:
+            shown = ", ".join(repr(c) for c in bad[:5])
+            raise ValueError(
+                f"contains control characters ({shown}); send plain text (they would be "
+                "stored and shown to every client: terminal escapes, NUL)"
+            )
+        return value
+
+    return AfterValidator(check)
+
+
+# Words that are stored in the map (labels, descriptions): printable text only (issue 27).
+Label = Annotated[str, _no_control("")]
+Description = Annotated[str, _no_control("\t\n\r")]
 
 
 SessionArg = Annotated[
@@ -92,8 +114,8 @@ class ObjectAnnotation(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     id: int = Field(ge=1, le=65535, description="its value in the mask")
-    label: str = Field(default="", max_length=200, description="e.g. 'chair'")
-    description: str = Field(default="", max_length=MAX_DESCRIPTION_CHARS)
+    label: Label = Field(default="", max_length=200, description="e.g. 'chair'")
+    description: Description = Field(default="", max_length=MAX_DESCRIPTION_CHARS)
 
 
 class GroupAnnotation(BaseModel):
@@ -101,7 +123,9 @@ class GroupAnnotation(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     id: int = Field(ge=0, le=65535)
-    description: str = Field(max_length=MAX_DESCRIPTION_CHARS, description="e.g. 'dining area'")
+    description: Description = Field(
+        max_length=MAX_DESCRIPTION_CHARS, description="e.g. 'dining area'"
+    )
     members: list[int] = Field(max_length=MAX_OBJECTS, description="object ids")
 
 

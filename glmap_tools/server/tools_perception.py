@@ -24,7 +24,7 @@ from glmap_tools.perception.labelling import (
 )
 from glmap_tools.perception.pending import PendingFrames, pending_bytes
 from glmap_tools.perception.semantics import FrameSemantics
-from glmap_tools.server.inputs import MAX_GROUPS, MAX_OBJECTS, SessionArg
+from glmap_tools.server.inputs import MAX_GROUPS, MAX_OBJECTS, Description, Label, SessionArg
 from glmap_tools.server.results import ObserveResult, Picture
 from glmap_tools.server.runtime import ADDS, AppState, ToolSpec, app_state, in_thread, session_of
 from glmap_tools.server.state import Session, locked
@@ -66,8 +66,8 @@ class LabelInput(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     segments: list[SegmentId] = Field(min_length=1, max_length=MAX_OBJECTS)
-    label: str = Field(max_length=200, description=f"category, or {IGNORE!r}")
-    description: str = Field(default="", max_length=MAX_DESCRIPTION_CHARS)
+    label: Label = Field(max_length=200, description=f"category, or {IGNORE!r}")
+    description: Description = Field(default="", max_length=MAX_DESCRIPTION_CHARS)
 
 
 class GroupInput(BaseModel):
@@ -75,7 +75,7 @@ class GroupInput(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     members: list[SegmentId] = Field(min_length=1, max_length=MAX_OBJECTS)
-    description: str = Field(min_length=1, max_length=MAX_DESCRIPTION_CHARS)
+    description: Description = Field(min_length=1, max_length=MAX_DESCRIPTION_CHARS)
 
 
 def pending_frames(state: AppState) -> PendingFrames:
