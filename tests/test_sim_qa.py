@@ -200,3 +200,46 @@ def test_the_situation_names_one_anchor_and_one_facing_object_in_its_room() -> N
     # is never an anchor.
     assert seen.get(1) == "navy kitchen cabinet next to the white refrigerator", seen
     assert 2 not in seen
+
+
+@pytest.fixture(scope="module")
+def phrased(layout):
+    return generate_qa(layout, 12, seed=0, phrasings=True)
+
+
+def test_phrasings_keep_the_poses_and_plain_answers_and_vary_the_words(qa, phrased) -> None:
+    from glmap_tools.sim.qa_phrasings import QUESTION_FORMS, SITUATION_FORMS
+
+    plain = {(q["position"]["_x"], q["position"]["_y"], q["heading"]) for q in qa["questions"]}
+    poses = {(q["position"]["_x"], q["position"]["_y"], q["heading"]) for q in phrased["questions"]}
+    assert poses == plain
+    assert sum(len(f) for f in SITUATION_FORMS.values()) >= 8
+    assert sum(len(f) for f in QUESTION_FORMS.values()) >= 20
+    assert len({q["situation_form"] for q in phrased["questions"]}) >= 5
+    assert {q["question_type"] for q in phrased["questions"]} >= {"direction", "parity", "in_room"}
+    assert any(q["held_out"] for q in phrased["questions"])
+    assert not all(q["held_out"] for q in phrased["questions"])
+
+
+def test_every_phrased_question_is_read_as_its_family_and_every_situation_as_written(
+    phrased,
+) -> None:
+    from glmap_tools.eval.sqa import reading_ok
+    from glmap_tools.sqa.answer import question_type
+
+    for q in phrased["questions"]:
+        assert question_type(q["question"])[0] == q["question_type"], q["question"]
+        assert reading_ok(q["situation"], q["reading"]), (q["situation"], q["reading"])
+
+
+def test_direction_and_turn_answers_agree_with_the_true_pose(layout, phrased) -> None:
+    for q in phrased["questions"]:
+        if q["question_type"] not in ("direction", "turn"):
+            continue
+        obj = layout.object(q["object_ids"][2])
+        b = math.degrees(bearing(_position(q), q["heading"], obj))
+        if q["question_type"] == "turn":
+            assert abs(b) >= 150.0
+        else:
+            want = {"forward": abs(b) < 45, "backward": abs(b) > 135, "left": 45 <= b <= 135}
+            assert want.get(q["answers"][0]["answer"], -135 <= b <= -45), (q["question"], b)

@@ -51,10 +51,13 @@ class SqaSpec:
     image: tuple[int, int] = (320, 240)
     tour_step: float = 0.5
     tour_spin: int = 8
+    phrasings: bool = False  # many situation/question phrasings (glmap_tools.sim.qa_phrasings)
 
     def key(self) -> str:
         data = asdict(self)
         data.pop("scenes")
+        if not self.phrasings:
+            data.pop("phrasings")  # keys of the runs before phrasings existed
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:12]
 
 
@@ -120,7 +123,7 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
     embedder = _embedder(spec.embedder)
     glmap = scene_map(spec, layout, Path(out) / "maps" / f"{scene}.glmap", embedder)
     build_s = time.perf_counter() - t0
-    qa = generate_qa(layout, situations=spec.situations, seed=spec.seed)
+    qa = generate_qa(layout, situations=spec.situations, seed=spec.seed, phrasings=spec.phrasings)
     rng = np.random.default_rng([spec.seed, int(hashlib.sha1(scene.encode()).hexdigest()[:8], 16)])
     free = _free_cells(glmap)
     prior = Counter(u.label for u in glmap.instances.values()).most_common(1)
@@ -176,8 +179,19 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
                 pred, supported, qtype = a.answer, a.supported, a.question_type
                 if agent == "text-only" and qtype in ("left", "right", "front", "behind"):
                     pred = prior_label  # no pose: the map's most common label
+            forms = {}
+            if "question_form" in q:
+                forms = {
+                    "situation_form": q["situation_form"],
+                    "question_form": q["question_form"],
+                    "held_out": q["held_out"],
+                    "read": qtype,
+                }
+                if agent == "glmap":
+                    forms["reading_ok"] = reading_ok(q["situation"], q["reading"])
             records.append(
                 {
+                    **forms,
                     "scene": scene,
                     "question_id": q["question_id"],
                     "situation": q["situation"],
@@ -201,6 +215,89 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
         "instances": None,
         "records": records,
     }
+
+
+def reading_ok(text: str, truth: dict[str, Any]) -> bool:
+    """Does the offline reader read the situation as the generator wrote it (anchor,
+    facing, constraint objects and sides/hours)?"""
+    from glmap_tools.sqa.reading import read_situation
+
+    r = read_situation(text)
+    cons = [[c.object, c.side or c.clock] for c in r.constraints]
+    return (
+        r.anchor == truth["anchor"]
+        and r.facing == truth["facing"]
+        and cons == [list(c) for c in truth["constraints"]]
+    )
+
+
+def summarize_forms(records: list[dict[str, Any]]) -> str:
+    """Markdown per phrasing family: situations (reading accuracy, localisation, EM-1 of
+    glmap on their questions) and questions (family recognised, EM-1 glmap / text-only,
+    share supported), with the held-out forms marked and pooled."""
+    rows = [r for r in records if "situation_form" in r]
+    if not rows:
+        return ""
+
+    def em(rs: list[dict[str, Any]], agent: str) -> str:
+        v = [r["em1"] for r in rs if r["agent"] == agent]
+        return f"{np.mean(v):.2f}" if v else "-"
+
+    def located(rs: list[dict[str, Any]]) -> tuple[str, str, int]:
+        sit = {}
+        for r in rs:
+            if r["agent"] == "glmap":
+                sit[(r["scene"], r["situation"], tuple(r.get("stand", ())))] = r
+        ok = [
+            "err_m" in r and r["err_m"] <= LOCALISED_M and r["err_deg"] <= LOCALISED_DEG
+            for r in sit.values()
+        ]
+        read = [bool(r.get("reading_ok")) for r in sit.values()]
+        return f"{np.mean(read):.2f}", f"{np.mean(ok):.2f}", len(sit)
+
+    held = {r["situation_form"] for r in rows if r["held_out"]}
+    lines = ["", "| situation form | held out | situations | reading | localised | EM-1 glmap |"]
+    lines.append("|---|---|---|---|---|---|")
+    groups: dict[str, list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault(r["situation_form"], []).append(r)
+    for name, rs in sorted(groups.items()):
+        rd, loc, n = located(rs)
+        mark = "yes" if name in {r["situation_form"] for r in rs if r["held_out"]} else ""
+        lines.append(f"| {name} | {mark} | {n} | {rd} | {loc} | {em(rs, 'glmap')} |")
+    lines += [
+        "",
+        "| question form | questions | family read | EM-1 glmap | EM-1 text-only |"
+        " supported (glmap) |",
+        "|---|---|---|---|---|---|",
+    ]
+    qgroups: dict[str, list[dict[str, Any]]] = {}
+    for r in rows:
+        qgroups.setdefault(r["question_form"], []).append(r)
+    for name, rs in sorted(qgroups.items()):
+        g = [r for r in rs if r["agent"] == "glmap"] or rs
+        read = np.mean([r["read"] == r["type"] for r in g])
+        sup = np.mean([r["supported"] for r in g])
+        lines.append(
+            f"| {name} | {len(g)} | {read:.2f} | {em(rs, 'glmap')} | {em(rs, 'text-only')} "
+            f"| {sup:.2f} |"
+        )
+    for label, pick in (("held out", True), ("tuned", False)):
+        rs = [r for r in rows if r["held_out"] == pick]
+        if not rs:
+            continue
+        g = [r for r in rs if r["agent"] == "glmap"] or rs
+        rd, loc, n = located([r for r in rs if r["situation_form"] in held or not pick])
+        sup = [r for r in g if r["supported"]]
+        fam = np.mean([r["read"] == r["type"] for r in g])
+        lines.append(
+            f"\n{label}: {len(g)} questions, family read {fam:.2f}"
+            f", EM-1 glmap {em(rs, 'glmap')} (supported {len(sup)}: "
+            f"{np.mean([r['em1'] for r in sup]) if sup else float('nan'):.2f}; unsupported "
+            f"{len(g) - len(sup)}), text-only {em(rs, 'text-only')}; situations of "
+            f"{'held-out' if pick else 'all'} forms: {n}, reading {rd}, localised {loc}"
+        )
+    return "\n".join(lines) + "\n"
 
 
 def summarize(records: list[dict[str, Any]], agents: Sequence[str], resamples: int = 2000) -> str:
@@ -319,7 +416,7 @@ def run_sqa_eval(
                 keep(f.result())
     bar.close()
     records = [r for data in sorted(results, key=lambda d: d["scene"]) for r in data["records"]]
-    table = summarize(records, spec.agents)
+    table = summarize(records, spec.agents) + summarize_forms(records)
     head = (
         f"# SQA on {spec.split}: {len(scenes)} scenes, {spec.situations} situations each, "
         f"seed {spec.seed}, embedder {spec.embedder}\n\n"
@@ -338,6 +435,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
     p.add_argument("--out", type=Path, required=True, help="results folder (resumable)")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument(
+        "--phrasings",
+        action="store_true",
+        help="situations and questions in many phrasings, with a per-form report",
+    )
 
 
 def run_cli(args: argparse.Namespace) -> int:
@@ -348,6 +450,7 @@ def run_cli(args: argparse.Namespace) -> int:
         agents=check_agents([a.strip() for a in args.agents.split(",") if a.strip()]),
         seed=args.seed,
         embedder=args.embedder,
+        phrasings=args.phrasings,
     )
     text, records = run_sqa_eval(
         spec, args.out, workers=args.workers, progress=not args.no_progress

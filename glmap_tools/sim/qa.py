@@ -220,9 +220,18 @@ def _questions(
 
 
 def generate_qa(
-    layout: Layout, situations: int, seed: int, grid: NavGrid | None = None
+    layout: Layout,
+    situations: int,
+    seed: int,
+    grid: NavGrid | None = None,
+    phrasings: bool = False,
 ) -> dict[str, Any]:
     """A situated QA set with up to `situations` situations and several questions each.
+
+    With `phrasings`, situations and questions come in many phrasings and more question
+    families (`glmap_tools.sim.qa_phrasings`); each record then also has
+    `situation_form`, `question_form`, `held_out` and `reading` (the correct reading of
+    its situation). The poses and the plain questions' answers are the same either way.
 
     Raises:
         InvalidInputError: `situations` < 1, or no object with floor to stand on next to it.
@@ -231,6 +240,7 @@ def generate_qa(
         raise InvalidInputError(f"situations={situations!r} must be a positive integer.")
     grid = grid or build_nav_grid(layout)
     rng = np.random.default_rng([int(seed), 11])
+    prng = np.random.default_rng([int(seed), 23])  # phrasing choices: their own stream
     landmarks = _landmarks(layout)
     questions: list[dict[str, Any]] = []
     made = 0
@@ -256,9 +266,42 @@ def generate_qa(
         made += 1
         prep = "at" if anchor.category in AT_CATEGORIES else "next to"
         situation = f"I am standing {prep} the {anchor_text}, facing the {facing_text}."
-        for kind, question, answers, ids in _questions(
-            layout, grid, position, heading, anchor, facing, rng
-        ):
+        items = [(*q, 0) for q in _questions(layout, grid, position, heading, anchor, facing, rng)]
+        extra: dict[str, Any] = {}
+        if phrasings:
+            from glmap_tools.sim import qa_phrasings as ph
+
+            situation, s_kind, s_form, reading = ph.rewrite_situation(
+                layout,
+                landmarks,
+                situation_phrase,
+                position,
+                heading,
+                anchor,
+                facing,
+                anchor_text,
+                facing_text or "",
+                prep,
+                prng,
+            )
+            rewritten = []
+            for k, q, a, i, _ in items:
+                text, form = ph.rewrite_question(k, q, prng)
+                rewritten.append((k, text, a, i, form))
+            items = rewritten
+            items += ph.extra_questions(
+                layout, landmarks, situation_phrase, position, heading, anchor, prng
+            )
+            extra = {"situation_kind": s_kind, "situation_form": s_form, "reading": reading}
+        for kind, question, answers, ids, form in items:
+            if phrasings:
+                from glmap_tools.sim.qa_phrasings import HELD_OUT
+
+                extra |= {
+                    "question_form": f"{kind}/{form}",
+                    "held_out": extra["situation_form"] == HELD_OUT[extra["situation_kind"]]
+                    or form == HELD_OUT.get(kind, -1),
+                }
             questions.append(
                 {
                     "question_id": len(questions),
@@ -280,6 +323,7 @@ def generate_qa(
                     "heading": round(heading, 5),
                     "room": layout.room(anchor.room).name,
                     "object_ids": [anchor.id, facing.id, *ids],
+                    **extra,
                 }
             )
     if not questions:

@@ -324,8 +324,12 @@ def _clauses(text: str) -> list[str]:
     t = re.sub(r"\bbetween ((?:the |a |an )?[\w -]+?) and ", r"between \1 & ", t)
     parts = re.split(
         r"[.;!?]+\s*|,\s*(?:and |while |with |but |so |whereas )?|"
-        r"\s+(?:and|while|whilst|but|whereas|with)\s+(?=(?:i|i am|my|the|a|an|there|to|on|in|at|"
-        r"behind|facing|looking)\b)",
+        r"\s+(?:and|while|whilst|but|whereas)\s+(?=(?:i|i am|my|the|a|an|there|to|on|in|at|"
+        r"behind|facing|looking|standing|sitting|seated|lying|leaning|crouching|kneeling)\b)"
+        # "with" starts a clause only before an egocentric one ("with the lamp on my left"),
+        # not inside a description ("the floor lamp with a green shade").
+        r"|\s+with\s+(?=my\b|(?:the|a|an)\s(?:(?!\b(?:and|is|are)\b)[\w\s-])+?\s"
+        r"(?:on|to|at|in front of|behind)\s(?:my|me)\b)",
         t,
     )
     return [p.strip() for p in parts if p and p.strip()]
@@ -430,11 +434,10 @@ def read_situation(text: str) -> SituationReading:
             target = m.group("x")
             verb = clause[m.start() : m.start("x")].strip()
             if not _LEAD.sub("", before).strip():
-                # "Watching tv on the couch": the place after the faced object.
-                split = re.match(
-                    r"^(.+?)\s+((?:on|at|in|from|by|next to|beside|near)\s+.+)$", target
-                )
-                if split and not verb.startswith(("i see", "i can see")):
+                # "Watching tv on the couch": the place after what is watched ("facing the
+                # cabinet next to the fridge" is one object).
+                split = re.match(r"^(.+?)\s+((?:on|at|from|in)\s+.+)$", target)
+                if split and verb.startswith(("watching", "looking", "staring", "gazing")):
                     target, before = split.group(1), "i am " + split.group(2)
             if verb.startswith("facing away"):
                 cons.append(Constraint(object_words(target), side="behind"))
