@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import subprocess
 import sys
 import threading
 from pathlib import Path
@@ -245,12 +246,12 @@ class _SlowModel:
     """The real tokenizer, and an encode that takes 20 ms and records who called it."""
 
     def __init__(self, real: object) -> None:
-        self.tokenizer = real.tokenizer  # type: ignore[attr-defined]
-        self.max_seq_length = real.max_seq_length  # type: ignore[attr-defined]
+        self.token_ids = real.token_ids  # type: ignore[attr-defined]
+        self.dim = 384
         self.calls: list[str] = []
         self.first = threading.Event()
 
-    def encode(self, batch: list[str], **_: object) -> np.ndarray:
+    def encode(self, batch: list[str], ids: list[list[int]]) -> np.ndarray:
         import time
 
         self.calls.append(threading.current_thread().name)
@@ -275,3 +276,28 @@ def test_a_caller_with_many_texts_holds_another_for_one_batch_not_its_whole_enco
     heavy.join(30)
     assert len(slow.calls) > 50
     assert "light" in slow.calls[:10], f"the light caller came {slow.calls.index('light')}th"
+
+
+@pytest.mark.slow  # imports sentence-transformers for the reference
+def test_the_numpy_minilm_gives_sentence_transformers_vectors_without_importing_torch() -> None:
+    from glmap_tools.language.embed import _load_sentence_transformer
+
+    texts = ["a chair", "somewhere to sleep", "a red wooden chair with a high back " * 12, "Café"]
+    code = (
+        "import sys\n"
+        "from glmap_tools.language.embed import default_embedder\n"
+        f"vectors = default_embedder().embed({texts!r})\n"
+        "print(vectors.tobytes().hex())\n"
+        "print(' '.join(m for m in ('torch', 'transformers', 'sentence_transformers') "
+        "if m in sys.modules))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    hex_vectors, loaded = (done.stdout.split("\n") + [""])[:2]
+    ours = np.frombuffer(bytes.fromhex(hex_vectors), np.float32).reshape(len(texts), -1)
+    assert loaded.strip() == ""  # neither torch nor transformers was imported
+    reference = _load_sentence_transformer(str(_bundled_model_path().resolve()), "cpu").encode(
+        texts, convert_to_numpy=True, normalize_embeddings=True, batch_size=1
+    )
+    np.testing.assert_allclose(ours, reference, rtol=0, atol=1e-6)

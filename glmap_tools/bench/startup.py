@@ -3,8 +3,8 @@
 Spawns the console entry as an MCP client would (default settings: the MiniLM embedder,
 the renderer warm-up), writes the JSON-RPC `initialize` request at launch and
 `tools/list` right after the answer, and prints the time from launch to each answer with
-the target (issue 13: both within 1 s on 2 cores; pydantic-ai's MCP toolset waits 5 s) and
-MET or MISSED. Then it times the first find_instance, which waits for the embedder. A
+the target (both within 1 s on 2 cores; pydantic-ai's MCP toolset waits 5 s) and MET or
+MISSED. Then it times the first find_instance, which waits for the embedder (<= 3 s). A
 second launch per run times a stateless 2026-07-28 client (`server/discover` and
 `tools/list` sent at once, as pydantic-ai's fastmcp transport does). The answers come from
 the prepared handshake file when it is there (docs/mcp.md, Start-up).
@@ -28,6 +28,7 @@ from typing import Any
 
 INITIALIZE_TARGET_S = 1.0
 TOOLS_LIST_TARGET_S = 1.0
+FIRST_FIND_TARGET_S = 3.0  # the text embedder loads in the background meanwhile
 PROTOCOL = "2025-11-25"  # the dated protocol clients of mcp 1.x (and 2.x in legacy mode) send
 STATELESS_PROTOCOL = "2026-07-28"
 
@@ -247,6 +248,13 @@ def main(argv: list[str] | None = None) -> int:
         max(r["cpu"] for r in runs),
         "<=",
         TOOLS_LIST_TARGET_S,
+        "s",
+    )
+    report.check(
+        f"first find_instance after launch (waits for the embedder), {worst}",
+        max(r["find_instance"] for r in runs),
+        "<=",
+        FIRST_FIND_TARGET_S,
         "s",
     )
     return report.finish()

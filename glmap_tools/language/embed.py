@@ -244,6 +244,63 @@ def _load_sentence_transformer(path: str, device: str) -> Any:
         return SentenceTransformer(path, device=device, local_files_only=True)
 
 
+class _NumpyBert:
+    """The bundled MiniLM (any mean-pooled BERT folder) on numpy: no torch import."""
+
+    def __init__(self, path: str) -> None:
+        from glmap_tools.language.bert import BertSentenceEncoder
+
+        self.encoder = BertSentenceEncoder(path)
+        self.dim = self.encoder.dim
+
+    def token_ids(self, texts: list[str]) -> list[list[int]]:
+        return self.encoder.token_ids(texts)
+
+    def encode(self, texts: list[str], ids: list[list[int]]) -> np.ndarray:
+        return self.encoder.encode_ids(np.array(ids, dtype=np.int64))
+
+
+class _SentenceTransformer:
+    """Any other saved sentence-transformers model, run by sentence-transformers."""
+
+    def __init__(self, path: str) -> None:
+        self.model = _load_sentence_transformer(path, "cpu")
+        get_dim = getattr(self.model, "get_embedding_dimension", None)  # >= 6
+        dim = get_dim() if get_dim else self.model.get_sentence_embedding_dimension()
+        self.dim = int(dim) if dim else 0
+
+    def token_ids(self, texts: list[str]) -> list[list[int]]:
+        m = self.model
+        found = m.tokenizer(
+            texts, add_special_tokens=True, truncation=True, max_length=m.max_seq_length
+        )
+        return list(found["input_ids"])
+
+    def encode(self, texts: list[str], ids: list[list[int]]) -> np.ndarray:
+        # torch runs a batch of one with another kernel (~1e-7 apart): send it twice, so a
+        # vector never depends on the texts batched with it.
+        vectors = self.model.encode(
+            texts * 2 if len(texts) == 1 else texts,
+            batch_size=max(2, len(texts)),
+            convert_to_numpy=True,
+            normalize_embeddings=True,
+            show_progress_bar=False,
+        )
+        return np.asarray(vectors, dtype=np.float32)[: len(texts)]
+
+
+@functools.lru_cache(maxsize=4)
+def _load_model(path: str) -> _NumpyBert | _SentenceTransformer:
+    """The sentence model saved in `path`, loaded once per path: numpy when it is a
+    mean-pooled BERT (the bundled MiniLM: 0.3 s, where importing torch and
+    sentence-transformers takes ~4 s), else sentence-transformers."""
+    from glmap_tools.language.bert import is_mean_pooled_bert
+
+    if is_mean_pooled_bert(path):
+        return _NumpyBert(path)
+    return _SentenceTransformer(path)
+
+
 @contextlib.contextmanager
 def _quiet_loading() -> Iterator[None]:
     """Hide transformers' "Loading weights" progress bar while the bundled model loads.
@@ -317,12 +374,8 @@ class MiniLMEmbedder:
                 )
             self.name = path.name
         with _LOADING:
-            self._model = _load_sentence_transformer(str(path.resolve()), "cpu")
-        if hasattr(self._model, "get_embedding_dimension"):  # sentence-transformers >= 6
-            dim = self._model.get_embedding_dimension()
-        else:
-            dim = self._model.get_sentence_embedding_dimension()
-        self.dim = int(dim) if dim else self.dim
+            self._model = _load_model(str(path.resolve()))
+        self.dim = int(self._model.dim) if self._model.dim else self.dim
         self.batch_size = batch_size
         self.cache_size = cache_size
         self.max_tokens = max_tokens
@@ -350,20 +403,11 @@ class MiniLMEmbedder:
             return out
         model = self._model
         with self._model_lock:
-            ids = model.tokenizer(
-                texts, add_special_tokens=True, truncation=True, max_length=model.max_seq_length
-            )["input_ids"]
+            ids = model.token_ids(texts)
         for chunk in self._batches([len(tokens) for tokens in ids]):
-            batch = [texts[r] for r in chunk]
             with self._model_lock:
-                vectors = model.encode(
-                    batch * 2 if len(batch) == 1 else batch,
-                    batch_size=max(2, len(batch)),
-                    convert_to_numpy=True,
-                    normalize_embeddings=True,
-                    show_progress_bar=False,
-                )
-            out[chunk] = np.asarray(vectors, dtype=np.float32).reshape(-1, self.dim)[: len(chunk)]
+                vectors = model.encode([texts[r] for r in chunk], [ids[r] for r in chunk])
+            out[chunk] = np.asarray(vectors, dtype=np.float32).reshape(-1, self.dim)
         return normalise_rows(out)
 
     def _batches(self, lengths: list[int]) -> list[list[int]]:

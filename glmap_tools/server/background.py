@@ -155,15 +155,17 @@ class BackgroundEmbedder:
 
 
 def load_embedder(kind: str, threads: int | None) -> Embedder:
-    """The embedder `kind` ('minilm' or 'hashing'), with torch limited to `threads`."""
+    """The embedder `kind` ('minilm' or 'hashing'), with torch (if a model needed it)
+    limited to `threads`; BLAS is limited by `threads.limited_threads`."""
+    import sys
+
     from glmap_tools.language import embed
 
     if kind == "hashing":
         return embed.HashingEmbedder()
     model = embed.default_embedder()
-    if threads is not None:
-        import torch
-
+    torch = sys.modules.get("torch")  # the bundled MiniLM runs on numpy: no torch import
+    if threads is not None and torch is not None:
         torch.set_num_threads(threads)
     return model
 

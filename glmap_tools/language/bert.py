@@ -1,0 +1,155 @@
+"""A sentence-transformers BERT model (all-MiniLM-L6-v2) run with numpy from its own files.
+
+The model folder a sentence-transformers model is saved in holds everything: `config.json`
+(layers, heads, LayerNorm epsilon), `model.safetensors` (the weights), `tokenizer.json`
+(the WordPiece tokenizer, read by the `tokenizers` library), `sentence_bert_config.json`
+(the longest input) and `1_Pooling/config.json` (mean pooling). `BertSentenceEncoder`
+computes what sentence-transformers computes — token, position and type embeddings,
+LayerNorm, the encoder layers (self-attention, GELU feed-forward, each with a residual and a
+LayerNorm), the mean over the tokens, L2 normalisation — without importing torch,
+transformers or sentence-transformers, which take ~4 s to import. Its vectors equal
+sentence-transformers' to float32 precision (tests/test_embed.py).
+
+Texts are encoded in batches of equal token count, so there is no padding and no attention
+mask: every row of a batch is computed as it would be alone.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from glmap_tools.errors import GLMapError
+
+
+def is_mean_pooled_bert(path: str | Path) -> bool:
+    """Whether `path` holds a saved sentence-transformers BERT with mean pooling and
+    safetensors weights (what `BertSentenceEncoder` reads)."""
+    folder = Path(path)
+    try:
+        config = json.loads((folder / "config.json").read_text(encoding="utf-8"))
+        pooling = json.loads((folder / "1_Pooling" / "config.json").read_text("utf-8"))
+        modules = json.loads((folder / "modules.json").read_text("utf-8"))
+    except (OSError, ValueError):
+        return False
+    kinds = [m.get("type", "").rsplit(".", 1)[-1] for m in modules]
+    return (
+        config.get("model_type") == "bert"
+        and bool(pooling.get("pooling_mode_mean_tokens"))
+        and kinds in (["Transformer", "Pooling", "Normalize"], ["Transformer", "Pooling"])
+        and (folder / "model.safetensors").is_file()
+        and (folder / "tokenizer.json").is_file()
+    )
+
+
+def _layer_norm(x: np.ndarray, weight: np.ndarray, bias: np.ndarray, eps: float) -> np.ndarray:
+    mean = x.mean(axis=-1, keepdims=True)
+    centred = x - mean
+    var = (centred * centred).mean(axis=-1, keepdims=True)
+    return centred / np.sqrt(var + eps) * weight + bias
+
+
+def _gelu(x: np.ndarray) -> np.ndarray:
+    """BERT's exact GELU, x * Phi(x)."""
+    from scipy.special import erf
+
+    return 0.5 * x * (1.0 + erf(x / math.sqrt(2.0)))
+
+
+class BertSentenceEncoder:
+    """Mean-pooled, L2-normalised BERT sentence vectors from a saved model folder.
+
+    Args:
+        path: the folder of a saved sentence-transformers BERT model.
+
+    Raises:
+        GLMapError: a file is missing or the model is not a mean-pooled BERT.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        folder = Path(path)
+        try:
+            from safetensors.numpy import load_file
+            from tokenizers import Tokenizer
+
+            config = json.loads((folder / "config.json").read_text(encoding="utf-8"))
+            pooling = json.loads((folder / "1_Pooling" / "config.json").read_text("utf-8"))
+            st_config = json.loads((folder / "sentence_bert_config.json").read_text("utf-8"))
+            weights = load_file(str(folder / "model.safetensors"))
+            self.tokenizer = Tokenizer.from_file(str(folder / "tokenizer.json"))
+        except (OSError, ValueError, ImportError) as exc:
+            raise GLMapError(f"cannot read the BERT model in {folder.name!r}: {exc}") from exc
+        if config.get("model_type") != "bert" or not pooling.get("pooling_mode_mean_tokens"):
+            raise GLMapError(
+                f"the model in {folder.name!r} is not a mean-pooled BERT; load it with "
+                "sentence-transformers instead."
+            )
+        self.max_length = int(st_config.get("max_seq_length", 256))
+        self.tokenizer.enable_truncation(self.max_length)
+        self.tokenizer.no_padding()
+        self.heads = int(config["num_attention_heads"])
+        self.eps = float(config["layer_norm_eps"])
+        self.dim = int(config["hidden_size"])
+        prefix = "bert." if "bert.embeddings.word_embeddings.weight" in weights else ""
+        w = {k[len(prefix) :]: np.ascontiguousarray(v) for k, v in weights.items()}
+        self.word = w["embeddings.word_embeddings.weight"]
+        self.position = w["embeddings.position_embeddings.weight"]
+        self.token_type = w["embeddings.token_type_embeddings.weight"][0]
+        self.embed_norm = (w["embeddings.LayerNorm.weight"], w["embeddings.LayerNorm.bias"])
+        self.layers = []
+        for i in range(int(config["num_hidden_layers"])):
+            p = f"encoder.layer.{i}."
+            qkv = np.concatenate(
+                [w[p + f"attention.self.{n}.weight"] for n in ("query", "key", "value")]
+            ).T.copy()  # [dim, 3 dim]
+            qkv_bias = np.concatenate(
+                [w[p + f"attention.self.{n}.bias"] for n in ("query", "key", "value")]
+            )
+            self.layers.append(
+                (
+                    qkv,
+                    qkv_bias,
+                    w[p + "attention.output.dense.weight"].T.copy(),
+                    w[p + "attention.output.dense.bias"],
+                    (
+                        w[p + "attention.output.LayerNorm.weight"],
+                        w[p + "attention.output.LayerNorm.bias"],
+                    ),
+                    w[p + "intermediate.dense.weight"].T.copy(),
+                    w[p + "intermediate.dense.bias"],
+                    w[p + "output.dense.weight"].T.copy(),
+                    w[p + "output.dense.bias"],
+                    (w[p + "output.LayerNorm.weight"], w[p + "output.LayerNorm.bias"]),
+                )
+            )
+
+    def token_ids(self, texts: list[str]) -> list[list[int]]:
+        """The token ids of each text ([CLS] ... [SEP], at most `max_length`)."""
+        return [e.ids for e in self.tokenizer.encode_batch(texts)]
+
+    def encode_ids(self, ids: np.ndarray) -> np.ndarray:  # [B, L] -> [B, dim]
+        """Sentence vectors of a batch of equal-length token id rows."""
+        ids = np.asarray(ids, dtype=np.int64)
+        b, n = ids.shape
+        # Rows are [B * L, dim] for the dense layers (one BLAS call each), [B, H, L, d] for
+        # attention.
+        x = (self.word[ids] + self.position[:n] + self.token_type).reshape(b * n, self.dim)
+        x = _layer_norm(x, *self.embed_norm, self.eps)
+        h, d = self.heads, self.dim // self.heads
+        scale = np.float32(1.0 / math.sqrt(d))
+        for qkv, qkv_b, out_w, out_b, norm1, up_w, up_b, down_w, down_b, norm2 in self.layers:
+            heads = (x @ qkv + qkv_b).reshape(b, n, 3, h, d).transpose(2, 0, 3, 1, 4)
+            q, k, v = heads[0], heads[1], heads[2]  # [B, H, L, d]
+            scores = (q @ k.transpose(0, 1, 3, 2)) * scale  # [B, H, L, L]
+            scores = np.exp(scores - scores.max(axis=-1, keepdims=True))
+            attention = scores / scores.sum(axis=-1, keepdims=True)
+            context = (attention @ v).transpose(0, 2, 1, 3).reshape(b * n, self.dim)
+            x = _layer_norm(x + context @ out_w + out_b, *norm1, self.eps)
+            x = _layer_norm(x + _gelu(x @ up_w + up_b) @ down_w + down_b, *norm2, self.eps)
+        x = x.reshape(b, n, self.dim)
+        pooled = x.mean(axis=1)
+        norms = np.linalg.norm(pooled, axis=1, keepdims=True)
+        return (pooled / np.maximum(norms, 1e-12)).astype(np.float32)
