@@ -80,3 +80,21 @@ def test_two_stand_points_with_one_text_are_two_situations_in_the_localisation()
 
     text = summarize([record([1.0, 2.0, 0.5], 0.4), record([3.0, 2.0, 0.5], 2.0)], ["glmap"])
     assert "of 2 situations" in text and "0.50" in text  # one of the two located
+
+
+def test_with_phrasings_the_report_has_reading_localisation_and_em_per_form(run):
+    import dataclasses
+
+    out, _, _ = run
+    spec = dataclasses.replace(SMALL, phrasings=True, agents=("glmap", "text-only"))
+    assert spec.key() != SMALL.key()
+    phrased = out.parent / (out.name + "-phrased")
+    phrased.mkdir()
+    (phrased / "maps").symlink_to(out / "maps")  # the same tour map, built once
+    text, records = run_sqa_eval(spec, phrased, workers=1, progress=False)
+    assert "| situation form | held out | situations | reading | localised | EM-1 glmap |" in text
+    assert "| question form | held out |" in text
+    assert "held-out question forms:" in text and "tuned situation forms:" in text
+    glmap = [r for r in records if r["agent"] == "glmap"]
+    assert all("situation_form" in r and isinstance(r["reading_ok"], bool) for r in glmap)
+    assert sum(r["read"] == r["type"] for r in glmap) >= 0.85 * len(glmap)

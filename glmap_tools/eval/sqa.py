@@ -255,7 +255,10 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
         read = [bool(r.get("reading_ok")) for r in sit.values()]
         return f"{np.mean(read):.2f}", f"{np.mean(ok):.2f}", len(sit)
 
-    held = {r["situation_form"] for r in rows if r["held_out"]}
+    from glmap_tools.sim.qa_phrasings import HELD_OUT
+
+    held_s = {v for v in HELD_OUT.values() if isinstance(v, str)}
+    held_q = {f"{k}/{v}" for k, v in HELD_OUT.items() if isinstance(v, int)}
     lines = ["", "| situation form | held out | situations | reading | localised | EM-1 glmap |"]
     lines.append("|---|---|---|---|---|---|")
     groups: dict[str, list[dict[str, Any]]] = {}
@@ -263,13 +266,13 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
         groups.setdefault(r["situation_form"], []).append(r)
     for name, rs in sorted(groups.items()):
         rd, loc, n = located(rs)
-        mark = "yes" if name in {r["situation_form"] for r in rs if r["held_out"]} else ""
+        mark = "yes" if name in held_s else ""
         lines.append(f"| {name} | {mark} | {n} | {rd} | {loc} | {em(rs, 'glmap')} |")
     lines += [
         "",
-        "| question form | questions | family read | EM-1 glmap | EM-1 text-only |"
-        " supported (glmap) |",
-        "|---|---|---|---|---|---|",
+        "| question form | held out | questions | family read | EM-1 glmap | EM-1 text-only "
+        "| supported (glmap) |",
+        "|---|---|---|---|---|---|---|",
     ]
     qgroups: dict[str, list[dict[str, Any]]] = {}
     for r in rows:
@@ -278,24 +281,38 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
         g = [r for r in rs if r["agent"] == "glmap"] or rs
         read = np.mean([r["read"] == r["type"] for r in g])
         sup = np.mean([r["supported"] for r in g])
+        mark = "yes" if name in held_q else ""
         lines.append(
-            f"| {name} | {len(g)} | {read:.2f} | {em(rs, 'glmap')} | {em(rs, 'text-only')} "
-            f"| {sup:.2f} |"
+            f"| {name} | {mark} | {len(g)} | {read:.2f} | {em(rs, 'glmap')} "
+            f"| {em(rs, 'text-only')} | {sup:.2f} |"
         )
-    for label, pick in (("held out", True), ("tuned", False)):
-        rs = [r for r in rows if r["held_out"] == pick]
-        if not rs:
-            continue
-        g = [r for r in rs if r["agent"] == "glmap"] or rs
-        rd, loc, n = located([r for r in rs if r["situation_form"] in held or not pick])
-        sup = [r for r in g if r["supported"]]
-        fam = np.mean([r["read"] == r["type"] for r in g])
+    lines.append("")
+    for label, pick in (("held-out", True), ("tuned", False)):
+        sit = [r for r in rows if (r["situation_form"] in held_s) == pick]
+        qs = [r for r in rows if (r["question_form"] in held_q) == pick]
+        if sit:
+            rd, loc, n = located(sit)
+            lines.append(
+                f"- {label} situation forms: {n} situations, reading {rd}, localised {loc}, "
+                f"EM-1 glmap {em(sit, 'glmap')} / text-only {em(sit, 'text-only')} on their "
+                "questions"
+            )
+        g = [r for r in qs if r["agent"] == "glmap"]
+        if g:
+            sup = [r for r in g if r["supported"]]
+            fam = np.mean([r["read"] == r["type"] for r in g])
+            lines.append(
+                f"- {label} question forms: {len(g)} questions, family read {fam:.2f}, EM-1 "
+                f"glmap {em(qs, 'glmap')} (supported {len(sup)}: "
+                f"{np.mean([r['em1'] for r in sup]) if sup else float('nan'):.2f}; unsupported "
+                f"{len(g) - len(sup)}), text-only {em(qs, 'text-only')}"
+            )
+    both = [r for r in rows if r["situation_form"] in held_s and r["question_form"] in held_q]
+    if both:
+        n_both = sum(r["agent"] == "glmap" for r in both)
         lines.append(
-            f"\n{label}: {len(g)} questions, family read {fam:.2f}"
-            f", EM-1 glmap {em(rs, 'glmap')} (supported {len(sup)}: "
-            f"{np.mean([r['em1'] for r in sup]) if sup else float('nan'):.2f}; unsupported "
-            f"{len(g) - len(sup)}), text-only {em(rs, 'text-only')}; situations of "
-            f"{'held-out' if pick else 'all'} forms: {n}, reading {rd}, localised {loc}"
+            f"- held-out situation and question form together: {n_both} questions, "
+            f"EM-1 glmap {em(both, 'glmap')} / text-only {em(both, 'text-only')}"
         )
     return "\n".join(lines) + "\n"
 
