@@ -213,3 +213,27 @@ async def test_a_benchmark_episode_id_with_a_typo_gets_the_closest_suggestion(tm
     assert wrong.is_error and "Did you mean" in wrong.content[0].text
     assert both.is_error and "not both" in both.content[0].text
     assert unstarted.is_error and "call sim_reset first" in unstarted.content[0].text
+
+
+async def test_a_walk_racing_a_reset_of_its_session_finishes_before_the_reset(tmp_path):
+    import anyio
+
+    server = build_server(config(tmp_path, sim_size=(96, 72)))
+    async with Client(server) as client:
+        ok(await client.call_tool("sim_reset", {"scene": 0, "goal": "sofa", "seed": 1}))
+        results: dict[str, object] = {}
+
+        async def walk() -> None:
+            results["walk"] = await client.call_tool("nav_step", {"actions": 25})
+
+        async def reset() -> None:
+            await anyio.sleep(0.05)
+            results["reset"] = await client.call_tool("sim_reset", {"scene": 0, "seed": 2})
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(walk)
+            tg.start_soon(reset)
+        after = ok(await client.call_tool("sim_step", {"action": "turn_left"}))
+    walked, fresh = ok(results["walk"]), ok(results["reset"])
+    assert walked["steps"] == 25 and fresh["steps"] == 0  # the walk ran whole, then the reset
+    assert after["steps"] == 1

@@ -259,6 +259,11 @@ def read_token(args: argparse.Namespace, environ: Any = os.environ) -> str | Non
             raise InvalidInputError(
                 f"--token-file {args.token_file.name!r} is empty; write the token into it."
             )
+        from glmap_tools.server.http import token_file_warning
+
+        warning = token_file_warning(args.token_file)
+        if warning is not None:
+            print(warning, file=sys.stderr)
         return token
     if args.token:
         print(

@@ -6,6 +6,7 @@ No `from __future__ import annotations` here: the SDK reads these signatures at 
 """
 
 import math
+from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
 import numpy as np
@@ -24,6 +25,13 @@ Units = Literal["both", "instances", "regions"]
 Policy = Literal["glmap", "glmap-instance", "glmap-region", "egocentric", "frontier"]
 POLICY_OF_UNITS = {"both": "glmap", "instances": "glmap-instance", "regions": "glmap-region"}
 Goal = Annotated[str, Field(max_length=256, description="what to find; omit: the episode's")]
+
+
+def in_episode(session: Session, fn: Callable[[], ImageResult]) -> ImageResult:
+    """Run a tool that acts in the simulator holding the session's episode lock, so a
+    sim_reset from another call waits for it (and it never acts on a replaced episode)."""
+    with simulator.episode_lock(session.extras):
+        return fn()
 
 
 def _goal(session: Session, goal: str) -> str:
@@ -197,7 +205,7 @@ async def navigate_to(
         info.pop("camera_pose", None)
         return ImageResult(data=info, images=[Picture(format="jpeg", data=jpeg(sim.obs["rgb"]))])
 
-    return await in_thread(run)
+    return await in_thread(lambda: in_episode(target, run))
 
 
 async def look_around(ctx: Context, session: SessionArg = "") -> ImageResult:
@@ -224,7 +232,7 @@ async def look_around(ctx: Context, session: SessionArg = "") -> ImageResult:
         sheet = contact_sheet(frames, labels, cols=4)
         return ImageResult(data=info, images=[Picture(format="jpeg", data=jpeg(sheet))])
 
-    return await in_thread(run)
+    return await in_thread(lambda: in_episode(target, run))
 
 
 def _goal_unit(session: Session, decision: Any, config: Any) -> dict[str, Any] | None:
@@ -327,7 +335,7 @@ async def nav_step(
         )
         return ImageResult(data=info, images=pictures)
 
-    return await in_thread(run)
+    return await in_thread(lambda: in_episode(target, run))
 
 
 TOOLS = [
