@@ -22,7 +22,7 @@ import numpy as np
 from glmap_tools.gaussians.types import COVARIANCE_EPSILON, DEFAULT_OPACITY, GaussianSet
 from glmap_tools.language.embed import Embedder
 
-FIND_TARGET_MS = 20.0  # find_instance p50 at 10k instances (also over HTTP)
+FIND_TARGET_MS = 10.0  # find_instance p50 at 10k instances (also over HTTP)
 OBSERVE_TARGET_MS = 250.0  # observe_frame p50, 640x480, 10 objects
 GAUSSIANS_PER_INSTANCE = 8
 COLORS = [
