@@ -35,7 +35,7 @@ async def test_a_situation_comes_back_as_a_pose_a_heat_map_and_four_captioned_vi
         assert await counts(client) == before  # read-only
     sit = info["situation"]
     assert {"x", "y", "heading_deg", "confidence", "anchors", "facing"} <= set(sit)
-    assert sit["facing_text"] == "blue chair"
+    assert sit["facing_text"] == "the blue chair"
     assert sit["reading"]["anchor"] == "dining table" and sit["reading"]["facing"] == "blue chair"
     # The blue chair stands at (-1.6, 0.4): the pose faces it.
     assert [v[0] for v in info["views"]] == ["front", "left", "back", "right"]

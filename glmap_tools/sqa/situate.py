@@ -355,9 +355,11 @@ def situate(
     if reading is None:
         reading = read_situation(text)
     if split_text:
-        location, facing = reading.anchor, reading.facing or ""
+        # Scored as "the <words>", as the phrases of the earlier split were.
+        location = f"the {reading.anchor}" if reading.anchor else ""
+        facing = f"the {reading.facing}" if reading.facing else ""
         if not location and not facing and reading.constraints:
-            location = reading.constraints[0].object  # "the lamp is on my left": by the lamp
+            location = f"the {reading.constraints[0].object}"  # "the lamp is on my left"
         if not location and not facing:
             location = core_phrase(split_situation(text)[0])
     else:
