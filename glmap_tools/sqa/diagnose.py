@@ -99,6 +99,11 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="the stand side from the floor alone, no edge-height cue (the earlier rule)",
     )
+    p.add_argument(
+        "--phrasings",
+        action="store_true",
+        help="situations in many phrasings (glmap_tools.sim.qa_phrasings); causes per form",
+    )
     p.add_argument("--show", default="", help="print the rows with these causes (comma list)")
     args = p.parse_args(argv)
 
@@ -115,7 +120,9 @@ def main(argv: list[str] | None = None) -> int:
         scene = entry["scene"]
         layout = bench_layout(split_dir(args.split) / scene / "layout.json")
         glmap = scene_map(spec, layout, args.maps / f"{scene}.glmap", embedder)
-        qa = generate_qa(layout, situations=args.situations, seed=args.seed)
+        qa = generate_qa(
+            layout, situations=args.situations, seed=args.seed, phrasings=args.phrasings
+        )
         done = set()
         for q in qa["questions"]:
             if q["situation"] in done:
@@ -132,13 +139,19 @@ def main(argv: list[str] | None = None) -> int:
                 )
             except GLMapError as exc:
                 s = exc
-            rows.append({"scene": scene, **classify(glmap, layout, q, s)})
+            form = {"form": q["situation_form"]} if "situation_form" in q else {}
+            rows.append({"scene": scene, **form, **classify(glmap, layout, q, s)})
         glmap.close()
     causes = Counter(r["cause"] for r in rows)
     n = len(rows)
     print(f"{args.split}: {n} situations; within 1 m and 45 deg: {causes['ok'] / max(n, 1):.3f}")
     for cause, k in causes.most_common():
         print(f"  {cause:28s} {k:3d}  {k / max(n, 1):.2f}")
+    forms = sorted({r["form"] for r in rows if "form" in r})
+    for f in forms:
+        mine = [r for r in rows if r.get("form") == f]
+        ok = sum(r["cause"] == "ok" for r in mine)
+        print(f"  form {f:20s} {ok:3d} of {len(mine):3d} located")
     show = {c.strip() for c in args.show.split(",") if c.strip()}
     for r in rows:
         if r["cause"] in show:
