@@ -87,3 +87,45 @@ def test_a_reading_round_trips_through_its_json_form_and_bad_forms_are_refused()
         SituationReading.from_dict({"anchr": "bed"})
     with pytest.raises(InvalidInputError, match="empty"):
         read_situation("  ")
+
+
+@pytest.mark.parametrize(
+    ("text", "anchor", "facing", "constraints"),
+    [
+        ("I am sitting on the couch facing the tv in front of me.", "couch", "tv", []),
+        (
+            "I am standing at the window looking outside, the bed is at my 5 o clock.",
+            "window",
+            None,
+            [["bed", 5]],
+        ),
+        (
+            "I am seated on the toilet and the sink is to my right.",
+            "toilet",
+            None,
+            [["sink", "right"]],
+        ),
+        ("The desk is on my left while I am lying on the bed.", "bed", None, [["desk", "left"]]),
+        (
+            "I am standing by the floor lamp with a green shade and to my right is the plant.",
+            "floor lamp with a green shade",
+            None,
+            [["plant", "right"]],
+        ),
+        (
+            "I am standing at the stove, facing the cabinet next to the fridge.",
+            "stove",
+            "cabinet next to the fridge",
+            [],
+        ),
+    ],
+)
+def test_clauses_that_once_swallowed_the_anchor_or_the_facing_object_read_apart(
+    text, anchor, facing, constraints
+):
+    r = read_situation(text)
+    assert (r.anchor, r.facing, [[c.object, c.side or c.clock] for c in r.constraints]) == (
+        anchor,
+        facing,
+        constraints,
+    ), r.as_dict()

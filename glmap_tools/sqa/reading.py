@@ -147,6 +147,11 @@ _IS = r"(?:is |are |stands |sits |lies )?"  # "the lamp (is) on my left"
 _THERE = r",? (?:is |are |there is |there are |there's |i (?:can )?see |i have |stands |sits )?"
 _JUST = r"(?:right |directly |straight |immediately |just )?"
 _AHEAD = r"(?:in front of me|ahead of me|before me|straight ahead|ahead)"
+# A participle after the anchor starts another clause ("at the window looking outside").
+_DOING = (
+    r"(?:looking|watching|holding|reading|waiting|thinking|smiling|talking|listening|"
+    r"working|resting|trying|getting|ready)"
+)
 _PATTERNS: list[tuple[str, re.Pattern[str]]] = [
     (
         "behind",
@@ -372,7 +377,7 @@ def _position(clause: str, out: dict[str, Any]) -> None:
         a, b = (object_words(x) for x in obj.split("&", 1))
         out.setdefault("near", []).append(b)
         obj = a
-    obj = object_words(obj)
+    obj = object_words(re.sub(r"\s+" + _DOING + r"\b.*$", "", obj))
     # "in the kitchen next to the fridge": the object, not the room, is the anchor.
     sub = re.match(r"^(.+?)\s+(next to|beside|near|by|at|in front of|close to|on)\s+(.+)$", obj)
     if sub and object_words(sub.group(1)) in ROOMS:
@@ -410,8 +415,8 @@ def read_situation(text: str) -> SituationReading:
             if not m:
                 continue
             obj = object_words(m.group("x"))
-            if not obj or obj in ("i", "me", "it"):
-                continue
+            if not obj or obj in ("i", "me", "it") or re.match(r"(?:i|we)\b", obj):
+                continue  # "I am on the couch facing the tv in front of me": not an object
             if kind == "behind":
                 cons.append(Constraint(obj, side="behind"))
             elif kind == "clock":
@@ -429,6 +434,9 @@ def read_situation(text: str) -> SituationReading:
         if hit:
             continue
         m = re.search(r"(?:^|\s)" + _FACE_VERB + r"\s+(?P<x>.+)$", clause)
+        if m:  # "facing the tv (right) in front of me": the tail says it twice
+            clause = re.sub(r"\s+" + _JUST + _AHEAD + r"$", "", clause)
+            m = re.search(r"(?:^|\s)" + _FACE_VERB + r"\s+(?P<x>.+)$", clause)
         if m:
             before = clause[: m.start()].strip()
             target = m.group("x")
