@@ -194,6 +194,10 @@ def test_the_token_comes_from_a_file_or_the_environment_and_on_the_command_line_
         return Namespace(**{"token": None, "token_file": None, **kw})
 
     (tmp_path / "t").write_text("  secret-1 \n")
+    (tmp_path / "t").chmod(0o644)
+    assert cli.read_token(args(token_file=tmp_path / "t"), {}) == "secret-1"
+    assert "chmod 600" in capsys.readouterr().err  # others may read it: warned
+    (tmp_path / "t").chmod(0o600)
     assert cli.read_token(args(token_file=tmp_path / "t"), {}) == "secret-1"
     assert cli.read_token(args(), {cli.TOKEN_ENV: "secret-2"}) == "secret-2"
     assert capsys.readouterr().err == ""
