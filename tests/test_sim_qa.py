@@ -243,3 +243,18 @@ def test_direction_and_turn_answers_agree_with_the_true_pose(layout, phrased) ->
         else:
             want = {"forward": abs(b) < 45, "backward": abs(b) > 135, "left": 45 <= b <= 135}
             assert want.get(q["answers"][0]["answer"], -135 <= b <= -45), (q["question"], b)
+
+
+def test_glmap_sim_qa_writes_the_phrased_set_on_request(layout, phrased, tmp_path) -> None:
+    import json
+
+    from glmap_tools import cli
+    from glmap_tools.sim.layout_io import save_layout
+
+    save_layout(layout, tmp_path / "layout.json")
+    out = tmp_path / "qa.json"
+    assert cli.main(["sim", "qa", str(tmp_path / "layout.json"), "--situations", "12",
+                     "--phrasings", "--out", str(out)]) == 0  # fmt: skip
+    written = json.loads(out.read_text())["questions"]
+    assert [q["situation"] for q in written] == [q["situation"] for q in phrased["questions"]]
+    assert all("situation_form" in q and "held_out" in q for q in written)

@@ -251,7 +251,6 @@ REQUIRED_ONLY = {
     "render_view": {"target": "map"},
     "export_ply": {"name": "kept"},
     "sim_step": {"action": "turn_left"},
-    "locate_situation": {"situation": "facing the table"},
 }
 
 
@@ -269,5 +268,6 @@ def test_every_tool_runs_with_only_its_required_arguments(toolset):
             toolset.call(name, args)
         except GLMapError as exc:  # a clear refusal, never a crash
             refused[name] = str(exc)
-    assert set(refused) == {"label_segments", "navigate_to"}, refused
+    assert set(refused) == {"label_segments", "navigate_to", "locate_situation"}, refused
     assert "give either x and y, or unit_id" in refused["navigate_to"]
+    assert "give the situation text" in refused["locate_situation"]  # or a reading

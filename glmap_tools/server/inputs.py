@@ -69,7 +69,7 @@ Description = Annotated[str, _no_control("\t\n\r")]
 SessionArg = Annotated[
     str,
     AfterValidator(_handle),
-    Field(description="from new_map; shared stateless HTTP servers only"),
+    Field(description="a handle from new_map (shared HTTP servers)"),
 ]
 
 

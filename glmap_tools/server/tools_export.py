@@ -55,8 +55,7 @@ async def export_ply(
     overwrite: bool = False,
     session: SessionArg = "",
 ) -> Exported:
-    """Write the 3D Gaussians of the map, an instance or a region as a 3DGS '<name>.ply'
-    (overwrite: replace one)."""
+    """Write the map's (or a unit's) 3D Gaussians as a 3DGS '<name>.ply'."""
     state = app_state(ctx)
     target = session_of(ctx, session)
     path = export_path(state.config.maps_dir, name)

@@ -100,8 +100,7 @@ async def observe_frame(
     session: SessionArg = "",
 ) -> ObserveResult:
     """Add a posed RGB-D frame (files: base64 or absolute path): annotated objects become
-    or merge into instances; without annotations, segments come back pending for
-    label_segments. A rejected input changes nothing."""
+    or merge into instances; unannotated segments wait for label_segments."""
     state = app_state(ctx)
     target = session_of(ctx, session)
     await ctx.report_progress(0, 3, "decoding the frame")
@@ -133,10 +132,8 @@ async def observe_frame(
 async def find_instance(
     query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = ""
 ) -> AgentHits:
-    """Find objects by description, e.g. 'something to sit on', best first.
-
-    Hits: id, description, score, match (false: nothing mapped fits), centroid, bounds (m).
-    """
+    """Find objects by description ('something to sit on'), best first: id, description,
+    score, match (false: nothing mapped fits), centroid, bounds (m)."""
     target = session_of(ctx, session)
 
     def run() -> AgentHits:
@@ -171,8 +168,7 @@ async def what_is_at(
     radius: Annotated[float, Field(ge=0, le=5)] = 0.25,
     session: SessionArg = "",
 ) -> AgentUnitsAt:
-    """Units within radius of world (x, y) on the floor plan (metres), nearest first, and
-    whether (x, y) is free."""
+    """Units within radius of (x, y) m on the floor plan, nearest first; is (x, y) free."""
     target = session_of(ctx, session)
 
     def run() -> AgentUnitsAt:
@@ -207,7 +203,7 @@ async def map_summary(
     include_image: bool = True,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Counts and extent of the map, and a labelled top-down image (ticks in metres)."""
+    """Counts, extent and a labelled top-down image of the map."""
     target = session_of(ctx, session)
 
     def run() -> tuple[MapInfo, TopDownImage | None, bytes | None]:

@@ -115,8 +115,8 @@ def _nav_png(session: Session, decision: Any, agent: tuple[float, float, float])
 async def value_map(
     ctx: Context, goal: Goal = "", units: Units = "both", session: SessionArg = ""
 ) -> ImageResult:
-    """Where the goal likely is: the value map (paper Eq. 7) of the chosen units, frontiers,
-    the waypoint and its path (go with navigate_to)."""
+    """Where the goal likely is: the Eq. 7 value map of the chosen units, frontiers, the
+    waypoint and its path."""
     target = session_of(ctx, session)
 
     def run() -> ImageResult:
@@ -178,8 +178,8 @@ async def navigate_to(
     max_steps: Annotated[int, Field(ge=1, le=500)] = 100,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Walk (simulator) to (x, y), or within 0.75 m of unit_id in clear sight, replanning
-    round collisions. would_succeed: stop here counts if the unit is the goal."""
+    """Walk (simulator) to (x, y), or within 0.75 m of unit_id in clear sight, round
+    collisions. would_succeed: stop here counts if the unit is the goal."""
     target = session_of(ctx, session)
     if (unit_id is None) == (x is None or y is None) or (x is None) != (y is None):
         raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
@@ -269,9 +269,9 @@ async def nav_step(
     images: bool = False,
     session: SessionArg = "",
 ) -> ImageResult:
-    """A policy acts up to `actions` steps (simulator; glmap*: Eq. 7 over both/instance/
-    region units, egocentric: VLFM-like, frontier: nearest). Returns before the policy's
-    stop (goal_unit.would_succeed: it would count) unless execute_stop."""
+    """A policy takes up to `actions` steps (simulator; glmap*: Eq. 7, egocentric: VLFM-like,
+    frontier: nearest). Returns before the policy's stop (see goal_unit) unless
+    execute_stop."""
     target = session_of(ctx, session)
 
     def run() -> ImageResult:

@@ -162,7 +162,7 @@ async def label_segments(
     session: SessionArg = "",
 ) -> ObserveResult:
     """Name a pending frame's segments: labelled ones become instances, groups regions;
-    unlisted ones are ignored. A rejected entry changes nothing."""
+    unlisted ones are ignored."""
     state = app_state(ctx)
     target = session_of(ctx, session)
     store = pending_frames(state)

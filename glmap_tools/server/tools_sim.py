@@ -53,9 +53,8 @@ async def sim_reset(
     keep_map: bool = False,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Start a simulator episode (`scene` and `seed`, or a benchmark `episode` id);
-    objectnav: reach any object of the goal's category, instnav: the described one.
-    Frames go into a new map (keep_map: the current one)."""
+    """Start a simulator episode (`scene` and `seed`, or a benchmark `episode` id): reach
+    any object of the goal's category (objectnav) or the described one (instnav)."""
     state = app_state(ctx)
     target = session_of(ctx, session)
     wh = tuple(int(v) for v in size.split("x")) if size else state.config.sim_size

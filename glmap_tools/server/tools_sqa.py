@@ -18,26 +18,19 @@ MAX_SITUATION = 512
 
 
 class ConstraintIn(BaseModel):
-    """An object at an egocentric side or clock hour."""
+    """An object at a side of me, or at a clock hour (12 ahead, 3 right)."""
 
-    object: str = Field(min_length=1, max_length=120, description="its words, e.g. 'lamp'")
-    side: Literal["left", "right", "behind", "front"] | None = Field(
-        None, description="where it is from me; or give clock"
-    )
-    clock: int | None = Field(
-        None, ge=1, le=12, description="clock hour: 12 straight ahead, 3 right, 9 left"
-    )
+    object: str = Field(min_length=1, max_length=120)
+    side: Literal["left", "right", "behind", "front"] | None = None
+    clock: int | None = Field(None, ge=1, le=12)
 
 
 class ReadingIn(BaseModel):
-    """A situation already read: where I am, what I face, what is around me."""
+    """A situation already read (other keys of situation.reading are ignored)."""
 
-    anchor: str = Field("", max_length=200, description="object I am at ('' if none)")
-    relation: str = Field("", max_length=40, description="at, on, in front of, next to, ...")
-    posture: str | None = Field(None, max_length=40, description="standing, sitting, ...")
-    activity: str | None = Field(None, max_length=120, description="what I am doing")
-    near: list[str] = Field(default_factory=list, max_length=4, description="other objects")
-    facing: str | None = Field(None, max_length=200, description="object I face")
+    anchor: str = Field("", max_length=200, description="the object I am at")
+    relation: str = Field("", max_length=40, description="at, on, next to")
+    facing: str | None = Field(None, max_length=200)
     constraints: list[ConstraintIn] = Field(default_factory=list, max_length=8)
 
 
@@ -91,22 +84,16 @@ async def locate_situation(
         str,
         Field(
             max_length=MAX_SITUATION,
-            description="where you are, e.g. 'sitting on the bed, facing the window'",
+            description="e.g. 'sitting on the bed, facing the window'",
         ),
     ] = "",
     question: Annotated[str, Field(max_length=MAX_SITUATION)] = "",
     topdown: bool = False,
-    reading: Annotated[
-        ReadingIn | None,
-        Field(description="your own reading of the situation (replaces the text's)"),
-    ] = None,
+    reading: ReadingIn | None = None,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Situated QA: locate a situation (text, or a reading: anchor, facing, objects on
-    my left/right/behind or at a clock hour) in the map: pose, confidence, units around
-    (distance, bearing), a heat map and 4 views (topdown: + a map crop with unit ids);
-    situation.reading is how it was read (correct it and pass it back as reading);
-    map_answer answers the question."""
+    """Situated QA: place a situation (text, or a reading) in the map: pose, units around,
+    heat map, 4 views; situation.reading shows how it was read (fix it, pass it back)."""
     from glmap_tools.errors import InvalidInputError
 
     if not situation.strip() and reading is None:

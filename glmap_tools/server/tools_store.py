@@ -46,8 +46,8 @@ async def new_map(
     ] = "",
     session: SessionArg = "",
 ) -> MapInfo:
-    """Start an empty map (the current one is dropped unless saved). On a shared stateless
-    HTTP server this starts your own session: pass its handle as `session` later."""
+    """Start an empty map (the current one is dropped unless saved). Over shared HTTP it is
+    a new session: pass its handle as `session`."""
     target = session_for_new_map(ctx, session)
     registry = app_state(ctx).registry
 

@@ -53,9 +53,8 @@ async def render_view(
     height: Side = 0,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Render the map's 3D Gaussians: an instance or region (unit_id, seen from eye height
-    and its most visible side), the map, a camera pose, or 'situated': 4 views from world
-    (x, y) facing heading_deg. Width, height: 32-1024 px (0: default)."""
+    """Render the map's 3D Gaussians: a unit (unit_id, from its most visible side), the
+    map, a camera pose, or 'situated': 4 views from (x, y) facing heading_deg."""
     state = app_state(ctx)
     target_session = session_of(ctx, session)
     w0, h0 = state.config.render_size

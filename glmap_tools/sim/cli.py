@@ -106,6 +106,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, required=True, help="QA JSON to write")
     p.add_argument("--overwrite", action="store_true")
+    p.add_argument(
+        "--phrasings",
+        action="store_true",
+        help="situations and questions in many phrasings per family, the last of each "
+        "held out (records say which)",
+    )
     p.set_defaults(func=run_qa)
 
 
@@ -276,7 +282,7 @@ def run_qa(args: argparse.Namespace) -> int:
 
     _check_out(args.out, args.overwrite)
     layout = load_layout(args.layout)
-    qa = generate_qa(layout, args.situations, args.seed)
+    qa = generate_qa(layout, args.situations, args.seed, phrasings=args.phrasings)
     args.out.write_text(json.dumps(qa, indent=1) + "\n", encoding="utf-8")
     n_sit = len({q["situation"] for q in qa["questions"]})
     print(f"wrote {args.out}: {len(qa['questions'])} questions in {n_sit} situations")
