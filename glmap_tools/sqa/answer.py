@@ -29,35 +29,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
+from glmap_tools.sqa.reading import NUMBER_WORDS
 from glmap_tools.sqa.surroundings import Nearby, Surroundings, surroundings
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
     from glmap_tools.sqa.situate import Situation
 
-NUMBER_WORDS = [
-    "zero",
-    "one",
-    "two",
-    "three",
-    "four",
-    "five",
-    "six",
-    "seven",
-    "eight",
-    "nine",
-    "ten",
-    "eleven",
-    "twelve",
-    "thirteen",
-    "fourteen",
-    "fifteen",
-    "sixteen",
-    "seventeen",
-    "eighteen",
-    "nineteen",
-    "twenty",
-]
 SPELLING = {"gray": "grey", "color": "colour", "colored": "coloured"}
 SYNONYMS = [
     {"sofa", "couch"},

@@ -29,24 +29,30 @@ from glmap_tools.errors import InvalidInputError
 Side = Literal["left", "right", "behind", "front"]
 SIDES: tuple[str, ...] = ("left", "right", "behind", "front")
 SIDE_BEARING = {"front": 0.0, "left": 90.0, "right": -90.0, "behind": 180.0}  # deg, + = left
-# index = hour (0 and 12 both "twelve")
-HOUR_WORDS = tuple(
-    [
-        "twelve",
-        "one",
-        "two",
-        "three",
-        "four",
-        "five",
-        "six",
-        "seven",
-        "eight",
-        "nine",
-        "ten",
-        "eleven",
-        "twelve",
-    ]
-)
+NUMBER_WORDS = [
+    "zero",
+    "one",
+    "two",
+    "three",
+    "four",
+    "five",
+    "six",
+    "seven",
+    "eight",
+    "nine",
+    "ten",
+    "eleven",
+    "twelve",
+    "thirteen",
+    "fourteen",
+    "fifteen",
+    "sixteen",
+    "seventeen",
+    "eighteen",
+    "nineteen",
+    "twenty",
+]
+HOUR_WORDS = ("twelve", *NUMBER_WORDS[1:13])  # index = hour (0 and 12 both "twelve")
 POSTURES = (
     "standing",
     "sitting",
