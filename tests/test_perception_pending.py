@@ -166,3 +166,20 @@ def test_a_new_map_or_an_ended_session_lets_go_of_its_pending_frames(frame_and_s
     assert store.held(first.handle) == 0 and store.held(second.handle) > 0
     registry.close()
     assert store.held() == 0
+
+
+def test_a_new_pinned_map_lets_go_of_the_frames_that_waited_for_it(frame_and_segments, tmp_path):
+    from glmap_tools.language.embed import HashingEmbedder
+    from glmap_tools.server.config import ServerConfig
+    from glmap_tools.server.state import SessionRegistry
+
+    frame, segments = frame_and_segments
+    config = ServerConfig(maps_dir=tmp_path, embedder="hashing", warm_up=False, map_name="ep")
+    registry = SessionRegistry(config, HashingEmbedder())
+    store = PendingFrames()
+    registry.on_drop.append(store.forget)
+    pinned = registry.resolve(None, None)  # --map: the default session, on the saved map
+    store.add(pinned.handle, pinned.live.glmap, frame, segments, 0)
+    registry.new_map(pinned, None)  # starts the saved map anew, in place
+    assert store.held(pinned.handle) == 0
+    registry.close()

@@ -241,6 +241,7 @@ class SessionRegistry:
             if name is None:
                 if self.pin is not None and self.pin.holds(session):
                     self.pin.clear()  # --map: the pinned map itself starts anew
+                    self._dropped_by(session)  # with it, the frames that waited for it
                     return session.live
                 self._switch(session, self._scratch())
                 return session.live
