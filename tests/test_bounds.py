@@ -120,6 +120,23 @@ def test_the_frame_extent_is_the_box_of_its_back_projected_points() -> None:
     np.testing.assert_allclose(hi, np.maximum(points.max(axis=0), frame.pose.translation))
 
 
+def test_the_view_box_holds_every_point_and_a_frame_near_a_bound_is_judged_by_its_points() -> (
+    None
+):
+    from glmap_tools.map.bounds import frustum_extent
+
+    frame, _ = view(EYE)
+    lo, hi = frame_extent(frame, 5.0)
+    view_lo, view_hi = frustum_extent(frame, 5.0)
+    assert np.all(view_lo <= lo) and np.all(hi <= view_hi)
+    # A world limit between the points' reach and the view box's: the frame is judged by
+    # its points, not refused for what it could have seen.
+    reach = float(np.max(np.abs(np.concatenate([lo, hi]))))
+    box = float(np.max(np.abs(np.concatenate([view_lo, view_hi]))))
+    assert reach < box
+    check_frame_bounds(frame, MapConfig(voxel_size=0.04, world_limit=(reach + box) / 2), [])
+
+
 @pytest.mark.parametrize(
     "bad",
     [

@@ -60,6 +60,20 @@ def frame_extent(frame: RGBDFrame, max_range: float) -> tuple[np.ndarray, np.nda
     return lo, hi
 
 
+def frustum_extent(frame: RGBDFrame, max_range: float) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding box of the camera's view out to `max_range`: the camera centre and the four
+    image corners' rays at depth `max_range`. It holds `frame_extent` (a valid point has
+    depth <= max_range and projects inside the image) and costs no pass over the pixels.
+    """
+    intr, pose = frame.intrinsics, frame.pose
+    u = np.array([-0.5, intr.width - 0.5, -0.5, intr.width - 0.5])
+    v = np.array([-0.5, -0.5, intr.height - 0.5, intr.height - 0.5])
+    rays = np.stack([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, np.ones(4)], axis=1)
+    corners = pose.translation + (rays * max_range) @ pose.rotation.T  # [4, 3]
+    everything = np.vstack([corners, pose.translation[None]])
+    return everything.min(axis=0), everything.max(axis=0)
+
+
 def map_extent(trajectory: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
     """Bounding box (lo [3], hi [3]) of the camera centres of `trajectory` ([4, 4] poses)."""
     if not trajectory:
@@ -86,6 +100,9 @@ def check_frame_bounds(
         OutOfBoundsError: a camera centre or point beyond world_limit, or an extent over
             max_span; the message names the axis, the value and the fix.
     """
+    known = map_extent(trajectory)
+    if _within(*frustum_extent(frame, config.max_range), frame, config, known):
+        return  # the whole view fits, so every point does: no pass over the pixels
     lo, hi = frame_extent(frame, config.max_range)
     limit = config.world_limit
     centre = frame.pose.translation
@@ -102,7 +119,6 @@ def check_frame_bounds(
                 f"this map's world is +-{limit:g} m (MapConfig.world_limit). Check the depth "
                 "scale and units, or lower max_range."
             )
-    known = map_extent(trajectory)
     if known is None:
         span_lo, span_hi = lo, hi
     else:
@@ -116,3 +132,19 @@ def check_frame_bounds(
                 f"spans at most {config.max_span:g} m (MapConfig.max_span). Start a new map "
                 "for a far-off place, or raise max_span."
             )
+
+
+def _within(
+    lo: np.ndarray,
+    hi: np.ndarray,
+    frame: RGBDFrame,
+    config: MapConfig,
+    known: tuple[np.ndarray, np.ndarray] | None,
+) -> bool:
+    """Whether a frame whose camera and points lie in lo..hi passes both bounds."""
+    limit = config.world_limit
+    if np.any(np.abs(frame.pose.translation) > limit) or np.any(np.maximum(-lo, hi) > limit):
+        return False
+    if known is not None:
+        lo, hi = np.minimum(known[0], lo), np.maximum(known[1], hi)
+    return bool(np.all(hi - lo <= config.max_span))
