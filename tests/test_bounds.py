@@ -120,9 +120,7 @@ def test_the_frame_extent_is_the_box_of_its_back_projected_points() -> None:
     np.testing.assert_allclose(hi, np.maximum(points.max(axis=0), frame.pose.translation))
 
 
-def test_the_view_box_holds_every_point_and_a_frame_near_a_bound_is_judged_by_its_points() -> (
-    None
-):
+def test_the_view_box_holds_every_point_and_a_frame_near_a_bound_is_judged_by_them() -> None:
     from glmap_tools.map.bounds import frustum_extent
 
     frame, _ = view(EYE)
