@@ -43,7 +43,14 @@ def _register_nav(kinds: argparse._SubParsersAction, task: str) -> None:
             "A rerun skips the episodes already in --out. See docs/evaluation.md."
         ),
     )
-    p.add_argument("--split", choices=SPLITS, required=True, help="tune for choosing settings")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--split", choices=SPLITS, help="tune for choosing settings")
+    where.add_argument(
+        "--scenes-dir",
+        metavar="[NAME=]DIR",
+        help="your own scenes: a folder of <scene>/layout.json + <scene>/<task>.json, played "
+        "as the split NAME (default: the folder's name); see docs/evaluation.md",
+    )
     p.add_argument("--scenes", type=int, help="the first N scenes of the split (default: all)")
     p.add_argument(
         "--episodes-per-scene", type=int, help="the first K episodes of each scene (default: all)"
@@ -121,10 +128,16 @@ def run(args: argparse.Namespace) -> int:
     from glmap_tools.eval.spec import EvalSpec, parse_agents
 
     agents = parse_agents(args.agents)
+    split, scenes_dir = args.split, None
+    if args.scenes_dir:
+        from glmap_tools.sim.scene_dirs import parse_scene_dir
+
+        split, scenes_dir = parse_scene_dir(args.scenes_dir)
     llm_model, prompts = _llm_settings(args, agents)
     spec = EvalSpec(
         task=args.task,
-        split=args.split,
+        split=split,
+        scenes_dir=scenes_dir,
         scenes=args.scenes,
         episodes_per_scene=args.episodes_per_scene,
         agents=agents,

@@ -9,7 +9,7 @@ Ray's own retries (20 s and more). Every node needs glmap-tools (with
 its `ray` extra) installed. The LLM settings of `glmap eval` (`--scorer llm`, `--model`,
 `--ollama-host`, `--prompts`: `agents.runner.LLM_ENV`) are handed to each actor, since actors
 on a cluster that was already running do not inherit the driver's environment; a `--prompts`
-folder must exist at the same path on every node.
+folder, like a `--scenes-dir` folder, must exist at the same path on every node.
 """
 
 from __future__ import annotations
@@ -129,16 +129,27 @@ def check_address(address: str, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
 class _RayWorker:
     """The body of a Ray actor: an EpisodeWorker that lives as long as the actor."""
 
-    def __init__(self, embedder: str, llm_env: dict[str, str]) -> None:
+    def __init__(
+        self, embedder: str, llm_env: dict[str, str], scene_dirs: dict[str, Path] | None = None
+    ) -> None:
         os.environ.update(llm_env)  # the actor's own process: the driver's LLM settings
-        self.worker = EpisodeWorker(embedder)
+        self.worker = EpisodeWorker(embedder, scene_dirs=scene_dirs)
 
     def run(self, job: Job) -> Outcome:
         return self.worker.run(job)
 
 
-def run_ray(jobs: Sequence[Job], workers: int, embedder: str, address: str) -> Iterator[Outcome]:
+def run_ray(
+    jobs: Sequence[Job],
+    workers: int,
+    embedder: str,
+    address: str,
+    scene_dirs: dict[str, Path] | None = None,
+) -> Iterator[Outcome]:
     """Play `jobs` on `workers` Ray actors; yield each Outcome as it finishes.
+
+    `scene_dirs` (split name -> folder) reaches every actor's server; the folders must be
+    at the same paths on every node.
 
     Raises:
         RayUnavailableError: Ray missing or the address not answering (within 10 s).
@@ -157,7 +168,7 @@ def run_ray(jobs: Sequence[Job], workers: int, embedder: str, address: str) -> I
         actor_cls = ray.remote(num_cpus=1)(_RayWorker)
         n = max(1, min(workers, len(jobs)))
         llm_env = llm_environment()
-        actors = [actor_cls.remote(embedder, llm_env) for _ in range(n)]
+        actors = [actor_cls.remote(embedder, llm_env, scene_dirs) for _ in range(n)]
         # As on local workers: actor k starts at the k-th block of the scene-ordered jobs.
         cursors = [k * len(jobs) // n for k in range(n)]
         taken = [False] * len(jobs)

@@ -11,6 +11,11 @@ from pathlib import Path
 from typing import Any
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.eval.by_difficulty import (
+    difficulty_markdown,
+    difficulty_rows,
+    episode_difficulties,
+)
 from glmap_tools.eval.results import ResultsDir, write_json
 from glmap_tools.eval.spec import (
     EvalSpec,
@@ -37,6 +42,9 @@ class EvalRun:
         failures: jobs whose episode raised (their error text is in each Outcome).
         wall_s: seconds spent playing.
         mixed: `out` holds results of more than one setting (see ResultsDir).
+        total: (agent, episode) pairs selected.
+        complete_only: the table counts only episodes every agent finished.
+        by_difficulty: the table split by difficulty bins (`eval.by_difficulty`).
     """
 
     spec: EvalSpec
@@ -50,6 +58,7 @@ class EvalRun:
     mixed: bool = False
     total: int = 0
     complete_only: bool = False
+    by_difficulty: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def episodes_per_hour(self) -> float:
@@ -58,15 +67,20 @@ class EvalRun:
 
 
 def _engine(
-    jobs: list[Job], workers: int, embedder: str, ray_address: str | None, log_dir: Path
+    jobs: list[Job],
+    workers: int,
+    embedder: str,
+    ray_address: str | None,
+    log_dir: Path,
+    scene_dirs: dict[str, Path],
 ) -> Iterator[Outcome]:
     if ray_address:
         from glmap_tools.eval.ray_engine import run_ray
 
-        return run_ray(jobs, max(1, workers), embedder, ray_address)
+        return run_ray(jobs, max(1, workers), embedder, ray_address, scene_dirs)
     if workers == 0:
-        return run_inline(jobs, embedder)
-    return run_local(jobs, workers, embedder, log_dir)
+        return run_inline(jobs, embedder, scene_dirs)
+    return run_local(jobs, workers, embedder, log_dir, scene_dirs)
 
 
 def _check_scorer(outcome: Outcome, scorer: str) -> Outcome:
@@ -124,7 +138,9 @@ def run_eval(
         from glmap_tools.eval.ray_engine import check_address
 
         check_address(ray_address)  # fail before anything is written
-    selected = select_episodes(spec.task, spec.split, spec.scenes, spec.episodes_per_scene)
+    selected = select_episodes(
+        spec.task, spec.split, spec.scenes, spec.episodes_per_scene, spec.scene_dirs
+    )
     results = ResultsDir(out, spec.result_config(), mix_configs=mix_configs)
     records: dict[str, dict[str, dict[str, Any]]] = {a: {} for a in spec.agents}
     jobs: list[Job] = []
@@ -167,7 +183,7 @@ def run_eval(
             file=sys.stderr,
         ) as bar:
             for outcome in _engine(
-                jobs, workers, spec.embedder, ray_address, results.root / "logs"
+                jobs, workers, spec.embedder, ray_address, results.root / "logs", spec.scene_dirs
             ):
                 outcome = _check_scorer(outcome, spec.scorer)
                 if outcome.record is None:
@@ -183,6 +199,8 @@ def run_eval(
         common = set.intersection(*(set(r) for r in records.values()))
         records = {a: {e: r for e, r in rs.items() if e in common} for a, rs in records.items()}
     summary = summarize(records, spec.agents, resamples=resamples)
+    difficulties = episode_difficulties(selected)
+    binned = difficulty_rows(records, spec.agents, difficulties, resamples=resamples)
     run = EvalRun(
         spec,
         results.root,
@@ -195,6 +213,7 @@ def run_eval(
         results.mixed,
         len(selected) * len(spec.agents),
         complete_only,
+        binned,
     )
     _write_summary(run)
     return run
@@ -203,7 +222,9 @@ def run_eval(
 def _write_summary(run: EvalRun) -> None:
     s = run.spec
     head = (
-        f"# {s.task} on the {s.split} split\n\n"
+        f"# {s.task} on "
+        + (f"the {s.split} split" if s.scenes_dir is None else f"{s.split} ({s.scenes_dir})")
+        + "\n\n"
         f"Selection: the first {s.scenes or 'all'} scenes x {s.episodes_per_scene or 'all'} "
         f"episodes of each; seed {s.seed}, max_steps {s.max_steps}, embedder {s.embedder}, "
         + (f"scorer llm ({s.llm_model}), " if s.scorer == "llm" else "")
@@ -213,7 +234,10 @@ def _write_summary(run: EvalRun) -> None:
     )
     if run.mixed:
         head += "Warning: this folder mixes results run with different settings (eval.json).\n\n"
-    (run.out / "summary.md").write_text(head + markdown(run.summary), encoding="utf-8")
+    by_difficulty = "\n## By difficulty\n\n" + difficulty_markdown(run.by_difficulty, s.agents)
+    (run.out / "summary.md").write_text(
+        head + markdown(run.summary) + by_difficulty, encoding="utf-8"
+    )
     data = {
         "config": s.result_config(),
         "selection": {"scenes": s.scenes, "episodes_per_scene": s.episodes_per_scene},
@@ -228,5 +252,6 @@ def _write_summary(run: EvalRun) -> None:
         "episodes_per_hour": round(run.episodes_per_hour, 1),
         "mixed_configs": run.mixed,
         **run.summary.to_json(),
+        "by_difficulty": run.by_difficulty,
     }
     write_json(run.out / "summary.json", json.loads(json.dumps(data)))

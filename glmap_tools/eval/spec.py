@@ -1,4 +1,5 @@
-"""What an evaluation runs: task, split, episode selection, agents, seeds, camera and limits."""
+"""What an evaluation runs: task, split (or scene folder), episode selection, agents, seeds,
+camera and limits."""
 
 from __future__ import annotations
 
@@ -92,7 +93,8 @@ class EvalSpec:
 
     Attributes:
         task: 'objectnav' or 'instnav'.
-        split: 'tune' (for choosing settings) or 'bench' (for reporting only).
+        split: 'tune' (for choosing settings) or 'bench' (for reporting only), or the name
+            of the scene folder `scenes_dir`.
         scenes: the first N scenes of the split (in scene-name order); None = all.
         episodes_per_scene: the first K episodes of each selected scene (file order);
             None = all.
@@ -104,6 +106,9 @@ class EvalSpec:
         llm_model: the Ollama model of the llm-tools agent or the llm scorer ('' when
             neither plays).
         prompts: the prompt set they used, as a digest of every prompt's name@hash.
+        scenes_dir: a folder of one's own scenes (`glmap_tools.sim.scene_dirs`) played as
+            the split named `split`; None: a built-in split. Not a result setting: a moved
+            folder resumes (each record's `episode_key` notices changed files).
     """
 
     task: str
@@ -117,10 +122,17 @@ class EvalSpec:
     scorer: str = "embedding"
     llm_model: str = ""
     prompts: str = ""
+    scenes_dir: Path | None = None
 
     def __post_init__(self) -> None:
         check_choice("task", self.task, TASKS)
-        check_choice("split", self.split, SPLITS)
+        if self.scenes_dir is None:
+            check_choice("split", self.split, SPLITS)
+        else:
+            from glmap_tools.sim.scene_dirs import check_scene_dir, check_split_name
+
+            check_split_name(self.split)
+            object.__setattr__(self, "scenes_dir", check_scene_dir(Path(self.scenes_dir)))
         check_choice("embedder", self.embedder, EMBEDDERS)
         check_choice("scorer", self.scorer, SCORERS)
         for name in ("scenes", "episodes_per_scene", "max_steps"):
@@ -131,6 +143,11 @@ class EvalSpec:
                 raise InvalidInputError(f"{name}={value!r} must be a positive integer.")
         if not self.agents:
             raise InvalidInputError("no agents given; pass e.g. --agents glmap,frontier.")
+
+    @property
+    def scene_dirs(self) -> dict[str, Path]:
+        """{split: scenes_dir} for a scene folder, {} for a built-in split."""
+        return {self.split: self.scenes_dir} if self.scenes_dir is not None else {}
 
     def result_config(self) -> dict[str, Any]:
         """The settings that decide an episode's result (stored beside the results)."""
@@ -147,8 +164,16 @@ class EvalSpec:
         return {**{k: d[k] for k in keys}, "image_size": AGENT_SIZE}
 
 
-def select_episodes(task: str, split: str, scenes: int | None, per_scene: int | None) -> list[Any]:
+def select_episodes(
+    task: str,
+    split: str,
+    scenes: int | None,
+    per_scene: int | None,
+    scene_dirs: dict[str, Path] | None = None,
+) -> list[Any]:
     """The first `scenes` scenes of the split and the first `per_scene` episodes of each.
+
+    `scene_dirs` (split name -> folder) names scene folders of one's own.
 
     Returns:
         BenchEpisodes ordered by scene name, then by their order in the split's files.
@@ -159,7 +184,7 @@ def select_episodes(task: str, split: str, scenes: int | None, per_scene: int | 
     from glmap_tools.sim.benchmark import load_split
 
     by_scene: dict[str, list[Any]] = {}
-    for be in load_split(split, task):
+    for be in load_split(split, task, scene_dirs):
         by_scene.setdefault(be.scene, []).append(be)
     names = sorted(by_scene)
     scenes = len(names) if scenes is None else scenes

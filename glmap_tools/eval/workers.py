@@ -93,9 +93,16 @@ class EpisodeWorker:
     Args:
         embedder: the server's text embedder ('minilm' or 'hashing').
         compute_threads: BLAS/torch threads of the server (1 per worker avoids oversubscription).
+        scene_dirs: scene folders of one's own by split name (`ServerConfig.scene_dirs`).
     """
 
-    def __init__(self, embedder: str = "minilm", compute_threads: int = 1) -> None:
+    def __init__(
+        self,
+        embedder: str = "minilm",
+        compute_threads: int = 1,
+        scene_dirs: dict[str, Path] | None = None,
+    ) -> None:
+        self._scene_dirs = dict(scene_dirs or {})
         _prepare_process(compute_threads)
         self._tmp = tempfile.TemporaryDirectory(prefix="glmap-eval-")
         self._loop = asyncio.new_event_loop()
@@ -131,6 +138,7 @@ class EpisodeWorker:
             warm_up=False,
             compute_threads=compute_threads,
             llm=llm,
+            scene_dirs=self._scene_dirs,
         )
         self._stop = asyncio.Event()
         async with open_session(config) as session:
@@ -187,7 +195,13 @@ def _claim(claimed: Any, i: int) -> bool:
 
 
 def _process_main(
-    embedder: str, jobs: list[dict], start: int, claimed: Any, outcomes: Any, log: str | None
+    embedder: str,
+    jobs: list[dict],
+    start: int,
+    claimed: Any,
+    outcomes: Any,
+    log: str | None,
+    scene_dirs: dict[str, Path] | None = None,
 ) -> None:
     """A local worker process: walk the job list from `start` (wrapping around), play each
     job no other worker has claimed, and put an Outcome (as a dict) for each. Exits at once
@@ -198,7 +212,7 @@ def _process_main(
     if log:
         _log_to(Path(log))
     try:
-        worker = EpisodeWorker(embedder)
+        worker = EpisodeWorker(embedder, scene_dirs=scene_dirs)
     except Exception:
         outcomes.put({"fatal": traceback.format_exc(limit=8)})
         return
@@ -213,14 +227,19 @@ def _process_main(
 
 
 def run_local(
-    jobs: Sequence[Job], workers: int, embedder: str, log_dir: Path | None = None
+    jobs: Sequence[Job],
+    workers: int,
+    embedder: str,
+    log_dir: Path | None = None,
+    scene_dirs: dict[str, Path] | None = None,
 ) -> Iterator[Outcome]:
     """Play `jobs` on `workers` local processes; yield each Outcome as it finishes.
 
     Jobs come in scene order; worker k starts at the k-th of `workers` equal blocks and
     walks on, claiming jobs, so each worker stays on few scenes (its server keeps one scene's
     env) and a worker that finishes its block helps with the others'. Each worker's stderr
-    (the server's log) goes to `log_dir`/worker-K.log when given.
+    (the server's log) goes to `log_dir`/worker-K.log when given. `scene_dirs` (split name
+    -> folder) reaches each worker's server, so it resolves those splits' episode ids.
 
     Raises:
         RuntimeError: a worker could not start or died (its error is in the message).
@@ -237,7 +256,7 @@ def run_local(
     procs = [
         ctx.Process(
             target=_process_main,
-            args=(embedder, items, k * len(items) // n, claimed, out_q, logs[k]),
+            args=(embedder, items, k * len(items) // n, claimed, out_q, logs[k], scene_dirs),
         )
         for k in range(n)
     ]
@@ -267,9 +286,11 @@ def run_local(
                 p.join(timeout=5)
 
 
-def run_inline(jobs: Sequence[Job], embedder: str) -> Iterator[Outcome]:
+def run_inline(
+    jobs: Sequence[Job], embedder: str, scene_dirs: dict[str, Path] | None = None
+) -> Iterator[Outcome]:
     """Play `jobs` in this process (workers=0), one at a time."""
-    worker = EpisodeWorker(embedder)
+    worker = EpisodeWorker(embedder, scene_dirs=scene_dirs)
     try:
         for job in jobs:
             yield worker.run(job)

@@ -85,6 +85,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SECONDS",
         help="how long a call waits while another process uses the --map map (default 10)",
     )
+    p.add_argument(
+        "--scenes-dir",
+        action="append",
+        default=[],
+        metavar="[NAME=]DIR",
+        help="a folder of <scene>/layout.json + <scene>/<task>.json whose episodes sim_reset "
+        "plays as NAME/<task>/<scene>-<index> (repeatable; NAME: the folder's name)",
+    )
     p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
     p.add_argument("--max-frame-mb", type=float, default=24.0, help="files per observed frame")
     p.add_argument(
@@ -147,7 +155,23 @@ def config_from_args(args: argparse.Namespace) -> ServerConfig:
         llm=settings_from_args(args),
         map_name=args.map,
         map_wait_s=args.map_wait,
+        scene_dirs=_scene_dirs(args.scenes_dir),
     )
+
+
+def _scene_dirs(texts: list[str]) -> dict[str, Path]:
+    """--scenes-dir values by name; a name given twice is refused."""
+    from glmap_tools.sim.scene_dirs import parse_scene_dir
+
+    dirs: dict[str, Path] = {}
+    for text in texts:
+        name, folder = parse_scene_dir(text)
+        if name in dirs:
+            raise InvalidInputError(
+                f"--scenes-dir name {name!r} is given twice; name them NAME=DIR apart."
+            )
+        dirs[name] = folder
+    return dirs
 
 
 def check_pinned_map(config: ServerConfig) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -63,6 +64,9 @@ class ServerConfig:
             glmap_tools.server.persist); None: the default session starts on a scratch map.
         map_wait_s: how long a tool call waits for the map of `map_name` while another
             process holds it, before failing.
+        scene_dirs: scene folders of one's own by name (`glmap-mcp --scenes-dir NAME=DIR`,
+            `glmap_tools.sim.scene_dirs`): sim_reset plays their episodes by id,
+            '<name>/<task>/<scene>-<index>', like those of the built-in splits.
     """
 
     maps_dir: Path = field(default_factory=default_maps_dir)
@@ -81,6 +85,7 @@ class ServerConfig:
     llm: LLMSettings = field(default_factory=LLMSettings)
     map_name: str | None = None
     map_wait_s: float = 10.0
+    scene_dirs: Mapping[str, Path] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         # Absolute from the start: a relative folder would change meaning with the working
@@ -134,6 +139,10 @@ class ServerConfig:
             raise InvalidInputError(
                 f"map_wait_s={self.map_wait_s!r} must be a number of seconds within 0..3600."
             )
+        if self.scene_dirs:
+            from glmap_tools.sim.scene_dirs import check_scene_dirs
+
+            object.__setattr__(self, "scene_dirs", check_scene_dirs(self.scene_dirs))
         if self.file_roots is not None:
             roots = tuple(Path(r).expanduser().resolve() for r in self.file_roots)
             object.__setattr__(self, "file_roots", roots)

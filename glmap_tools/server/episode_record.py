@@ -123,7 +123,7 @@ def restore_episode(session: Session, text: str, registry: SessionRegistry) -> N
             f"the simulator episode kept in map {registry.config.map_name!r} cannot be read "
             f"({exc}); call sim_reset to start a new one."
         ) from None
-    bench = simulator.bench_episode(episode_id) if episode_id else None
+    bench = simulator.bench_episode(episode_id, registry.config.scene_dirs) if episode_id else None
     if bench is not None:
         key: tuple[Any, ...] = ("bench", str(bench.layout_path), bench.task, size, max_steps)
     else:

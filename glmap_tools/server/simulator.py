@@ -143,15 +143,16 @@ def open_episode(task: str, scene: int, size: tuple[int, int], max_steps: int) -
     return SimEpisode(task, scene, on_sim_thread(make), key=(task, scene, size, max_steps))
 
 
-def bench_episode(episode_id: str) -> Any:
-    """The benchmark episode `episode_id` (e.g. 'bench/objectnav/s03-017').
+def bench_episode(episode_id: str, scene_dirs: Any = None) -> Any:
+    """The benchmark episode `episode_id` (e.g. 'bench/objectnav/s03-017'), or one of the
+    scene folders `scene_dirs` (`ServerConfig.scene_dirs`) by name ('mine/objectnav/k-003').
 
     Raises:
         UnknownIdError: no such episode (the message suggests the closest id).
     """
     from glmap_tools.sim.benchmark import bench_episode as lookup
 
-    return lookup(episode_id)
+    return lookup(episode_id, scene_dirs)
 
 
 def open_bench(bench: Any, size: tuple[int, int], max_steps: int) -> SimEpisode:

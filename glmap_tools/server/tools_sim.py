@@ -59,7 +59,7 @@ async def sim_reset(
     target = session_of(ctx, session)
     wh = tuple(int(v) for v in size.split("x")) if size else state.config.sim_size
     steps = max_steps or state.config.sim_max_steps
-    bench = simulator.bench_episode(episode) if episode else None
+    bench = simulator.bench_episode(episode, state.config.scene_dirs) if episode else None
     if bench is not None and goal:
         raise InvalidInputError("give episode or goal, not both: an episode has its goal.")
 

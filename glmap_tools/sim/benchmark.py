@@ -42,7 +42,6 @@ from glmap_tools.sim.episodes import (
     TASKS,
     Episode,
     EpisodeSet,
-    episodes_from_dict,
     episodes_to_dict,
     goal_pool,
 )
@@ -50,6 +49,13 @@ from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.layout import Layout
 from glmap_tools.sim.layout_io import layout_to_dict, load_layout
 from glmap_tools.sim.navigation import MIN_PASSAGE_CELLS, NavGrid, build_nav_grid
+from glmap_tools.sim.scene_dirs import (
+    BenchEpisode,
+    SceneDirs,
+    read_scene_episodes,
+    scene_dir_episode,
+    scene_dir_episodes,
+)
 from glmap_tools.sim.sight import SightChecker
 
 if TYPE_CHECKING:  # importing env pulls in the renderer
@@ -82,28 +88,6 @@ SPLIT_SPECS = {
     "tune": SplitSpec("tune", tuple(range(1000, 1004)), 25),
     "bench": SplitSpec("bench", tuple(range(2000, 2012)), 20),
 }
-
-
-@dataclass(frozen=True)
-class BenchEpisode:
-    """One benchmark episode and where its scene lives.
-
-    Attributes:
-        episode_id: "<split>/<task>/<scene>-<index>", e.g. "bench/objectnav/s03-017".
-        task: "objectnav" or "instnav".
-        split: "tune" or "bench".
-        scene: the scene's folder in the split ("s03"); the layout itself is named
-            "apartment-<seed>".
-        layout_path: the scene's layout JSON.
-        episode: the episode (start, heading, goal text and object ids, geodesic metres).
-    """
-
-    episode_id: str
-    task: str
-    split: str
-    scene: str
-    layout_path: Path
-    episode: Episode
 
 
 def _check_split(split: str) -> None:
@@ -297,44 +281,37 @@ def _manifest(split: str) -> dict[str, Any]:
     return data
 
 
-@functools.lru_cache(maxsize=16)
 def _split_task(split: str, task: str) -> tuple[BenchEpisode, ...]:
-    out = []
-    for scene in _manifest(split)["scenes"]:
-        folder = split_dir(split) / scene["scene"]
-        data = json.loads((folder / f"{task}.json").read_text(encoding="utf-8"))
-        for e in episodes_from_dict(data).episodes:
-            out.append(
-                BenchEpisode(
-                    episode_id=f"{split}/{task}/{scene['scene']}-{e.episode_id:03d}",
-                    task=task,
-                    split=split,
-                    scene=scene["scene"],
-                    layout_path=folder / "layout.json",
-                    episode=e,
-                )
-            )
-    return tuple(out)
+    scenes = tuple(s["scene"] for s in _manifest(split)["scenes"])
+    return read_scene_episodes(split_dir(split), split, task, scenes)
 
 
-def load_split(split: str, task: str) -> list[BenchEpisode]:
-    """Every episode of `task` in `split`, in scene then episode order."""
-    _check_split(split)
+def load_split(split: str, task: str, scene_dirs: SceneDirs | None = None) -> list[BenchEpisode]:
+    """Every episode of `task` in `split` (a built-in split, or a folder of `scene_dirs`
+    by its name), in scene then episode order."""
     _check_task(task)
+    if scene_dirs and split in scene_dirs:
+        return list(scene_dir_episodes(split, scene_dirs[split], task))
+    _check_split(split)
     return list(_split_task(split, task))
 
 
-def bench_episode(episode_id: str) -> BenchEpisode:
-    """The episode with this id ("bench/objectnav/s03-017").
+def bench_episode(episode_id: str, scene_dirs: SceneDirs | None = None) -> BenchEpisode:
+    """The episode with this id ("bench/objectnav/s03-017"), of a built-in split or of a
+    scene folder of `scene_dirs` ("mine/objectnav/kitchen-003").
 
     Raises:
         UnknownIdError: no such episode (with the closest id).
     """
     parts = str(episode_id).split("/")
+    if scene_dirs and parts[0] in scene_dirs:
+        return scene_dir_episode(episode_id, scene_dirs)
     if len(parts) != 3 or parts[0] not in SPLITS or parts[1] not in TASKS:
         raise UnknownIdError(
             f"episode id {episode_id!r} is not '<split>/<task>/<scene>-<index>' with split in "
-            f"{SPLITS} and task in {TASKS}, e.g. 'bench/objectnav/s03-017'."
+            f"{[*SPLITS, *(scene_dirs or ())]} and task in {TASKS}, e.g. "
+            "'bench/objectnav/s03-017'; a scene folder's episodes need the folder given to "
+            "the server (glmap-mcp --scenes-dir NAME=DIR)."
         )
     episodes = {be.episode_id: be for be in _split_task(parts[0], parts[1])}
     if episode_id not in episodes:

@@ -69,6 +69,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, required=True, help="episode JSON to write")
     p.add_argument("--overwrite", action="store_true")
+    p.add_argument(
+        "--min-passage-cells",
+        type=int,
+        default=3,
+        help="draw starts only where the goal is reached through passages at least this many "
+        "navigable cells wide (the bench split's check; default 3); 0 turns the check off",
+    )
     p.set_defaults(func=run_episodes)
 
     p = sub.add_parser("eval", help="run the oracle or random agent on an episode set")
@@ -177,12 +184,22 @@ def run_tour(args: argparse.Namespace) -> int:
 
 
 def run_episodes(args: argparse.Namespace) -> int:
+    from glmap_tools.sim.difficulty import with_difficulty
     from glmap_tools.sim.episodes import generate_episodes, save_episodes
     from glmap_tools.sim.layout_io import load_layout
+    from glmap_tools.sim.navigation import build_nav_grid
 
     _check_out(args.out, args.overwrite)
+    if args.min_passage_cells < 0:
+        raise InvalidInputError(
+            f"--min-passage-cells {args.min_passage_cells} must be 0 (no check) or more."
+        )
     layout = load_layout(args.layout)
-    episodes = generate_episodes(layout, args.task, args.count, args.seed)
+    grid = build_nav_grid(layout)
+    episodes = generate_episodes(
+        layout, args.task, args.count, args.seed, grid, min_passage_cells=args.min_passage_cells
+    )
+    episodes = with_difficulty(episodes, layout, grid)
     save_episodes(episodes, args.out)
     goals = len({e.goal_text for e in episodes.episodes})
     mean = sum(e.geodesic_distance for e in episodes.episodes) / len(episodes.episodes)

@@ -14,7 +14,7 @@ import json
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -34,8 +34,29 @@ MIN_START_DISTANCE = 1.5  # metres of geodesic distance from start to goal
 
 
 @dataclass(frozen=True)
+class Difficulty:
+    """How hard an episode is (`glmap_tools.sim.difficulty.DifficultyMeter` measures it).
+
+    Attributes:
+        geodesic_m: shortest navigable path from the start to a goal cell, metres.
+        passage_cells: the narrowest passage the agent must pass: the largest width w
+            (navigable cells of the agent's centre) with start and goal joined in
+            `NavGrid.passable_parts(w)`; capped at `difficulty.MAX_PASSAGE_CELLS` (then: at
+            least that).
+        passage_m: that passage as a gap between obstacles, metres: passage_cells x cell +
+            the agent's diameter.
+        goal_in_sight: a goal object is in sight from the start (`sight.SightChecker`).
+    """
+
+    geodesic_m: float
+    passage_cells: int
+    passage_m: float
+    goal_in_sight: bool
+
+
+@dataclass(frozen=True)
 class Episode:
-    """One navigation episode."""
+    """One navigation episode (with its difficulty when measured)."""
 
     episode_id: int
     task: str
@@ -44,6 +65,7 @@ class Episode:
     goal_text: str
     goal_object_ids: tuple[int, ...]
     geodesic_distance: float
+    difficulty: Difficulty | None = None
 
 
 @dataclass(frozen=True)
@@ -162,6 +184,22 @@ def sample_episode(
     )
 
 
+def passage_pool(grid: NavGrid, pool: GoalPool, width: int, min_distance: float) -> GoalPool:
+    """The pool with each goal's field cut to the starts joined to a goal cell through
+    passages at least `width` cells wide (`NavGrid.passable_parts`); goals left with no
+    start at least `min_distance` away are dropped. The field keeps its geodesic metres.
+    """
+    parts = grid.passable_parts(width)
+    out: GoalPool = []
+    for text, ids, field in pool:
+        goal_parts = np.unique(parts[(field == 0) & (parts > 0)])
+        joined = np.isin(parts, goal_parts) & (parts > 0)
+        cut = np.where(joined, field, np.inf)
+        if (np.isfinite(cut) & (cut >= min_distance)).any():
+            out.append((text, ids, cut))
+    return out
+
+
 def generate_episodes(
     layout: Layout,
     task: str,
@@ -170,8 +208,14 @@ def generate_episodes(
     grid: NavGrid | None = None,
     success_distance: float = SUCCESS_DISTANCE,
     min_distance: float = MIN_START_DISTANCE,
+    min_passage_cells: int = 0,
 ) -> EpisodeSet:
     """`count` episodes with reachable goals, drawn from `seed` (deterministic).
+
+    Args:
+        min_passage_cells: starts are drawn only where the goal is reached through
+            passages at least this many navigable cells wide (the bench split's check,
+            `navigation.MIN_PASSAGE_CELLS`; `glmap sim episodes` applies it); 0: no check.
 
     Raises:
         InvalidInputError: unknown task, bad count, or no reachable goal in the layout.
@@ -180,6 +224,14 @@ def generate_episodes(
         raise InvalidInputError(f"count={count!r} must be a positive integer.")
     grid = grid or build_nav_grid(layout)
     pool = goal_pool(layout, task, grid, success_distance, min_distance)
+    if min_passage_cells > 0:
+        pool = passage_pool(grid, pool, min_passage_cells, min_distance)
+        if not pool:
+            raise InvalidInputError(
+                f"layout {layout.name!r}: no {task} goal is reached through passages at least "
+                f"{min_passage_cells} cells ({min_passage_cells * grid.cell:.2f} m of free "
+                "floor) wide; widen the gaps between furniture, or turn the check off."
+            )
     rng = np.random.default_rng([int(seed), 7])
     episodes = [sample_episode(rng, grid, pool, task, i, min_distance) for i in range(count)]
     return EpisodeSet(task, layout.name, layout.seed, episodes, success_distance)
@@ -201,6 +253,7 @@ def episodes_to_dict(episode_set: EpisodeSet) -> dict[str, Any]:
                 "start_heading": e.start_heading,
                 "goal": {"text": e.goal_text, "object_ids": list(e.goal_object_ids)},
                 "geodesic_distance": e.geodesic_distance,
+                **({"difficulty": asdict(e.difficulty)} if e.difficulty else {}),
             }
             for e in episode_set.episodes
         ],
@@ -220,12 +273,24 @@ def _episode(entry: Mapping[str, Any], task: str, where: str) -> Episode:
             goal_text=str(goal["text"]),
             goal_object_ids=ids,
             geodesic_distance=float(entry.get("geodesic_distance", math.nan)),
+            difficulty=_difficulty(entry.get("difficulty")),
         )
     except (KeyError, TypeError, ValueError, IndexError) as exc:
         raise InvalidInputError(
             f"{where} is malformed ({exc!r}); each episode needs episode_id, start_position "
             "[x, y], start_heading and goal {text, object_ids}."
         ) from exc
+
+
+def _difficulty(data: Any) -> Difficulty | None:
+    if data is None:
+        return None
+    return Difficulty(
+        geodesic_m=float(data["geodesic_m"]),
+        passage_cells=int(data["passage_cells"]),
+        passage_m=float(data["passage_m"]),
+        goal_in_sight=bool(data["goal_in_sight"]),
+    )
 
 
 def episodes_from_dict(

@@ -1,0 +1,199 @@
+"""Scene folders of one's own, played like a benchmark split: named, with stable episode ids.
+
+A scene folder holds one folder per scene, each with `layout.json` (`layout_io`) and the
+episode files of the tasks it is played on (`objectnav.json`, `instnav.json`: `episodes.py`
+episode sets), the layout of the built-in splits under `glmap_tools/data/benchmark/<split>/`.
+A `split.json` beside the scenes is optional; when present, its "scenes" list
+(`[{"scene": "s00", ...}]`) chooses and orders them, otherwise every sub-folder with a
+`layout.json` is a scene, in name order.
+
+A folder is given a name (`NAME=DIR`, or the folder's own name), and its episodes get the ids
+`<name>/<task>/<scene>-<index>` (e.g. `mine/objectnav/kitchen-003`). The name travels with
+the folder to whoever resolves those ids: `ServerConfig.scene_dirs` (`glmap-mcp --scenes-dir`)
+on a server, `EvalSpec.scenes_dir` on `glmap eval` and its workers.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import re
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
+from glmap_tools.sim.episodes import TASKS, Episode, episodes_from_dict
+
+BUILT_IN_SPLITS = ("tune", "bench")
+NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_-]{0,23}$")
+SceneDirs = Mapping[str, Path]  # split name -> scene folder
+
+
+@dataclass(frozen=True)
+class BenchEpisode:
+    """One episode of a split (built-in or a scene folder) and where its scene lives.
+
+    Attributes:
+        episode_id: "<split>/<task>/<scene>-<index>", e.g. "bench/objectnav/s03-017".
+        task: "objectnav" or "instnav".
+        split: "tune", "bench", or the name of a scene folder.
+        scene: the scene's folder in the split ("s03"); the layout itself has its own name
+            (e.g. "apartment-<seed>").
+        layout_path: the scene's layout JSON.
+        episode: the episode (start, heading, goal text and object ids, geodesic metres,
+            difficulty when the file has it).
+    """
+
+    episode_id: str
+    task: str
+    split: str
+    scene: str
+    layout_path: Path
+    episode: Episode
+
+
+def check_split_name(name: str) -> str:
+    """`name` when it may name a scene folder: 1-24 of a-z, 0-9, '_' and '-', not a
+    built-in split's name.
+
+    Raises:
+        InvalidInputError: a name of another form, or 'tune'/'bench'.
+    """
+    if not isinstance(name, str) or not NAME_PATTERN.match(name):
+        raise InvalidInputError(
+            f"scene folder name {name!r} must be 1-24 characters of a-z, 0-9, '_' and '-', "
+            "starting with a letter or digit; give one as NAME=DIR."
+        )
+    if name in BUILT_IN_SPLITS:
+        raise InvalidInputError(
+            f"scene folder name {name!r} is a built-in split's; give another as NAME=DIR."
+        )
+    return name
+
+
+def default_name(folder: Path) -> str:
+    """The name a folder gets when none is given: its own name, lower case, other
+    characters as '-' (e.g. 'My Scans' -> 'my-scans')."""
+    name = re.sub(r"[^a-z0-9_-]+", "-", Path(folder).resolve().name.lower()).strip("-_")
+    return name[:24] or "scenes"
+
+
+def parse_scene_dir(text: str) -> tuple[str, Path]:
+    """(name, folder) of 'NAME=DIR' or 'DIR' (named after the folder), the folder checked.
+
+    Raises:
+        InvalidInputError: a bad name, a missing folder or one without scenes.
+    """
+    name, sep, rest = str(text).partition("=")
+    if sep and NAME_PATTERN.match(name):
+        folder = Path(rest).expanduser()
+    else:
+        name, folder = "", Path(text).expanduser()
+    folder = check_scene_dir(folder)
+    return check_split_name(name or default_name(folder)), folder
+
+
+def check_scene_dirs(dirs: SceneDirs | Iterable[tuple[str, Path]]) -> dict[str, Path]:
+    """{name: absolute folder} with every name and folder checked."""
+    items = dirs.items() if isinstance(dirs, Mapping) else dirs
+    return {check_split_name(n): check_scene_dir(Path(f)) for n, f in items}
+
+
+def check_scene_dir(folder: Path) -> Path:
+    """The folder, absolute, when it holds at least one scene (`<scene>/layout.json`).
+
+    Raises:
+        InvalidInputError: no such folder, or no scene in it.
+    """
+    folder = Path(folder).expanduser().resolve()
+    if not folder.is_dir():
+        raise InvalidInputError(
+            f"scene folder {folder} does not exist; give a folder of <scene>/layout.json "
+            "and <scene>/<task>.json (docs/evaluation.md, Your own scenes)."
+        )
+    if not scene_names(folder):
+        raise InvalidInputError(
+            f"scene folder {folder} has no scene: no sub-folder with a layout.json in it "
+            "(docs/evaluation.md, Your own scenes)."
+        )
+    return folder
+
+
+def scene_names(folder: Path) -> tuple[str, ...]:
+    """The folder's scenes: split.json's "scenes" when it has them, else every sub-folder
+    with a layout.json, in name order."""
+    manifest = folder / "split.json"
+    if manifest.is_file():
+        data: dict[str, Any] = json.loads(manifest.read_text(encoding="utf-8"))
+        if isinstance(data.get("scenes"), list):
+            return tuple(str(s["scene"]) for s in data["scenes"])
+    return tuple(sorted(p.parent.name for p in folder.glob("*/layout.json")))
+
+
+@functools.lru_cache(maxsize=32)
+def read_scene_episodes(
+    folder: Path, split: str, task: str, scenes: tuple[str, ...]
+) -> tuple[BenchEpisode, ...]:
+    """Every `task` episode of `scenes` under `folder`, as episodes of split `split`
+    (scene order, then file order); a scene without a `<task>.json` has none."""
+    out = []
+    for scene in scenes:
+        path = folder / scene / f"{task}.json"
+        if not path.is_file():
+            continue
+        data = json.loads(path.read_text(encoding="utf-8"))
+        for e in episodes_from_dict(data).episodes:
+            out.append(
+                BenchEpisode(
+                    episode_id=f"{split}/{task}/{scene}-{e.episode_id:03d}",
+                    task=task,
+                    split=split,
+                    scene=scene,
+                    layout_path=folder / scene / "layout.json",
+                    episode=e,
+                )
+            )
+    return tuple(out)
+
+
+def scene_dir_episodes(name: str, folder: Path, task: str) -> tuple[BenchEpisode, ...]:
+    """Every `task` episode of the scene folder named `name`.
+
+    Raises:
+        InvalidInputError: no scene of the folder has a `<task>.json`.
+    """
+    folder = Path(folder)
+    found = read_scene_episodes(folder, name, task, scene_names(folder))
+    if not found:
+        raise InvalidInputError(
+            f"scene folder {folder} ({name!r}) has no {task} episodes: no <scene>/{task}.json; "
+            f"make them with `glmap sim episodes <scene>/layout.json --task {task} --out "
+            f"<scene>/{task}.json`."
+        )
+    return found
+
+
+def scene_dir_episode(episode_id: str, dirs: SceneDirs) -> BenchEpisode:
+    """The episode with this id in one of the named scene folders.
+
+    Raises:
+        UnknownIdError: the id names no folder of `dirs`, or no episode of it.
+    """
+    split, _, rest = str(episode_id).partition("/")
+    task = rest.partition("/")[0]
+    if split not in dirs or task not in TASKS:
+        names = [*BUILT_IN_SPLITS, *dirs]
+        raise UnknownIdError(
+            f"episode id {episode_id!r} is not '<split>/<task>/<scene>-<index>' with split in "
+            f"{names} and task in {TASKS}.{did_you_mean(split, names)} A scene folder's "
+            "episodes need the folder given to the server (glmap-mcp --scenes-dir NAME=DIR)."
+        )
+    episodes = {be.episode_id: be for be in scene_dir_episodes(split, dirs[split], task)}
+    if episode_id not in episodes:
+        raise UnknownIdError(
+            f"no episode {episode_id!r} in scene folder {dirs[split]}."
+            f"{did_you_mean(episode_id, episodes)} {split}/{task} has {len(episodes)} episodes."
+        )
+    return episodes[episode_id]
