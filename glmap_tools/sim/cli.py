@@ -164,6 +164,7 @@ def run_from_scan(args: argparse.Namespace) -> int:
         )
     for w in caught:
         print(f"warning: {w.message}")
+    args.out.parent.mkdir(parents=True, exist_ok=True)  # e.g. a new <scene>/ of a folder
     save_layout(layout, args.out)
     print(f"wrote {args.out}: {len(layout.objects)} objects in one room")
     return 0
@@ -200,6 +201,7 @@ def run_episodes(args: argparse.Namespace) -> int:
         layout, args.task, args.count, args.seed, grid, min_passage_cells=args.min_passage_cells
     )
     episodes = with_difficulty(episodes, layout, grid)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     save_episodes(episodes, args.out)
     goals = len({e.goal_text for e in episodes.episodes})
     mean = sum(e.geodesic_distance for e in episodes.episodes) / len(episodes.episodes)
