@@ -141,3 +141,41 @@ def test_a_tilted_scan_box_is_refused() -> None:
     scan = [{"category": "chair", "center": [0, 0, 0.5], "size": [0.5, 0.5, 1], "rotation": tilt}]
     with pytest.raises(InvalidInputError, match="tilted"):
         layout_from_scan(scan)
+
+
+def test_from_scan_takes_an_alias_file_and_reports_the_shape_each_category_got(
+    tmp_path, capsys
+) -> None:
+    import json
+
+    from glmap_tools import cli
+
+    box = {"center": [2.0, 2.0, 0.4], "size": [0.4, 0.4, 0.8], "yaw": 0.0}
+    scan = {
+        "objects": [
+            {"id": 1, "category": "bed", **box, "center": [1.0, 1.0, 0.3]},
+            {"id": 2, "category": "plant-stand", **box},
+            {"id": 3, "category": "candle", **box, "center": [3.0, 3.0, 0.1]},
+        ]
+    }
+    (tmp_path / "scan.json").write_text(json.dumps(scan))
+    (tmp_path / "aliases.json").write_text(json.dumps({"plant-stand": "side table"}))
+    (tmp_path / "bad.json").write_text(json.dumps({"candle": "spaceship"}))
+
+    def run(*extra: str) -> int:
+        return cli.main(["sim", "from-scan", str(tmp_path / "scan.json"), *extra])
+
+    assert run("--out", str(tmp_path / "plain.json")) == 0
+    plain = capsys.readouterr().out
+    assert run("--aliases", str(tmp_path / "aliases.json"), "--out", str(tmp_path / "a.json")) == 0
+    aliased = capsys.readouterr().out
+    assert run("--aliases", str(tmp_path / "bad.json"), "--out", str(tmp_path / "b.json")) != 0
+    refused = capsys.readouterr()
+    assert "plant-stand x1 -> a plain box (unknown)" in plain and "alias file" in plain
+    assert "plant-stand x1 -> side table (kenney/sideTable)" in aliased
+    assert "candle x1 -> a plain box (unknown)" in aliased  # reported once, with its shape
+    meshes = {
+        o["category"]: o["mesh"] for o in json.loads((tmp_path / "a.json").read_text())["objects"]
+    }
+    assert meshes["plant-stand"] == "kenney/sideTable"
+    assert "'spaceship'" in refused.err + refused.out and not (tmp_path / "b.json").exists()

@@ -8,6 +8,7 @@ when a layout leaves it out (the table of real sizes the Kenney models are resca
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from glmap_tools.errors import InvalidInputError, did_you_mean
@@ -225,17 +226,21 @@ def _normalise(label: str) -> str:
     return " ".join(label.strip().lower().replace("-", " ").replace("_", " ").split())
 
 
-def resolve_category(category: str) -> str | None:
+def resolve_category(category: str, aliases: Mapping[str, str] | None = None) -> str | None:
     """The catalog category (a key of `CATEGORY_MESH`) a scan label means, or None.
 
     Tries the label, then its last word (the head noun: "area rug" -> rug), each as it is and
-    without a plural "es"/"s", in `CATEGORY_MESH` and then in `CATEGORY_ALIASES`.
+    without a plural "es"/"s", in the caller's `aliases` (from `load_aliases`), then in
+    `CATEGORY_MESH` and then in `CATEGORY_ALIASES`.
     """
     name = _normalise(category)
     words = name.split()
+    mine = {_normalise(k): v for k, v in (aliases or {}).items()}
     for label in (name, words[-1] if len(words) > 1 else ""):
         singulars = [label] + [label[: -len(end)] for end in ("es", "s") if label.endswith(end)]
         for candidate in singulars if label else []:
+            if candidate in mine:
+                return mine[candidate]
             if candidate in CATEGORY_MESH:
                 return candidate
             if candidate in CATEGORY_ALIASES:
@@ -243,7 +248,34 @@ def resolve_category(category: str) -> str | None:
     return None
 
 
-def mesh_for_category(category: str) -> str:
+def mesh_for_category(category: str, aliases: Mapping[str, str] | None = None) -> str:
     """The mesh a scanned object of `category` is drawn with (a box when none fits)."""
-    resolved = resolve_category(category)
+    resolved = resolve_category(category, aliases)
     return CATEGORY_MESH[resolved] if resolved is not None else "primitive/box"
+
+
+def check_aliases(aliases: object, where: str = "aliases") -> dict[str, str]:
+    """A user's alias table {scan label: catalog category}, checked.
+
+    Raises:
+        InvalidInputError: not a JSON object of strings, or a target the catalog does not
+            have (the message names it and the closest categories).
+    """
+    if not isinstance(aliases, Mapping) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in aliases.items()
+    ):
+        raise InvalidInputError(
+            f"{where} must be a JSON object of scan label -> catalog category, e.g. "
+            '{"plant-stand": "side table", "candle": "table lamp"}.'
+        )
+    out = {}
+    for label, target in aliases.items():
+        resolved = resolve_category(target)
+        if resolved is None:
+            raise InvalidInputError(
+                f"{where}: {label!r} -> {target!r}, which the catalog does not know."
+                f"{did_you_mean(_normalise(target), list(CATEGORY_MESH))} The categories are: "
+                f"{', '.join(sorted(CATEGORY_MESH))}."
+            )
+        out[label] = resolved
+    return out

@@ -50,6 +50,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, help="layout JSON to write")
     p.add_argument("--up-axis", help="the scan world's up axis (default: its 'up' or z)")
     p.add_argument("--boxes", action="store_true", help="draw every object as a box")
+    p.add_argument(
+        "--aliases",
+        type=Path,
+        help='JSON {"scan label": "catalog category"} tried before the built-in aliases',
+    )
     p.add_argument("--overwrite", action="store_true")
     p.set_defaults(func=run_from_scan)
 
@@ -150,23 +155,35 @@ def run_new(args: argparse.Namespace) -> int:
 def run_from_scan(args: argparse.Namespace) -> int:
     import warnings
 
+    from glmap_tools.sim.catalog import check_aliases
     from glmap_tools.sim.jsonfile import read_json
     from glmap_tools.sim.layout import LayoutWarning
     from glmap_tools.sim.layout_io import save_layout
-    from glmap_tools.sim.scan import layout_from_scan
+    from glmap_tools.sim.scan import category_shapes, layout_from_scan
 
     _check_out(args.out, args.overwrite)
     data = read_json(args.scan, "scan file", "a category + oriented-box list (see design.md)")
+    aliases = None
+    if args.aliases is not None:
+        raw = read_json(args.aliases, "alias file", '{"scan label": "catalog category"}')
+        aliases = check_aliases(raw, f"alias file {args.aliases.name!r}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LayoutWarning)
         layout = layout_from_scan(
-            data, name=args.scan.stem, up=args.up_axis, use_meshes=not args.boxes
+            data, name=args.scan.stem, up=args.up_axis, use_meshes=not args.boxes, aliases=aliases
         )
     for w in caught:
         print(f"warning: {w.message}")
     args.out.parent.mkdir(parents=True, exist_ok=True)  # e.g. a new <scene>/ of a folder
     save_layout(layout, args.out)
     print(f"wrote {args.out}: {len(layout.objects)} objects in one room")
+    if not args.boxes:
+        print("categories (scan -> drawn as):")
+        for category, n, resolved, mesh in category_shapes(
+            [o.category for o in layout.objects], aliases
+        ):
+            shape = f"{resolved} ({mesh})" if resolved is not None else "a plain box (unknown)"
+            print(f"  {category} x{n} -> {shape}")
     return 0
 
 

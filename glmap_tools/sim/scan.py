@@ -67,15 +67,32 @@ def _box_pose(
     return float(yaw), np.abs(up_rotation) @ size
 
 
-def _warn_unknown_categories(categories: list[str]) -> None:
+def category_shapes(
+    categories: Sequence[str], aliases: Mapping[str, str] | None = None
+) -> list[tuple[str, int, str | None, str]]:
+    """[(scan category, objects, catalog category or None, mesh)] once per category, in
+    first-seen order: what `layout_from_scan` draws each category with."""
+    counts: dict[str, int] = {}
+    for c in categories:
+        counts[c] = counts.get(c, 0) + 1
+    return [
+        (c, n, resolve_category(c, aliases), mesh_for_category(c, aliases))
+        for c, n in counts.items()
+    ]
+
+
+def _warn_unknown_categories(
+    categories: list[str], aliases: Mapping[str, str] | None = None
+) -> None:
     """One `LayoutWarning` per category that neither the catalog nor an alias knows."""
-    known = [*CATEGORY_MESH, *CATEGORY_ALIASES]
-    for category in sorted({c for c in categories if resolve_category(c) is None}):
+    known = [*CATEGORY_MESH, *CATEGORY_ALIASES, *(aliases or {})]
+    for category in sorted({c for c in categories if resolve_category(c, aliases) is None}):
         count = categories.count(category)
         warnings.warn(
             f"category {category!r} ({count} object{'s' * (count > 1)}) has no mesh and no "
-            f"alias; drawn as a box.{did_you_mean(category.lower(), known)} Add it to "
-            "CATEGORY_ALIASES in glmap_tools/sim/catalog.py, or rename it in the scan.",
+            f"alias; drawn as a box.{did_you_mean(category.lower(), known)} Map it to a "
+            "catalog category in an alias file (glmap sim from-scan --aliases), or rename it "
+            "in the scan.",
             LayoutWarning,
             stacklevel=3,
         )
@@ -88,6 +105,7 @@ def layout_from_scan(
     floor_z: float | None = None,
     margin: float = 0.5,
     use_meshes: bool = True,
+    aliases: Mapping[str, str] | None = None,
 ) -> Layout:
     """Convert a scan's object list into a validated `Layout` (one room).
 
@@ -98,6 +116,8 @@ def layout_from_scan(
         floor_z: height of the floor in the scan (default: lowest box bottom).
         margin: metres added around the objects when the room polygon is not given.
         use_meshes: draw known categories with furniture meshes (else every object is a box).
+        aliases: scan label -> catalog category, tried before the built-in table
+            (`catalog.check_aliases` checks a user's file).
 
     Raises:
         InvalidInputError: malformed boxes or an empty list.
@@ -128,7 +148,7 @@ def layout_from_scan(
         yaw, size = _box_pose(entry, size, up_rotation, where)
         boxes.append((entry, category, center, size, yaw))
     if use_meshes:
-        _warn_unknown_categories([category for _, category, _, _, _ in boxes])
+        _warn_unknown_categories([category for _, category, _, _, _ in boxes], aliases)
     bottom = min(c[2] - s[2] / 2 for _, _, c, s, _ in boxes) if floor_z is None else floor_z
     objects, corners = [], []
     for i, (entry, category, center, size, yaw) in enumerate(boxes):
@@ -139,7 +159,7 @@ def layout_from_scan(
             {
                 "id": int(entry.get("id", i + 1)),
                 "category": category,
-                "mesh": mesh_for_category(category) if use_meshes else "primitive/box",
+                "mesh": mesh_for_category(category, aliases) if use_meshes else "primitive/box",
                 "position": [center[0], center[1], center[2] - size[2] / 2 - bottom],
                 "heading": heading,
                 "size": size.tolist(),
