@@ -154,3 +154,32 @@ def test_goal_cells_stop_at_the_walls_of_the_goal_room(layout) -> None:
         ) & grid.navigable
         through_wall += int((naive & ~cells).sum())
     assert through_wall > 0, "without the wall check some cells behind walls would count"
+
+
+def test_episodes_leave_out_goals_too_small_or_too_high_for_the_camera(tmp_path, capsys) -> None:
+    import json
+
+    from glmap_tools import cli
+    from glmap_tools.sim.layout_io import save_layout
+    from glmap_tools.sim.scan import layout_from_scan
+
+    def box(i: int, category: str, xyz: list[float], size: list[float]) -> dict:
+        return {"id": i, "category": category, "center": xyz, "size": size, "yaw": 0.0}
+
+    scan = {
+        "objects": [
+            box(1, "bed", [1.0, 1.0, 0.3], [2.0, 1.6, 0.6]),
+            box(2, "chair", [4.0, 4.0, 0.45], [0.5, 0.5, 0.9]),
+            box(3, "camera", [5.0, 0.2, 2.3], [0.12, 0.1, 0.1]),  # wall-mounted, 12 cm
+            box(4, "candle", [3.0, 3.0, 0.05], [0.08, 0.08, 0.1]),
+        ],
+    }
+    save_layout(layout_from_scan(scan, use_meshes=False), tmp_path / "layout.json")
+    args = ["sim", "episodes", str(tmp_path / "layout.json"), "--count", "20", "--seed", "1"]
+    assert cli.main([*args, "--out", str(tmp_path / "seen.json")]) == 0
+    listed = capsys.readouterr().out
+    assert cli.main([*args, "--all-goals", "--out", str(tmp_path / "all.json")]) == 0
+    seen = {e["goal"]["text"] for e in json.loads((tmp_path / "seen.json").read_text())["episodes"]}
+    every = {e["goal"]["text"] for e in json.loads((tmp_path / "all.json").read_text())["episodes"]}
+    assert "object 3 'camera' (0.12 m at most" in listed and "object 4 'candle'" in listed
+    assert seen <= {"bed", "chair"} and {"camera", "candle"} & every

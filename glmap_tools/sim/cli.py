@@ -81,6 +81,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="draw starts only where the goal is reached through passages at least this many "
         "navigable cells wide (the bench split's check; default 3); 0 turns the check off",
     )
+    p.add_argument(
+        "--all-goals",
+        action="store_true",
+        help="also goals too small (< 0.15 m) or too high (bottom > 1.8 m) for the camera to "
+        "recognise, which are left out (and listed) by default",
+    )
     p.set_defaults(func=run_episodes)
 
     p = sub.add_parser("eval", help="run the oracle or random agent on an episode set")
@@ -203,7 +209,7 @@ def run_tour(args: argparse.Namespace) -> int:
 
 def run_episodes(args: argparse.Namespace) -> int:
     from glmap_tools.sim.difficulty import with_difficulty
-    from glmap_tools.sim.episodes import generate_episodes, save_episodes
+    from glmap_tools.sim.episodes import generate_episodes, save_episodes, unseeable
     from glmap_tools.sim.layout_io import load_layout
     from glmap_tools.sim.navigation import build_nav_grid
 
@@ -214,8 +220,19 @@ def run_episodes(args: argparse.Namespace) -> int:
         )
     layout = load_layout(args.layout)
     grid = build_nav_grid(layout)
+    if not args.all_goals:
+        for obj in layout.objects:
+            why = unseeable(obj)
+            if why is not None:
+                print(f"left out as a goal: object {obj.id} {obj.category!r} ({why})")
     episodes = generate_episodes(
-        layout, args.task, args.count, args.seed, grid, min_passage_cells=args.min_passage_cells
+        layout,
+        args.task,
+        args.count,
+        args.seed,
+        grid,
+        min_passage_cells=args.min_passage_cells,
+        seeable_only=not args.all_goals,
     )
     episodes = with_difficulty(episodes, layout, grid)
     args.out.parent.mkdir(parents=True, exist_ok=True)

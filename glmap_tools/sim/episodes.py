@@ -131,14 +131,30 @@ def goal_distance_field(
 GoalPool = list[tuple[str, tuple[int, ...], np.ndarray]]  # (text, object ids, field)
 
 
+MIN_GOAL_SIZE = 0.15  # m: a goal whose largest side is shorter is too small to recognise
+MAX_GOAL_BOTTOM = 1.8  # m: a goal starting higher leaves the 0.88 m camera's view ~1 m away
+
+
+def unseeable(obj: SceneObject) -> str | None:
+    """Why the agent's camera cannot be expected to recognise `obj` as a goal, or None."""
+    if float(np.max(obj.size)) < MIN_GOAL_SIZE:
+        return f"{float(np.max(obj.size)):.2f} m at most, under {MIN_GOAL_SIZE} m"
+    if float(obj.position[2]) > MAX_GOAL_BOTTOM:
+        return f"its bottom is {float(obj.position[2]):.2f} m up, over {MAX_GOAL_BOTTOM} m"
+    return None
+
+
 def goal_pool(
     layout: Layout,
     task: str,
     grid: NavGrid,
     success_distance: float = SUCCESS_DISTANCE,
     min_distance: float = MIN_START_DISTANCE,
+    seeable_only: bool = False,
 ) -> GoalPool:
-    """Every goal of `task` that is reachable from somewhere at least `min_distance` away."""
+    """Every goal of `task` that is reachable from somewhere at least `min_distance` away;
+    with `seeable_only`, of the objects the camera can be expected to recognise
+    (`unseeable`)."""
     if task not in TASKS:
         raise InvalidInputError(f"task {task!r} is not one of {TASKS}.{did_you_mean(task, TASKS)}")
     if task == "objectnav":
@@ -147,6 +163,12 @@ def goal_pool(
         ]
     else:
         candidates = [(text, (i,)) for i, text in instance_goals(layout).items()]
+    if seeable_only:
+        candidates = [
+            (text, kept)
+            for text, ids in candidates
+            if (kept := tuple(i for i in ids if unseeable(layout.object(i)) is None))
+        ]
     pool: GoalPool = []
     for text, ids in candidates:
         field = goal_distance_field(grid, [layout.object(i) for i in ids], success_distance)
@@ -209,6 +231,7 @@ def generate_episodes(
     success_distance: float = SUCCESS_DISTANCE,
     min_distance: float = MIN_START_DISTANCE,
     min_passage_cells: int = 0,
+    seeable_only: bool = False,
 ) -> EpisodeSet:
     """`count` episodes with reachable goals, drawn from `seed` (deterministic).
 
@@ -216,6 +239,8 @@ def generate_episodes(
         min_passage_cells: starts are drawn only where the goal is reached through
             passages at least this many navigable cells wide (the bench split's check,
             `navigation.MIN_PASSAGE_CELLS`; `glmap sim episodes` applies it); 0: no check.
+        seeable_only: goals only among objects the camera can be expected to recognise
+            (`unseeable`; `glmap sim episodes` applies it).
 
     Raises:
         InvalidInputError: unknown task, bad count, or no reachable goal in the layout.
@@ -223,7 +248,7 @@ def generate_episodes(
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
         raise InvalidInputError(f"count={count!r} must be a positive integer.")
     grid = grid or build_nav_grid(layout)
-    pool = goal_pool(layout, task, grid, success_distance, min_distance)
+    pool = goal_pool(layout, task, grid, success_distance, min_distance, seeable_only)
     if min_passage_cells > 0:
         pool = passage_pool(grid, pool, min_passage_cells, min_distance)
         if not pool:
