@@ -53,14 +53,66 @@ def rotated_scan(yaw_deg: float, name: str) -> dict:
             "objects": objects}  # fmt: skip
 
 
+TWO_ROOM_FURNITURE = [  # (room, category, x, y, width, depth, height) in the rooms' frame
+    (1, "bed", 1.3, 1.2, 2.0, 1.6, 0.5),
+    (1, "nightstand", 2.8, 0.4, 0.5, 0.4, 0.55),
+    (2, "sofa", 6.5, 3.4, 1.8, 0.8, 0.8),
+    (2, "table", 5.5, 1.3, 1.2, 0.8, 0.75),
+    (2, "chair", 7.3, 1.3, 0.5, 0.5, 0.9),
+]
+
+
+def two_room_scan(yaw_deg: float = 27.0) -> dict:
+    """Two rooms (4 m x 4 m and 4.5 m x 4 m, a 1 m opening in the wall they share) turned
+    by `yaw_deg`, their furniture given as a scanner gives it: axis-aligned bounding boxes
+    (yaw 0) of boxes that stand square to the walls."""
+    yaw = math.radians(yaw_deg)
+    rot = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+
+    def world(x: float, y: float) -> list[float]:
+        return [round(float(v), 4) for v in rot @ np.array([x, y])]
+
+    c, s_ = abs(math.cos(yaw)), abs(math.sin(yaw))
+    objects = [
+        {"id": i, "category": cat, "center": [*world(x, y), h / 2],
+         "size": [w * c + d * s_, w * s_ + d * c, h], "yaw": 0.0}
+        for i, (_, cat, x, y, w, d, h) in enumerate(TWO_ROOM_FURNITURE, start=1)
+    ]  # fmt: skip
+    rooms = [
+        {"type": "bedroom", "polygon": [world(x, y) for x, y in [(0, 0), (4, 0), (4, 4), (0, 4)]]},
+        {"type": "living room",
+         "polygon": [world(x, y) for x, y in [(4, 0), (8.5, 0), (8.5, 4), (4, 4)]]},
+    ]  # fmt: skip
+    openings = [{"id": 1, "rooms": [1, 2], "center": world(4.0, 2.0), "width": 1.0}]
+    return {"up": "z", "name": "two-rooms", "rooms": rooms, "openings": openings,
+            "objects": objects}  # fmt: skip
+
+
+def test_a_turned_two_room_scan_of_bounding_boxes_becomes_rooms_with_furniture_square_to_them(
+    tmp_path: Path,
+) -> None:
+    from glmap_tools.sim.layout import LayoutWarning
+    from glmap_tools.sim.scan import layout_from_scan
+
+    with pytest.warns(LayoutWarning, match="read as a 2.00 x 1.60 m box turned 27.0 deg"):
+        layout = layout_from_scan(two_room_scan(27.0), use_meshes=False)
+    assert [r.type for r in layout.rooms] == ["bedroom", "living room"]
+    for obj, (room, _, _, _, w, d, _) in zip(layout.objects, TWO_ROOM_FURNITURE, strict=True):
+        assert obj.room == room
+        np.testing.assert_allclose(obj.size[:2], [w, d], atol=1e-3)
+    assert len(layout.openings) == 1
+
+
 @pytest.fixture(scope="module")
 def scenes(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("scans")
     folder = root / "my-scans"
-    for scene, yaw in (("a27", 27.0), ("b-40", -40.0)):
+    scans = {scene: rotated_scan(yaw, scene) for scene, yaw in (("a27", 27.0), ("b-40", -40.0))}
+    scans["two-rooms"] = two_room_scan(27.0)
+    for scene, data in scans.items():
         (folder / scene).mkdir(parents=True)
         scan = root / f"{scene}.json"
-        scan.write_text(json.dumps(rotated_scan(yaw, scene)), encoding="utf-8")
+        scan.write_text(json.dumps(data), encoding="utf-8")
         layout = folder / scene / "layout.json"
         assert cli.main(["sim", "from-scan", str(scan), "--out", str(layout), "--boxes"]) == 0
         out = folder / scene / "objectnav.json"
@@ -123,17 +175,17 @@ def test_eval_plays_a_scene_folder_on_a_worker_and_splits_the_table_by_difficult
     printed = capsys.readouterr().out
     assert "# objectnav on mine (" in printed and "## By difficulty" in printed
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
-    assert summary["agents"]["frontier"]["episodes"] == 6
+    assert summary["agents"]["frontier"]["episodes"] == 9
     assert summary["config"]["split"] == "mine"
     rows = {(r["dimension"], r["bin"]): r for r in summary["by_difficulty"]}
-    assert sum(rows[("geodesic", b)]["episodes"] for b in ("< 5 m", "5-10 m", "> 10 m")) == 6
+    assert sum(rows[("geodesic", b)]["episodes"] for b in ("< 5 m", "5-10 m", "> 10 m")) == 9
     assert (
         rows[("narrowest passage", ">= 0.7 m")]["episodes"]
         + rows[("narrowest passage", "< 0.7 m")]["episodes"]
-        == 6
+        == 9
     )
     ids = sorted(p.stem for p in (out / "episodes").glob("*/*.json"))
-    assert len(ids) == 12
+    assert len(ids) == 18
     assert any((out / "traces").rglob("*")), "traces were asked for"
     # Resumable: the same command plays nothing again.
     assert cli.main(argv) == 0

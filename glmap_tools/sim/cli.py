@@ -182,7 +182,8 @@ def run_from_scan(args: argparse.Namespace) -> int:
         print(f"warning: {w.message}")
     args.out.parent.mkdir(parents=True, exist_ok=True)  # e.g. a new <scene>/ of a folder
     save_layout(layout, args.out)
-    print(f"wrote {args.out}: {len(layout.objects)} objects in one room")
+    rooms = len(layout.rooms)
+    print(f"wrote {args.out}: {len(layout.objects)} objects in {rooms} room{'s' * (rooms > 1)}")
     if not args.boxes:
         print("categories (scan -> drawn as):")
         for category, n, resolved, mesh in category_shapes(

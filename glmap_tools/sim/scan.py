@@ -13,10 +13,17 @@ turns the box about the scan's up axis (counter-clockwise, radians), or `rotatio
 box axes as matrix columns. Boxes must be upright (rotation about the up axis only); the
 box axis nearest to up becomes the height, the first other axis the width. Categories are
 drawn with the catalog's mesh for them, found through `catalog.resolve_category` (plural
-and "-"/"_" spellings, and the alias table `CATEGORY_ALIASES`: book -> books, bin -> trash
-can, ...); a category none of these knows is drawn as a box with a `LayoutWarning`. The
-floor is put at z = 0 (the lowest box bottom, or `floor_z`). Without a room polygon, the room
-is the bounding rectangle of all footprints grown by `margin`.
+and "-"/"_" spellings, a caller's alias file, and the alias table `CATEGORY_ALIASES`: book
+-> books, bin -> trash can, ...); a category none of these knows is drawn as a box with a
+`LayoutWarning`. The floor is put at z = 0 (the lowest box bottom, or `floor_z`). Without a
+room polygon, the room is the bounding rectangle of all footprints grown by `margin`.
+
+Several rooms: `"rooms": [{"type", "polygon"}, ...]` (ids 1, 2, ... in order) and
+`"openings": [{"id", "rooms": [a, b], "center": [x, y], "width"}]` on the walls they share;
+each object belongs to the room its centre stands in. Rooms may be turned: a box with yaw 0
+(what a scanner that fits axis-aligned boxes gives) in a room whose walls are turned more
+than `AXIS_ALIGNED_DEG` is read as the bounding box of a box square to those walls
+(`box_in_room_frame`), and each such box is reported.
 """
 
 from __future__ import annotations
@@ -81,6 +88,66 @@ def category_shapes(
     ]
 
 
+AXIS_ALIGNED_DEG = 5.0  # a room whose walls are within this of the scan's axes is not turned
+
+
+def room_yaw(polygon: np.ndarray) -> float:
+    """The direction of a room's walls (its longest edge), radians in (-pi/4, pi/4]."""
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    dx, dy = edges[int(np.argmax(np.hypot(edges[:, 0], edges[:, 1])))]
+    yaw = math.atan2(dy, dx)
+    return float((yaw + math.pi / 4) % (math.pi / 2) - math.pi / 4)
+
+
+def box_in_room_frame(size_xy: np.ndarray, yaw: float) -> np.ndarray | None:
+    """The (width, depth) of a box turned by `yaw` whose axis-aligned bounding box is
+    `size_xy`, or None when no box with both sides >= 5 cm has that bounding box.
+
+    A scan that fits axis-aligned boxes to the objects of a room turned by `yaw` gives
+    each object's bounding box, not the object: w cos + d sin = X, w sin + d cos = Y.
+    """
+    c, s = abs(math.cos(yaw)), abs(math.sin(yaw))
+    det = c * c - s * s
+    if abs(det) < 0.2:  # near 45 deg the two sides cannot be told apart
+        return None
+    w = (c * size_xy[0] - s * size_xy[1]) / det
+    d = (c * size_xy[1] - s * size_xy[0]) / det
+    return np.array([w, d]) if min(w, d) >= 0.05 else None
+
+
+def _scan_rooms(meta: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """The scan's rooms: its "rooms" list, or its one "room" (ids from 1)."""
+    raw = meta.get("rooms")
+    if raw is None:
+        return [dict(meta.get("room") or {})]
+    if not isinstance(raw, list) or not raw or not all(isinstance(r, Mapping) for r in raw):
+        raise InvalidInputError("a scan's 'rooms' must be a non-empty list of room objects.")
+    rooms = []
+    for i, room in enumerate(raw):
+        if "polygon" not in room:
+            raise InvalidInputError(
+                f"rooms[{i}] has no 'polygon'; with several rooms each needs its [x, y] corners."
+            )
+        rooms.append({"id": i + 1, "type": "room", **dict(room)})
+    return rooms
+
+
+def _containing(rooms: list[dict[str, Any]], xy: np.ndarray) -> dict[str, Any] | None:
+    """The first room whose polygon holds `xy` (even-odd rule), or None."""
+    for room in rooms:
+        poly = np.asarray(room.get("polygon", []), dtype=np.float64)
+        if len(poly) < 3:
+            continue
+        inside = False
+        for (x0, y0), (x1, y1) in zip(poly, np.roll(poly, -1, axis=0), strict=True):
+            if (y0 > xy[1]) != (y1 > xy[1]):
+                x = x0 + (xy[1] - y0) * (x1 - x0) / (y1 - y0)
+                inside ^= bool(xy[0] < x)
+        if inside:
+            return room
+    return None
+
+
 def _warn_unknown_categories(
     categories: list[str], aliases: Mapping[str, str] | None = None
 ) -> None:
@@ -107,7 +174,7 @@ def layout_from_scan(
     use_meshes: bool = True,
     aliases: Mapping[str, str] | None = None,
 ) -> Layout:
-    """Convert a scan's object list into a validated `Layout` (one room).
+    """Convert a scan's object list into a validated `Layout` (its rooms, or one room).
 
     Args:
         data: the JSON object described in this module, or its "objects" list.
@@ -147,6 +214,8 @@ def layout_from_scan(
             raise InvalidInputError(f"{where} has a non-finite centre or a non-positive size.")
         yaw, size = _box_pose(entry, size, up_rotation, where)
         boxes.append((entry, category, center, size, yaw))
+    rooms = _scan_rooms(meta)
+    boxes = _into_room_frames(boxes, rooms)
     if use_meshes:
         _warn_unknown_categories([category for _, category, _, _, _ in boxes], aliases)
     bottom = min(c[2] - s[2] / 2 for _, _, c, s, _ in boxes) if floor_z is None else floor_z
@@ -168,20 +237,48 @@ def layout_from_scan(
                 "description": str(entry.get("description", "")),
             }
         )
-    room = dict(meta.get("room") or {})
-    if "polygon" not in room:
+    if "polygon" not in rooms[0]:
         pts = np.concatenate(corners)
         lo, hi = pts.min(axis=0) - margin, pts.max(axis=0) + margin
-        room["polygon"] = [[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]
+        rooms[0]["polygon"] = [[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]]
     top = max(c[2] + s[2] / 2 for _, _, c, s, _ in boxes) - bottom
-    room.setdefault("id", 1)
-    room.setdefault("type", "room")
-    room.setdefault("wall_height", max(2.6, top + 0.2))
+    for room in rooms:
+        room.setdefault("id", 1)
+        room.setdefault("type", "room")
+        room.setdefault("wall_height", max(2.6, top + 0.2))
     return layout_from_dict(
         {
             "name": name or str(meta.get("name", "scan")),
-            "rooms": [room],
+            "rooms": rooms,
+            "openings": list(meta.get("openings", [])),
             "objects": objects,
             "regions": list(meta.get("regions", [])),
         }
     )
+
+
+def _into_room_frames(boxes: list[Any], rooms: list[dict[str, Any]]) -> list[Any]:
+    """Boxes with no yaw of their own (a scan's axis-aligned bounding boxes) in a room
+    whose walls are turned become boxes turned with the room (`box_in_room_frame`); each
+    one turned is reported with a `LayoutWarning`."""
+    out = []
+    for entry, category, center, size, yaw in boxes:
+        room = _containing(rooms, center[:2]) if "polygon" in rooms[0] else None
+        turned = None
+        if room is not None and yaw == 0.0 and "rotation" not in entry:
+            walls = room_yaw(np.asarray(room["polygon"], dtype=np.float64))
+            if abs(math.degrees(walls)) > AXIS_ALIGNED_DEG:
+                turned = box_in_room_frame(size[:2], walls)
+        if turned is not None:
+            warnings.warn(
+                f"object {entry.get('id', '?')} ({category!r}): its axis-aligned box is read "
+                f"as a {turned[0]:.2f} x {turned[1]:.2f} m box turned "
+                f"{math.degrees(walls):.1f} deg with the walls of room "
+                f"{room.get('id', 1)}.",  # type: ignore[union-attr]
+                LayoutWarning,
+                stacklevel=3,
+            )
+            size = np.array([turned[0], turned[1], size[2]])
+            yaw = walls
+        out.append((entry, category, center, size, yaw))
+    return out
