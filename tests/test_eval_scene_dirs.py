@@ -209,3 +209,15 @@ def test_a_local_ray_instance_plays_the_scene_folder_as_the_workers_do(
     for eid, record in on_ray.records["frontier"].items():
         assert {k: record[k] for k in keys} == {k: here.records["frontier"][eid][k] for k in keys}
     assert any("two-rooms" in eid for eid in on_ray.records["frontier"])
+
+
+@pytest.mark.slow  # builds one scene's map from a tour
+def test_glmap_eval_sqa_answers_on_a_scene_folder(scenes: Path, tmp_path: Path) -> None:
+    out = tmp_path / "sqa"
+    argv = ["eval", "sqa", "--scenes-dir", f"mine={scenes}", "--scenes", "1"]
+    argv += ["--situations", "2", "--agents", "glmap,text-only", "--workers", "1"]
+    argv += ["--embedder", "hashing", "--no-progress", "--out", str(out)]
+    assert cli.main(argv) == 0
+    summary = (out / "summary.md").read_text(encoding="utf-8")
+    assert summary.startswith("# SQA on mine: 1 scenes") and "| glmap |" in summary
+    assert [p.stem for p in (out / "scenes").glob("*.json")] == ["a27"]

@@ -52,10 +52,12 @@ class SqaSpec:
     tour_step: float = 0.5
     tour_spin: int = 8
     phrasings: bool = False  # many situation/question phrasings (glmap_tools.sim.qa_phrasings)
+    scenes_dir: Path | None = None  # a folder of one's own scenes played as `split`
 
     def key(self) -> str:
         data = asdict(self)
         data.pop("scenes")
+        data.pop("scenes_dir")  # where the folder lies is not a setting (the name is)
         if not self.phrasings:
             data.pop("phrasings")  # keys of the runs before phrasings existed
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:12]
@@ -396,8 +398,15 @@ def run_sqa_eval(
     from glmap_tools.sim.benchmark import split_dir
 
     check_agents(spec.agents)
-    manifest = json.loads((split_dir(spec.split) / "split.json").read_text(encoding="utf-8"))
-    scenes = [s["scene"] for s in manifest["scenes"]][: spec.scenes or None]
+    if spec.scenes_dir is not None:
+        from glmap_tools.sim.scene_dirs import check_scene_dir, scene_names
+
+        folder = check_scene_dir(spec.scenes_dir)
+        scenes = list(scene_names(folder))[: spec.scenes or None]
+    else:
+        folder = split_dir(spec.split)
+        manifest = json.loads((folder / "split.json").read_text(encoding="utf-8"))
+        scenes = [s["scene"] for s in manifest["scenes"]][: spec.scenes or None]
     (out / "scenes").mkdir(parents=True, exist_ok=True)
     todo, results = [], []
     for scene in scenes:
@@ -412,7 +421,7 @@ def run_sqa_eval(
             results.append(data)
         else:
             todo.append(scene)
-    layouts = {s: str(split_dir(spec.split) / s / "layout.json") for s in todo}
+    layouts = {s: str(folder / s / "layout.json") for s in todo}
     bar = tqdm(total=len(todo), unit="scene", disable=not progress)
 
     def keep(data: dict[str, Any]) -> None:
@@ -444,6 +453,11 @@ def run_sqa_eval(
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--split", choices=["tune", "bench"], default="tune")
+    p.add_argument(
+        "--scenes-dir",
+        metavar="[NAME=]DIR",
+        help="a folder of one's own scenes (<scene>/layout.json) instead of --split",
+    )
     p.add_argument("--scenes", type=int, default=None, help="the first N scenes")
     p.add_argument("--situations", type=int, default=8, help="situations per scene")
     p.add_argument("--agents", default=",".join(SQA_AGENTS), help="comma-separated")
@@ -460,8 +474,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
+    split, folder = args.split, None
+    if args.scenes_dir:
+        from glmap_tools.sim.scene_dirs import parse_scene_dir
+
+        split, folder = parse_scene_dir(args.scenes_dir)
     spec = SqaSpec(
-        split=args.split,
+        split=split,
+        scenes_dir=folder,
         scenes=args.scenes,
         situations=args.situations,
         agents=check_agents([a.strip() for a in args.agents.split(",") if a.strip()]),
