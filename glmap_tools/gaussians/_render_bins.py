@@ -1,110 +1,117 @@
-"""Depth order, gather and per-tile binning for the fast rasterizer (numba).
+"""Depth order and per-tile binning for the fast rasterizer (numba).
 
 These kernels do not depend on the layout of the screen-parameter rows, only on the
-valid flags, depths and footprint rectangles, so they live apart from `_render_numba`.
+valid flags, depths and tile rectangles, so they live apart from `_render_numba`.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 RADIX_BITS = 11  # depth sort: bits per radix pass
 RADIX = 1 << RADIX_BITS
+N_PASSES = 3  # 3 x 11 bits cover a 32-bit key
 
 
 @njit(cache=True)
 def depth_order_kernel(valid: np.ndarray, depth: np.ndarray) -> np.ndarray:
     """Indices of the valid Gaussians by increasing depth, ties in index order (stable).
 
-    An LSD radix sort on the bits of the float64 depths (all positive, so their bit patterns
-    order like the numbers), 11 bits a pass; passes where every key shares the digit are
-    skipped.
+    An LSD radix sort (11-bit digits, all three histograms from one read) on the bits of
+    the depths rounded to float32 -- positive floats order like their bit patterns, and
+    rounding is monotone, so only keys that round equal can be out of float64 order; each
+    such run is then put in float64 order by a stable insertion sort. Passes where every
+    key shares the digit are skipped.
 
     Args:
         valid: [N] bool.
         depth: [N] float64 camera z, > 0 where valid.
+
+    Returns:
+        [M] int32, M = valid.sum().
     """
     n = 0
     for i in range(valid.shape[0]):
         n += valid[i]
-    index = np.empty(n, dtype=np.int64)
-    keys = np.empty(n, dtype=np.uint64)
-    bits = depth.view(np.uint64)
+    index = np.empty(n, dtype=np.int32)
+    keys = np.empty(n, dtype=np.uint32)
+    counts = np.zeros((N_PASSES, RADIX + 1), dtype=np.int64)
+    mask = np.uint32(RADIX - 1)
     j = 0
     for i in range(valid.shape[0]):
         if valid[i]:
+            key = np.float32(depth[i]).view(np.uint32)
             index[j] = i
-            keys[j] = bits[i]
+            keys[j] = key
+            for p in range(N_PASSES):
+                counts[p, np.int64((key >> np.uint32(p * RADIX_BITS)) & mask) + 1] += 1
             j += 1
     index_tmp = np.empty_like(index)
     keys_tmp = np.empty_like(keys)
-    counts = np.empty(RADIX + 1, dtype=np.int64)
-    mask = np.uint64(RADIX - 1)
-    for shift in range(0, 64, RADIX_BITS):
-        sh = np.uint64(shift)
-        counts[:] = 0
-        for j in range(n):
-            counts[np.int64((keys[j] >> sh) & mask) + 1] += 1
-        if n == 0 or counts.max() == n:
+    for p in range(N_PASSES):
+        if n == 0 or counts[p].max() == n:
             continue
+        sh = np.uint32(p * RADIX_BITS)
+        cursor = counts[p]
         for b in range(RADIX):
-            counts[b + 1] += counts[b]
+            cursor[b + 1] += cursor[b]
         for j in range(n):
             d = np.int64((keys[j] >> sh) & mask)
-            pos = counts[d]
-            counts[d] = pos + 1
+            pos = cursor[d]
+            cursor[d] = pos + 1
             index_tmp[pos] = index[j]
             keys_tmp[pos] = keys[j]
         index, index_tmp = index_tmp, index
         keys, keys_tmp = keys_tmp, keys
+    # Runs of equal float32 keys: stable insertion sort by the float64 depth.
+    j = 1
+    while j < n:
+        if keys[j] != keys[j - 1]:
+            j += 1
+            continue
+        start = j - 1
+        end = j + 1
+        while end < n and keys[end] == keys[start]:
+            end += 1
+        for a in range(start + 1, end):
+            g = index[a]
+            z = depth[g]
+            b = a
+            while b > start and depth[index[b - 1]] > z:
+                index[b] = index[b - 1]
+                b -= 1
+            index[b] = g
+        j = end
     return index
-
-
-@njit(parallel=True, cache=True)
-def gather_kernel(
-    order: np.ndarray,  # [M] int64
-    params: np.ndarray,  # [N, N_PARAMS] float64
-    rects: np.ndarray,  # [N, 4] int32
-) -> tuple[np.ndarray, np.ndarray]:
-    """Rows `order` of params and rects, contiguous (depth order)."""
-    m = order.shape[0]
-    out_params = np.empty((m, params.shape[1]), dtype=params.dtype)
-    out_rects = np.empty((m, 4), dtype=rects.dtype)
-    for j in prange(m):
-        g = order[j]
-        for k in range(params.shape[1]):
-            out_params[j, k] = params[g, k]
-        for k in range(4):
-            out_rects[j, k] = rects[g, k]
-    return out_params, out_rects
 
 
 @njit(cache=True)
 def bin_kernel(
-    rects: np.ndarray,  # [M, 4] int32, in depth order
-    tile_w: int,
-    tile_h: int,
+    order: np.ndarray,  # [M] int32, valid Gaussians in depth order
+    tiles: np.ndarray,  # [N, 4] int16: first and last tile column, first and last tile row
     tiles_x: int,
     n_tiles: int,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-tile Gaussian lists by counting sort; each list keeps the front-to-back order.
 
     Returns:
-        offsets [n_tiles + 1] int64 and lists [offsets[-1]] int32 (rows of `rects`).
+        offsets [n_tiles + 1] int64 and lists [offsets[-1]] int32 (Gaussian indices).
     """
     offsets = np.zeros(n_tiles + 1, dtype=np.int64)
-    for g in range(rects.shape[0]):
-        for ty in range(rects[g, 2] // tile_h, rects[g, 3] // tile_h + 1):
-            for tx in range(rects[g, 0] // tile_w, rects[g, 1] // tile_w + 1):
+    for j in range(order.shape[0]):
+        g = order[j]
+        for ty in range(tiles[g, 2], tiles[g, 3] + 1):
+            for tx in range(tiles[g, 0], tiles[g, 1] + 1):
                 offsets[ty * tiles_x + tx + 1] += 1
     for t in range(n_tiles):
         offsets[t + 1] += offsets[t]
     lists = np.empty(offsets[n_tiles], dtype=np.int32)
     cursor = offsets[:n_tiles].copy()
-    for g in range(rects.shape[0]):
-        for ty in range(rects[g, 2] // tile_h, rects[g, 3] // tile_h + 1):
-            for tx in range(rects[g, 0] // tile_w, rects[g, 1] // tile_w + 1):
+    for j in range(order.shape[0]):
+        g = order[j]
+        for ty in range(tiles[g, 2], tiles[g, 3] + 1):
+            for tx in range(tiles[g, 0], tiles[g, 1] + 1):
                 t = ty * tiles_x + tx
                 lists[cursor[t]] = g
                 cursor[t] += 1

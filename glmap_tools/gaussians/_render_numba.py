@@ -1,9 +1,10 @@
 """Fast tile-based EWA splatting with numba; same contract as `render_reference`.
 
 Pipeline: project every Gaussian in parallel (cull by near/far, opacity and the image
-rectangle) -> one global stable depth sort of the survivors, gathered into depth order ->
-per-tile Gaussian lists by a counting sort (each list stays front to back) -> rasterize tiles
-in parallel, each Gaussian visiting only the pixels of its footprint inside the tile.
+rectangle) -> one global stable depth sort of the survivors -> per-tile Gaussian lists by a
+counting sort (each list stays front to back) -> rasterize tiles in parallel, each Gaussian
+visiting only the pixels of its footprint inside the tile. The screen parameters are one
+64-byte float32 row per Gaussian, read where they lie (no gather into depth order).
 
 The rendering constants of `_render_common` are passed to the kernels as arguments, so a
 cached compiled kernel never holds a stale copy of them.
@@ -16,7 +17,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from glmap_tools.gaussians._render_bins import bin_kernel, depth_order_kernel, gather_kernel
+from glmap_tools.gaussians._render_bins import bin_kernel, depth_order_kernel
 from glmap_tools.gaussians._render_common import (
     ALPHA_MAX,
     ALPHA_MIN,
@@ -29,15 +30,25 @@ from glmap_tools.gaussians._render_common import (
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Intrinsics, Pose
 
-# Columns of the per-Gaussian screen parameters. The footprint on pixel row y is the column
-# interval centre(y) +- sqrt(HALF0 - HALF1 dy^2) where the alpha can reach ALPHA_MIN.
-# DECAY_X, DECAY_Y, DECAY_XY = exp(-ca), exp(-cc), exp(-cb) step exp(-m/2) across pixels.
-# COMPACT is 1 when d^T conic d stays below M_COMPACT over the whole footprint rectangle.
-(U, V, CONIC_A, CONIC_B, CONIC_C, OPACITY, HALF0, HALF1, SLOPE) = range(9)
-DECAY_X, DECAY_Y, DECAY_XY, COMPACT, RED, GREEN, BLUE, DEPTH = range(9, 17)
-N_PARAMS = 17
+# Columns of the per-Gaussian screen parameters, one 64-byte float32 row per Gaussian. DU, DV:
+# the screen mean minus the footprint rectangle's first column and row (small numbers, so
+# float32 keeps them to ~1e-7 of the footprint size). OPACITY is negated for a thin footprint
+# (see SPAN_*); a compact one keeps d^T conic d below M_COMPACT over its whole rectangle,
+# which is then walked whole. DECAY_X, DECAY_Y, DECAY_XY = exp(-ca), exp(-cc), exp(-cb) step
+# exp(-m/2) across pixels; each is stored as a float32 pair (value, remainder) that sums to
+# the float64, as the recurrences multiply them up to a tile side of times.
+(DU, DV, CONIC_A, CONIC_B, CONIC_C, OPACITY) = range(6)
+(DECAY_X, DECAY_X_LO, DECAY_Y, DECAY_Y_LO, DECAY_XY, DECAY_XY_LO) = range(6, 12)
+RED, GREEN, BLUE, DEPTH = range(12, 16)
+N_PARAMS = 16
+# Columns of the thin footprints' row spans (float32, unset for compact ones): on pixel row
+# y the footprint is the column interval centre(y) +- sqrt(SPAN_HALF0 - SPAN_HALF1 dy^2)
+# where the alpha can reach ALPHA_MIN, centre(y) = u - SPAN_SLOPE dy.
+SPAN_HALF0, SPAN_HALF1, SPAN_SLOPE = range(3)
+N_SPAN = 3
 M_COMPACT = 200.0  # exp(-m/2) by forward differences stays far from under/overflow below this
-PAD = 1e-6  # px slack on the footprint bounds; the exact alpha test decides inside them
+PAD = 1e-6  # px slack on the footprint rectangle; the exact alpha test decides inside it
+ROW_PAD = 1e-3  # px slack on the row spans, wider than the float32 rounding of their terms
 
 
 @njit(parallel=True, cache=True)
@@ -56,8 +67,13 @@ def project_kernel(
     low_pass: float,
     alpha_min: float,
     sigma_extent: float,
-    params: np.ndarray,  # [N, N_PARAMS] float64, out
-    rects: np.ndarray,  # [N, 4] int32 out: x0, x1, y0, y1 (inclusive pixel footprint)
+    tile_w: int,
+    tile_h: int,
+    params: np.ndarray,  # [N, N_PARAMS] float32, out
+    spans: np.ndarray,  # [N, N_SPAN] float32, out (thin footprints only)
+    depth: np.ndarray,  # [N] float64 out: camera z, the sort key
+    rects: np.ndarray,  # [N, 4] int16 out: x0, x1, y0, y1 (inclusive pixel footprint)
+    tiles: np.ndarray,  # [N, 4] int16 out: the tile columns and rows the footprint touches
     valid: np.ndarray,  # [N] bool, out
 ) -> None:
     """EWA projection of every Gaussian; `valid[i]` is False for culled ones."""
@@ -125,33 +141,49 @@ def project_kernel(
         ca = c / det
         cb = -b / det
         cc = a / det
-        params[i, U] = u
-        params[i, V] = v
-        params[i, CONIC_A] = ca
-        params[i, CONIC_B] = cb
-        params[i, CONIC_C] = cc
-        params[i, OPACITY] = op
-        params[i, HALF0] = m_cut / ca
-        params[i, HALF1] = (ca * cc - cb * cb) / (ca * ca)
-        params[i, SLOPE] = cb / ca
-        params[i, DECAY_X] = math.exp(-ca)
-        params[i, DECAY_Y] = math.exp(-cc)
-        params[i, DECAY_XY] = math.exp(-cb)
+        # The rasterizer computes from the float32 values; derive the rest from them too.
+        ca32 = np.float32(ca)
+        cb32 = np.float32(cb)
+        cc32 = np.float32(cc)
+        ca = np.float64(ca32)
+        cb = np.float64(cb32)
+        cc = np.float64(cc32)
+        params[i, DU] = u - x0
+        params[i, DV] = v - y0
+        params[i, CONIC_A] = ca32
+        params[i, CONIC_B] = cb32
+        params[i, CONIC_C] = cc32
+        for col, rate in ((DECAY_X, ca), (DECAY_Y, cc), (DECAY_XY, cb)):
+            decay = math.exp(-rate)
+            decay32 = np.float32(decay)
+            params[i, col] = decay32
+            params[i, col + 1] = decay - np.float64(decay32)
         m_corner = 0.0
         for cx_ in (x0, x1):
             for cy_ in (y0, y1):
                 ddx = cx_ - u
                 ddy = cy_ - v
                 m_corner = max(m_corner, ca * ddx * ddx + 2.0 * cb * ddx * ddy + cc * ddy * ddy)
-        params[i, COMPACT] = 1.0 if m_corner <= M_COMPACT else 0.0
+        if m_corner <= M_COMPACT:
+            params[i, OPACITY] = op
+        else:
+            params[i, OPACITY] = -op
+            spans[i, SPAN_HALF0] = m_cut / ca
+            spans[i, SPAN_HALF1] = (ca * cc - cb * cb) / (ca * ca)
+            spans[i, SPAN_SLOPE] = cb / ca
         params[i, RED] = colors[i, 0]
         params[i, GREEN] = colors[i, 1]
         params[i, BLUE] = colors[i, 2]
         params[i, DEPTH] = z
+        depth[i] = z
         rects[i, 0] = int(x0)
         rects[i, 1] = int(x1)
         rects[i, 2] = int(y0)
         rects[i, 3] = int(y1)
+        tiles[i, 0] = int(x0) // tile_w
+        tiles[i, 1] = int(x1) // tile_w
+        tiles[i, 2] = int(y0) // tile_h
+        tiles[i, 3] = int(y1) // tile_h
         valid[i] = True
 
 
@@ -204,10 +236,11 @@ def _composite_row(
 
 @njit(parallel=True, cache=True)
 def rasterize_kernel(
-    params: np.ndarray,  # [M, N_PARAMS] float64, depth order
-    rects: np.ndarray,  # [M, 4] int32
+    params: np.ndarray,  # [N, N_PARAMS] float32
+    spans: np.ndarray,  # [N, N_SPAN] float32
+    rects: np.ndarray,  # [N, 4] int16
     offsets: np.ndarray,  # [n_tiles + 1] int64
-    lists: np.ndarray,  # [K] int32
+    lists: np.ndarray,  # [K] int32, rows of params, each tile's front to back
     tile_w: int,
     tile_h: int,
     tiles_x: int,
@@ -239,27 +272,24 @@ def rasterize_kernel(
         done = np.zeros(tile_w * tile_h, dtype=np.bool_)
         for k in range(offsets[t], offsets[t + 1]):
             g = lists[k]
-            u = params[g, U]
-            v = params[g, V]
-            ca = params[g, CONIC_A]
-            cb = params[g, CONIC_B]
-            cc = params[g, CONIC_C]
-            op = params[g, OPACITY]
-            half0 = params[g, HALF0]
-            half1 = params[g, HALF1]
-            slope = params[g, SLOPE]
-            decay_x = params[g, DECAY_X]
-            decay_y = params[g, DECAY_Y]
-            decay_xy = params[g, DECAY_XY]
-            red = params[g, RED]
-            green = params[g, GREEN]
-            blue = params[g, BLUE]
-            z = params[g, DEPTH]
-            x_lo = max(rects[g, 0], tx0)
-            x_hi = min(rects[g, 1], tx1)
-            y_lo = max(rects[g, 2], ty0)
-            y_hi = min(rects[g, 3], ty1)
-            if params[g, COMPACT] != 0.0:
+            x0 = np.int64(rects[g, 0])
+            y0 = np.int64(rects[g, 2])
+            u = x0 + np.float64(params[g, DU])
+            v = y0 + np.float64(params[g, DV])
+            ca = np.float64(params[g, CONIC_A])
+            cb = np.float64(params[g, CONIC_B])
+            cc = np.float64(params[g, CONIC_C])
+            op = np.float64(params[g, OPACITY])
+            decay_x = np.float64(params[g, DECAY_X]) + np.float64(params[g, DECAY_X_LO])
+            red = np.float64(params[g, RED])
+            green = np.float64(params[g, GREEN])
+            blue = np.float64(params[g, BLUE])
+            z = np.float64(params[g, DEPTH])
+            x_lo = max(x0, tx0)
+            x_hi = min(np.int64(rects[g, 1]), tx1)
+            y_lo = max(y0, ty0)
+            y_hi = min(np.int64(rects[g, 3]), ty1)
+            if op > 0.0:
                 # Whole rectangle; exp(-m/2) by forward differences: m is quadratic in
                 # (px, py), so the ratios of exp(-m/2) between neighbours (ratio_x to the
                 # right, ratio_y below) change by constant factors per step.
@@ -268,6 +298,8 @@ def rasterize_kernel(
                 start = math.exp(-0.5 * (ca * dx * dx + 2.0 * cb * dx * dy + cc * dy * dy))
                 ratio_x = math.exp(-(ca * dx + cb * dy + 0.5 * ca))
                 ratio_y = math.exp(-(cc * dy + cb * dx + 0.5 * cc))
+                decay_y = np.float64(params[g, DECAY_Y]) + np.float64(params[g, DECAY_Y_LO])
+                decay_xy = np.float64(params[g, DECAY_XY]) + np.float64(params[g, DECAY_XY_LO])
                 for py in range(y_lo, y_hi + 1):
                     n_done = _composite_row(
                         (py - ty0) * tile_w - tx0,
@@ -295,12 +327,16 @@ def rasterize_kernel(
             else:
                 # Thin, slanted footprints: only the columns of each row inside the ellipse
                 # where alpha can reach alpha_min.
+                op = -op
+                half0 = np.float64(spans[g, SPAN_HALF0])
+                half1 = np.float64(spans[g, SPAN_HALF1])
+                slope = np.float64(spans[g, SPAN_SLOPE])
                 for py in range(y_lo, y_hi + 1):
                     dy = py - v
                     half2 = half0 - half1 * dy * dy
                     if half2 < 0.0:
                         continue
-                    half = math.sqrt(half2) + PAD
+                    half = math.sqrt(half2) + ROW_PAD
                     centre = u - slope * dy
                     px_lo = max(x_lo, math.ceil(centre - half))
                     px_hi = min(x_hi, math.floor(centre + half))
@@ -368,8 +404,14 @@ def render_fast(
     k = intrinsics
     w, h = int(k.width), int(k.height)
     n = len(gaussians)
-    params = np.empty((n, N_PARAMS), dtype=np.float64)
-    rects = np.empty((n, 4), dtype=np.int32)
+    tile_w, tile_h = tile
+    tiles_x = (w + tile_w - 1) // tile_w
+    n_tiles = tiles_x * ((h + tile_h - 1) // tile_h)
+    params = np.empty((n, N_PARAMS), dtype=np.float32)
+    spans = np.empty((n, N_SPAN), dtype=np.float32)
+    z = np.empty(n, dtype=np.float64)
+    rects = np.empty((n, 4), dtype=np.int16)
+    tiles = np.empty((n, 4), dtype=np.int16)
     valid = np.empty(n, dtype=np.bool_)
     camera = np.array([k.fx, k.fy, k.cx, k.cy, *cam.tan_lo, *cam.tan_hi], dtype=np.float64)
     project_kernel(
@@ -387,21 +429,23 @@ def render_fast(
         LOW_PASS,
         ALPHA_MIN,
         SIGMA_EXTENT,
+        tile_w,
+        tile_h,
         params,
+        spans,
+        z,
         rects,
+        tiles,
         valid,
     )
-    order = depth_order_kernel(valid, np.ascontiguousarray(params[:, DEPTH]))
-    params, rects = gather_kernel(order, params, rects)
-    tile_w, tile_h = tile
-    tiles_x = (w + tile_w - 1) // tile_w
-    n_tiles = tiles_x * ((h + tile_h - 1) // tile_h)
-    offsets, lists = bin_kernel(rects, tile_w, tile_h, tiles_x, n_tiles)
+    order = depth_order_kernel(valid, z)
+    offsets, lists = bin_kernel(order, tiles, tiles_x, n_tiles)
     rgb = np.empty((h, w, 3), dtype=np.float32)
     depth = np.empty((h, w), dtype=np.float32)
     alpha = np.empty((h, w), dtype=np.float32)
     rasterize_kernel(
         params,
+        spans,
         rects,
         offsets,
         lists,
