@@ -7,7 +7,7 @@ valid flags, depths and tile rectangles, so they live apart from `_render_numba`
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 RADIX_BITS = 11  # depth sort: bits per radix pass
 RADIX = 1 << RADIX_BITS
@@ -86,33 +86,47 @@ def depth_order_kernel(valid: np.ndarray, depth: np.ndarray) -> np.ndarray:
     return index
 
 
-@njit(cache=True)
+@njit(parallel=True, cache=True)
 def bin_kernel(
     order: np.ndarray,  # [M] int32, valid Gaussians in depth order
     tiles: np.ndarray,  # [N, 4] int16: first and last tile column, first and last tile row
     tiles_x: int,
     n_tiles: int,
+    n_chunks: int,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Per-tile Gaussian lists by counting sort; each list keeps the front-to-back order.
+
+    `order` is cut into `n_chunks` consecutive chunks counted and filled in parallel; in
+    each tile's list chunk c's entries come before chunk c + 1's, so the lists do not
+    depend on `n_chunks`.
 
     Returns:
         offsets [n_tiles + 1] int64 and lists [offsets[-1]] int32 (Gaussian indices).
     """
-    offsets = np.zeros(n_tiles + 1, dtype=np.int64)
-    for j in range(order.shape[0]):
-        g = order[j]
-        for ty in range(tiles[g, 2], tiles[g, 3] + 1):
-            for tx in range(tiles[g, 0], tiles[g, 1] + 1):
-                offsets[ty * tiles_x + tx + 1] += 1
+    m = order.shape[0]
+    cursor = np.zeros((n_chunks, n_tiles), dtype=np.int64)
+    for c in prange(n_chunks):
+        for j in range(m * c // n_chunks, m * (c + 1) // n_chunks):
+            g = order[j]
+            for ty in range(tiles[g, 2], tiles[g, 3] + 1):
+                for tx in range(tiles[g, 0], tiles[g, 1] + 1):
+                    cursor[c, ty * tiles_x + tx] += 1
+    offsets = np.empty(n_tiles + 1, dtype=np.int64)
+    total = 0
     for t in range(n_tiles):
-        offsets[t + 1] += offsets[t]
-    lists = np.empty(offsets[n_tiles], dtype=np.int32)
-    cursor = offsets[:n_tiles].copy()
-    for j in range(order.shape[0]):
-        g = order[j]
-        for ty in range(tiles[g, 2], tiles[g, 3] + 1):
-            for tx in range(tiles[g, 0], tiles[g, 1] + 1):
-                t = ty * tiles_x + tx
-                lists[cursor[t]] = g
-                cursor[t] += 1
+        offsets[t] = total
+        for c in range(n_chunks):
+            count = cursor[c, t]
+            cursor[c, t] = total
+            total += count
+    offsets[n_tiles] = total
+    lists = np.empty(total, dtype=np.int32)
+    for c in prange(n_chunks):
+        for j in range(m * c // n_chunks, m * (c + 1) // n_chunks):
+            g = order[j]
+            for ty in range(tiles[g, 2], tiles[g, 3] + 1):
+                for tx in range(tiles[g, 0], tiles[g, 1] + 1):
+                    t = ty * tiles_x + tx
+                    lists[cursor[c, t]] = g
+                    cursor[c, t] += 1
     return offsets, lists

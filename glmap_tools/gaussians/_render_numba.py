@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -270,8 +271,19 @@ def rasterize_kernel(
         acc = np.zeros((tile_w * tile_h, 4))  # r, g, b, z sums
         n_done = 0
         done = np.zeros(tile_w * tile_h, dtype=np.bool_)
+        row_left = np.zeros(tile_h, dtype=np.int64)  # pixels of each row not yet terminated
+        row_left[: ty1 - ty0 + 1] = tx1 - tx0 + 1
         for k in range(offsets[t], offsets[t + 1]):
             g = lists[k]
+            # Only the rows of the footprint between its first and last live row.
+            y_lo = max(np.int64(rects[g, 2]), ty0)
+            y_hi = min(np.int64(rects[g, 3]), ty1)
+            while y_lo <= y_hi and row_left[y_lo - ty0] == 0:
+                y_lo += 1
+            while y_hi >= y_lo and row_left[y_hi - ty0] == 0:
+                y_hi -= 1
+            if y_lo > y_hi:
+                continue
             x0 = np.int64(rects[g, 0])
             y0 = np.int64(rects[g, 2])
             u = x0 + np.float64(params[g, DU])
@@ -287,8 +299,6 @@ def rasterize_kernel(
             z = np.float64(params[g, DEPTH])
             x_lo = max(x0, tx0)
             x_hi = min(np.int64(rects[g, 1]), tx1)
-            y_lo = max(y0, ty0)
-            y_hi = min(np.int64(rects[g, 3]), ty1)
             if op > 0.0:
                 # Whole rectangle; exp(-m/2) by forward differences: m is quadratic in
                 # (px, py), so the ratios of exp(-m/2) between neighbours (ratio_x to the
@@ -301,26 +311,29 @@ def rasterize_kernel(
                 decay_y = np.float64(params[g, DECAY_Y]) + np.float64(params[g, DECAY_Y_LO])
                 decay_xy = np.float64(params[g, DECAY_XY]) + np.float64(params[g, DECAY_XY_LO])
                 for py in range(y_lo, y_hi + 1):
-                    n_done = _composite_row(
-                        (py - ty0) * tile_w - tx0,
-                        x_lo,
-                        x_hi,
-                        start,
-                        ratio_x,
-                        decay_x,
-                        op,
-                        red,
-                        green,
-                        blue,
-                        z,
-                        alpha_min,
-                        alpha_max,
-                        t_min,
-                        trans,
-                        acc,
-                        done,
-                        n_done,
-                    )
+                    if row_left[py - ty0] > 0:
+                        before = n_done
+                        n_done = _composite_row(
+                            (py - ty0) * tile_w - tx0,
+                            x_lo,
+                            x_hi,
+                            start,
+                            ratio_x,
+                            decay_x,
+                            op,
+                            red,
+                            green,
+                            blue,
+                            z,
+                            alpha_min,
+                            alpha_max,
+                            t_min,
+                            trans,
+                            acc,
+                            done,
+                            n_done,
+                        )
+                        row_left[py - ty0] -= n_done - before
                     start *= ratio_y
                     ratio_x *= decay_xy
                     ratio_y *= decay_y
@@ -340,11 +353,12 @@ def rasterize_kernel(
                     centre = u - slope * dy
                     px_lo = max(x_lo, math.ceil(centre - half))
                     px_hi = min(x_hi, math.floor(centre + half))
-                    if px_lo > px_hi:
+                    if px_lo > px_hi or row_left[py - ty0] == 0:
                         continue
                     dx = px_lo - u
                     start = math.exp(-0.5 * (ca * dx * dx + 2.0 * cb * dx * dy + cc * dy * dy))
                     ratio_x = math.exp(-(ca * dx + cb * dy + 0.5 * ca))
+                    before = n_done
                     n_done = _composite_row(
                         (py - ty0) * tile_w - tx0,
                         px_lo,
@@ -365,6 +379,7 @@ def rasterize_kernel(
                         done,
                         n_done,
                     )
+                    row_left[py - ty0] -= n_done - before
             if n_done == n_pixels:
                 break
         for py in range(ty0, ty1 + 1):
@@ -439,7 +454,7 @@ def render_fast(
         valid,
     )
     order = depth_order_kernel(valid, z)
-    offsets, lists = bin_kernel(order, tiles, tiles_x, n_tiles)
+    offsets, lists = bin_kernel(order, tiles, tiles_x, n_tiles, numba.get_num_threads())
     rgb = np.empty((h, w, 3), dtype=np.float32)
     depth = np.empty((h, w), dtype=np.float32)
     alpha = np.empty((h, w), dtype=np.float32)
