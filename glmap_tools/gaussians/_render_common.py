@@ -18,7 +18,7 @@ ALPHA_MIN = 1.0 / 255.0  # contributions below this alpha are skipped
 T_MIN = 1e-4  # a pixel stops before the Gaussian that would drop its transmittance below this
 SIGMA_EXTENT = 3.0  # screen extent: a square of half-side ceil(3 sqrt(lambda_max)) pixels
 JACOBIAN_MARGIN = 0.15  # the Jacobian's x/z, y/z are clamped to 15 % of the image past each edge
-TILE = 16  # fast path: pixels per tile side
+TILE = 32  # fast path: pixels per tile side
 
 
 @dataclass(frozen=True)
