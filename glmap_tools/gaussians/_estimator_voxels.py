@@ -79,6 +79,7 @@ def _voxelize_until_full(
                     table_keys[h] = k
                     table_ids[h] = n_blocks
                     keys[n_blocks] = k
+                    slot_voxel[n_blocks * SLOTS : (n_blocks + 1) * SLOTS] = -1
                     b = n_blocks
                     n_blocks += 1
                     break
@@ -140,7 +141,8 @@ def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
         cap *= 2
     table_keys, table_ids = _rehash(np.empty(0, dtype=np.int64), 0, cap)
     keys = np.empty(cap // 2, dtype=np.int64)
-    slot_voxel = np.full((cap // 2) * SLOTS, -1, dtype=np.int32)
+    # A block's slots are set to -1 when the block is created: no memset of the whole store.
+    slot_voxel = np.empty((cap // 2) * SLOTS, dtype=np.int32)
     point_voxel = np.empty(n, dtype=np.int32)
     voxel_block = np.empty(n, dtype=np.int32)
     voxel_slot = np.empty(n, dtype=np.int32)
