@@ -94,8 +94,11 @@ def test_a_turned_two_room_scan_of_bounding_boxes_becomes_rooms_with_furniture_s
     from glmap_tools.sim.layout import LayoutWarning
     from glmap_tools.sim.scan import layout_from_scan
 
-    with pytest.warns(LayoutWarning, match="read as a 2.00 x 1.60 m box turned 27.0 deg"):
+    with pytest.warns(LayoutWarning) as reported:
         layout = layout_from_scan(two_room_scan(27.0), use_meshes=False)
+    said = [str(w.message) for w in reported]
+    assert len(said) == len(TWO_ROOM_FURNITURE)  # every box is turned, and says so
+    assert "read as a 2.00 x 1.60 m box turned 27.0 deg with the walls of room 1" in said[0]
     assert [r.type for r in layout.rooms] == ["bedroom", "living room"]
     for obj, (room, _, _, _, w, d, _) in zip(layout.objects, TWO_ROOM_FURNITURE, strict=True):
         assert obj.room == room
