@@ -101,50 +101,46 @@ def check_frame_bounds(
             max_span; the message names the axis, the value and the fix.
     """
     known = map_extent(trajectory)
-    if _within(*frustum_extent(frame, config.max_range), frame, config, known):
+    if _violation(*frustum_extent(frame, config.max_range), frame, config, known) is None:
         return  # the whole view fits, so every point does: no pass over the pixels
-    lo, hi = frame_extent(frame, config.max_range)
-    limit = config.world_limit
-    centre = frame.pose.translation
-    for k, axis in enumerate(AXES):
-        if abs(centre[k]) > limit:
-            raise OutOfBoundsError(
-                f"the camera centre {_fmt(centre)} is {abs(centre[k]):.4g} m from the origin "
-                f"along {axis}; this map's world is +-{limit:g} m (MapConfig.world_limit). "
-                "Give poses in metres relative to a nearby origin."
-            )
-        if max(-lo[k], hi[k]) > limit:
-            raise OutOfBoundsError(
-                f"the frame's points reach {axis} = {lo[k] if -lo[k] > hi[k] else hi[k]:.4g} m; "
-                f"this map's world is +-{limit:g} m (MapConfig.world_limit). Check the depth "
-                "scale and units, or lower max_range."
-            )
-    if known is None:
-        span_lo, span_hi = lo, hi
-    else:
-        span_lo, span_hi = np.minimum(known[0], lo), np.maximum(known[1], hi)
-    span = span_hi - span_lo
-    for k, axis in enumerate(AXES):
-        if span[k] > config.max_span:
-            raise OutOfBoundsError(
-                f"with this frame the map would span {span[k]:.4g} m along {axis} (from "
-                f"{span_lo[k]:.4g} to {span_hi[k]:.4g} m; camera at {_fmt(centre)}); a map "
-                f"spans at most {config.max_span:g} m (MapConfig.max_span). Start a new map "
-                "for a far-off place, or raise max_span."
-            )
+    problem = _violation(*frame_extent(frame, config.max_range), frame, config, known)
+    if problem is not None:
+        raise OutOfBoundsError(problem)
 
 
-def _within(
+def _violation(
     lo: np.ndarray,
     hi: np.ndarray,
     frame: RGBDFrame,
     config: MapConfig,
     known: tuple[np.ndarray, np.ndarray] | None,
-) -> bool:
-    """Whether a frame whose camera and points lie in lo..hi passes both bounds."""
+) -> str | None:
+    """What a frame whose camera and points lie in lo..hi breaks (a message), or None."""
     limit = config.world_limit
-    if np.any(np.abs(frame.pose.translation) > limit) or np.any(np.maximum(-lo, hi) > limit):
-        return False
-    if known is not None:
-        lo, hi = np.minimum(known[0], lo), np.maximum(known[1], hi)
-    return bool(np.all(hi - lo <= config.max_span))
+    centre = frame.pose.translation
+    for k, axis in enumerate(AXES):
+        if abs(centre[k]) > limit:
+            return (
+                f"the camera centre {_fmt(centre)} is {abs(centre[k]):.4g} m from the origin "
+                f"along {axis}; this map's world is +-{limit:g} m (MapConfig.world_limit). "
+                "Give poses in metres relative to a nearby origin."
+            )
+        if max(-lo[k], hi[k]) > limit:
+            return (
+                f"the frame's points reach {axis} = {lo[k] if -lo[k] > hi[k] else hi[k]:.4g} m; "
+                f"this map's world is +-{limit:g} m (MapConfig.world_limit). Check the depth "
+                "scale and units, or lower max_range."
+            )
+    span_lo, span_hi = (
+        (lo, hi) if known is None else (np.minimum(known[0], lo), np.maximum(known[1], hi))
+    )
+    span = span_hi - span_lo
+    for k, axis in enumerate(AXES):
+        if span[k] > config.max_span:
+            return (
+                f"with this frame the map would span {span[k]:.4g} m along {axis} (from "
+                f"{span_lo[k]:.4g} to {span_hi[k]:.4g} m; camera at {_fmt(centre)}); a map "
+                f"spans at most {config.max_span:g} m (MapConfig.max_span). Start a new map "
+                "for a far-off place, or raise max_span."
+            )
+    return None

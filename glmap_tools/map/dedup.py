@@ -16,7 +16,7 @@ them apart. The oldest (smallest) id survives; the others' ids are not reused.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -163,15 +163,16 @@ def fuse_instances(
     def fuse(group: list[int]) -> None:
         parts = [current.pop(i) for i in group]
         latest = max(parts, key=lambda u: (u.last_frame, -u.id))
+        embedding, observations, first, last = _pooled(parts)
         unit = InstanceUnit(
             group[0],
             latest.label,
             _joined_text(parts, merge_text),
-            normalised(np.sum([u.embedding * u.observations for u in parts], axis=0)),
+            embedding,
             remerge(GaussianSet.concat([u.gaussians for u in parts]), estimator),
-            sum(u.observations for u in parts),
-            min(u.first_frame for u in parts),
-            max(u.last_frame for u in parts),
+            observations,
+            first,
+            last,
         )
         current[group[0]] = fused[group[0]] = unit
         for gone in group[1:]:
@@ -179,6 +180,20 @@ def fuse_instances(
 
     absorbed = _fixed_point(current, set(changed), joins, observed, fuse)
     return fused, absorbed
+
+
+def _pooled(
+    parts: Sequence[InstanceUnit] | Sequence[RegionUnit],
+) -> tuple[np.ndarray, int, int, int]:
+    """What fused units share: (observation-weighted embedding, observations, first frame,
+    last frame)."""
+    embedding = normalised(np.sum([u.embedding * u.observations for u in parts], axis=0))
+    return (
+        embedding,
+        sum(u.observations for u in parts),
+        min(u.first_frame for u in parts),
+        max(u.last_frame for u in parts),
+    )
 
 
 def with_members_renamed(
@@ -232,14 +247,15 @@ def fuse_regions(
 
     def fuse(group: list[int]) -> None:
         parts = [current.pop(i) for i in group]
+        embedding, observations, first, last = _pooled(parts)
         region = RegionUnit(
             group[0],
             _joined_text(parts, merge_text),
-            normalised(np.sum([r.embedding * r.observations for r in parts], axis=0)),
+            embedding,
             tuple(sorted({i for r in parts for i in r.instance_ids})),
-            sum(r.observations for r in parts),
-            min(r.first_frame for r in parts),
-            max(r.last_frame for r in parts),
+            observations,
+            first,
+            last,
         )
         current[group[0]] = fused[group[0]] = region
         for gone in group[1:]:

@@ -501,6 +501,12 @@ def unit_reach(
     return here, bool(sight[0])
 
 
+def stop_would_count(unit_distance: float, in_sight: bool, config: NavConfig) -> bool:
+    """The simulator's success rule read on the map: within `success_radius` of the unit's
+    cells, with no wall on the line to them."""
+    return bool(unit_distance <= config.success_radius and in_sight)
+
+
 def _approach(
     glmap: GLMap,
     sur: Surroundings,

@@ -279,7 +279,7 @@ def walk_to(
         OutsideMapError, UnreachableGoalError: a point target, before the first step.
     """
     from glmap_tools.nav import GoalMatch
-    from glmap_tools.nav.policy import PROGRESS, approach
+    from glmap_tools.nav.policy import PROGRESS, approach, stop_would_count
 
     nav = of(session)
     assert nav is not None
@@ -343,7 +343,7 @@ def walk_to(
         out["unit_id"] = target.unit_id
         out["unit_distance_m"] = _metres(step.unit_distance)
         out["in_sight"] = step.in_sight
-        out["would_succeed"] = bool(step.unit_distance <= config.success_radius and step.in_sight)
+        out["would_succeed"] = stop_would_count(step.unit_distance, step.in_sight, config)
     if outcome not in ("reached", "step budget", "episode over"):
         out["blocked_by"] = _blocked_by(step, outcome, bumps, steps, agent, target, config)
     return out

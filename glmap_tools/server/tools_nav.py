@@ -235,16 +235,17 @@ async def look_around(ctx: Context, session: SessionArg = "") -> ImageResult:
     return await in_thread(lambda: in_episode(target, run))
 
 
-def _goal_unit(session: Session, decision: Any, config: Any) -> dict[str, Any] | None:
-    """The matched goal unit of `decision` and whether stopping here would count."""
+def _goal_unit(
+    session: Session, decision: Any, agent: tuple[float, float, float], config: Any
+) -> dict[str, Any] | None:
+    """The matched goal unit of `decision` and whether stopping at `agent` would count."""
     from glmap_tools.nav import GoalMatch
-    from glmap_tools.nav.policy import unit_reach, walls_of
+    from glmap_tools.nav.policy import stop_would_count, unit_reach, walls_of
     from glmap_tools.nav.value import unit_cell_array
 
     unit_id = decision.matched_unit
     if unit_id is None:
         return None
-    agent = _agent(session)
     with locked(session) as glmap:
         cells = unit_cell_array(glmap.grid, unit_id)
         occ = decision.occupancy
@@ -256,7 +257,7 @@ def _goal_unit(session: Session, decision: Any, config: Any) -> dict[str, Any] |
         "score": round(float(decision.waypoint.score), 3),
         "unit_distance_m": round(here, 2),
         "in_sight": sight,
-        "would_succeed": bool(here <= config.success_radius and sight),
+        "would_succeed": stop_would_count(here, sight, config),
     }
 
 
@@ -313,7 +314,7 @@ async def nav_step(
             "new_collisions": sim.collisions - collisions,
             "waypoint": _waypoint(decision, agent) if decision is not None else None,
         }
-        goal_unit = _goal_unit(target, decision, nav.config) if decision is not None else None
+        goal_unit = _goal_unit(target, decision, end, nav.config) if decision is not None else None
         if goal_unit is not None and not sim.over:
             info["goal_unit"] = goal_unit
         if details:
