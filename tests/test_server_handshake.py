@@ -6,6 +6,7 @@ answers come is measured by `python -m glmap_tools.bench startup`, not here.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import subprocess
@@ -23,6 +24,8 @@ from glmap_tools.server.handshake import (
     FORMAT,
     HANDSHAKE_VERSIONS,
     MODERN_VERSIONS,
+    PreparedAnswers,
+    StdioRelay,
     opening_requests,
     source_stamp,
 )
@@ -236,3 +239,23 @@ def test_every_request_gets_exactly_one_answer_through_the_relay(prepared, tmp_p
     by_id = {m["id"]: m for m in seen if "id" in m and "method" not in m}
     assert "result" in by_id[3] or "error" in by_id[3]
     assert not by_id[4]["result"].get("isError"), by_id[4]
+
+
+def test_a_first_tools_list_with_a_cursor_is_left_to_the_sdk(tmp_path):
+    """A page the prepared answer cannot know: the relay answers only the opening early."""
+    answers = PreparedAnswers(tmp_path / "answers.json", "stamp")
+    answers.put(VERSION, "initialize", {"protocolVersion": VERSION, "capabilities": {}})
+    answers.put(VERSION, "tools/list", {"tools": []})
+    lines = [
+        {"jsonrpc": "2.0", "id": 1, "method": "initialize", "params": {"protocolVersion": VERSION}},
+        {"jsonrpc": "2.0", "method": "notifications/initialized"},
+        {"jsonrpc": "2.0", "id": 2, "method": "tools/list", "params": {"cursor": "page-2"}},
+    ]
+    source = io.BytesIO(b"".join(json.dumps(m).encode() + b"\n" for m in lines))
+    sink = io.BytesIO()
+    relay = StdioRelay(answers, source=source, sink=sink)
+    while relay.lines.get(timeout=10) is not None:
+        pass  # every client line read (and looked at)
+    sent = [json.loads(line) for line in sink.getvalue().splitlines()]
+    assert [m["id"] for m in sent] == [1]
+    assert relay.answered_early == ["initialize"]

@@ -332,3 +332,36 @@ def test_a_caller_reading_replaces_the_offline_one(glmap):
     s = situate(glmap, "", reading=reading)
     assert s.reading == reading
     assert abs(_bearing(s, (0.0, 3.2))) <= 20.0
+
+
+class _FixedScorer:
+    """f(u, T_l) from a table: the living area scores `region`, the bed 0.6 for where one
+    is, the sofa 0.9 for what one faces, everything else 0.05."""
+
+    def __init__(self, region: float) -> None:
+        self.region = region
+
+    def score(self, goal, units):
+        facing = "sofa" in goal
+        out = []
+        for u in units:
+            if u.kind == "region":
+                out.append(self.region if "living" in u.text and not facing else 0.05)
+            elif "bed" in u.text and not facing:
+                out.append(0.6)
+            else:
+                out.append(0.9 if "sofa" in u.text and facing else 0.05)
+        return np.array(out)
+
+
+@pytest.mark.parametrize(("region", "at_bed"), [(0.65, True), (0.69, True), (0.75, False)])
+def test_a_region_places_the_agent_only_when_it_beats_the_anchor_object_by_the_margin(
+    glmap, region, at_bed
+):
+    """REGION_MARGIN (0.1): the bed at 0.6 places the agent unless a region scores > 0.7."""
+    s = situate(glmap, "I am by the bed, facing the sofa.", _FixedScorer(region), split_text=True)
+    (bed,) = [u.id for u in glmap.instances.values() if u.label == "bed"]
+    assert any(n.startswith("pose from the best anchor/facing pair") for n in s.notes) is at_bed
+    lo, hi = np.array(glmap.unit_details(bed).bounds)[:, :2]
+    gap = np.hypot(*np.maximum(np.maximum(lo - [s.x, s.y], [s.x, s.y] - hi), 0.0))
+    assert bool(gap <= 1.0) is at_bed
