@@ -13,6 +13,7 @@ import pytest
 
 from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.language import calibration
+from glmap_tools.language.bert import K_BLOCK, dense, panels_agree
 from glmap_tools.language.embed import (
     Embedder,
     HashingEmbedder,
@@ -276,6 +277,32 @@ def test_a_caller_with_many_texts_holds_another_for_one_batch_not_its_whole_enco
     heavy.join(30)
     assert len(slow.calls) > 50
     assert "light" in slow.calls[:10], f"the light caller came {slow.calls.index('light')}th"
+
+
+@pytest.mark.parametrize(
+    ("m", "k", "seed"), [(2, 384, 0), (10, 384, 1), (10, 1536, 2), (700, 1536, 3)]
+)
+def test_dense_in_panels_equals_the_plain_product_and_the_unpanelled_blocks(
+    m: int, k: int, seed: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal((m, k)).astype(np.float32)
+    w = (rng.standard_normal((k, 1152)) / np.sqrt(k)).astype(np.float32)
+    bias = rng.standard_normal(1152).astype(np.float32)
+    panelled = dense(x, w, bias, panels=True)
+    np.testing.assert_allclose(panelled, x @ w + bias, rtol=0, atol=1e-5)
+    if panels_agree(w[:K_BLOCK]):  # this BLAS keeps a row's sum order whatever M is
+        assert np.array_equal(panelled, dense(x, w, bias, panels=False))
+
+
+def test_the_panelled_encoder_gives_the_reference_vectors(minilm: MiniLMEmbedder) -> None:
+    encoder = minilm._model.encoder  # type: ignore[union-attr]
+    texts = ["a tv", "somewhere to sleep", "a red wooden chair in the kitchen", "a lamp " * 60]
+    for text in texts:
+        ids = np.array(encoder.token_ids([text] * 3))
+        fast, reference = encoder.encode_ids(ids), encoder.encode_ids_reference(ids)
+        np.testing.assert_allclose(fast, reference, rtol=0, atol=1e-6)
+        assert np.array_equal(fast[0], encoder.encode_ids(ids[:1])[0])  # alone or batched
 
 
 @pytest.mark.slow  # imports sentence-transformers for the reference

@@ -12,6 +12,12 @@ sentence-transformers' to float32 precision (tests/test_embed.py).
 
 Texts are encoded in batches of equal token count, so there is no padding and no attention
 mask: every row of a batch is computed as it would be alone.
+
+The dense layers of a short input (a search query: ~10 tokens) are computed in column panels
+narrow enough for OpenBLAS's small-matrix kernel, which reads the weights in place instead of
+packing them first (2-3x faster at 10 tokens), and every product is summed over blocks of 384
+inputs in a fixed order, so a row's result does not depend on how many rows share the call
+(`dense`). `encode_ids_reference` is the plain one-product-per-layer computation.
 """
 
 from __future__ import annotations
@@ -43,6 +49,61 @@ def is_mean_pooled_bert(path: str | Path) -> bool:
         and (folder / "model.safetensors").is_file()
         and (folder / "tokenizer.json").is_file()
     )
+
+
+SMALL_GEMM_MNK = 1_000_000  # OpenBLAS's small-matrix kernel takes products of M*N*K <= this
+K_BLOCK = 384  # inputs per partial product; partial products are summed in order
+MIN_PANEL = 32  # narrower panels cost more in calls than the small kernel saves
+
+
+def dense(x: np.ndarray, w: np.ndarray, bias: np.ndarray, panels: bool = True) -> np.ndarray:
+    """`x @ w + bias` in float32, in small-kernel column panels when `x` has few rows.
+
+    Args:
+        x: [M, K] float32 inputs.
+        w: [K, N] float32 weights (C order).
+        bias: [N] float32.
+        panels: split the columns into panels of M * width * K_BLOCK <= SMALL_GEMM_MNK
+            (False: one product per input block, whatever M).
+
+    Returns:
+        [M, N] float32. Each output is the in-order sum over K_BLOCK-input blocks of
+        products whose summation order BLAS does not change with M (checked at load by
+        `panels_agree`), so a row's result is the same in a batch of one or of many.
+    """
+    m, k_total = x.shape
+    n = w.shape[1]
+    width = n
+    fit = SMALL_GEMM_MNK // max(m * K_BLOCK, 1)
+    if panels and fit >= MIN_PANEL:
+        width = min(n, 1 << (fit.bit_length() - 1))
+    out = np.empty((m, n), dtype=np.float32)
+    part = np.empty((m, width), dtype=np.float32)
+    for p0 in range(0, n, width):
+        p1 = min(p0 + width, n)
+        o = out[:, p0:p1]
+        np.matmul(x[:, :K_BLOCK], w[:K_BLOCK, p0:p1], out=o)
+        for k0 in range(K_BLOCK, k_total, K_BLOCK):
+            t = part[:, : p1 - p0]
+            np.matmul(x[:, k0 : k0 + K_BLOCK], w[k0 : k0 + K_BLOCK, p0:p1], out=t)
+            o += t
+    out += bias
+    return out
+
+
+def panels_agree(w: np.ndarray, seed: int = 0) -> bool:
+    """Whether this BLAS gives a few rows computed in panels bit for bit the values it gives
+    the same rows inside a large product (so `dense` may use panels).
+
+    Args:
+        w: [K, N] float32 weights to probe with, K <= K_BLOCK.
+    """
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal((512, w.shape[0])).astype(np.float32)
+    bias = np.zeros(w.shape[1], dtype=np.float32)
+    many = dense(x, w, bias, panels=True)
+    # A text is at least 2 tokens ([CLS], [SEP]); a single row would go through gemv.
+    return all(np.array_equal(dense(x[:m], w, bias, panels=True), many[:m]) for m in (2, 3, 10))
 
 
 def _layer_norm(x: np.ndarray, weight: np.ndarray, bias: np.ndarray, eps: float) -> np.ndarray:
@@ -125,6 +186,7 @@ class BertSentenceEncoder:
                     (w[p + "output.LayerNorm.weight"], w[p + "output.LayerNorm.bias"]),
                 )
             )
+        self.panels = panels_agree(self.layers[0][0][:K_BLOCK])
 
     def token_ids(self, texts: list[str]) -> list[list[int]]:
         """The token ids of each text ([CLS] ... [SEP], at most `max_length`)."""
@@ -132,23 +194,36 @@ class BertSentenceEncoder:
 
     def encode_ids(self, ids: np.ndarray) -> np.ndarray:  # [B, L] -> [B, dim]
         """Sentence vectors of a batch of equal-length token id rows."""
+        return self._encode(ids, self.panels)
+
+    def encode_ids_reference(self, ids: np.ndarray) -> np.ndarray:  # [B, L] -> [B, dim]
+        """`encode_ids` with one plain product per dense layer (for tests and benchmarks)."""
+        return self._encode(ids, None)
+
+    def _encode(self, ids: np.ndarray, panels: bool | None) -> np.ndarray:
+        """The encoder; `panels` None: plain `x @ w + b` products, else `dense(..., panels)`."""
+
+        def linear(x: np.ndarray, w: np.ndarray, bias: np.ndarray) -> np.ndarray:
+            return x @ w + bias if panels is None else dense(x, w, bias, panels)
+
         ids = np.asarray(ids, dtype=np.int64)
         b, n = ids.shape
-        # Rows are [B * L, dim] for the dense layers (one BLAS call each), [B, H, L, d] for
-        # attention.
+        # Rows are [B * L, dim] for the dense layers, [B, H, L, d] for attention.
         x = (self.word[ids] + self.position[:n] + self.token_type).reshape(b * n, self.dim)
         x = _layer_norm(x, *self.embed_norm, self.eps)
         h, d = self.heads, self.dim // self.heads
         scale = np.float32(1.0 / math.sqrt(d))
         for qkv, qkv_b, out_w, out_b, norm1, up_w, up_b, down_w, down_b, norm2 in self.layers:
-            heads = (x @ qkv + qkv_b).reshape(b, n, 3, h, d).transpose(2, 0, 3, 1, 4)
+            heads = linear(x, qkv, qkv_b).reshape(b, n, 3, h, d).transpose(2, 0, 3, 1, 4)
             q, k, v = heads[0], heads[1], heads[2]  # [B, H, L, d]
             scores = (q @ k.transpose(0, 1, 3, 2)) * scale  # [B, H, L, L]
             scores = np.exp(scores - scores.max(axis=-1, keepdims=True))
             attention = scores / scores.sum(axis=-1, keepdims=True)
             context = (attention @ v).transpose(0, 2, 1, 3).reshape(b * n, self.dim)
-            x = _layer_norm(x + context @ out_w + out_b, *norm1, self.eps)
-            x = _layer_norm(x + _gelu(x @ up_w + up_b) @ down_w + down_b, *norm2, self.eps)
+            x = _layer_norm(x + linear(context, out_w, out_b), *norm1, self.eps)
+            x = _layer_norm(
+                x + linear(_gelu(linear(x, up_w, up_b)), down_w, down_b), *norm2, self.eps
+            )
         x = x.reshape(b, n, self.dim)
         pooled = x.mean(axis=1)
         norms = np.linalg.norm(pooled, axis=1, keepdims=True)
