@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from mcp import Client
 
+from glmap_tools.app.inputs import MAX_GROUPS
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
 from glmap_tools.geometry.frame import RGBDFrame
@@ -24,7 +25,6 @@ from glmap_tools.map import GLMap, MapConfig
 from glmap_tools.map.bounds import OutOfBoundsError, check_frame_bounds, frame_extent
 from glmap_tools.perception.annotated import semantics_from_annotation
 from glmap_tools.server import build_server
-from glmap_tools.server.inputs import MAX_GROUPS
 from tests.test_server_fixtures import OBJECTS, config, counts, frame_args, view
 
 EYE = (0.0, -2.6, 1.4)
@@ -268,8 +268,8 @@ class CachingEmbedder:
 
 
 def test_after_embed_ahead_integrating_long_repeated_descriptions_embeds_nothing_new() -> None:
+    from glmap_tools.app.inputs import embed_ahead
     from glmap_tools.bench.lock import costly_description, tiled_frame
-    from glmap_tools.server.inputs import embed_ahead
 
     embedder = CachingEmbedder()
     glmap = GLMap(MapConfig(voxel_size=0.04), embedder=embedder)

@@ -149,9 +149,9 @@ def test_a_frame_past_the_server_cap_is_refused_naming_the_cap(frame_and_segment
 
 
 def test_a_new_map_or_an_ended_session_lets_go_of_its_pending_frames(frame_and_segments, tmp_path):
+    from glmap_tools.app.config import ServerConfig
+    from glmap_tools.app.state import SessionRegistry
     from glmap_tools.language.embed import HashingEmbedder
-    from glmap_tools.server.config import ServerConfig
-    from glmap_tools.server.state import SessionRegistry
 
     frame, segments = frame_and_segments
     registry = SessionRegistry(
@@ -169,9 +169,9 @@ def test_a_new_map_or_an_ended_session_lets_go_of_its_pending_frames(frame_and_s
 
 
 def test_a_new_pinned_map_lets_go_of_the_frames_that_waited_for_it(frame_and_segments, tmp_path):
+    from glmap_tools.app.config import ServerConfig
+    from glmap_tools.app.state import SessionRegistry
     from glmap_tools.language.embed import HashingEmbedder
-    from glmap_tools.server.config import ServerConfig
-    from glmap_tools.server.state import SessionRegistry
 
     frame, segments = frame_and_segments
     config = ServerConfig(maps_dir=tmp_path, embedder="hashing", warm_up=False, map_name="ep")

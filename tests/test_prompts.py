@@ -120,13 +120,13 @@ def test_backends_default_offline_and_select_the_llm_parts_by_name(tmp_path):
 
 
 def test_the_server_gives_every_map_the_text_merger_its_settings_ask_for(tmp_path):
+    from glmap_tools.app.state import SessionRegistry
     from glmap_tools.language.backends import LLMSettings
     from glmap_tools.language.embed import HashingEmbedder
     from glmap_tools.language.llm_merger import LLMTextMerger
     from glmap_tools.language.text_merger import ExtractiveTextMerger
     from glmap_tools.server import ServerConfig
     from glmap_tools.server.cli import build_parser, config_from_args
-    from glmap_tools.server.state import SessionRegistry
 
     args = build_parser().parse_args(["--text-merger", "llm", "--llm-model", "qwen3:4b"])
     config = config_from_args(args)

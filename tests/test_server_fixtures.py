@@ -14,9 +14,9 @@ import numpy as np
 from mcp import Client
 
 from glmap_tools import synthetic
+from glmap_tools.app.frames import observe_arguments
 from glmap_tools.map import MapConfig
 from glmap_tools.server import ServerConfig
-from glmap_tools.server.frames import observe_arguments
 
 OBJECTS = {
     1: ("chair", "a red wooden chair"),

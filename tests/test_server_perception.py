@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from mcp import Client
 
+from glmap_tools.app.frames import observe_arguments
 from glmap_tools.server import build_server
-from glmap_tools.server.frames import observe_arguments
 from tests.test_server_fixtures import config, counts, view
 
 pytestmark = pytest.mark.anyio

@@ -203,8 +203,8 @@ async def test_sim_reset_without_keep_map_starts_the_saved_map_anew(tmp_path):
 
 
 def test_the_launch_check_knows_the_store_format():
+    from glmap_tools.app.persist import MAP_FORMAT
     from glmap_tools.map.store import FORMAT
-    from glmap_tools.server.persist import MAP_FORMAT
 
     assert MAP_FORMAT == FORMAT
 
@@ -257,9 +257,9 @@ async def test_a_server_built_in_process_also_waits_for_the_map_lock(tmp_path):
 
 
 def test_the_navigator_memory_survives_its_json_form():
+    from glmap_tools.app.episode_record import apply_memory, nav_memory
     from glmap_tools.nav import NavState
     from glmap_tools.nav.waypoint import Waypoint
-    from glmap_tools.server.episode_record import apply_memory, nav_memory
 
     state = NavState(
         avoid=[(1.0, 2.5)],

@@ -22,10 +22,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcp import Client
 
+from glmap_tools.app.frames import png_base64
 from glmap_tools.gaussians.ply import read_ply
 from glmap_tools.map.store import MapStore
 from glmap_tools.server import build_server
-from glmap_tools.server.frames import png_base64
 from tests.test_server_fixtures import config, frame_args
 
 CALL_TIMEOUT = 30.0

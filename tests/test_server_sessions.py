@@ -8,10 +8,10 @@ import json
 import pytest
 from mcp import Client
 
+from glmap_tools.app.state import SessionRegistry
 from glmap_tools.errors import StoreError, UnknownIdError
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.server import build_server
-from glmap_tools.server.state import SessionRegistry
 from tests.test_server_fixtures import config, frame_args
 
 pytestmark = pytest.mark.anyio

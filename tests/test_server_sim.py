@@ -90,8 +90,8 @@ async def test_the_image_size_and_step_limit_can_be_chosen_at_reset(tmp_path):
 
 def test_an_action_on_an_episode_a_reset_replaced_is_refused_saying_so():
     # Issue 27 item 4: sim_step racing sim_reset answered "this SceneRenderer was closed".
+    from glmap_tools.app import simulator
     from glmap_tools.errors import InvalidInputError
-    from glmap_tools.server import simulator
 
     sim = simulator.open_episode("objectnav", 0, (96, 72), 20)
     simulator.reset(sim, 0, None)

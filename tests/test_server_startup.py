@@ -14,9 +14,9 @@ import anyio
 import pytest
 from mcp import Client
 
+from glmap_tools.app.background import EMBEDDER, KERNELS, Background, BackgroundEmbedder
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.server import build_server
-from glmap_tools.server.background import EMBEDDER, KERNELS, Background, BackgroundEmbedder
 from tests.test_server_fixtures import config, frame_args
 
 pytestmark = pytest.mark.anyio

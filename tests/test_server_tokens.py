@@ -8,8 +8,8 @@ import json
 import pytest
 from mcp import Client
 
+from glmap_tools.app.results import compact_schema, compact_text
 from glmap_tools.server import build_server
-from glmap_tools.server.results import compact_schema, compact_text
 from tests.test_server_fixtures import config, frame_args
 
 pytestmark = pytest.mark.anyio

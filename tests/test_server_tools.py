@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from mcp import Client
 
+from glmap_tools.app.frames import jpeg_base64, png_base64
 from glmap_tools.server import build_server
-from glmap_tools.server.frames import jpeg_base64, png_base64
 from tests.test_server_fixtures import GROUPS, OBJECTS, config, counts, frame_args, view
 
 pytestmark = pytest.mark.anyio
@@ -306,7 +306,7 @@ async def test_out_of_bounds_query_arguments_are_tool_errors_naming_the_bound(
 
 @pytest.mark.parametrize("size", [(1, 1), (37, 5), (640, 480), (1023, 767)])
 def test_image_sizes_read_from_the_headers_match_the_decoded_images(size):
-    from glmap_tools.server.images import image_header
+    from glmap_tools.app.images import image_header
 
     w, h = size
     rng = np.random.default_rng(w * h)

@@ -11,18 +11,18 @@ import pytest
 from mcp import Client
 from mcp.shared.exceptions import MCPError
 
-from glmap_tools.language.embed import HashingEmbedder
-from glmap_tools.map import GLMap, MapConfig
-from glmap_tools.map.occupancy import OccupancyGrid
-from glmap_tools.server import ServerConfig, build_server
-from glmap_tools.server.inputs import (
+from glmap_tools.app.inputs import (
     AnnotationInput,
     FileInput,
     IntrinsicsInput,
     PoseInput,
     decode_frame,
 )
-from glmap_tools.server.views import ViewRequest, render_request
+from glmap_tools.app.views import ViewRequest, render_request
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.map.occupancy import OccupancyGrid
+from glmap_tools.server import ServerConfig, build_server
 from glmap_tools.views.topdown import palette
 from tests.test_server_fixtures import config, frame_args
 

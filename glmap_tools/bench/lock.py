@@ -130,9 +130,9 @@ async def observed_with_probe(
 
 
 async def run(args: argparse.Namespace) -> int:
+    from glmap_tools.app.frames import observe_arguments
     from glmap_tools.bench.report import Report, load_average
     from glmap_tools.server import ServerConfig
-    from glmap_tools.server.frames import observe_arguments
     from glmap_tools.toolset import Toolset
 
     report = Report("bench lock")
@@ -211,9 +211,9 @@ async def run_refusals(args: argparse.Namespace) -> int:
 
     from mcp import Client
 
+    from glmap_tools.app.frames import observe_arguments
     from glmap_tools.bench.report import Report
     from glmap_tools.server import ServerConfig, build_server
-    from glmap_tools.server.frames import observe_arguments
 
     report = Report("bench lock --refusals")
     frame, ids = tiled_frame(4, 64, 48)
@@ -280,8 +280,8 @@ def run_merge_scaling(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     import anyio
 
+    from glmap_tools.app.inputs import MAX_GROUPS, MAX_OBJECTS
     from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS
-    from glmap_tools.server.inputs import MAX_GROUPS, MAX_OBJECTS
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench lock")
     parser.add_argument("--objects", type=int, default=MAX_OBJECTS)

@@ -51,10 +51,10 @@ async def run(args: argparse.Namespace) -> int:
     from mcp import Client
 
     from glmap_tools import synthetic
+    from glmap_tools.app.frames import observe_arguments
     from glmap_tools.bench.report import Report
     from glmap_tools.map import MapConfig
     from glmap_tools.server import ServerConfig, build_server
-    from glmap_tools.server.frames import observe_arguments
 
     report = Report("bench tokens")
     with tempfile.TemporaryDirectory() as tmp:

@@ -7,11 +7,11 @@ from typing import TYPE_CHECKING
 from glmap_tools.lazy import lazy_getattr
 
 if TYPE_CHECKING:
-    from glmap_tools.server.app import build_server
-    from glmap_tools.server.config import ServerConfig
+    from glmap_tools.app.config import ServerConfig
+    from glmap_tools.server.build import build_server
 
 # Loaded on first use: `glmap-mcp` (glmap_tools.server.cli) answers its handshake before
 # the MCP SDK and the tools are imported.
-_LAZY = {"build_server": "glmap_tools.server.app", "ServerConfig": "glmap_tools.server.config"}
+_LAZY = {"build_server": "glmap_tools.server.build", "ServerConfig": "glmap_tools.app.config"}
 __all__ = ["ServerConfig", "build_server"]
 __getattr__ = lazy_getattr(__name__, _LAZY, globals())

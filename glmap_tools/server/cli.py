@@ -5,7 +5,7 @@ token that every request must carry: from $GLMAP_MCP_TOKEN or --token-file (--to
 works but shows the token in the process list, and warns).
 
 `--map NAME` is for clients that start a server process per tool call: every process
-works on the saved map NAME and its simulator episode (glmap_tools.server.persist).
+works on the saved map NAME and its simulator episode (glmap_tools.app.persist).
 """
 
 from __future__ import annotations
@@ -17,16 +17,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from glmap_tools.errors import GLMapError, InvalidInputError
-from glmap_tools.language.backends import add_llm_arguments, settings_from_args
-from glmap_tools.map import MapConfig
-from glmap_tools.server.config import (
+from glmap_tools.app.config import (
     MAX_CONNECTIONS,
     MIB,
     REQUEST_TIMEOUT_S,
     ServerConfig,
     default_maps_dir,
 )
+from glmap_tools.errors import GLMapError, InvalidInputError
+from glmap_tools.language.backends import add_llm_arguments, settings_from_args
+from glmap_tools.map import MapConfig
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 TOKEN_ENV = "GLMAP_MCP_TOKEN"
@@ -180,12 +180,12 @@ def check_pinned_map(config: ServerConfig) -> None:
     Reads only the file's meta table (milliseconds), so the handshake is not delayed.
 
     Raises:
-        StoreError: see glmap_tools.server.persist.check_saved_map.
+        StoreError: see glmap_tools.app.persist.check_saved_map.
     """
     if config.map_name is None:
         return
-    from glmap_tools.server.persist import check_saved_map
-    from glmap_tools.server.state import MAP_SUFFIX
+    from glmap_tools.app.persist import check_saved_map
+    from glmap_tools.app.state import MAP_SUFFIX
 
     path = config.maps_dir / f"{config.map_name}{MAP_SUFFIX}"
     check_saved_map(path, config.map_name, config.map_config, config.embedder)
@@ -193,7 +193,7 @@ def check_pinned_map(config: ServerConfig) -> None:
 
 def build(config: ServerConfig, perception: Any) -> Any:
     """The server (its tool calls hold the --map lock when --map is given)."""
-    from glmap_tools.server.app import build_server
+    from glmap_tools.server.build import build_server
 
     return build_server(config, perception)
 
@@ -315,14 +315,30 @@ def perception_from_args(args: argparse.Namespace) -> Any:
     )
 
 
+def prepare() -> int:
+    """Fill numba's cache, check the embedder loads and prepare the handshake answers
+    (`glmap-mcp --prepare`, .ci/setup)."""
+    import time
+
+    from glmap_tools.app.background import load_embedder, warm_kernels
+    from glmap_tools.server.handshake import answers_path, prepare_handshake
+
+    seconds = warm_kernels()
+    print(f"glmap-mcp kernels ready in {seconds:.1f} s (numba cache filled)")
+    start = time.perf_counter()
+    load_embedder("minilm", None).embed(["a chair"])
+    print(f"text embedder loaded in {time.perf_counter() - start:.1f} s")
+    versions = prepare_handshake()
+    print(f"handshake answers prepared for {', '.join(versions)} in {answers_path()}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     import logging
 
     logging.basicConfig(level=args.log_level, stream=sys.stderr)
     if args.prepare:
-        from glmap_tools.server.background import prepare
-
         return prepare()
     try:
         token = read_token(args)

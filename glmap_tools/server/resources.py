@@ -11,14 +11,14 @@ from typing import TYPE_CHECKING
 from mcp.server.mcpserver import Context, MCPServer
 from mcp.server.mcpserver.exceptions import ResourceError, ResourceNotFoundError
 
+from glmap_tools.app.config import ServerConfig
+from glmap_tools.app.runtime import app_state, transport_session_id
+from glmap_tools.app.state import Session, locked
+from glmap_tools.app.state import saved_maps as saved_map_files
+from glmap_tools.app.views import EMPTY_MAP
+from glmap_tools.app.views import topdown as draw
 from glmap_tools.errors import GLMapError, UnknownIdError
 from glmap_tools.map.queries import details
-from glmap_tools.server.config import ServerConfig
-from glmap_tools.server.runtime import app_state, transport_session_id
-from glmap_tools.server.state import Session, locked
-from glmap_tools.server.state import saved_maps as saved_map_files
-from glmap_tools.server.views import EMPTY_MAP
-from glmap_tools.server.views import topdown as draw
 
 if TYPE_CHECKING:
     from glmap_tools.map import GLMap

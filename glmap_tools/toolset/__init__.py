@@ -14,8 +14,8 @@ take Python functions (ollama, pydantic-ai, LangChain, smolagents):
 See docs/toolset.md.
 """
 
-from glmap_tools.server.results import ImageResult, Picture, as_text, pictures_of
-from glmap_tools.toolset.catalog import TOOL_NAMES, TOOLS
+from glmap_tools.app.catalog import TOOL_NAMES, TOOLS
+from glmap_tools.app.results import ImageResult, Picture, as_text, pictures_of
 from glmap_tools.toolset.local import Toolset
 
 __all__ = ["TOOLS", "TOOL_NAMES", "ImageResult", "Picture", "Toolset", "as_text", "pictures_of"]

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from glmap_tools.app.results import as_text, pictures_of
 from glmap_tools.errors import GLMapError
-from glmap_tools.server.results import as_text, pictures_of
 
 if TYPE_CHECKING:
     from glmap_tools.toolset.local import Toolset

@@ -1,6 +1,6 @@
 """`Toolset`: the GLMap tools in this process, for agent frameworks without MCP.
 
-The functions are the ones the MCP server registers (glmap_tools.toolset.catalog), called
+The functions are the ones the MCP server registers (glmap_tools.app.catalog), called
 with a `LocalContext` instead of an MCP request's: the same names, descriptions,
 parameters, validation and results. A call's arguments are tidied and validated as the
 server does it (nulls = omitted, `topK` = `top_k`, "5" = 5; anything else a clear
@@ -18,20 +18,20 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
-from glmap_tools.errors import InvalidInputError, UnknownIdError
-from glmap_tools.server.app import add_tools, lean_tools, mcp_tool, needed_tasks, opened_state
-from glmap_tools.server.background import Background
-from glmap_tools.server.config import ServerConfig
-from glmap_tools.server.inputs import tidy_arguments, validation_message
-from glmap_tools.server.results import compact_description, compact_schema
-from glmap_tools.server.runtime import (
+from glmap_tools.app.background import Background
+from glmap_tools.app.catalog import TOOLS
+from glmap_tools.app.config import ServerConfig
+from glmap_tools.app.inputs import tidy_arguments, validation_message
+from glmap_tools.app.results import compact_description, compact_schema
+from glmap_tools.app.runtime import (
     AppState,
     LocalContext,
     PerceptionBackend,
     ProgressCallback,
     ToolSpec,
 )
-from glmap_tools.toolset.catalog import TOOLS
+from glmap_tools.errors import InvalidInputError, UnknownIdError
+from glmap_tools.server.build import add_tools, lean_tools, mcp_tool, needed_tasks, opened_state
 from glmap_tools.toolset.flat import SEP, flat_schema, unflatten
 
 if TYPE_CHECKING:

@@ -14,6 +14,10 @@ from typing import TYPE_CHECKING, Annotated
 from mcp.server.mcpserver import Context
 from pydantic import BaseModel, ConfigDict, Field
 
+from glmap_tools.app.inputs import MAX_GROUPS, MAX_OBJECTS, Description, Label, SessionArg
+from glmap_tools.app.results import ObserveResult, Picture
+from glmap_tools.app.runtime import ADDS, AppState, ToolSpec, app_state, in_thread, session_of
+from glmap_tools.app.state import Session, locked
 from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS
 from glmap_tools.perception.labelling import (
@@ -24,10 +28,6 @@ from glmap_tools.perception.labelling import (
 )
 from glmap_tools.perception.pending import PendingFrames, pending_bytes
 from glmap_tools.perception.semantics import FrameSemantics
-from glmap_tools.server.inputs import MAX_GROUPS, MAX_OBJECTS, Description, Label, SessionArg
-from glmap_tools.server.results import ObserveResult, Picture
-from glmap_tools.server.runtime import ADDS, AppState, ToolSpec, app_state, in_thread, session_of
-from glmap_tools.server.state import Session, locked
 
 if TYPE_CHECKING:
     from glmap_tools.perception.geometric import Segment

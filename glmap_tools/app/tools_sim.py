@@ -9,12 +9,12 @@ import cv2
 from mcp.server.mcpserver import Context
 from pydantic import Field
 
+from glmap_tools.app import navsession, simulator
+from glmap_tools.app.inputs import SessionArg
+from glmap_tools.app.results import ImageResult, Picture
+from glmap_tools.app.runtime import ADDS, DROPS, ToolSpec, app_state, in_thread, session_of
+from glmap_tools.app.state import Session, locked
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.server import navsession, simulator
-from glmap_tools.server.inputs import SessionArg
-from glmap_tools.server.results import ImageResult, Picture
-from glmap_tools.server.runtime import ADDS, DROPS, ToolSpec, app_state, in_thread, session_of
-from glmap_tools.server.state import Session, locked
 
 Action = Literal["move_forward", "turn_left", "turn_right", "stop"]
 Size = Literal["160x120", "320x240", "640x480"]

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 from glmap_tools.errors import StoreError
 
 if TYPE_CHECKING:
-    from glmap_tools.server.state import Session, SessionRegistry
+    from glmap_tools.app.state import Session, SessionRegistry
 
 RECORD_FORMAT = "glmap-tools episode"
 RECORD_VERSION = 1
@@ -27,7 +27,7 @@ NAV_REBUILT = ("egocentric", "scorer")
 
 def episode_record(session: Session) -> str | None:
     """The session's simulator episode as record text (JSON), or None without one."""
-    from glmap_tools.server import navsession, simulator
+    from glmap_tools.app import navsession, simulator
 
     sim = session.extras.get(simulator.SIM_KEY)
     if sim is None or sim.started is None:
@@ -108,7 +108,7 @@ def restore_episode(session: Session, text: str, registry: SessionRegistry) -> N
     Raises:
         StoreError: the record cannot be read or replayed.
     """
-    from glmap_tools.server import navsession, simulator
+    from glmap_tools.app import navsession, simulator
 
     try:
         rec = json.loads(text)

@@ -8,7 +8,7 @@ A *session* is what one client works in. Its key comes from the transport:
 - otherwise the server's *default* session (stdio and in-memory serve one client each).
 
 With `glmap-mcp --map NAME` the default session is pinned to the saved map NAME, shared
-with other processes through its file (glmap_tools.server.persist), and every call that
+with other processes through its file (glmap_tools.app.persist), and every call that
 names no session works in it, whatever its connection. `session="default"` always names
 the default session.
 
@@ -32,6 +32,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from glmap_tools.app.config import ServerConfig
+from glmap_tools.app.memory import trim
 from glmap_tools.errors import (
     GLMapError,
     InvalidInputError,
@@ -39,8 +41,6 @@ from glmap_tools.errors import (
     UnknownIdError,
     did_you_mean,
 )
-from glmap_tools.server.config import ServerConfig
-from glmap_tools.server.memory import trim
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
@@ -168,7 +168,7 @@ class SessionRegistry:
         # the server keeps for it beside the map, e.g. pending frames, can go).
         self.on_drop: list[Callable[[str], None]] = []
         if config.map_name is not None:
-            from glmap_tools.server.persist import PinnedMap
+            from glmap_tools.app.persist import PinnedMap
 
             self.pin = PinnedMap(self, config.map_name)
         # The default session's map is made on first use: building a GLMap imports the

@@ -61,7 +61,7 @@ class ServerConfig:
             uses an Ollama model, see docs/own_model.md).
         map_name: `glmap-mcp --map NAME`: the saved map the default session is pinned to,
             shared with every process started with the same name (see
-            glmap_tools.server.persist); None: the default session starts on a scratch map.
+            glmap_tools.app.persist); None: the default session starts on a scratch map.
         map_wait_s: how long a tool call waits for the map of `map_name` while another
             process holds it, before failing.
         scene_dirs: scene folders of one's own by name (`glmap-mcp --scenes-dir NAME=DIR`,
@@ -131,7 +131,7 @@ class ServerConfig:
                 f"compute_threads={self.compute_threads!r} must be an integer >= 1 or None."
             )
         if self.map_name is not None:
-            from glmap_tools.server.state import check_map_name
+            from glmap_tools.app.state import check_map_name
 
             stem = check_map_name(self.map_name, what="--map name")
             object.__setattr__(self, "map_name", stem)

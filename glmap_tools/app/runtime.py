@@ -11,9 +11,9 @@ from mcp.server.mcpserver import Context
 from mcp.types import ToolAnnotations
 from pydantic import PrivateAttr
 
-from glmap_tools.server.config import ServerConfig
-from glmap_tools.server.results import compact_json as compact_json  # re-exported
-from glmap_tools.server.state import Session, SessionRegistry
+from glmap_tools.app.config import ServerConfig
+from glmap_tools.app.results import compact_json as compact_json  # re-exported
+from glmap_tools.app.state import Session, SessionRegistry
 
 if TYPE_CHECKING:
     from glmap_tools.geometry.frame import RGBDFrame
@@ -120,7 +120,7 @@ def transport_session_id(ctx: Context) -> tuple[str | None, bool]:
 
 
 def session_of(ctx: Context, handle: str | None) -> Session:
-    """The session this call works in (see glmap_tools.server.state)."""
+    """The session this call works in (see glmap_tools.app.state)."""
     transport_id, _ = transport_session_id(ctx)
     return app_state(ctx).registry.resolve(handle or None, transport_id)
 

@@ -1,7 +1,7 @@
 """Tool inputs of observe_frame: files as base64 or local paths, intrinsics, pose, annotations.
 
 Every check runs before any map state is touched, and each failure names the bad value and
-the fix. The image files themselves are decoded by `glmap_tools.server.images`.
+the fix. The image files themselves are decoded by `glmap_tools.app.images`.
 """
 
 from __future__ import annotations
@@ -18,6 +18,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError
 
+from glmap_tools.app.config import MIB, ServerConfig
+from glmap_tools.app.images import decode_depth, decode_mask, decode_rgb
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Intrinsics, Pose
 from glmap_tools.geometry.adapters import from_dataset
@@ -27,8 +29,6 @@ from glmap_tools.language.embed import Embedder
 from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS, ExtractiveTextMerger
 from glmap_tools.perception.annotated import semantics_from_annotation
 from glmap_tools.perception.semantics import FrameSemantics
-from glmap_tools.server.config import MIB, ServerConfig
-from glmap_tools.server.images import decode_depth, decode_mask, decode_rgb
 
 # Per frame, at most this many objects and groups (see docs/mcp.md, "Limits").
 MAX_OBJECTS = 64

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from glmap_tools.server import (
+from glmap_tools.app import (
     tools_export,
     tools_map,
     tools_nav,
@@ -12,7 +12,7 @@ from glmap_tools.server import (
     tools_store,
     tools_view,
 )
-from glmap_tools.server.runtime import ToolSpec
+from glmap_tools.app.runtime import ToolSpec
 
 TOOLS: tuple[ToolSpec, ...] = (
     *tools_map.TOOLS,

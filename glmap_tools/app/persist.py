@@ -26,13 +26,13 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from glmap_tools.app.episode_record import episode_record, restore_episode
+from glmap_tools.app.state import MAP_SUFFIX, PIN_KEY, Session, check_map_name
 from glmap_tools.errors import GLMapError, StoreError
-from glmap_tools.server.episode_record import episode_record, restore_episode
-from glmap_tools.server.state import MAP_SUFFIX, PIN_KEY, Session, check_map_name
 
 if TYPE_CHECKING:
+    from glmap_tools.app.state import LiveMap, SessionRegistry
     from glmap_tools.map import MapConfig
-    from glmap_tools.server.state import LiveMap, SessionRegistry
 
 log = logging.getLogger(__name__)
 
@@ -296,7 +296,7 @@ class PinnedMap:
         store.mark_seen()
         text = store.read_extra(EPISODE)
         if text is not None and text != self.record:
-            from glmap_tools.server import navsession, simulator
+            from glmap_tools.app import navsession, simulator
 
             log.info("continuing the simulator episode of map %r", self.name)
             try:

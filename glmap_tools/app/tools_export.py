@@ -11,12 +11,12 @@ from typing import Annotated
 from mcp.server.mcpserver import Context
 from pydantic import Field
 
+from glmap_tools.app.inputs import SessionArg
+from glmap_tools.app.results import Exported
+from glmap_tools.app.runtime import REPLACES, ToolSpec, app_state, in_thread, session_of
+from glmap_tools.app.state import check_map_name, locked
+from glmap_tools.app.views import EMPTY_MAP
 from glmap_tools.errors import InvalidInputError, StoreError
-from glmap_tools.server.inputs import SessionArg
-from glmap_tools.server.results import Exported
-from glmap_tools.server.runtime import REPLACES, ToolSpec, app_state, in_thread, session_of
-from glmap_tools.server.state import check_map_name, locked
-from glmap_tools.server.views import EMPTY_MAP
 
 PLY_SUFFIX = ".ply"
 ExportName = Annotated[

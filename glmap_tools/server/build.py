@@ -15,9 +15,7 @@ from mcp.types import CallToolResult, InputRequiredResult, TextContent, Tool
 from pydantic import BaseModel, ValidationError
 
 from glmap_tools import __version__
-from glmap_tools.errors import GLMapError
-from glmap_tools.server import resources
-from glmap_tools.server.background import (
+from glmap_tools.app.background import (
     EMBEDDER,
     HANDSHAKE_HOLD_S,
     KERNELS,
@@ -27,9 +25,9 @@ from glmap_tools.server.background import (
     load_embedder,
     warm_kernels,
 )
-from glmap_tools.server.config import ServerConfig
-from glmap_tools.server.inputs import tidy_arguments, validation_message
-from glmap_tools.server.results import (
+from glmap_tools.app.config import ServerConfig
+from glmap_tools.app.inputs import tidy_arguments, validation_message
+from glmap_tools.app.results import (
     ImageResult,
     compact_description,
     compact_json,
@@ -38,9 +36,11 @@ from glmap_tools.server.results import (
     pictures_of,
     strip_descriptions,
 )
-from glmap_tools.server.runtime import AppState, PerceptionBackend, ToolSpec, app_state
-from glmap_tools.server.state import SessionRegistry
-from glmap_tools.server.threads import limited_threads
+from glmap_tools.app.runtime import AppState, PerceptionBackend, ToolSpec, app_state
+from glmap_tools.app.state import SessionRegistry
+from glmap_tools.app.threads import limited_threads
+from glmap_tools.errors import GLMapError
+from glmap_tools.server import resources
 
 logger = logging.getLogger(__name__)
 
@@ -243,9 +243,9 @@ def hide_maps_folder(message: str, arguments: list[Any]) -> str:
 
 
 def add_tools(server: MCPServer, tools: tuple[ToolSpec, ...] | None = None) -> None:
-    """Register `tools` (default: all, glmap_tools.toolset.catalog) on `server`."""
+    """Register `tools` (default: all, glmap_tools.app.catalog) on `server`."""
     if tools is None:
-        from glmap_tools.toolset.catalog import TOOLS  # imports the tools modules
+        from glmap_tools.app.catalog import TOOLS  # imports the tools modules
 
         tools = TOOLS
     for spec in tools:
@@ -321,7 +321,7 @@ def build_server(
     add_tools(server)
     resources.register(server, config)
     if config.map_name is not None:  # --map: each call holds the saved map's lock
-        from glmap_tools.server.persist import guard_calls
+        from glmap_tools.app.persist import guard_calls
 
         guard_calls(server)
     return server

@@ -8,10 +8,10 @@ from typing import Annotated, Any, Literal
 from mcp.server.mcpserver import Context
 from pydantic import BaseModel, Field
 
-from glmap_tools.server.inputs import SessionArg
-from glmap_tools.server.results import ImageResult, Picture
-from glmap_tools.server.runtime import READ_ONLY, ToolSpec, in_thread, session_of
-from glmap_tools.server.state import locked
+from glmap_tools.app.inputs import SessionArg
+from glmap_tools.app.results import ImageResult, Picture
+from glmap_tools.app.runtime import READ_ONLY, ToolSpec, in_thread, session_of
+from glmap_tools.app.state import locked
 from glmap_tools.views.common import encode_png
 
 MAX_SITUATION = 512

@@ -8,11 +8,11 @@ from typing import Annotated, Literal
 from mcp.server.mcpserver import Context
 from pydantic import Field
 
-from glmap_tools.server.inputs import PoseInput, SessionArg, pose_of
-from glmap_tools.server.results import ImageResult, Picture
-from glmap_tools.server.runtime import READ_ONLY, ToolSpec, app_state, in_thread, session_of
-from glmap_tools.server.state import locked
-from glmap_tools.server.views import Rendered, ViewRequest, check_request, render_request
+from glmap_tools.app.inputs import PoseInput, SessionArg, pose_of
+from glmap_tools.app.results import ImageResult, Picture
+from glmap_tools.app.runtime import READ_ONLY, ToolSpec, app_state, in_thread, session_of
+from glmap_tools.app.state import locked
+from glmap_tools.app.views import Rendered, ViewRequest, check_request, render_request
 
 Target = Literal["instance", "region", "map", "pose", "situated"]
 Side = int  # checked by _side (0 or 32..1024)

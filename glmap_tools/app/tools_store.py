@@ -9,9 +9,9 @@ from typing import Annotated
 from mcp.server.mcpserver import Context
 from pydantic import Field
 
-from glmap_tools.server.inputs import SessionArg
-from glmap_tools.server.results import MapEntry, MapInfo, MapList, SavedMap
-from glmap_tools.server.runtime import (
+from glmap_tools.app.inputs import SessionArg
+from glmap_tools.app.results import MapEntry, MapInfo, MapList, SavedMap
+from glmap_tools.app.runtime import (
     DROPS,
     READ_ONLY,
     REPLACES,
@@ -21,8 +21,8 @@ from glmap_tools.server.runtime import (
     session_for_new_map,
     session_of,
 )
-from glmap_tools.server.state import Session, locked, saved_maps
-from glmap_tools.server.tools_map import resource_uris
+from glmap_tools.app.state import Session, locked, saved_maps
+from glmap_tools.app.tools_map import resource_uris
 
 MapName = Annotated[
     str, Field(min_length=1, max_length=70, description="letters, digits, '-' or '_'")

@@ -13,13 +13,13 @@ import numpy as np
 from mcp.server.mcpserver import Context
 from pydantic import Field
 
+from glmap_tools.app import navsession, simulator
+from glmap_tools.app.inputs import SessionArg
+from glmap_tools.app.navdraw import contact_sheet, jpeg, nav_image
+from glmap_tools.app.results import ImageResult, Picture
+from glmap_tools.app.runtime import ADDS, READ_ONLY, ToolSpec, in_thread, session_of
+from glmap_tools.app.state import Session, locked
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.server import navsession, simulator
-from glmap_tools.server.inputs import SessionArg
-from glmap_tools.server.navdraw import contact_sheet, jpeg, nav_image
-from glmap_tools.server.results import ImageResult, Picture
-from glmap_tools.server.runtime import ADDS, READ_ONLY, ToolSpec, in_thread, session_of
-from glmap_tools.server.state import Session, locked
 
 Units = Literal["both", "instances", "regions"]
 Policy = Literal["glmap", "glmap-instance", "glmap-region", "egocentric", "frontier"]

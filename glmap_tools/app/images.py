@@ -11,9 +11,9 @@ import io
 import cv2
 import numpy as np
 
+from glmap_tools.app.config import ServerConfig
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry.backproject import depth_from_uint16
-from glmap_tools.server.config import ServerConfig
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 JPEG_MAGIC = b"\xff\xd8\xff"

@@ -8,10 +8,8 @@ from typing import Annotated
 from mcp.server.mcpserver import Context
 from pydantic import BaseModel, Field
 
-from glmap_tools.map import FREE, OBSTACLE
-from glmap_tools.map.report import UnitInfo
-from glmap_tools.server import tools_perception
-from glmap_tools.server.inputs import (
+from glmap_tools.app import tools_perception
+from glmap_tools.app.inputs import (
     AnnotationInput,
     FileInput,
     IntrinsicsInput,
@@ -20,8 +18,8 @@ from glmap_tools.server.inputs import (
     decode_frame,
     embed_ahead,
 )
-from glmap_tools.server.navsession import from_agent
-from glmap_tools.server.results import (
+from glmap_tools.app.navsession import from_agent
+from glmap_tools.app.results import (
     Hits,
     ImageResult,
     MapInfo,
@@ -29,7 +27,7 @@ from glmap_tools.server.results import (
     Picture,
     UnitsAt,
 )
-from glmap_tools.server.runtime import (
+from glmap_tools.app.runtime import (
     ADDS,
     READ_ONLY,
     ToolSpec,
@@ -37,8 +35,10 @@ from glmap_tools.server.runtime import (
     in_thread,
     session_of,
 )
-from glmap_tools.server.state import locked
-from glmap_tools.server.views import describe_topdown, topdown
+from glmap_tools.app.state import locked
+from glmap_tools.app.views import describe_topdown, topdown
+from glmap_tools.map import FREE, OBSTACLE
+from glmap_tools.map.report import UnitInfo
 from glmap_tools.views import TopDownImage
 
 # Bounds a model cannot plausibly hit are checked but not advertised (see compact_schema).

@@ -176,9 +176,9 @@ def warm_kernels() -> float:
     Each kernel is compiled, or loaded from numba's cache when `.ci/setup` filled it.
     """
     from glmap_tools import synthetic
+    from glmap_tools.app.views import warm_up
     from glmap_tools.language.embed import HashingEmbedder
     from glmap_tools.map import GLMap, MapConfig
-    from glmap_tools.server.views import warm_up
 
     start = time.perf_counter()
     boxes = synthetic.floor(2.0) + synthetic.chair(0.0, 0.0, object_id=1)
@@ -191,18 +191,3 @@ def warm_kernels() -> float:
     glmap.integrate(frame, synthetic.semantics(ids, texts))
     warm_up()
     return time.perf_counter() - start
-
-
-def prepare() -> int:
-    """Fill numba's cache, check the embedder loads and prepare the handshake answers
-    (`glmap-mcp --prepare`, .ci/setup)."""
-    seconds = warm_kernels()
-    print(f"glmap-mcp kernels ready in {seconds:.1f} s (numba cache filled)")
-    start = time.perf_counter()
-    load_embedder("minilm", None).embed(["a chair"])
-    print(f"text embedder loaded in {time.perf_counter() - start:.1f} s")
-    from glmap_tools.server.handshake import answers_path, prepare_handshake
-
-    versions = prepare_handshake()
-    print(f"handshake answers prepared for {', '.join(versions)} in {answers_path()}")
-    return 0

@@ -14,10 +14,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from glmap_tools.app import simulator
+from glmap_tools.app.state import PIN_KEY, Session, locked
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
-from glmap_tools.server import simulator
-from glmap_tools.server.state import PIN_KEY, Session, locked
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
