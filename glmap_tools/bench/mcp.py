@@ -162,8 +162,8 @@ async def timed(client: Any, tool: str, args: dict[str, Any]) -> float:
 def observe_frames(count: int) -> list[dict[str, Any]]:
     """observe_frame arguments of 640x480 views of a 10-object ray-cast scene."""
     from glmap_tools import synthetic
+    from glmap_tools.app.frames import observe_arguments
     from glmap_tools.bench.integrate import scene_with_ten_objects
-    from glmap_tools.server.frames import observe_arguments
 
     boxes = scene_with_ten_objects()
     texts = {k: ("chair", f"a wooden chair number {k}") for k in range(1, 6)}
