@@ -3,28 +3,22 @@
 from __future__ import annotations
 
 import argparse
-import os
-import time
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from glmap_tools.errors import StoreError
-from glmap_tools.language.backends import (
-    add_llm_arguments,
-    make_text_merger,
-    settings_from_args,
-)
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.ingest.build import EMBEDDERS, PERCEPTIONS, BuildSettings
+from glmap_tools.ingest.summary import SUMMARY_NAME
+from glmap_tools.language.backends import add_llm_arguments, settings_from_args
 
 if TYPE_CHECKING:
-    from collections.abc import Callable
-
-    from glmap_tools.ingest.datasets import IngestFrame, RGBDSequence
-    from glmap_tools.language.embed import Embedder
+    from glmap_tools.ingest.build import BuildStats
+    from glmap_tools.ingest.datasets import RGBDSequence
     from glmap_tools.map import GLMap
-    from glmap_tools.perception.semantics import FrameSemantics
 
 BUNDLED = "redwood_livingroom1_5frames"
+DEFAULT_OUT = Path("out/redwood.glmap")
 
 
 def bundled_folder() -> Path:
@@ -35,17 +29,30 @@ def bundled_folder() -> Path:
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "build",
-        help="build a map file from an RGB-D folder",
+        help="build a map file from an RGB-D folder, or one per folder of many",
         description=(
             "Build a GLMap from a Redwood-style (color/, depth/, trajectory.log, intrinsics "
             "JSON) or TUM-style (rgb.txt, depth.txt, groundtruth.txt) folder. Frames with "
             "annotations/<stem>.png + .json give instances and regions; others update "
-            "occupancy only. Without FOLDER, builds the bundled Redwood frames."
+            "occupancy only. Without FOLDER, builds the bundled Redwood frames.\n\n"
+            "Many scans: FOLDER may instead hold scan folders, or be a text file listing "
+            "them ([NAME=]FOLDER a line); --out is then a folder that gets <scan>.glmap per "
+            "scan. Maps that exist are skipped (resumable), --workers builds N at once, "
+            "--ray-address builds on a Ray cluster. See docs/building_maps.md."
         ),
     )
-    p.add_argument("folder", nargs="?", type=Path, help="RGB-D folder (default: bundled)")
-    p.add_argument("--out", type=Path, default=Path("out/redwood.glmap"), help="map file")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing map file")
+    p.add_argument(
+        "folder",
+        nargs="?",
+        type=Path,
+        help="RGB-D folder, a folder of them, or a list file (default: the bundled frames)",
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        help=f"map file (default: {DEFAULT_OUT}); for many scans, the maps' folder",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace existing map files")
     p.add_argument("--depth-scale", type=float, help="raw depth units per metre")
     p.add_argument("--up-axis", help="the dataset world's up axis (x, y, z, -x, -y, -z)")
     p.add_argument("--max-frames", type=int, help="stop after this many frames")
@@ -53,13 +60,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--voxel-size", type=float, default=0.02, help="Gaussian voxel (m)")
     p.add_argument(
         "--embedder",
-        choices=["minilm", "hashing"],
+        choices=EMBEDDERS,
         default="minilm",
         help="text embedder (hashing: fast, dependency-free, less accurate)",
     )
     p.add_argument(
         "--perception",
-        choices=["annotated", "geometric", "geometric+mllm", "mllm"],
+        choices=PERCEPTIONS,
         default="annotated",
         help="annotated: annotations/ masks and labels; geometric: model-free segments "
         "named by --labels (glmap_tools.perception.labels_file); geometric+mllm: named by "
@@ -74,107 +81,132 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="labels file for --perception geometric (default for the bundled frames: "
         "the bundled labels file)",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    g = p.add_argument_group("many scans (FOLDER holds scan folders, or lists them)")
+    g.add_argument(
+        "--workers",
+        type=int,
+        help="scans built at once: local processes (default 1) or Ray tasks (default: the "
+        "cluster's CPUs)",
+    )
+    g.add_argument("--ray-address", help="build on Ray: local, auto, HOST:PORT or ray://HOST:PORT")
+    g.add_argument("--summary", type=Path, help=f"summary JSON (default: <out>/{SUMMARY_NAME})")
     add_llm_arguments(p, scorer=False)
     p.set_defaults(func=run_build)
 
 
-def _embedder(name: str) -> Embedder:
-    from glmap_tools.language import embed
-
-    return embed.HashingEmbedder() if name == "hashing" else embed.default_embedder()
-
-
-def _geometric_perception(args: argparse.Namespace) -> Callable[[IngestFrame], FrameSemantics]:
-    """Frame -> semantics for --perception geometric, geometric+mllm or mllm."""
-    from glmap_tools.errors import InvalidInputError
-    from glmap_tools.perception.geometric import segment_frame
-    from glmap_tools.perception.labelling import semantics_from_labels
-    from glmap_tools.perception.labels_file import FrameLabels, load_labels_file, pointed_labels
-
-    if args.perception in ("geometric+mllm", "mllm"):
-        from glmap_tools.perception.backends import model_perception
-
-        backend = model_perception(
-            args.perception, settings_from_args(args), args.detector, args.segmenter
-        )
-        return lambda item: backend(item.frame)
-    path = args.labels
-    if path is None and args.folder is None:
-        path = bundled_folder().with_name(f"{BUNDLED}.labels.json")
-    if path is None:
-        raise InvalidInputError(
-            "--perception geometric needs --labels FILE: the names of each frame's objects, "
-            "by pixels pointing at them (see glmap_tools.perception.labels_file)."
-        )
-    frames = load_labels_file(path)
-
-    def perceive(item: IngestFrame) -> FrameSemantics:
-        segments = segment_frame(item.frame)
-        named = frames.get(item.rgb_path.stem, FrameLabels((), ()))
-        labels, groups, _ = pointed_labels(segments, named)
-        return semantics_from_labels(segments, labels, groups)
-
-    return perceive
-
-
-def run_build(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
-    from glmap_tools.ingest.datasets import open_sequence
-    from glmap_tools.map import GLMap, MapConfig
-
-    folder = args.folder or bundled_folder()
-    out: Path = args.out
-    if out.exists() and not args.overwrite:
-        raise StoreError(f"{str(out)!r} exists; pass --overwrite to replace it or choose --out.")
-    sequence = open_sequence(
-        folder,
+def settings_from(args: argparse.Namespace) -> BuildSettings:
+    """The `BuildSettings` of parsed `glmap build` arguments."""
+    labels = args.labels
+    if labels is None and args.folder is None and args.perception == "geometric":
+        labels = bundled_folder().with_name(f"{BUNDLED}.labels.json")
+    return BuildSettings(
         depth_scale=args.depth_scale,
         up_axis=args.up_axis,
         max_frames=args.max_frames,
         stride=args.stride,
+        voxel_size=args.voxel_size,
+        embedder=args.embedder,
+        perception=args.perception,
+        labels=labels,
+        detector=args.detector,
+        segmenter=args.segmenter,
+        llm=settings_from_args(args),
     )
-    perceive = _geometric_perception(args) if args.perception != "annotated" else None
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.building")
-    tmp.unlink(missing_ok=True)
-    start = time.perf_counter()
-    embedder = _embedder(args.embedder)
-    merger = make_text_merger(settings_from_args(args), embedder)
-    glmap = GLMap.open(
-        tmp, MapConfig(voxel_size=args.voxel_size), embedder=embedder, text_merger=merger
-    )
-    unannotated = 0
-    try:
-        for item in tqdm(sequence.frames(), total=len(sequence), unit="frame", disable=args.quiet):
-            if perceive is not None:
-                glmap.integrate(item.frame, perceive(item), item.index)
-            elif item.semantics is None:
-                from glmap_tools.perception import FrameSemantics
 
-                unannotated += 1
-                glmap.integrate(item.frame, FrameSemantics(), item.index)
-            else:
-                glmap.integrate(item.frame, item.semantics, item.index)
-        glmap.close()
-        os.replace(tmp, out)
-    except BaseException:
-        glmap.close()
-        tmp.unlink(missing_ok=True)
-        raise
-    elapsed = time.perf_counter() - start
-    print(format_summary(glmap, sequence, out, elapsed, unannotated))
+
+def is_many(source: Path | None) -> bool:
+    """Whether `source` names many scans (a list file, or a folder that is not one scan)."""
+    from glmap_tools.ingest.scans import is_sequence
+
+    if source is None:
+        return False
+    return source.is_file() or (source.is_dir() and not is_sequence(source))
+
+
+def run_build(args: argparse.Namespace) -> int:
+    if is_many(args.folder):
+        return _run_many(args)
+    for flag, value in (
+        ("--workers", args.workers),
+        ("--ray-address", args.ray_address),
+        ("--summary", args.summary),
+    ):
+        if value is not None:
+            raise InvalidInputError(
+                f"{flag} is for many scans, but {str(args.folder)!r} is one RGB-D folder; "
+                "pass the folder that holds the scan folders (or a list file), or drop "
+                f"{flag}."
+            )
+    return _run_one(args)
+
+
+def _run_one(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from glmap_tools.ingest.build import build_map
+
+    bar = tqdm(total=0, unit="frame", disable=args.quiet)
+
+    def progress(done: int, total: int) -> None:
+        if total:
+            bar.total = total
+            bar.refresh()
+        bar.update(done)
+
+    out: Path = args.out or DEFAULT_OUT
+    try:
+        built = build_map(
+            args.folder or bundled_folder(),
+            out,
+            settings_from(args),
+            overwrite=args.overwrite,
+            progress=progress,
+        )
+    finally:
+        bar.close()
+    print(format_summary(built.glmap, built.sequence, out, built.stats))
     return 0
 
 
-def format_summary(
-    glmap: GLMap, sequence: RGBDSequence, out: Path, elapsed: float, unannotated: int
-) -> str:
+def _run_many(args: argparse.Namespace) -> int:
+    from glmap_tools.ingest.batch import build_many
+    from glmap_tools.ingest.summary import format_table
+
+    if args.out is None:
+        raise InvalidInputError(
+            f"{str(args.folder)!r} holds many scans; pass --out FOLDER for their maps "
+            "(<scan>.glmap each)."
+        )
+    result = build_many(
+        args.folder,
+        args.out,
+        settings_from(args),
+        workers=args.workers,
+        ray_address=args.ray_address,
+        overwrite=args.overwrite,
+        summary=args.summary,
+        progress=not args.quiet,
+    )
+    print(format_table(result.rows))
+    built, skipped, failed = (result.count(s) for s in ("built", "skipped", "failed"))
+    frames = sum(r.frames or 0 for r in result.rows if r.status == "built")
+    print(
+        f"built {built}, skipped {skipped}, failed {failed} scan(s); {frames} frames in "
+        f"{result.wall_s:.0f} s; maps in {args.out}, summary in {result.summary}"
+    )
+    if failed:
+        print(f"rerun the same command to retry the {failed} failed scan(s)")
+    return 1 if failed else 0
+
+
+def format_summary(glmap: GLMap, sequence: RGBDSequence, out: Path, stats: BuildStats) -> str:
     """A human-readable summary of a built map."""
     s = glmap.summary()
+    unannotated = stats.unannotated
     lines = [
-        f"GLMap {out}  ({out.stat().st_size / 1024:.0f} KiB, built in {elapsed:.1f} s)",
+        f"GLMap {out}  ({out.stat().st_size / 1024:.0f} KiB, built in {stats.seconds:.1f} s: "
+        f"{stats.frames_per_s:.1f} frames/s, peak memory {stats.peak_rss_mb:.0f} MiB)",
         f"  source: {sequence.name} ({sequence.format}, {s.frames} frames, "
         f"depth scale {sequence.depth_scale:g}, up axis {sequence.up_axis})",
         f"  {s.instances} instances, {s.regions} regions, {s.gaussians} Gaussians "

@@ -1,0 +1,131 @@
+"""The summary of a many-folder build: one row per scan, as a text table and as JSON."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from glmap_tools.ingest.build import BuildSettings
+from glmap_tools.ingest.scans import Scan, map_path
+
+SUMMARY_NAME = "build-summary.json"
+
+
+@dataclass(frozen=True)
+class ScanResult:
+    """One row of the build summary.
+
+    Attributes:
+        scan: the scan's name.
+        folder: its folder.
+        map: the map file.
+        status: "built", "skipped" (the map existed) or "failed".
+        frames: frames fused (None when unknown: failed, or skipped with no earlier row).
+        instances: instances in the map.
+        regions: regions in the map.
+        gaussians: instance Gaussians in the map.
+        seconds: build wall time.
+        frames_per_s: frames / seconds.
+        peak_rss_mb: the building process's peak resident memory, MiB.
+        host: the machine that built it.
+        error: why it failed ("" otherwise).
+    """
+
+    scan: str
+    folder: str
+    map: str
+    status: str
+    frames: int | None = None
+    instances: int | None = None
+    regions: int | None = None
+    gaussians: int | None = None
+    seconds: float | None = None
+    frames_per_s: float | None = None
+    peak_rss_mb: float | None = None
+    host: str = ""
+    error: str = ""
+
+
+def read_summary(path: Path) -> dict[str, ScanResult]:
+    """The rows of an earlier summary JSON by scan name ({} when absent or unreadable)."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        fields = set(ScanResult.__dataclass_fields__)
+        rows = [ScanResult(**{k: v for k, v in r.items() if k in fields}) for r in data["scans"]]
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
+    return {r.scan: r for r in rows}
+
+
+def skipped_row(scan: Scan, out: Path, earlier: dict[str, ScanResult]) -> ScanResult:
+    """The row of a scan whose map exists: its earlier figures when a summary has them."""
+    before = earlier.get(scan.name)
+    row = ScanResult(scan.name, str(scan.folder), str(map_path(out, scan)), "skipped")
+    if before is not None and before.status == "built":
+        row = replace(before, folder=row.folder, map=row.map, status="skipped")
+    return row
+
+
+def summary_json(rows: list[ScanResult], wall_s: float, settings: BuildSettings) -> str:
+    counts = {s: sum(r.status == s for r in rows) for s in ("built", "skipped", "failed")}
+    built = [r for r in rows if r.status == "built" and r.frames and r.seconds]
+    frames = sum(r.frames or 0 for r in built)
+    cpu_s = sum(r.seconds or 0.0 for r in built)
+    doc: dict[str, Any] = {
+        "scans": [asdict(r) for r in rows],
+        "counts": counts,
+        "wall_s": round(wall_s, 2),
+        "frames_built": frames,
+        "seconds_per_frame": round(cpu_s / frames, 4) if frames else None,
+        "settings": json.loads(json.dumps(asdict(settings), default=str)),
+    }
+    return json.dumps(doc, indent=2) + "\n"
+
+
+def _cell(value: Any, digits: int = 0) -> str:
+    if value is None:
+        return "-"
+    return f"{value:.{digits}f}" if isinstance(value, float) else str(value)
+
+
+def format_table(rows: list[ScanResult]) -> str:
+    """The summary as an aligned text table, one scan a row, then each failure's error."""
+    head = ("scan", "frames", "instances", "regions", "seconds", "frames/s", "peak MB", "status")
+    body = []
+    for r in rows:
+        status = "FAILED" if r.status == "failed" else r.status
+        body.append(
+            (
+                r.scan,
+                _cell(r.frames),
+                _cell(r.instances),
+                _cell(r.regions),
+                _cell(r.seconds, 1),
+                _cell(r.frames_per_s, 1),
+                _cell(r.peak_rss_mb),
+                status,
+            )
+        )
+    widths = [max(len(row[k]) for row in [head, *body]) for k in range(len(head) - 1)]
+
+    def line(row: tuple[str, ...]) -> str:
+        cells = [row[0].ljust(widths[0])] + [
+            c.rjust(w) for c, w in zip(row[1:-1], widths[1:], strict=True)
+        ]
+        return "  ".join([*cells, row[-1]])
+
+    lines = [line(row) for row in [head, *body]]
+    for r in rows:
+        if r.status == "failed":
+            last = (r.error.strip().splitlines() or ["?"])[-1]
+            lines.append(f"FAILED {r.scan}: {last}")
+    return "\n".join(lines)
+
+
+def in_order(rows: Iterable[ScanResult], scans: list[Scan]) -> list[ScanResult]:
+    """The rows sorted in the order of `scans`."""
+    order = {s.name: k for k, s in enumerate(scans)}
+    return sorted(rows, key=lambda r: order.get(r.scan, len(order)))
