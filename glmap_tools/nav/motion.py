@@ -236,16 +236,23 @@ def bump_cells(
     return sorted(cells)
 
 
+def marks_near(
+    marks: set[tuple[int, int]], xy: tuple[float, float], cell_size: float, radius: float
+) -> set[tuple[int, int]]:
+    """The (i, j) bump marks whose cell centre is within `radius` m of `xy`."""
+    return {
+        c
+        for c in marks
+        if math.dist(((c[0] + 0.5) * cell_size, (c[1] + 0.5) * cell_size), xy) <= radius
+    }
+
+
 def forget_marks_near(
     marks: set[tuple[int, int]], xy: tuple[float, float], cell_size: float, radius: float
 ) -> bool:
     """Drop the (i, j) bump marks whose cell centre is within `radius` m of `xy` (in place);
     True when any were dropped."""
-    near = {
-        c
-        for c in marks
-        if math.dist(((c[0] + 0.5) * cell_size, (c[1] + 0.5) * cell_size), xy) <= radius
-    }
+    near = marks_near(marks, xy, cell_size, radius)
     marks -= near
     return bool(near)
 

@@ -1,0 +1,202 @@
+"""Choose a waypoint and plan to it; give up waypoints the agent cannot reach or clear.
+
+Pure steps over explicit inputs: `choose_and_plan` returns the choice together with the
+waypoints and units it gave up, and `progress` says whether the agent still closes in on
+its waypoint; `decide` (nav/policy.py) writes both into the episode's `NavState`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from glmap_tools.nav.config import NavConfig
+from glmap_tools.nav.perceive import Surroundings
+from glmap_tools.nav.planner import Plan, plan_on_field
+from glmap_tools.nav.value import ValueMap
+from glmap_tools.nav.waypoint import GoalMatch, Waypoint, choose_waypoint
+
+PROGRESS = 0.25  # metres of progress toward the waypoint that reset the stuck counter
+HOLD_AFTER_TURNS = 6  # turns in place after which the waypoint is held until the agent moves
+ATTEMPTS = 8  # waypoints tried in one step before looking around
+
+XY = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """Everything one waypoint choice reads.
+
+    Attributes:
+        value: the value map (None for policy 'frontier').
+        sur: the agent's surroundings (occupancy window, reachability, frontiers).
+        xy: the agent's (x, y), metres.
+        heading: radians, counter-clockwise from +x.
+        match: the instance matching the goal, if any.
+        walls: structure wall cells over `sur.occ` (None: every obstacle is a wall).
+        config: navigation settings.
+        last_waypoint: the previous step's waypoint.
+        turns_in_place: turns in a row without moving.
+        avoid: (x, y) of waypoints given up so far.
+    """
+
+    value: ValueMap | None
+    sur: Surroundings
+    xy: XY
+    heading: float
+    match: GoalMatch | None
+    walls: np.ndarray | None
+    config: NavConfig
+    last_waypoint: Waypoint | None
+    turns_in_place: int
+    avoid: tuple[XY, ...]
+
+
+@dataclass(frozen=True)
+class Choice:
+    """A waypoint, the plan to it, and what choosing them gave up.
+
+    Attributes:
+        waypoint: where the agent heads.
+        plan: the FMM plan to it.
+        avoid: the waypoints given up after this choice (replaces the request's).
+        rejected: matched instances found unreachable.
+    """
+
+    waypoint: Waypoint
+    plan: Plan
+    avoid: tuple[XY, ...]
+    rejected: frozenset[int] = frozenset()
+
+
+def plan_to(sur: Surroundings, xy: XY, heading: float, goal: XY, config: NavConfig) -> Plan:
+    """The FMM plan from `xy` to `goal` over the surroundings' distance field."""
+    return plan_on_field(sur.occ, sur.field, xy, heading, goal, config, sur.clear, sur.plannable)
+
+
+def look_around(xy: XY, reason: str) -> tuple[Waypoint, Plan]:
+    """Turn in place: the waypoint is where the agent stands."""
+    return Waypoint(xy, "explore", None, 0.0, reason), Plan(
+        np.array([xy]), 0.0, "turn_left", False, xy
+    )
+
+
+def _held(req: PlanRequest) -> Choice | None:
+    """The previous frontier waypoint, kept after `HOLD_AFTER_TURNS` turns in place with no
+    match while it can be reached: a value map that changes with every view (the egocentric
+    one, or units seen for the first time while turning) must not turn the agent round for
+    ever (tune s03-019, egocentric: 477 turns in a row)."""
+    last = req.last_waypoint
+    if (
+        req.turns_in_place < HOLD_AFTER_TURNS
+        or req.match is not None
+        or last is None
+        or last.kind != "frontier"
+        or last.xy is None
+    ):
+        return None
+    held = plan_to(req.sur, req.xy, req.heading, last.xy, req.config)
+    if held.reachable and held.action != "stop":
+        return Choice(last, held, req.avoid)
+    return None
+
+
+def choose_and_plan(req: PlanRequest) -> Choice:
+    """Choose a waypoint and plan to it; a frontier reached without effect is given up.
+
+    Up to `ATTEMPTS` waypoints are tried: an unreachable goal rejects its instance, a
+    frontier the plan says is reached is avoided from then on, and when every frontier was
+    given up once they all get another chance.
+    """
+    held = _held(req)
+    if held is not None:
+        return held
+    sur, xy, config = req.sur, req.xy, req.config
+    avoid, rejected, match = list(req.avoid), set[int](), req.match
+    for _ in range(ATTEMPTS):
+        wp = choose_waypoint(
+            req.value,
+            sur.fronts,
+            sur.trav,
+            xy,
+            match,
+            config,
+            occ=sur.occ,
+            distance=sur.field.metres,
+            avoid=avoid,
+            walls=req.walls,
+        )
+        if wp.xy is None and avoid and sur.fronts:
+            avoid.clear()  # every frontier was given up once: give them another chance
+            continue
+        if wp.xy is None and sur.fronts:
+            # Frontiers the planner cannot reach yet (a pinch left by bumps): look around.
+            waypoint, plan = look_around(xy, "no frontier can be reached: look around.")
+            return Choice(waypoint, plan, tuple(avoid), frozenset(rejected))
+        if wp.xy is None:
+            plan = Plan(np.zeros((0, 2)), math.inf, "stop", False, xy)
+            return Choice(wp, plan, tuple(avoid), frozenset(rejected))
+        if wp.kind == "goal" and wp.xy == xy:
+            plan = Plan(np.array([xy]), 0.0, "stop", True, xy)
+            return Choice(wp, plan, tuple(avoid), frozenset(rejected))
+        out = plan_to(sur, xy, req.heading, wp.xy, config)
+        if wp.kind == "goal" and not out.reachable:
+            assert match is not None
+            rejected.add(match.unit_id)
+            match = None
+            continue
+        if out.action == "stop" and wp.kind != "goal":
+            avoid.append(wp.xy)  # reached, yet still a frontier: look elsewhere
+            continue
+        return Choice(wp, out, tuple(avoid), frozenset(rejected))
+    waypoint, plan = look_around(xy, "every nearby waypoint was given up: look around.")
+    return Choice(waypoint, plan, tuple(avoid), frozenset(rejected))
+
+
+@dataclass(frozen=True)
+class Progress:
+    """How the agent closes in on its waypoint.
+
+    Attributes:
+        best_distance: the shortest plan length to this waypoint so far, metres.
+        since_progress: steps since the plan last got `PROGRESS` m shorter.
+        give_up: the waypoint to avoid from now on (stuck), or None.
+    """
+
+    best_distance: float
+    since_progress: int
+    give_up: XY | None = None
+
+
+def progress(
+    last: Waypoint | None,
+    best_distance: float,
+    since_progress: int,
+    wp: Waypoint,
+    out: Plan,
+    config: NavConfig,
+) -> Progress:
+    """Give up a waypoint the agent has not come `PROGRESS` m closer to in `stuck_steps` steps.
+
+    Args:
+        last: the previous step's waypoint.
+        best_distance: the previous `Progress.best_distance`.
+        since_progress: the previous `Progress.since_progress`.
+        wp: this step's waypoint.
+        out: the plan to it.
+        config: navigation settings.
+    """
+    same = (
+        last is not None
+        and wp.xy is not None
+        and last.xy is not None
+        and math.hypot(wp.xy[0] - last.xy[0], wp.xy[1] - last.xy[1]) < config.stop_distance
+    )
+    if not same or out.length < best_distance - PROGRESS:
+        return Progress(out.length, 0)
+    since_progress += 1
+    if since_progress >= config.stuck_steps and wp.xy is not None and wp.kind != "goal":
+        return Progress(math.inf, 0, wp.xy)
+    return Progress(best_distance, since_progress)

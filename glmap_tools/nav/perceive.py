@@ -1,0 +1,165 @@
+"""What a policy step reads off the map: the occupancy window around the agent, bump marks,
+reachability, frontiers, the goal match and the walls."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
+from glmap_tools.nav.config import NavConfig
+from glmap_tools.nav.frontiers import Frontier, frontiers
+from glmap_tools.nav.grid import agent_rc, known_window, reframe, structure_walls
+from glmap_tools.nav.motion import bump_cells, clearance, masks
+from glmap_tools.nav.planner import DistanceField, distance_field
+from glmap_tools.nav.scorers import Scorer, UnitText, map_units
+from glmap_tools.nav.value import unit_cell_array
+from glmap_tools.nav.waypoint import GoalMatch
+
+if TYPE_CHECKING:
+    from glmap_tools.map.glmap import GLMap
+    from glmap_tools.perception.semantics import FrameSemantics
+
+SHORT_MOVE = 0.0125  # metres: a move_forward this much short of a full step was stopped
+FORGET_NEAR = 0.5  # metres: bump marks this close are forgotten when no step is open
+
+Cell = tuple[int, int]
+
+
+def occupancy_window(
+    glmap: GLMap, agent_xy: tuple[float, float], blocked: set[Cell], config: NavConfig
+) -> DenseOccupancy:
+    """The map's known occupancy around the agent, `blocked` cells marked as obstacles."""
+    dense = glmap.occupancy.to_dense()
+    margin = math.ceil(config.window_margin / dense.cell_size)
+    occ = reframe(dense, known_window(dense, margin, agent_xy))
+    if blocked:
+        cells = np.array(sorted(blocked), dtype=np.int64)
+        r, c = cells[:, 1] - occ.origin[1], cells[:, 0] - occ.origin[0]
+        h, w = occ.state.shape
+        keep = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        occ.state[r[keep], c[keep]] = OBSTACLE
+    return occ
+
+
+def bump_marks(
+    glmap: GLMap,
+    xy: tuple[float, float],
+    last_action: str | None,
+    last_xy: tuple[float, float] | None,
+    last_heading: float,
+    config: NavConfig,
+) -> set[Cell]:
+    """Where the body touched when the simulator stopped the last forward move short
+    (`nav.motion.bump_cells`); empty when the last action was no stopped forward move."""
+    if last_action != "move_forward" or last_xy is None:
+        return set()
+    if math.dist(xy, last_xy) >= config.forward_step - SHORT_MOVE:
+        return set()
+    occ = occupancy_window(glmap, xy, set(), config)
+    return set(bump_cells(occ, xy, last_heading, config))
+
+
+@dataclass(frozen=True)
+class Surroundings:
+    """The occupancy window (bump marks included) around the agent and what is derived
+    from it: clearance, traversable cells, (plannable, speed), distance field, frontiers."""
+
+    occ: DenseOccupancy
+    clear: np.ndarray
+    trav: np.ndarray
+    plannable: tuple[np.ndarray, np.ndarray]
+    field: DistanceField
+    fronts: list[Frontier]
+
+
+def surroundings_of(
+    glmap: GLMap,
+    xy: tuple[float, float],
+    blocked: set[Cell],
+    config: NavConfig,
+    with_frontiers: bool = True,
+) -> Surroundings:
+    """The `Surroundings` of the agent at `xy` with `blocked` cells marked as obstacles."""
+    occ = occupancy_window(glmap, xy, blocked, config)
+    clear = clearance(occ)
+    rc = agent_rc(occ, xy)
+    trav, ok, speed = masks(occ, clear, rc, config)
+    field = distance_field(occ, ok, rc, config.plan_stride, config.optimistic, speed)
+    fronts = (
+        frontiers(occ, xy, config.agent_radius, config.min_frontier_size, field.metres, trav=trav)
+        if with_frontiers
+        else []
+    )
+    return Surroundings(occ, clear, trav, (ok, speed), field, fronts)
+
+
+def find_goal_match(
+    glmap: GLMap,
+    units: list[UnitText],
+    scores: np.ndarray,
+    rejected: set[int],
+    config: NavConfig,
+    scorer: Scorer | None = None,
+    goal: str = "",
+) -> GoalMatch | None:
+    """The best-scoring instance at or above the stop threshold with enough observations.
+
+    With `config.category_margin` set and a scorer that has `category_margins`, a candidate
+    must instead score `config.category_threshold` and be closer to the goal than to any
+    other label of the map by that margin (a category goal: "cabinet", not "kitchen cabinet").
+    `rejected`: instances given up (no way to reach them).
+    """
+    margins = getattr(scorer, "category_margins", None)
+    by_category = config.category_margin is not None and margins is not None
+    threshold = config.category_threshold if by_category else config.stop_threshold
+    cand = [
+        (u, float(s))
+        for u, s in zip(units, scores, strict=True)
+        if u.kind == "instance"
+        and u.unit_id not in rejected
+        and s >= threshold
+        and u.observations >= config.min_observations
+    ]
+    if cand and by_category:
+        assert margins is not None and config.category_margin is not None
+        vocabulary = [u.label for u in units if u.kind == "instance"]
+        m = margins(goal, [u for u, _ in cand], vocabulary)
+        cand = [c for c, v in zip(cand, m, strict=True) if v >= config.category_margin]
+    best: GoalMatch | None = None
+    for u, s in cand:
+        if best is None or s > best.score:
+            best = GoalMatch(
+                u.unit_id, float(s), u.observations, unit_cell_array(glmap.grid, u.unit_id)
+            )
+    return best
+
+
+def frame_score(glmap: GLMap, goal: str, scorer: Scorer, semantics: FrameSemantics | None) -> float:
+    """What the current frame shows, scored against the goal: the best of its objects/groups."""
+    if semantics is not None:
+        texts = [o.description or o.label for o in semantics.objects]
+        texts += [g.description for g in semantics.groups]
+        units = [UnitText(-1, "instance", t) for t in texts if t.strip()]
+    else:
+        last = len(glmap.trajectory) - 1
+        units = [
+            u
+            for u in map_units(glmap, "instances")
+            if glmap.instances[u.unit_id].last_frame == last
+        ]
+    if not units:
+        return 0.0
+    return float(np.max(scorer.score(goal, units)))
+
+
+def walls_of(glmap: GLMap, occ: DenseOccupancy) -> np.ndarray | None:
+    """The structure obstacle cells over `occ` (None: the map keeps no structure, so every
+    obstacle cell counts as a wall)."""
+    if len(glmap.structure) == 0 or glmap.floor_z is None:
+        return None
+    means = glmap.structure.gaussians().means
+    return structure_walls(means, glmap.floor_z, glmap.config.obstacle_band, occ)
