@@ -13,7 +13,7 @@ import pytest
 
 from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.language import calibration
-from glmap_tools.language.bert import K_BLOCK, dense, panels_agree
+from glmap_tools.language.bert import K_BLOCK, _gelu, dense, gelu, panels_agree
 from glmap_tools.language.embed import (
     Embedder,
     HashingEmbedder,
@@ -293,6 +293,13 @@ def test_dense_in_panels_equals_the_plain_product_and_the_unpanelled_blocks(
     np.testing.assert_allclose(panelled, x @ w + bias, rtol=0, atol=1e-5)
     if panels_agree(w[:K_BLOCK]):  # this BLAS keeps a row's sum order whatever M is
         assert np.array_equal(panelled, dense(x, w, bias, panels=False))
+
+
+def test_the_vectorised_gelu_equals_scipys_erf_gelu_bit_for_bit() -> None:
+    rng = np.random.default_rng(0)
+    x = (rng.standard_normal(200_000) * 4).astype(np.float32).reshape(400, 500)
+    x[0, :8] = [0.0, -0.0, 1e-30, -1e-30, 5.66, -5.66, 100.0, -100.0]  # both ends of erf
+    assert np.array_equal(gelu(x), _gelu(x))
 
 
 def test_the_panelled_encoder_gives_the_reference_vectors(minilm: MiniLMEmbedder) -> None:
