@@ -41,10 +41,10 @@ async def test_both_faces_list_the_same_tools_descriptions_and_schemas(tmp_path,
     assert len(served) == 21
 
 
-def test_the_functions_have_the_tools_names_docstrings_and_signatures_without_ctx(toolset):
+def test_the_functions_have_the_tools_names_docstrings_and_signatures_without_call(toolset):
     for fn in toolset.functions():
         params = inspect.signature(fn).parameters
-        assert "ctx" not in params
+        assert "call" not in params and "ctx" not in params
         schema = toolset.input_schema(fn.__name__)
         assert list(params) == list(schema["properties"])
         doc = inspect.getdoc(fn)

@@ -131,7 +131,7 @@ class ServerConfig:
                 f"compute_threads={self.compute_threads!r} must be an integer >= 1 or None."
             )
         if self.map_name is not None:
-            from glmap_tools.app.state import check_map_name
+            from glmap_tools.app.session import check_map_name
 
             stem = check_map_name(self.map_name, what="--map name")
             object.__setattr__(self, "map_name", stem)

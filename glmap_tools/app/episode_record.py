@@ -17,7 +17,9 @@ from typing import TYPE_CHECKING, Any
 from glmap_tools.errors import StoreError
 
 if TYPE_CHECKING:
-    from glmap_tools.app.state import Session, SessionRegistry
+    from glmap_tools.app.config import ServerConfig
+    from glmap_tools.app.session import Session
+    from glmap_tools.language.embed import Embedder
 
 RECORD_FORMAT = "glmap-tools episode"
 RECORD_VERSION = 1
@@ -27,13 +29,11 @@ NAV_REBUILT = ("egocentric", "scorer")
 
 def episode_record(session: Session) -> str | None:
     """The session's simulator episode as record text (JSON), or None without one."""
-    from glmap_tools.app import navsession, simulator
-
-    sim = session.extras.get(simulator.SIM_KEY)
+    sim = session.sim
     if sim is None or sim.started is None:
         return None
     wh, max_steps = sim.key[-2], sim.key[-1]
-    nav = navsession.of(session)
+    nav = session.nav
     record = {
         "format": RECORD_FORMAT,
         "version": RECORD_VERSION,
@@ -102,8 +102,10 @@ def apply_memory(state: Any, memory: dict[str, Any]) -> None:
         setattr(state, f.name, value)
 
 
-def restore_episode(session: Session, text: str, registry: SessionRegistry) -> None:
+def restore_episode(session: Session, text: str, config: ServerConfig, embedder: Embedder) -> None:
     """Replay the episode record `text` into `session` (env, navigation memory; not the map).
+
+    `config` and `embedder` are the server's (map name, scene folders, scorer settings).
 
     Raises:
         StoreError: the record cannot be read or replayed.
@@ -120,15 +122,15 @@ def restore_episode(session: Session, text: str, registry: SessionRegistry) -> N
         actions = [simulator.ACTIONS[int(c)] for c in rec["actions"]]
     except (ValueError, KeyError, TypeError, IndexError, AttributeError) as exc:
         raise StoreError(
-            f"the simulator episode kept in map {registry.config.map_name!r} cannot be read "
+            f"the simulator episode kept in map {config.map_name!r} cannot be read "
             f"({exc}); call sim_reset to start a new one."
         ) from None
-    bench = simulator.bench_episode(episode_id, registry.config.scene_dirs) if episode_id else None
+    bench = simulator.bench_episode(episode_id, config.scene_dirs) if episode_id else None
     if bench is not None:
         key: tuple[Any, ...] = ("bench", str(bench.layout_path), bench.task, size, max_steps)
     else:
         key = (task, scene, size, max_steps)
-    sim = session.extras.get(simulator.SIM_KEY)
+    sim = session.sim
     if sim is None or sim.key != key:
         if bench is not None:
             fresh = simulator.open_bench(bench, size, max_steps)
@@ -136,16 +138,15 @@ def restore_episode(session: Session, text: str, registry: SessionRegistry) -> N
             fresh = simulator.open_episode(task, scene, size, max_steps)
         if sim is not None:
             sim.close()
-        sim = session.extras[simulator.SIM_KEY] = fresh
-        session.extras["close"] = fresh.close
+        sim = session.sim = fresh
     sim.bench = bench
     simulator.reset(sim, seed, goal)
     scorer = None
-    if registry.config.llm.scorer != "embedding":
+    if config.llm.scorer != "embedding":
         from glmap_tools.language.backends import make_scorer
 
-        scorer = make_scorer(registry.config.llm, registry.embedder)
-    nav = navsession.start(session, sim, registry.embedder, scorer)
+        scorer = make_scorer(config.llm, embedder)
+    nav = navsession.start(session, sim, embedder, scorer)
     glmap = session.live.glmap
     cell, reach = glmap.grid.cell_size, glmap.config.max_range
     navsession.follow(nav, sim, cell, reach)

@@ -9,13 +9,14 @@ unit, one action and one integrated frame at a time, until arrived, blocked or o
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from glmap_tools.app import simulator
-from glmap_tools.app.state import PIN_KEY, Session, locked
+from glmap_tools.app.navigation import NavSession
+from glmap_tools.app.session import Session, locked
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
 
@@ -24,56 +25,11 @@ if TYPE_CHECKING:
     from glmap_tools.map import GLMap
     from glmap_tools.perception.semantics import FrameSemantics
 
-NAV_KEY = "nav"
-
-
-@dataclass
-class NavSession:
-    """Navigation state of one simulator episode.
-
-    Attributes:
-        goal: the episode's goal text.
-        state: `glmap_tools.nav.NavState` (egocentric accumulator, stuck memory, last waypoint).
-        config: `glmap_tools.nav.NavConfig`.
-        scorer: `glmap_tools.nav.EmbeddingScorer` on the server's embedder.
-        embedder: the text embedder (frame scores of the egocentric baseline).
-        path: [(x, y)] agent positions, one per integrated frame.
-        decision: the latest `NavDecision` (drawn by value_map), or None.
-    """
-
-    goal: str
-    state: Any
-    config: Any
-    scorer: Any
-    embedder: Any
-    path: list[tuple[float, float]] = field(default_factory=list)
-    decision: Any = None
-    _text_vecs: dict[str, np.ndarray] = field(default_factory=dict)
-
-    def frame_score(self, semantics: FrameSemantics) -> float:
-        """What the frame shows scored against the goal (f_S of its best object or group).
-
-        The egocentric (VLFM-like) baseline's per-frame score; text embeddings are cached,
-        since the same objects are seen frame after frame.
-        """
-        from glmap_tools.nav import UnitText
-
-        texts = [o.description or o.label for o in semantics.objects]
-        texts = [t for t in texts + [g.description for g in semantics.groups] if t.strip()]
-        if not texts:
-            return 0.0
-        todo = [t for t in dict.fromkeys(texts) if t not in self._text_vecs]
-        if todo:
-            for t, v in zip(todo, np.asarray(self.embedder.embed(todo)), strict=True):
-                self._text_vecs[t] = v
-        units = [UnitText(-1, "instance", t, self._text_vecs[t]) for t in texts]
-        return float(np.max(self.scorer.score(self.goal, units)))
-
 
 def start(
     session: Session, sim: simulator.SimEpisode, embedder: Embedder, scorer: Any = None
 ) -> NavSession:
-    """A fresh NavSession for the episode `sim` just reset to (kept in session.extras).
+    """A fresh NavSession for the episode `sim` just reset to (kept as `session.nav`).
 
     `scorer`: f_S for the value map; default embedding cosine on `embedder`.
     """
@@ -86,18 +42,18 @@ def start(
     )
     scorer = scorer if scorer is not None else EmbeddingScorer(embedder)
     nav = NavSession(str(sim.obs["goal"]), NavState(scorer=scorer), config, scorer, embedder)
-    session.extras[NAV_KEY] = nav
+    session.nav = nav
     return nav
 
 
 def of(session: Session) -> NavSession | None:
     """The session's NavSession, or None before any sim_reset."""
-    return session.extras.get(NAV_KEY)
+    return session.nav
 
 
 def active_sim(session: Session) -> simulator.SimEpisode:
     """The session's simulator episode, or raise saying to call sim_reset."""
-    sim = session.extras.get(simulator.SIM_KEY)
+    sim = session.sim
     if sim is None:
         raise InvalidInputError("no simulator episode in this session; call sim_reset first.")
     return sim
@@ -121,12 +77,12 @@ def integrate(session: Session, sim: simulator.SimEpisode) -> str:
     """
     frame, semantics = simulator.frame(sim)
     nav = of(session)
-    pin = session.extras.get(PIN_KEY)
+    recorder = session.recorder
     with locked(session) as glmap:
-        staged = pin.stage(session) if pin is not None else None
+        staged = recorder.stage(session) if recorder is not None else None
         summary = glmap.integrate(frame, semantics).summary()
-        if pin is not None:
-            pin.committed(staged)
+        if recorder is not None:
+            recorder.committed(staged)
         if nav is not None:
             _follow(nav, sim, frame, semantics, glmap.grid.cell_size, glmap.config.max_range)
     return summary
@@ -157,7 +113,7 @@ def _follow(
 
 def agent_pose(session: Session, glmap: GLMap) -> tuple[float, float, float] | None:
     """(x, y, heading) of the simulator agent, else of the map's latest camera, else None."""
-    sim = session.extras.get(simulator.SIM_KEY)
+    sim = session.sim
     if sim is not None and sim.info:
         return simulator.agent_pose(sim)
     if not glmap.trajectory:
@@ -391,7 +347,7 @@ def from_agent(session: Session, units: list[Any]) -> list[dict[str, Any]]:
 
     Empty unless the session has a running simulator episode.
     """
-    sim = session.extras.get(simulator.SIM_KEY)
+    sim = session.sim
     if sim is None or sim.over or not sim.info:
         return []
     agent = simulator.agent_pose(sim)

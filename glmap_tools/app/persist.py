@@ -24,14 +24,16 @@ import sqlite3
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from glmap_tools.app.episode_record import episode_record, restore_episode
-from glmap_tools.app.state import MAP_SUFFIX, PIN_KEY, Session, check_map_name
+from glmap_tools.app.session import MAP_SUFFIX, LiveMap, Session, check_map_name
 from glmap_tools.errors import GLMapError, StoreError
 
 if TYPE_CHECKING:
-    from glmap_tools.app.state import LiveMap, SessionRegistry
+    from glmap_tools.app.config import ServerConfig
+    from glmap_tools.language.embed import Embedder
+    from glmap_tools.language.text_merger import TextMerger
     from glmap_tools.map import MapConfig
 
 log = logging.getLogger(__name__)
@@ -174,6 +176,20 @@ def config_mismatch(saved: dict[str, Any], config: MapConfig) -> str:
     )
 
 
+class Sessions(Protocol):
+    """What a PinnedMap uses of the process's sessions (glmap_tools.app.state.SessionRegistry)."""
+
+    config: ServerConfig
+    embedder: Embedder
+    maps_dir: Path
+
+    def map_path(self, name: str) -> Path: ...
+    def default_session(self) -> Session: ...
+    def new_map(self, session: Session, name: str | None) -> LiveMap: ...
+    def load_map(self, session: Session, name: str) -> LiveMap: ...
+    def _merger(self) -> TextMerger: ...
+
+
 class PinnedMap:
     """The map and episode `--map NAME` pins the default session to (one per process).
 
@@ -186,7 +202,7 @@ class PinnedMap:
         name: the map name (checked: a bare name).
     """
 
-    def __init__(self, registry: SessionRegistry, name: str) -> None:
+    def __init__(self, registry: Sessions, name: str) -> None:
         self.registry = registry
         self.name = check_map_name(name)
         self.path = registry.map_path(self.name)
@@ -232,7 +248,7 @@ class PinnedMap:
     def flush(self) -> None:
         """Write the episode record if it changed since a call's end (at the server's end).
 
-        A safety net: each call already writes it on `exit` (see `guard_calls`).
+        A safety net: each call already writes it on `exit` (the MCP server's `guard_calls`).
         """
         with self._mutex:
             if self._depth or self.live is None:
@@ -283,7 +299,7 @@ class PinnedMap:
             else:
                 live = registry.new_map(session, self.name)
             self.live = live
-            session.extras[PIN_KEY] = self
+            session.recorder = self
         elif not self.holds(session):
             return  # the session moved to another map: leave both alone
         else:
@@ -296,14 +312,12 @@ class PinnedMap:
         store.mark_seen()
         text = store.read_extra(EPISODE)
         if text is not None and text != self.record:
-            from glmap_tools.app import navsession, simulator
-
             log.info("continuing the simulator episode of map %r", self.name)
             try:
-                restore_episode(session, text, registry)
+                restore_episode(session, text, registry.config, registry.embedder)
             except GLMapError as exc:  # the map is fine; the episode must start anew
-                session.extras.pop(simulator.SIM_KEY, None)
-                session.extras.pop(navsession.NAV_KEY, None)
+                session.close()
+                session.sim = session.nav = None
                 log.warning("glmap-mcp: %s", exc)
         self.record = text
 
@@ -351,31 +365,3 @@ class PinnedMap:
         """The frame carrying the staged record `text` was committed."""
         if text is not None:
             self.record = text
-
-
-def guard_calls(server: Any) -> None:
-    """Bracket every tool call of `server` with the pinned map's enter/exit (see module doc).
-
-    A failure to lock or open the map becomes the call's tool error.
-    """
-    import anyio.to_thread
-    from mcp.server.mcpserver.exceptions import ToolError
-
-    original = server.call_tool
-
-    async def call_tool(name: str, arguments: dict[str, Any], context: Any = None) -> Any:
-        pin: PinnedMap | None = None
-        if context is not None:
-            pin = context.request_context.lifespan_context.registry.pin
-        if pin is None:
-            return await original(name, arguments, context)
-        try:
-            await anyio.to_thread.run_sync(pin.enter)
-        except GLMapError as exc:
-            raise ToolError(str(exc)) from exc
-        try:
-            return await original(name, arguments, context)
-        finally:
-            await anyio.to_thread.run_sync(pin.exit)
-
-    server.call_tool = call_tool

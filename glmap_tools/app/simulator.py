@@ -28,7 +28,6 @@ if TYPE_CHECKING:
 
 T = TypeVar("T")
 ACTIONS = ("stop", "move_forward", "turn_left", "turn_right")  # the env's action numbers
-SIM_KEY = "sim"  # where a session keeps its SimEpisode (Session.extras)
 TASKS = ("objectnav", "instnav")
 MAX_GOALS_LISTED = 25
 EPISODE_RESET = (
@@ -38,13 +37,6 @@ EPISODE_RESET = (
 
 _thread_lock = threading.Lock()
 _thread: ThreadPoolExecutor | None = None
-
-
-def episode_lock(extras: dict[str, Any]) -> threading.RLock:
-    """The lock that serialises a session's sim_reset and sim_step (its `Session.extras`)."""
-    with _thread_lock:
-        lock: threading.RLock = extras.setdefault("sim_lock", threading.RLock())
-    return lock
 
 
 def on_sim_thread(fn: Any, *args: Any) -> Any:

@@ -20,20 +20,25 @@ consistent: there is one map in memory and one store file, never two diverging c
 from __future__ import annotations
 
 import os
-import re
 import secrets
-import stat
 import threading
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from glmap_tools.app.config import ServerConfig
 from glmap_tools.app.memory import trim
+from glmap_tools.app.session import (
+    DEFAULT_HANDLE,
+    MAP_SUFFIX,
+    LiveMap,
+    Session,
+    check_map_name,
+    saved_maps,
+)
 from glmap_tools.errors import (
     GLMapError,
     InvalidInputError,
@@ -43,92 +48,11 @@ from glmap_tools.errors import (
 )
 
 if TYPE_CHECKING:
+    from glmap_tools.app.persist import PinnedMap
     from glmap_tools.language.embed import Embedder
-    from glmap_tools.map import GLMap
+    from glmap_tools.language.text_merger import TextMerger
 
-MAP_SUFFIX = ".glmap"
 DROPPED_KEPT = 4096  # dropped session keys remembered, to tell their clients
-MAP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
-DEFAULT_HANDLE = "default"
-PIN_KEY = "pin"  # Session.extras: the PinnedMap of a session pinned by --map
-
-
-@dataclass
-class LiveMap:
-    """A map in memory, possibly backed by a store file, with the lock that guards it.
-
-    Attributes:
-        glmap: the map.
-        name: saved map name (its file is `<maps_dir>/<name>.glmap`), None for scratch maps.
-        lock: held by every read and write of `glmap`.
-        users: sessions currently working on it.
-    """
-
-    glmap: GLMap
-    name: str | None = None
-    lock: threading.RLock = field(default_factory=threading.RLock)
-    users: int = 0
-
-
-@dataclass
-class Session:
-    """One client's working state: its map and (later) its simulator episode."""
-
-    handle: str
-    live: LiveMap
-    last_used: float = field(default_factory=time.monotonic)
-    extras: dict[str, Any] = field(default_factory=dict)
-
-
-def check_map_name(name: str, suffix: str = MAP_SUFFIX, what: str = "map name") -> str:
-    """Return `name` (less `suffix`) if it is a bare file name, else raise naming the fix.
-
-    Args:
-        name: the name a client gave.
-        suffix: the file suffix the name may end with (stripped).
-        what: what the name is, for the error message ("map name", "export name").
-
-    Raises:
-        InvalidInputError: a path separator, '..', a suffix or other characters.
-    """
-    if not isinstance(name, str):
-        raise InvalidInputError(f"{what} must be a string, got {type(name).__name__}.")
-    if "/" in name or "\\" in name or ".." in name or name.startswith("~"):
-        raise InvalidInputError(
-            f"{what} {name!r} contains a path; give a bare name such as 'kitchen' "
-            "(files are kept in the server's maps folder, which nothing outside of is touched)."
-        )
-    stem = name[: -len(suffix)] if name.endswith(suffix) else name
-    if not MAP_NAME.fullmatch(stem):
-        raise InvalidInputError(
-            f"{what} {name!r} is not allowed; use 1-64 letters, digits, '-' or '_', "
-            "starting with a letter or digit, e.g. 'flat-3'."
-        )
-    return stem
-
-
-def saved_maps(folder: Path) -> dict[str, os.stat_result]:
-    """{name: lstat} of the regular `.glmap` files directly in `folder`.
-
-    Symlinks are left out (they could point anywhere, and stat would report the target's
-    size and time), as are folders and hidden files.
-    """
-    out: dict[str, os.stat_result] = {}
-    try:
-        entries = list(os.scandir(folder))
-    except OSError:
-        return out
-    for entry in entries:
-        name = entry.name
-        if not name.endswith(MAP_SUFFIX) or name.startswith(".") or entry.is_symlink():
-            continue
-        try:
-            info = entry.stat(follow_symlinks=False)
-        except OSError:
-            continue  # removed since listed
-        if stat.S_ISREG(info.st_mode) and MAP_NAME.fullmatch(name[: -len(MAP_SUFFIX)]):
-            out[name[: -len(MAP_SUFFIX)]] = info
-    return out
 
 
 @contextmanager
@@ -163,7 +87,7 @@ class SessionRegistry:
         self._by_transport: dict[str, str] = {}
         self._named: dict[str, LiveMap] = {}
         self._dropped: OrderedDict[str, float] = OrderedDict()  # handles and transport ids
-        self.pin: Any = None  # the PinnedMap of --map, if given
+        self.pin: PinnedMap | None = None  # the saved map of --map, if given
         # Called with a session's handle when its map is replaced or the session ends (what
         # the server keeps for it beside the map, e.g. pending frames, can go).
         self.on_drop: list[Callable[[str], None]] = []
@@ -175,7 +99,7 @@ class SessionRegistry:
         # fusion code (scipy, numba), which the server's handshake must not wait for.
 
     # ------------------------------------------------------------------ maps
-    def _merger(self) -> Any:
+    def _merger(self) -> TextMerger:
         """The text merger of a map, as the settings ask (extractive unless told)."""
         from glmap_tools.language.backends import make_text_merger
 
@@ -475,9 +399,7 @@ class SessionRegistry:
             self._dropped.popitem(last=False)
 
     def _close_session(self, session: Session) -> None:
-        closer: Callable[[], None] | None = session.extras.pop("close", None)
-        if closer is not None:
-            closer()
+        session.close()
         self._dropped_by(session)
         self._release(session.live)
         trim()
@@ -491,11 +413,3 @@ class SessionRegistry:
                 self._close_session(session)
             self._sessions.clear()
             self._by_transport.clear()
-
-
-@contextmanager
-def locked(session: Session) -> Iterator[GLMap]:
-    """Hold the lock of the session's current map and yield the map."""
-    live = session.live
-    with live.lock:
-        yield live.glmap

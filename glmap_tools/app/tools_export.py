@@ -2,19 +2,18 @@
 
 The file is `<maps folder>/<name>.ply`: a bare name, as for saved maps, so nothing outside
 the maps folder is written; it is written to a temporary file and renamed. No `from
-__future__ import annotations` here: the SDK reads these signatures at runtime.
+__future__ import annotations` here: the MCP face reads these signatures at runtime.
 """
 
 from pathlib import Path
 from typing import Annotated
 
-from mcp.server.mcpserver import Context
 from pydantic import Field
 
 from glmap_tools.app.inputs import SessionArg
 from glmap_tools.app.results import Exported
-from glmap_tools.app.runtime import REPLACES, ToolSpec, app_state, in_thread, session_of
-from glmap_tools.app.state import check_map_name, locked
+from glmap_tools.app.runtime import REPLACES, Call, ToolSpec, in_thread, session_of
+from glmap_tools.app.session import check_map_name, locked
 from glmap_tools.app.views import EMPTY_MAP
 from glmap_tools.errors import InvalidInputError, StoreError
 
@@ -50,14 +49,14 @@ def _reason(exc: StoreError) -> str:
 
 async def export_ply(
     name: ExportName,
-    ctx: Context,
+    call: Call,
     unit_id: Annotated[int | None, Field(ge=1, le=2**62, description="omit: whole map")] = None,
     overwrite: bool = False,
     session: SessionArg = "",
 ) -> Exported:
     """Write the map's (or a unit's) 3D Gaussians as a 3DGS '<name>.ply'."""
-    state = app_state(ctx)
-    target = session_of(ctx, session)
+    state = call.state
+    target = session_of(call, session)
     path = export_path(state.config.maps_dir, name)
 
     def run() -> Exported:

@@ -1,11 +1,10 @@
 """Map tools: observe_frame, find_instance, find_region, what_is_at, describe_unit, map_summary.
 
-No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+No `from __future__ import annotations` here: the MCP face reads these signatures at runtime.
 """
 
 from typing import Annotated
 
-from mcp.server.mcpserver import Context
 from pydantic import BaseModel, Field
 
 from glmap_tools.app import tools_perception
@@ -30,12 +29,12 @@ from glmap_tools.app.results import (
 from glmap_tools.app.runtime import (
     ADDS,
     READ_ONLY,
+    Call,
     ToolSpec,
-    app_state,
     in_thread,
     session_of,
 )
-from glmap_tools.app.state import locked
+from glmap_tools.app.session import locked
 from glmap_tools.app.views import describe_topdown, topdown
 from glmap_tools.map import FREE, OBSTACLE
 from glmap_tools.map.report import UnitInfo
@@ -90,7 +89,7 @@ async def observe_frame(
         IntrinsicsInput, Field(description="pixels: fx, fy, cx, cy; or hfov_deg (degrees)")
     ],
     pose: PoseInput,
-    ctx: Context,
+    call: Call,
     depth_scale: Annotated[
         float, Field(gt=0, le=1e6, description="raw depth units per metre")
     ] = 1000.0,
@@ -101,9 +100,9 @@ async def observe_frame(
 ) -> ObserveResult:
     """Add a posed RGB-D frame (files: base64 or absolute path): annotated objects become
     or merge into instances; unannotated segments wait for label_segments."""
-    state = app_state(ctx)
-    target = session_of(ctx, session)
-    await ctx.report_progress(0, 3, "decoding the frame")
+    state = call.state
+    target = session_of(call, session)
+    await call.report_progress(0, 3, "decoding the frame")
     frame, semantics = await in_thread(
         lambda: decode_frame(rgb, depth, depth_scale, intrinsics, pose, annotations, state.config)
     )
@@ -113,7 +112,7 @@ async def observe_frame(
             return pending  # type: ignore[return-value]  # the SDK checks it as ObserveResult
         perceive = state.perception
         semantics = await in_thread(lambda: perceive(frame))
-    await ctx.report_progress(1, 3, f"fusing {len(semantics.objects)} objects")
+    await call.report_progress(1, 3, f"fusing {len(semantics.objects)} objects")
     await in_thread(lambda: embed_ahead(state.embedder, semantics))  # outside the lock
 
     def integrate() -> ObserveResult:
@@ -125,16 +124,16 @@ async def observe_frame(
         )
 
     result = await in_thread(integrate)
-    await ctx.report_progress(3, 3, "done")
+    await call.report_progress(3, 3, "done")
     return result
 
 
 async def find_instance(
-    query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = ""
+    query: Query, call: Call, top_k: TopK = 5, session: SessionArg = ""
 ) -> AgentHits:
     """Find objects by description ('something to sit on'), best first: id, description,
     score, match (false: nothing mapped fits), centroid, bounds (m)."""
-    target = session_of(ctx, session)
+    target = session_of(call, session)
 
     def run() -> AgentHits:
         with locked(target) as glmap:
@@ -148,11 +147,9 @@ async def find_instance(
     return await in_thread(run)
 
 
-async def find_region(
-    query: Query, ctx: Context, top_k: TopK = 5, session: SessionArg = ""
-) -> Hits:
+async def find_region(query: Query, call: Call, top_k: TopK = 5, session: SessionArg = "") -> Hits:
     """Find regions (described groups of objects, e.g. 'the dining area'), best first."""
-    target = session_of(ctx, session)
+    target = session_of(call, session)
 
     def run() -> Hits:
         with locked(target) as glmap:
@@ -164,12 +161,12 @@ async def find_region(
 async def what_is_at(
     x: Metres,
     y: Metres,
-    ctx: Context,
+    call: Call,
     radius: Annotated[float, Field(ge=0, le=5)] = 0.25,
     session: SessionArg = "",
 ) -> AgentUnitsAt:
     """Units within radius of (x, y) m on the floor plan, nearest first; is (x, y) free."""
-    target = session_of(ctx, session)
+    target = session_of(call, session)
 
     def run() -> AgentUnitsAt:
         with locked(target) as glmap:
@@ -187,9 +184,9 @@ async def what_is_at(
     return await in_thread(run)
 
 
-async def describe_unit(id: UnitId, ctx: Context, session: SessionArg = "") -> UnitInfo:
+async def describe_unit(id: UnitId, call: Call, session: SessionArg = "") -> UnitInfo:
     """Everything the map knows about one instance or region, by id."""
-    target = session_of(ctx, session)
+    target = session_of(call, session)
 
     def run() -> UnitInfo:
         with locked(target) as glmap:
@@ -199,12 +196,12 @@ async def describe_unit(id: UnitId, ctx: Context, session: SessionArg = "") -> U
 
 
 async def map_summary(
-    ctx: Context,
+    call: Call,
     include_image: bool = True,
     session: SessionArg = "",
 ) -> ImageResult:
     """Counts, extent and a labelled top-down image of the map."""
-    target = session_of(ctx, session)
+    target = session_of(call, session)
 
     def run() -> tuple[MapInfo, TopDownImage | None, bytes | None]:
         with locked(target) as glmap:

@@ -2,7 +2,7 @@
 
 The policy and the planner are `glmap_tools.nav` (value map of Eq. 7, frontiers, waypoint,
 FMM plan); these tools run them on the session's map and, in the simulator, act on them.
-No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+No `from __future__ import annotations` here: the MCP face reads these signatures at runtime.
 """
 
 import math
@@ -10,15 +10,14 @@ from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from mcp.server.mcpserver import Context
 from pydantic import Field
 
 from glmap_tools.app import navsession, simulator
 from glmap_tools.app.inputs import SessionArg
 from glmap_tools.app.navdraw import contact_sheet, jpeg, nav_image
 from glmap_tools.app.results import ImageResult, Picture
-from glmap_tools.app.runtime import ADDS, READ_ONLY, ToolSpec, in_thread, session_of
-from glmap_tools.app.state import Session, locked
+from glmap_tools.app.runtime import ADDS, READ_ONLY, Call, ToolSpec, in_thread, session_of
+from glmap_tools.app.session import Session, locked
 from glmap_tools.errors import InvalidInputError
 
 Units = Literal["both", "instances", "regions"]
@@ -30,7 +29,7 @@ Goal = Annotated[str, Field(max_length=256, description="what to find; omit: the
 def in_episode(session: Session, fn: Callable[[], ImageResult]) -> ImageResult:
     """Run a tool that acts in the simulator holding the session's episode lock, so a
     sim_reset from another call waits for it (and it never acts on a replaced episode)."""
-    with simulator.episode_lock(session.extras):
+    with session.sim_lock:
         return fn()
 
 
@@ -113,11 +112,11 @@ def _nav_png(session: Session, decision: Any, agent: tuple[float, float, float])
 
 
 async def value_map(
-    ctx: Context, goal: Goal = "", units: Units = "both", session: SessionArg = ""
+    call: Call, goal: Goal = "", units: Units = "both", session: SessionArg = ""
 ) -> ImageResult:
     """Where the goal likely is: the Eq. 7 value map of the chosen units, frontiers, the
     waypoint and its path."""
-    target = session_of(ctx, session)
+    target = session_of(call, session)
 
     def run() -> ImageResult:
         wanted = _goal(target, goal)
@@ -139,7 +138,7 @@ async def value_map(
 
 
 async def frontiers(
-    ctx: Context,
+    call: Call,
     top_k: Annotated[int, Field(ge=1, le=50)] = 8,
     session: SessionArg = "",
 ) -> ImageResult:
@@ -148,7 +147,7 @@ async def frontiers(
     from glmap_tools.nav import NavConfig, NavState
     from glmap_tools.nav.policy import surroundings
 
-    target = session_of(ctx, session)
+    target = session_of(call, session)
 
     def run() -> ImageResult:
         agent = _agent(target)
@@ -171,7 +170,7 @@ async def frontiers(
 
 
 async def navigate_to(
-    ctx: Context,
+    call: Call,
     x: Annotated[float | None, Field(ge=-1e4, le=1e4)] = None,
     y: Annotated[float | None, Field(ge=-1e4, le=1e4)] = None,
     unit_id: Annotated[int | None, Field(ge=1, le=2**62)] = None,
@@ -180,7 +179,7 @@ async def navigate_to(
 ) -> ImageResult:
     """Walk (simulator) to (x, y), or within 0.75 m of unit_id in clear sight, round
     collisions. would_succeed: stop here counts if the unit is the goal."""
-    target = session_of(ctx, session)
+    target = session_of(call, session)
     if (unit_id is None) == (x is None or y is None) or (x is None) != (y is None):
         raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
 
@@ -208,9 +207,9 @@ async def navigate_to(
     return await in_thread(lambda: in_episode(target, run))
 
 
-async def look_around(ctx: Context, session: SessionArg = "") -> ImageResult:
+async def look_around(call: Call, session: SessionArg = "") -> ImageResult:
     """Turn a full circle in place (simulator), adding every frame to the map."""
-    target = session_of(ctx, session)
+    target = session_of(call, session)
 
     def run() -> ImageResult:
         sim, _ = navsession.running(target)
@@ -262,7 +261,7 @@ def _goal_unit(
 
 
 async def nav_step(
-    ctx: Context,
+    call: Call,
     policy: Policy = "glmap",
     actions: Annotated[int, Field(ge=1, le=200)] = 1,
     execute_stop: bool = False,
@@ -273,7 +272,7 @@ async def nav_step(
     """A policy takes up to `actions` steps (simulator; glmap*: Eq. 7, egocentric: VLFM-like,
     frontier: nearest). Returns before the policy's stop (see goal_unit) unless
     execute_stop."""
-    target = session_of(ctx, session)
+    target = session_of(call, session)
 
     def run() -> ImageResult:
         sim, nav = navsession.running(target)

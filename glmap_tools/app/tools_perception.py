@@ -5,19 +5,19 @@ the frame's geometry and occupancy go into the map at once, its class-agnostic s
 returned with a numbered contact sheet and wait as *pending*; `label_segments` names them and
 fuses the labelled ones as instances (and groups as regions) through `GLMap.integrate`.
 
-No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+No `from __future__ import annotations` here: the MCP face reads these signatures at runtime.
 """
 
 import io
+import threading
 from typing import TYPE_CHECKING, Annotated
 
-from mcp.server.mcpserver import Context
 from pydantic import BaseModel, ConfigDict, Field
 
 from glmap_tools.app.inputs import MAX_GROUPS, MAX_OBJECTS, Description, Label, SessionArg
 from glmap_tools.app.results import ObserveResult, Picture
-from glmap_tools.app.runtime import ADDS, AppState, ToolSpec, app_state, in_thread, session_of
-from glmap_tools.app.state import Session, locked
+from glmap_tools.app.runtime import ADDS, AppState, Call, ToolSpec, in_thread, session_of
+from glmap_tools.app.session import Session, locked
 from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS
 from glmap_tools.perception.labelling import (
@@ -32,8 +32,8 @@ from glmap_tools.perception.semantics import FrameSemantics
 if TYPE_CHECKING:
     from glmap_tools.perception.geometric import Segment
 
-PENDING_KEY = "pending_frames"
 SegmentId = Annotated[int, Field(ge=1)]
+_pending_made = threading.Lock()
 
 
 class PendingSegment(BaseModel):
@@ -81,12 +81,11 @@ class GroupInput(BaseModel):
 def pending_frames(state: AppState) -> PendingFrames:
     """The server's pending frames (made on first use); a session's go when its map is
     replaced or the session ends."""
-    store = state.extras.get(PENDING_KEY)
-    if store is None:
-        store = state.extras.setdefault(PENDING_KEY, PendingFrames())
-        if store.forget not in state.registry.on_drop:
-            state.registry.on_drop.append(store.forget)
-    return store
+    with _pending_made:
+        if state.pending is None:
+            state.pending = PendingFrames()
+            state.registry.on_drop.append(state.pending.forget)
+        return state.pending
 
 
 def _describe(segments: "list[Segment]") -> list[PendingSegment]:
@@ -157,14 +156,14 @@ def _park(
 async def label_segments(
     frame: Annotated[str, Field(max_length=32, description="pending.frame of observe_frame")],
     labels: Annotated[list[LabelInput], Field(max_length=MAX_OBJECTS)],
-    ctx: Context,
+    call: Call,
     groups: Annotated[list[GroupInput], Field(max_length=MAX_GROUPS)] = [],  # noqa: B006
     session: SessionArg = "",
 ) -> ObserveResult:
     """Name a pending frame's segments: labelled ones become instances, groups regions;
     unlisted ones are ignored."""
-    state = app_state(ctx)
-    target = session_of(ctx, session)
+    state = call.state
+    target = session_of(call, session)
     store = pending_frames(state)
 
     def run() -> ObserveResult:

@@ -1,24 +1,22 @@
 """sim_reset and sim_step: drive a simulated apartment; every frame goes into the map.
 
-No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+No `from __future__ import annotations` here: the MCP face reads these signatures at runtime.
 """
 
 from typing import Annotated, Any, Literal
 
 import cv2
-from mcp.server.mcpserver import Context
 from pydantic import Field
 
 from glmap_tools.app import navsession, simulator
 from glmap_tools.app.inputs import SessionArg
 from glmap_tools.app.results import ImageResult, Picture
-from glmap_tools.app.runtime import ADDS, DROPS, ToolSpec, app_state, in_thread, session_of
-from glmap_tools.app.state import Session, locked
+from glmap_tools.app.runtime import ADDS, DROPS, Call, ToolSpec, in_thread, session_of
+from glmap_tools.app.session import Session, locked
 from glmap_tools.errors import InvalidInputError
 
 Action = Literal["move_forward", "turn_left", "turn_right", "stop"]
 Size = Literal["160x120", "320x240", "640x480"]
-SIM_KEY = simulator.SIM_KEY
 
 
 def _jpeg(rgb: Any) -> bytes:
@@ -42,7 +40,7 @@ def _reply(session: Session, sim: simulator.SimEpisode, updates: list[str]) -> I
 
 
 async def sim_reset(
-    ctx: Context,
+    call: Call,
     task: Literal["objectnav", "instnav"] = "objectnav",
     scene: Annotated[int, Field(ge=0, le=100_000)] = 0,
     seed: Annotated[int, Field(ge=0, le=2**31 - 1)] = 0,
@@ -55,8 +53,8 @@ async def sim_reset(
 ) -> ImageResult:
     """Start a simulator episode (`scene` and `seed`, or a benchmark `episode` id): reach
     any object of the goal's category (objectnav) or the described one (instnav)."""
-    state = app_state(ctx)
-    target = session_of(ctx, session)
+    state = call.state
+    target = session_of(call, session)
     wh = tuple(int(v) for v in size.split("x")) if size else state.config.sim_size
     steps = max_steps or state.config.sim_max_steps
     bench = simulator.bench_episode(episode, state.config.scene_dirs) if episode else None
@@ -64,11 +62,11 @@ async def sim_reset(
         raise InvalidInputError("give episode or goal, not both: an episode has its goal.")
 
     def run() -> ImageResult:
-        with simulator.episode_lock(target.extras):  # a sim_step in flight finishes first
+        with target.sim_lock:  # a sim_step in flight finishes first
             return reset()
 
     def reset() -> ImageResult:
-        sim = target.extras.get(SIM_KEY)
+        sim = target.sim
         if bench is not None:
             key: tuple[object, ...] = ("bench", str(bench.layout_path), bench.task, wh, steps)
         else:
@@ -80,8 +78,7 @@ async def sim_reset(
                 fresh = simulator.open_episode(task, scene, wh, steps)  # type: ignore[arg-type]
             if sim is not None:
                 sim.close()
-            sim = target.extras[SIM_KEY] = fresh
-            target.extras["close"] = fresh.close
+            sim = target.sim = fresh
         sim.bench = bench
         simulator.reset(sim, seed, goal or None)
         if not keep_map:
@@ -94,32 +91,32 @@ async def sim_reset(
         navsession.start(target, sim, state.embedder, scorer)
         return _reply(target, sim, [_integrate(target, sim)])
 
-    await ctx.report_progress(0, 1, "building the apartment")
+    await call.report_progress(0, 1, "building the apartment")
     return await in_thread(run)
 
 
 async def sim_step(
     action: Action,
-    ctx: Context,
+    call: Call,
     repeat: Annotated[int, Field(ge=1, le=20)] = 1,
     session: SessionArg = "",
 ) -> ImageResult:
     """Act `repeat` times: move 0.25 m, turn 30 deg, or stop (success: within 1 m of a goal's
     footprint, no wall between). At the end: success, SPL, distance_to_goal."""
-    target = session_of(ctx, session)
-    sim: simulator.SimEpisode | None = target.extras.get(SIM_KEY)
+    target = session_of(call, session)
+    sim: simulator.SimEpisode | None = target.sim
     if sim is None:
         raise InvalidInputError("no simulator episode in this session; call sim_reset first.")
     episode = sim
     resets = sim.resets  # the episode this call acts in; a sim_reset meanwhile refuses it
     updates: list[str] = []
     for i in range(repeat):
-        await ctx.report_progress(i, repeat, f"{action} {i + 1}/{repeat}")
+        await call.report_progress(i, repeat, f"{action} {i + 1}/{repeat}")
 
         def one() -> str:
             # One step and its integration at a time per session, never across a sim_reset.
-            with simulator.episode_lock(target.extras), locked(target):
-                if target.extras.get(SIM_KEY) is not sim:
+            with target.sim_lock, locked(target):
+                if target.sim is not sim:
                     raise InvalidInputError(simulator.EPISODE_RESET)
                 simulator.step(episode, action, resets)
                 return _integrate(target, episode)
@@ -127,7 +124,7 @@ async def sim_step(
         updates.append(await in_thread(one))
         if sim.over:
             break
-    await ctx.report_progress(repeat, repeat, "done")
+    await call.report_progress(repeat, repeat, "done")
     return _reply(target, sim, updates)
 
 

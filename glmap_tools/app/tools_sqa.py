@@ -1,17 +1,16 @@
 """locate_situation: where a situation text puts the agent, with the views an MLLM answers from.
 
-No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+No `from __future__ import annotations` here: the MCP face reads these signatures at runtime.
 """
 
 from typing import Annotated, Any, Literal
 
-from mcp.server.mcpserver import Context
 from pydantic import BaseModel, Field
 
 from glmap_tools.app.inputs import SessionArg
 from glmap_tools.app.results import ImageResult, Picture
-from glmap_tools.app.runtime import READ_ONLY, ToolSpec, in_thread, session_of
-from glmap_tools.app.state import locked
+from glmap_tools.app.runtime import READ_ONLY, Call, ToolSpec, in_thread, session_of
+from glmap_tools.app.session import locked
 from glmap_tools.views.common import encode_png
 
 MAX_SITUATION = 512
@@ -79,7 +78,7 @@ def locate(
 
 
 async def locate_situation(
-    ctx: Context,
+    call: Call,
     situation: Annotated[
         str,
         Field(
@@ -101,7 +100,7 @@ async def locate_situation(
             "give the situation text (e.g. 'sitting on the bed, facing the window') or a "
             "reading ({'anchor': 'bed', 'facing': 'window'})."
         )
-    target = session_of(ctx, session)
+    target = session_of(call, session)
     read = reading.model_dump() if reading is not None else None
 
     def run() -> ImageResult:

@@ -1,12 +1,11 @@
 """Map-store tools: new_map, save_map, load_map, list_maps (names only, in the maps folder).
 
-No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+No `from __future__ import annotations` here: the MCP face reads these signatures at runtime.
 """
 
 import datetime as dt
 from typing import Annotated
 
-from mcp.server.mcpserver import Context
 from pydantic import Field
 
 from glmap_tools.app.inputs import SessionArg
@@ -15,13 +14,13 @@ from glmap_tools.app.runtime import (
     DROPS,
     READ_ONLY,
     REPLACES,
+    Call,
     ToolSpec,
-    app_state,
     in_thread,
     session_for_new_map,
     session_of,
 )
-from glmap_tools.app.state import Session, locked, saved_maps
+from glmap_tools.app.session import Session, locked, saved_maps
 from glmap_tools.app.tools_map import resource_uris
 
 MapName = Annotated[
@@ -40,7 +39,7 @@ def _info(session: Session) -> MapInfo:
 
 
 async def new_map(
-    ctx: Context,
+    call: Call,
     name: Annotated[
         str, Field(max_length=70, description="save under this name; omit: scratch map")
     ] = "",
@@ -48,8 +47,8 @@ async def new_map(
 ) -> MapInfo:
     """Start an empty map (the current one is dropped unless saved). Over shared HTTP it is
     a new session: pass its handle as `session`."""
-    target = session_for_new_map(ctx, session)
-    registry = app_state(ctx).registry
+    target = session_for_new_map(call, session)
+    registry = call.state.registry
 
     def run() -> MapInfo:
         registry.new_map(target, name or None)
@@ -60,13 +59,13 @@ async def new_map(
 
 async def save_map(
     name: MapName,
-    ctx: Context,
+    call: Call,
     overwrite: bool = False,
     session: SessionArg = "",
 ) -> SavedMap:
     """Save the map under a name (overwrite: replace one); later frames are committed too."""
-    target = session_of(ctx, session)
-    registry = app_state(ctx).registry
+    target = session_of(call, session)
+    registry = call.state.registry
 
     def run() -> SavedMap:
         live, written = registry.save_map(target, name, overwrite)
@@ -81,10 +80,10 @@ async def save_map(
     return await in_thread(run)
 
 
-async def load_map(name: MapName, ctx: Context, session: SessionArg = "") -> MapInfo:
+async def load_map(name: MapName, call: Call, session: SessionArg = "") -> MapInfo:
     """Open a saved map (the current one is dropped unless saved); sessions share it."""
-    target = session_for_new_map(ctx, session)
-    registry = app_state(ctx).registry
+    target = session_for_new_map(call, session)
+    registry = call.state.registry
 
     def run() -> MapInfo:
         registry.load_map(target, name)
@@ -93,9 +92,9 @@ async def load_map(name: MapName, ctx: Context, session: SessionArg = "") -> Map
     return await in_thread(run)
 
 
-async def list_maps(ctx: Context) -> MapList:
+async def list_maps(call: Call) -> MapList:
     """List the saved maps (open one with load_map)."""
-    registry = app_state(ctx).registry
+    registry = call.state.registry
 
     def run() -> MapList:
         open_names = registry.open_names()

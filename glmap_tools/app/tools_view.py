@@ -1,17 +1,16 @@
 """render_view: images of an instance, a region, the whole map, a pose, or four situated views.
 
-No `from __future__ import annotations` here: the SDK reads these signatures at runtime.
+No `from __future__ import annotations` here: the MCP face reads these signatures at runtime.
 """
 
 from typing import Annotated, Literal
 
-from mcp.server.mcpserver import Context
 from pydantic import Field
 
 from glmap_tools.app.inputs import PoseInput, SessionArg, pose_of
 from glmap_tools.app.results import ImageResult, Picture
-from glmap_tools.app.runtime import READ_ONLY, ToolSpec, app_state, in_thread, session_of
-from glmap_tools.app.state import locked
+from glmap_tools.app.runtime import READ_ONLY, Call, ToolSpec, in_thread, session_of
+from glmap_tools.app.session import locked
 from glmap_tools.app.views import Rendered, ViewRequest, check_request, render_request
 
 Target = Literal["instance", "region", "map", "pose", "situated"]
@@ -42,7 +41,7 @@ WHAT = {
 
 async def render_view(
     target: Target,
-    ctx: Context,
+    call: Call,
     unit_id: Annotated[int | None, Field(ge=1, le=2**62)] = None,
     pose: PoseInput | None = None,
     x: Annotated[float | None, Field(ge=-1e4, le=1e4)] = None,
@@ -55,8 +54,8 @@ async def render_view(
 ) -> ImageResult:
     """Render the map's 3D Gaussians: a unit (unit_id, from its most visible side), the
     map, a camera pose, or 'situated': 4 views from (x, y) facing heading_deg."""
-    state = app_state(ctx)
-    target_session = session_of(ctx, session)
+    state = call.state
+    target_session = session_of(call, session)
     w0, h0 = state.config.render_size
     request = ViewRequest(
         target=target,
@@ -69,7 +68,7 @@ async def render_view(
         context=context,
     )
     check_request(request)
-    await ctx.report_progress(0, 1, WHAT[target].format(unit_id))
+    await call.report_progress(0, 1, WHAT[target].format(unit_id))
 
     def run() -> tuple[Rendered, list[bytes]]:
         with locked(target_session) as glmap:
@@ -77,7 +76,7 @@ async def render_view(
         return rendered, [v.to_png() for v in rendered.views]
 
     rendered, pngs = await in_thread(run)
-    await ctx.report_progress(1, 1, "done")
+    await call.report_progress(1, 1, "done")
     lines = [v.describe() for v in rendered.views]
     lines.extend(rendered.notes)
     lines.append("World frame: metres, z up. White = nothing mapped in that direction.")

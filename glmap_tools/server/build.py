@@ -5,42 +5,26 @@ from __future__ import annotations
 import inspect
 import logging
 import os
-from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
-from contextlib import asynccontextmanager, contextmanager
+from collections.abc import AsyncIterator, Awaitable, Callable
+from contextlib import asynccontextmanager
 from typing import Any
 
 from mcp.server.mcpserver import Context, Image, MCPServer
 from mcp.server.mcpserver.exceptions import ToolError
-from mcp.types import CallToolResult, InputRequiredResult, TextContent, Tool
+from mcp.types import CallToolResult, InputRequiredResult, TextContent, Tool, ToolAnnotations
 from pydantic import BaseModel, ValidationError
 
 from glmap_tools import __version__
-from glmap_tools.app.background import (
-    EMBEDDER,
-    HANDSHAKE_HOLD_S,
-    KERNELS,
-    WHAT,
-    Background,
-    BackgroundEmbedder,
-    load_embedder,
-    warm_kernels,
-)
+from glmap_tools.app.background import EMBEDDER, HANDSHAKE_HOLD_S, WHAT, Background, Task
 from glmap_tools.app.config import ServerConfig
 from glmap_tools.app.inputs import tidy_arguments, validation_message
-from glmap_tools.app.results import (
-    ImageResult,
-    compact_description,
-    compact_json,
-    compact_schema,
-    compact_text,
-    pictures_of,
-    strip_descriptions,
-)
-from glmap_tools.app.runtime import AppState, PerceptionBackend, ToolSpec, app_state
-from glmap_tools.app.state import SessionRegistry
-from glmap_tools.app.threads import limited_threads
+from glmap_tools.app.lifespan import needed_tasks, opened_state
+from glmap_tools.app.listing import lean_listing
+from glmap_tools.app.results import ImageResult, compact_json, compact_text, pictures_of
+from glmap_tools.app.runtime import CALL_PARAMETER, AppState, Call, PerceptionBackend, ToolSpec
 from glmap_tools.errors import GLMapError
 from glmap_tools.server import resources
+from glmap_tools.server.context import app_state, call_of
 
 logger = logging.getLogger(__name__)
 
@@ -57,27 +41,6 @@ whether stopping counts), then sim_step('stop'); or steer yourself with look_aro
 find_instance, value_map and navigate_to (its would_succeed likewise). Results are
 compact text (key: value lines, floats rounded to 3 decimals) with the exact values as
 structured content."""
-
-# Tools that render or integrate also wait for the kernels; every tool that may embed text
-# waits for the embedder. These read files and stored numbers only: they never wait.
-NO_WAIT_TOOLS = ("list_maps", "map_summary", "describe_unit", "what_is_at")
-KERNEL_TOOLS = (
-    "observe_frame",
-    "render_view",
-    "sim_reset",
-    "sim_step",
-    "navigate_to",
-    "look_around",
-    "nav_step",
-    "label_segments",
-)
-
-
-def needed_tasks(name: str) -> tuple[str, ...]:
-    """The start-up tasks a call of tool `name` waits for."""
-    if name in NO_WAIT_TOOLS:
-        return ()
-    return (EMBEDDER, KERNELS) if name in KERNEL_TOOLS else (EMBEDDER,)
 
 
 class GLMapServer(MCPServer[AppState]):
@@ -139,7 +102,7 @@ class GLMapServer(MCPServer[AppState]):
         return result
 
     async def _wait_for(
-        self, name: str, pending: list[Any], context: Context[AppState, Any] | None
+        self, name: str, pending: list[Task], context: Context[AppState, Any] | None
     ) -> None:
         import anyio.to_thread
 
@@ -154,34 +117,13 @@ class GLMapServer(MCPServer[AppState]):
 
 
 def lean_tools(tools: list[Tool]) -> list[Tool]:
-    """The tools/list a model reads (see GLMapServer): compact descriptions and schemas,
-    a shared model or argument description given once, no output schemas."""
-    seen: dict[str, str] = {}  # $defs name -> the first tool that describes it
-    said: set[tuple[str, str]] = set()  # (argument, description) already given
-    out = []
-    for t in tools:
-        schema = compact_schema(t.input_schema)
-        for arg, prop in schema.get("properties", {}).items():
-            text = prop.get("description")
-            if text is not None and (arg, text) in said:
-                del prop["description"]  # described in an earlier tool
-            elif text is not None:
-                said.add((arg, text))
-        for name, model in schema.get("$defs", {}).items():
-            if name in seen:
-                schema["$defs"][name] = {
-                    **strip_descriptions(model),
-                    "description": f"as in {seen[name]}",
-                }
-            else:
-                seen[name] = t.name
-        update = {
-            "description": compact_description(t.description or ""),
-            "input_schema": schema,
-            "output_schema": None,
-        }
-        out.append(t.model_copy(update=update))
-    return out
+    """The tools/list a model reads (glmap_tools.app.listing): compact descriptions and
+    schemas, a shared model or argument description given once, no output schemas."""
+    lean = lean_listing([(t.name, t.description, t.input_schema) for t in tools])
+    return [
+        t.model_copy(update={"description": d, "input_schema": s, "output_schema": None})
+        for t, (d, s) in zip(tools, lean, strict=True)
+    ]
 
 
 def mcp_result(result: Any) -> Any:
@@ -205,83 +147,54 @@ def mcp_result(result: Any) -> Any:
 
 def mcp_tool(spec: ToolSpec) -> Callable[..., Awaitable[Any]]:
     """`spec`'s function as the MCP server registers it: the same name, description and
-    parameters; a GLMapError becomes a tool error carrying its message for the model (other
-    exceptions stay crashes: the SDK logs them and the model sees a generic error)."""
+    parameters, its `call` taken from the request's context (`ctx: Context`, which the SDK
+    fills in and leaves out of the input schema); a GLMapError becomes a tool error
+    carrying its message for the model (other exceptions stay crashes: the SDK logs them
+    and the model sees a generic error)."""
     fn = spec.fn
     signature = inspect.signature(fn)
+    params = [
+        p.replace(name="ctx", annotation=Context) if p.name == CALL_PARAMETER else p
+        for p in signature.parameters.values()
+    ]
     returns = CallToolResult if signature.return_annotation is ImageResult else None
 
-    async def call(*args: Any, **kwargs: Any) -> Any:
+    async def tool(ctx: Context[Any, Any], **kwargs: Any) -> Any:
+        call = call_of(ctx)
         try:
-            result = await fn(*args, **kwargs)
+            result = await fn(**kwargs, call=call)
         except GLMapError as exc:
-            raise ToolError(hide_maps_folder(str(exc), [*args, *kwargs.values()])) from exc
+            raise ToolError(hide_maps_folder(str(exc), call)) from exc
         return mcp_result(result)
 
-    call.__name__ = call.__qualname__ = fn.__name__
-    call.__module__ = fn.__module__
-    call.__doc__ = fn.__doc__
+    tool.__name__ = tool.__qualname__ = fn.__name__
+    tool.__module__ = fn.__module__
+    tool.__doc__ = fn.__doc__
+    signature = signature.replace(parameters=params)
     if returns is not None:
         signature = signature.replace(return_annotation=returns)
-    call.__signature__ = signature  # type: ignore[attr-defined]
-    call.__annotations__ = {**fn.__annotations__, "return": signature.return_annotation}
-    return call
+    tool.__signature__ = signature  # type: ignore[attr-defined]
+    hints = {k: v for k, v in fn.__annotations__.items() if k != CALL_PARAMETER}
+    tool.__annotations__ = {**hints, "ctx": Context, "return": signature.return_annotation}
+    return tool
 
 
-def hide_maps_folder(message: str, arguments: list[Any]) -> str:
+def hide_maps_folder(message: str, call: Call) -> str:
     """`message` with the server's maps folder cut out (its path is none of a client's
-    business), whichever module raised it; `arguments` are the call's, its Context among
-    them."""
-    for value in arguments:
-        if isinstance(value, Context):
-            try:
-                folder = str(app_state(value).registry.maps_dir)
-            except (AttributeError, AssertionError, ValueError):
-                return message
-            return message.replace(folder + os.sep, "").replace(folder, "<maps folder>")
-    return message
+    business), whichever module raised it."""
+    folder = str(call.state.registry.maps_dir)
+    return message.replace(folder + os.sep, "").replace(folder, "<maps folder>")
 
 
-def add_tools(server: MCPServer, tools: tuple[ToolSpec, ...] | None = None) -> None:
+def add_tools(server: MCPServer[Any], tools: tuple[ToolSpec, ...] | None = None) -> None:
     """Register `tools` (default: all, glmap_tools.app.catalog) on `server`."""
     if tools is None:
         from glmap_tools.app.catalog import TOOLS  # imports the tools modules
 
         tools = TOOLS
     for spec in tools:
-        server.add_tool(mcp_tool(spec), name=spec.name, annotations=spec.annotations)
-
-
-@contextmanager
-def opened_state(
-    config: ServerConfig, perception: PerceptionBackend | None, background: Background
-) -> Iterator[AppState]:
-    """The app state (embedder, sessions) for `config`, closed on exit.
-
-    The MiniLM embedder loads on a background task unless it is the hashing one; the
-    kernels warm up in the background when `config.warm_up`.
-    """
-    config.maps_dir.mkdir(parents=True, exist_ok=True)
-    with limited_threads(config.compute_threads):
-        embedder: Any
-        if config.embedder == "hashing":
-            embedder = load_embedder("hashing", None)
-        else:
-            from glmap_tools.language.embed import MiniLMEmbedder
-
-            task = background.start(
-                EMBEDDER, lambda: load_embedder(config.embedder, config.compute_threads)
-            )
-            embedder = BackgroundEmbedder(task, MiniLMEmbedder)
-        if config.warm_up:
-            background.start(KERNELS, warm_kernels)
-        registry = SessionRegistry(config, embedder)
-        state = AppState(config, embedder, registry, perception)
-        state.extras["background"] = background
-        try:
-            yield state
-        finally:
-            registry.close()
+        hints = ToolAnnotations.model_validate(spec.annotations.said())
+        server.add_tool(mcp_tool(spec), name=spec.name, annotations=hints)
 
 
 def build_server(
@@ -321,7 +234,31 @@ def build_server(
     add_tools(server)
     resources.register(server, config)
     if config.map_name is not None:  # --map: each call holds the saved map's lock
-        from glmap_tools.app.persist import guard_calls
-
         guard_calls(server)
     return server
+
+
+def guard_calls(server: GLMapServer) -> None:
+    """Bracket every tool call of `server` with the pinned map's enter/exit (`--map`, see
+    glmap_tools.app.persist); a failure to lock or open the map becomes the call's tool error.
+    """
+    import anyio.to_thread
+
+    original = server.call_tool
+
+    async def call_tool(
+        name: str, arguments: dict[str, Any], context: Context[AppState, Any] | None = None
+    ) -> CallToolResult | InputRequiredResult:
+        pin = app_state(context).registry.pin if context is not None else None
+        if pin is None:
+            return await original(name, arguments, context)
+        try:
+            await anyio.to_thread.run_sync(pin.enter)
+        except GLMapError as exc:
+            raise ToolError(str(exc)) from exc
+        try:
+            return await original(name, arguments, context)
+        finally:
+            await anyio.to_thread.run_sync(pin.exit)
+
+    server.call_tool = call_tool  # type: ignore[method-assign]

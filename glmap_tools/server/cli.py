@@ -185,7 +185,7 @@ def check_pinned_map(config: ServerConfig) -> None:
     if config.map_name is None:
         return
     from glmap_tools.app.persist import check_saved_map
-    from glmap_tools.app.state import MAP_SUFFIX
+    from glmap_tools.app.session import MAP_SUFFIX
 
     path = config.maps_dir / f"{config.map_name}{MAP_SUFFIX}"
     check_saved_map(path, config.map_name, config.map_config, config.embedder)

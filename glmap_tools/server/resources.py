@@ -12,13 +12,13 @@ from mcp.server.mcpserver import Context, MCPServer
 from mcp.server.mcpserver.exceptions import ResourceError, ResourceNotFoundError
 
 from glmap_tools.app.config import ServerConfig
-from glmap_tools.app.runtime import app_state, transport_session_id
-from glmap_tools.app.state import Session, locked
-from glmap_tools.app.state import saved_maps as saved_map_files
+from glmap_tools.app.session import Session, locked
+from glmap_tools.app.session import saved_maps as saved_map_files
 from glmap_tools.app.views import EMPTY_MAP
 from glmap_tools.app.views import topdown as draw
 from glmap_tools.errors import GLMapError, UnknownIdError
 from glmap_tools.map.queries import details
+from glmap_tools.server.context import app_state, transport_of
 
 if TYPE_CHECKING:
     from glmap_tools.map import GLMap
@@ -27,7 +27,7 @@ CURRENT = "current"
 
 
 def _session(ctx: Context, handle: str) -> Session:
-    transport_id, _ = transport_session_id(ctx)
+    transport_id, _ = transport_of(ctx)
     registry = app_state(ctx).registry
     try:
         return registry.resolve(None if handle == CURRENT else handle, transport_id)

@@ -14,13 +14,25 @@ lines, or the JSON and notes of an ImageResult. Images go where the framework ta
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol
 
 from glmap_tools.app.results import as_text, pictures_of
 from glmap_tools.errors import GLMapError
 
-if TYPE_CHECKING:
-    from glmap_tools.toolset.local import Toolset
+
+class Toolset(Protocol):
+    """What the adapters use of a `glmap_tools.toolset.Toolset`."""
+
+    @property
+    def names(self) -> list[str]: ...
+    def call(self, name: str, arguments: Mapping[str, Any] | None = None) -> Any: ...
+    async def acall(self, name: str, arguments: Mapping[str, Any] | None = None) -> Any: ...
+    def dress(self, name: str, fn: Callable[..., Any]) -> Callable[..., Any]: ...
+    def description(self, name: str) -> str: ...
+    def input_schema(self, name: str) -> dict[str, Any]: ...
+    def arg_text(self, name: str, arg: str) -> str: ...
+
 
 # JSON schema types smolagents accepts for a tool input.
 _SMOL_TYPES = {"string", "boolean", "integer", "number", "array", "object"}

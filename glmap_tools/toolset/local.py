@@ -1,9 +1,9 @@
 """`Toolset`: the GLMap tools in this process, for agent frameworks without MCP.
 
 The functions are the ones the MCP server registers (glmap_tools.app.catalog), called
-with a `LocalContext` instead of an MCP request's: the same names, descriptions,
-parameters, validation and results. A call's arguments are tidied and validated as the
-server does it (nulls = omitted, `topK` = `top_k`, "5" = 5; anything else a clear
+with a `Call` on this toolset's app state: the same names, descriptions, parameters,
+validation and results. A call's arguments are tidied and validated as the server does
+it (glmap_tools.app.arguments; nulls = omitted, `topK` = `top_k`, "5" = 5; anything else a clear
 InvalidInputError naming the argument); results are the pydantic models the server sends as
 structured content, or an `ImageResult` (text blocks and `Picture`s) for tools with images.
 """
@@ -18,33 +18,28 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
+from glmap_tools.app.arguments import input_schema, parameters, validate_arguments
 from glmap_tools.app.background import Background
 from glmap_tools.app.catalog import TOOLS
 from glmap_tools.app.config import ServerConfig
 from glmap_tools.app.inputs import tidy_arguments, validation_message
+from glmap_tools.app.lifespan import needed_tasks, opened_state
+from glmap_tools.app.listing import lean_listing
 from glmap_tools.app.results import compact_description, compact_schema
 from glmap_tools.app.runtime import (
+    CALL_PARAMETER,
     AppState,
-    LocalContext,
+    Call,
     PerceptionBackend,
     ProgressCallback,
     ToolSpec,
 )
 from glmap_tools.errors import InvalidInputError, UnknownIdError
-from glmap_tools.server.build import add_tools, lean_tools, mcp_tool, needed_tasks, opened_state
 from glmap_tools.toolset.flat import SEP, flat_schema, unflatten
 
 if TYPE_CHECKING:
     from anyio.from_thread import BlockingPortal
-    from mcp.server.mcpserver.tools import Tool as ToolInfo
     from mcp.types import Tool
-
-
-def _tool_info(spec: ToolSpec) -> ToolInfo:
-    """The SDK's view of `spec` (its argument model and JSON schema), as the server builds it."""
-    from mcp.server.mcpserver.tools import Tool as ToolInfo
-
-    return ToolInfo.from_function(mcp_tool(spec), name=spec.name, annotations=spec.annotations)
 
 
 class Toolset:
@@ -80,7 +75,7 @@ class Toolset:
             if name not in by_name:
                 raise UnknownIdError(f"no tool {name!r}; the tools are {', '.join(by_name)}.")
         self.specs = [by_name[n] for n in names]
-        self._infos = {s.name: _tool_info(s) for s in self.specs}
+        self._schemas = {s.name: input_schema(s.fn) for s in self.specs}
         self._background = Background()
         self._stack: ExitStack | None = None
         self._state: AppState | None = None
@@ -139,13 +134,12 @@ class Toolset:
             GLMapError: what the MCP face reports as a tool error (bad arguments included).
         """
         spec = self._spec(name)
-        meta = self._infos[name].fn_metadata
         given = dict(arguments or {})
         if any(SEP in key for key in given):  # flattened by `ollama_tools`' schemas
             given = unflatten(given)
-        args = tidy_arguments(name, given, list(meta.arg_model.model_fields))
+        args = tidy_arguments(name, given, [p.name for p in parameters(spec.fn)])
         try:
-            validated = meta.validate_arguments(args)
+            validated = validate_arguments(spec.fn, args)
         except ValidationError as exc:
             raise InvalidInputError(validation_message(name, exc)) from None
         state = self.state
@@ -155,8 +149,11 @@ class Toolset:
 
             names = [t.name for t in pending]
             await anyio.to_thread.run_sync(lambda: self._background.wait(names))
-        ctx = LocalContext(state, self.on_progress)
-        return await meta.call_fn(spec.fn, True, validated, {"ctx": ctx})
+        return await spec.fn(**validated, call=Call(state, progress=self._progress))
+
+    async def _progress(self, progress: float, total: float | None, message: str | None) -> None:
+        if self.on_progress is not None:
+            self.on_progress(progress, total, message)
 
     def call(self, name: str, arguments: Mapping[str, Any] | None = None) -> Any:
         """`acall` from synchronous code (runs on the toolset's own event loop thread)."""
@@ -175,31 +172,26 @@ class Toolset:
 
     def tool_list(self) -> list[Tool]:
         """The tools as the MCP server lists them (tools/list), for these tools."""
-        from mcp.types import Tool
+        from mcp.types import Tool, ToolAnnotations
 
-        return lean_tools(
-            [
-                Tool(
-                    name=info.name,
-                    title=info.title,
-                    description=info.description,
-                    input_schema=info.parameters,
-                    output_schema=info.output_schema,
-                    annotations=info.annotations,
-                    icons=info.icons,
-                    _meta=info.meta,
-                )
-                for info in self._infos.values()
-            ]
-        )
+        lean = lean_listing([(s.name, s.fn.__doc__, self._schemas[s.name]) for s in self.specs])
+        return [
+            Tool(
+                name=spec.name,
+                description=description,
+                input_schema=schema,
+                annotations=ToolAnnotations.model_validate(spec.annotations.said()),
+            )
+            for spec, (description, schema) in zip(self.specs, lean, strict=True)
+        ]
 
     def description(self, name: str) -> str:
         """The tool's description, as in tools/list."""
-        return compact_description(self._infos[name].description or "")
+        return compact_description(self._spec(name).fn.__doc__ or "")
 
     def input_schema(self, name: str) -> dict[str, Any]:
         """The tool's input JSON schema, complete on its own (every argument described)."""
-        return dict(compact_schema(self._infos[name].parameters))
+        return dict(compact_schema(self._schemas[name]))
 
     def openai_tools(self) -> list[dict[str, Any]]:
         """The tools in the OpenAI function-tool format (for `ollama.chat`, use
@@ -227,7 +219,7 @@ class Toolset:
                 "function": {
                     "name": n,
                     "description": self.description(n),
-                    "parameters": flat_schema(self._infos[n].parameters),
+                    "parameters": flat_schema(self._schemas[n]),
                 },
             }
             for n in self.names
@@ -245,20 +237,23 @@ class Toolset:
     def arg_text(self, name: str, arg: str) -> str:
         """What argument `arg` of tool `name` is, in a few words, with its default."""
         prop = self.input_schema(name)["properties"][arg]
-        return _arg_text(prop, self._infos[name].parameters)
+        return _arg_text(prop, self._schemas[name])
 
     def signature(self, name: str) -> inspect.Signature:
-        """The tool function's signature without its `ctx` parameter."""
+        """The tool function's signature without its `call` parameter."""
         sig = inspect.signature(self._spec(name).fn)
-        return sig.replace(parameters=[p for p in sig.parameters.values() if p.name != "ctx"])
+        kept = [p for p in sig.parameters.values() if p.name != CALL_PARAMETER]
+        return sig.replace(parameters=kept)
 
     # ------------------------------------------------------------------ functions
 
     def dress(self, name: str, fn: Callable[..., Any]) -> Callable[..., Any]:
-        """Give `fn` the tool's name, docstring, signature and annotations (without ctx)."""
+        """Give `fn` the tool's name, docstring, signature and annotations (without call)."""
         sig = self.signature(name)
         hints = {
-            k: v for k, v in inspect.get_annotations(self._spec(name).fn).items() if k != "ctx"
+            k: v
+            for k, v in inspect.get_annotations(self._spec(name).fn).items()
+            if k != CALL_PARAMETER
         }
         fn.__name__ = fn.__qualname__ = name
         fn.__doc__ = self.docstring(name)
@@ -269,7 +264,7 @@ class Toolset:
 
     def functions(self) -> list[Callable[..., Any]]:
         """A plain synchronous function per tool: name, docstring and signature of the tool
-        (without ctx); it returns what `call` returns."""
+        (without `call`); it returns what `Toolset.call` returns."""
 
         def make(name: str) -> Callable[..., Any]:
             sig = self.signature(name)
@@ -313,10 +308,6 @@ class Toolset:
         from glmap_tools.toolset.adapters import smolagents_tools
 
         return smolagents_tools(self)
-
-    def register_on(self, server: Any) -> None:
-        """Register these tools on an MCPServer, as build_server does."""
-        add_tools(server, tuple(self.specs))
 
 
 def _bind(sig: inspect.Signature, args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
