@@ -251,6 +251,35 @@ def _decision(d: Any, state: Any) -> dict[str, Any]:
     }
 
 
+# The modules whose old versions a comparison loads (what a refactor of the frame's path
+# and the policy's decision touches); everything else is shared with this tree.
+OLD_MODULES = (
+    "glmap_tools.map.fusion",
+    "glmap_tools.nav.waypoint",
+    "glmap_tools.nav.policy",
+    "glmap_tools.sqa.situate",
+)
+
+
+def _old_modules(tree: Path) -> dict[str, Any]:
+    """OLD_MODULES as in `tree`, each calling the others' old versions."""
+    import importlib
+
+    old = {
+        name: _module_from(
+            tree / (name.replace(".", "/") + ".py"), "_old_" + name.replace(".", "_")
+        )
+        for name in OLD_MODULES
+    }
+    for name, module in old.items():  # point names imported from a live module at the old one
+        live = importlib.import_module(name)
+        for other in old.values():
+            for attr, obj in list(vars(other).items()):
+                if obj is not None and obj is getattr(live, attr, None) and hasattr(module, attr):
+                    setattr(other, attr, getattr(module, attr))
+    return old
+
+
 class _TwoTrees:
     """This tree's and an older tree's `plan_frame` and `decide`, fed the same frames."""
 
@@ -258,8 +287,8 @@ class _TwoTrees:
         from glmap_tools.bench._nav_loop import embedder
         from glmap_tools.map import GLMap, MapConfig
 
-        self.fusion = _module_from(tree / "glmap_tools/map/fusion.py", "_old_fusion")
-        self.policy = _module_from(tree / "glmap_tools/nav/policy.py", "_old_policy")
+        old = _old_modules(tree)
+        self.fusion, self.policy = old["glmap_tools.map.fusion"], old["glmap_tools.nav.policy"]
         self.new, self.old = (GLMap(MapConfig(), embedder=embedder()) for _ in range(2))
 
     def integrate(self, frame: Any, sem: Any, where: str) -> list[str]:
@@ -355,6 +384,52 @@ def tour_against(tree: Path, scene: str, max_frames: int) -> tuple[int, list[str
     return n, []
 
 
+def situate_against(tree: Path, results: Path) -> tuple[int, list[str]]:
+    """`situate` of both trees on the maps and situations of a `glmap eval sqa --out`
+    folder; (situations, differences)."""
+    import shutil
+    import tempfile
+
+    from glmap_tools.bench._nav_loop import embedder
+    from glmap_tools.map import GLMap
+    from glmap_tools.sqa.situate import situate
+
+    old = _old_modules(tree)["glmap_tools.sqa.situate"]
+    n, diff = 0, []
+    for scene in sorted((results / "scenes").glob("*.json")):
+        texts = sorted({r["situation"] for r in json.loads(scene.read_text())["records"]})
+        with tempfile.TemporaryDirectory() as tmp:  # opening a store may write to it
+            path = Path(tmp) / "map.glmap"
+            shutil.copy(results / "maps" / f"{scene.stem}.glmap", path)
+            glmap = GLMap.open(path, embedder=embedder())
+            labels = sorted({u.label for u in glmap.instances.values()})[:8]
+            texts += [f"I am next to the {a}, facing the {b}." for a in labels for b in labels]
+            texts += [f"sitting in the {r.text.split('|')[0][:40]}" for r in glmap.regions.values()]
+            try:
+                for text in texts:
+                    a, b = (
+                        json.loads(json.dumps(_situation(f(glmap, text)), default=repr))
+                        for f in (situate, old.situate)
+                    )
+                    diff += differences(a, b, f"{scene.stem} {text[:50]!r}")
+                    n += 1
+            finally:
+                glmap.close()
+    return n, diff
+
+
+def _situation(s: Any) -> dict[str, Any]:
+    return {
+        **s.as_dict(),
+        "pose": [repr(s.x), repr(s.y), repr(s.heading)],
+        "peaks": [repr(s.peak_r), repr(s.peak_o)],
+        "ids": [s.anchor_id, s.facing_id],
+        "h_r": _digest(s.h_r.values),
+        "h_o": None if s.h_o is None else _digest(s.h_o.values),
+        "scores": [repr(u.score) for u in s.anchors + s.facing],
+    }
+
+
 def golden_record(max_steps: int = 40) -> list[dict[str, Any]]:
     """The test's record: actions and poses (6 decimals) of `GOLDEN_EPISODES`."""
     out = []
@@ -403,6 +478,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tour-frames", type=int, default=40)
     parser.add_argument("--golden", action="store_true", help=f"rewrite {GOLDEN.name}")
     parser.add_argument("--against", help="an older checkout: compare step by step in-process")
+    parser.add_argument("--only", help="with --against: the runs whose name starts so")
+    parser.add_argument(
+        "--sqa", help="with --against: a `glmap eval sqa --out` folder to situate on"
+    )
     args = parser.parse_args(argv)
     if args.golden:
         GOLDEN.write_text(json.dumps(golden_record(), indent=1) + "\n")
@@ -415,7 +494,11 @@ def main(argv: list[str] | None = None) -> int:
             for t, i, p in EPISODES
         ]
         runs += [(f"tour {s}", partial(tour_against, tree, s, args.tour_frames)) for s in TOURS]
+        if args.sqa:
+            runs = [("situate", partial(situate_against, tree, Path(args.sqa)))] + runs
         for name, run in runs:
+            if args.only and not name.startswith(args.only):
+                continue
             n, diff = run()
             total += n
             failed |= bool(diff)

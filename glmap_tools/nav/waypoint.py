@@ -139,98 +139,102 @@ def in_clear_sight(
     return ~blocking[cells[..., 0], cells[..., 1]].any(axis=1)
 
 
-def choose_waypoint(
-    value: ValueMap | None,
-    fronts: Sequence[Frontier],
+def _cell_xy(occ: DenseOccupancy, rc: np.ndarray) -> np.ndarray:
+    """[K, 2] (row, col) cells of `occ`'s window -> [K, 2] (x, y) of their centres, metres."""
+    s = occ.cell_size
+    return np.stack(
+        [(rc[:, 1] + occ.origin[0] + 0.5) * s, (rc[:, 0] + occ.origin[1] + 0.5) * s], axis=1
+    )
+
+
+def _distances(
+    occ: DenseOccupancy,
+    rc: np.ndarray,
+    agent_xy: tuple[float, float],
+    distance: np.ndarray | None,
+) -> np.ndarray:
+    """[K] metres from the agent to the cells: geodesic over `distance`, else straight."""
+    if distance is not None:
+        return distance[rc[:, 0], rc[:, 1]]
+    xy = _cell_xy(occ, rc)
+    return np.hypot(xy[:, 0] - agent_xy[0], xy[:, 1] - agent_xy[1])
+
+
+def _goal_waypoint(
+    match: GoalMatch,
     traversable: np.ndarray,
     agent_xy: tuple[float, float],
-    goal_match: GoalMatch | None,
     config: NavConfig,
-    *,
     occ: DenseOccupancy,
-    distance: np.ndarray | None = None,
-    avoid: Sequence[tuple[float, float]] = (),
-    walls: np.ndarray | None = None,
-) -> Waypoint:
-    """Pick the next waypoint (see the module docstring).
-
-    Args:
-        value: the value map H, or None (frontier-only exploration: the nearest frontier).
-        fronts: reachable frontiers (from `frontiers`).
-        traversable: [H, W] bool cells the agent may stand on, over `occ`'s window.
-        agent_xy: (x, y) metres.
-        goal_match: the matched instance, if any.
-        config: stop distance and radii.
-        occ: the occupancy window `traversable` and `distance` are over.
-        distance: [H, W] geodesic metres from the agent; frontiers or goal cells it cannot
-            reach are skipped (next best is taken); None = straight-line distances.
-        avoid: (x, y) of waypoints given up earlier (stuck, or reached without effect);
-            frontiers within `config.stop_distance` of one are skipped.
-        walls: [H, W] bool, the obstacle cells that block sight (`stop_in_sight`); None =
-            every obstacle cell.
-    """
+    distance: np.ndarray | None,
+    walls: np.ndarray | None,
+) -> Waypoint | None:
+    """The agent itself within `stop_distance` of the match (in sight with `stop_in_sight`),
+    else the nearest reachable navigable cell that is; None when there is none yet."""
     s = occ.cell_size
-
-    def dist_of(rc: np.ndarray) -> np.ndarray:
-        if distance is not None:
-            return distance[rc[:, 0], rc[:, 1]]
-        xy = occ_xy(rc)
-        return np.hypot(xy[:, 0] - agent_xy[0], xy[:, 1] - agent_xy[1])
-
-    def occ_xy(rc: np.ndarray) -> np.ndarray:
-        return np.stack(
-            [(rc[:, 1] + occ.origin[0] + 0.5) * s, (rc[:, 0] + occ.origin[1] + 0.5) * s], axis=1
+    here = distance_to_cells(match.cells, agent_xy, s)
+    cand = np.zeros((0, 2), np.int64)
+    sight_note = ""
+    if here > config.stop_distance or config.stop_in_sight:
+        cand = goal_cells_near(match, occ, traversable, config.stop_distance - s)
+        d = _distances(occ, cand, agent_xy, distance)
+        cand, d = cand[np.isfinite(d)], d[np.isfinite(d)]
+    if config.stop_in_sight and len(cand):
+        agent_rc = np.array(occ.world_to_index(*agent_xy))
+        clear = in_clear_sight(match, occ, np.vstack([cand, agent_rc]), walls)
+        if clear[:-1].any():
+            cand, d = cand[clear[:-1]], d[clear[:-1]]
+            if here <= config.stop_distance and not clear[-1]:
+                here = math.inf  # within reach but out of sight: move to where it is seen
+                sight_note = " (it was within reach but out of sight here)"
+    matched = f"instance {match.unit_id} matches the goal (score {match.score:.2f})"
+    if here <= config.stop_distance:
+        reason = f"{matched} and is {here:.2f} m away: within the stop distance."
+        xy = np.array(agent_xy, dtype=float)
+    elif len(cand):
+        xy = _cell_xy(occ, cand[int(np.argmin(d))][None])[0]
+        reason = (
+            f"{matched}; heading to the nearest navigable cell within "
+            f"{config.stop_distance:.2f} m of it"
+            + (" in clear sight of it" if config.stop_in_sight else "")
+            + f"{sight_note}."
         )
+    else:
+        return None
+    return Waypoint((float(xy[0]), float(xy[1])), "goal", match.unit_id, match.score, reason)
 
-    if goal_match is not None:
-        here = distance_to_cells(goal_match.cells, agent_xy, s)
-        cand = np.zeros((0, 2), np.int64)
-        sight_note = ""
-        if here > config.stop_distance or config.stop_in_sight:
-            cand = goal_cells_near(goal_match, occ, traversable, config.stop_distance - s)
-            d = dist_of(cand)
-            cand, d = cand[np.isfinite(d)], d[np.isfinite(d)]
-        if config.stop_in_sight and len(cand):
-            agent_rc = np.array(occ.world_to_index(*agent_xy))
-            clear = in_clear_sight(goal_match, occ, np.vstack([cand, agent_rc]), walls)
-            if clear[:-1].any():
-                cand, d = cand[clear[:-1]], d[clear[:-1]]
-                if here <= config.stop_distance and not clear[-1]:
-                    here = math.inf  # within reach but out of sight: move to where it is seen
-                    sight_note = " (it was within reach but out of sight here)"
-        matched = f"instance {goal_match.unit_id} matches the goal (score {goal_match.score:.2f})"
-        if here <= config.stop_distance:
-            reason = f"{matched} and is {here:.2f} m away: within the stop distance."
-            xy = np.array(agent_xy, dtype=float)
-        elif len(cand):
-            xy = occ_xy(cand[int(np.argmin(d))][None])[0]
-            reason = (
-                f"{matched}; heading to the nearest navigable cell within "
-                f"{config.stop_distance:.2f} m of it"
-                + (" in clear sight of it" if config.stop_in_sight else "")
-                + f"{sight_note}."
-            )
-        else:
-            reason = ""
-        if reason:
-            return Waypoint(
-                (float(xy[0]), float(xy[1])), "goal", goal_match.unit_id, goal_match.score, reason
-            )
-        # The match has no reachable cell near it yet: keep exploring (next best).
 
-    usable: list[tuple[Frontier, np.ndarray]] = []  # (frontier, [K, 2] xy of its usable cells)
+def _usable_frontiers(
+    fronts: Sequence[Frontier],
+    occ: DenseOccupancy,
+    avoid: Sequence[tuple[float, float]],
+    config: NavConfig,
+) -> list[tuple[Frontier, np.ndarray]]:
+    """(frontier, [K, 2] xy of its cells farther than `stop_distance` from every given-up
+    waypoint) of the reachable frontiers with any such cell."""
+    usable: list[tuple[Frontier, np.ndarray]] = []
     for f in fronts:
         if not math.isfinite(f.distance):
             continue
-        xy = occ_xy(f.cells)
+        xy = _cell_xy(occ, f.cells)
         keep = np.ones(len(xy), dtype=bool)
         for a in avoid:
             keep &= np.hypot(xy[:, 0] - a[0], xy[:, 1] - a[1]) > config.stop_distance
         if keep.any():
             usable.append((f, xy[keep]))
-    global_peak = value.argmax_xy() if value is not None else None
-    peak = global_peak
-    if usable and peak is not None:
+    return usable
+
+
+def _frontier_waypoint(
+    usable: list[tuple[Frontier, np.ndarray]],
+    value: ValueMap | None,
+    peak: tuple[float, float] | None,
+) -> Waypoint | None:
+    """The usable frontier cell closest to the value-map maximum `peak` (the paper's rule),
+    or, with no peak, the nearest frontier's cell closest to its target."""
+    if not usable:
+        return None
+    if peak is not None:
         best = None
         for f, xy in usable:
             d = np.hypot(xy[:, 0] - peak[0], xy[:, 1] - peak[1])
@@ -248,35 +252,95 @@ def choose_waypoint(
             f"frontier closest ({gap:.2f} m) to the value-map maximum at "
             f"({peak[0]:.2f}, {peak[1]:.2f}).",
         )
-    if usable:
-        why = "." if value is None else "; the value map is empty."
-        f, xy = min(usable, key=lambda fx: (fx[0].distance, -fx[0].size))
-        k = int(np.argmin(np.hypot(xy[:, 0] - f.target[0], xy[:, 1] - f.target[1])))
-        return Waypoint(
-            (float(xy[k, 0]), float(xy[k, 1])),
-            "frontier",
-            None,
-            0.0,
-            f"nearest frontier ({f.distance:.2f} m, {f.size} cells){why}",
-        )
-    peak = global_peak
+    why = "." if value is None else "; the value map is empty."
+    f, xy = min(usable, key=lambda fx: (fx[0].distance, -fx[0].size))
+    k = int(np.argmin(np.hypot(xy[:, 0] - f.target[0], xy[:, 1] - f.target[1])))
+    return Waypoint(
+        (float(xy[k, 0]), float(xy[k, 1])),
+        "frontier",
+        None,
+        0.0,
+        f"nearest frontier ({f.distance:.2f} m, {f.size} cells){why}",
+    )
+
+
+def _explore_waypoint(
+    value: ValueMap,
+    peak: tuple[float, float],
+    traversable: np.ndarray,
+    agent_xy: tuple[float, float],
+    config: NavConfig,
+    occ: DenseOccupancy,
+    distance: np.ndarray | None,
+    avoid: Sequence[tuple[float, float]],
+) -> Waypoint | None:
+    """No frontier left: the reachable navigable cell nearest the value-map maximum, unless
+    it was given up."""
+    cells = np.argwhere(traversable)
+    if not len(cells):
+        return None
+    xy = _cell_xy(occ, cells)
+    d = np.hypot(xy[:, 0] - peak[0], xy[:, 1] - peak[1])
+    reach = _distances(occ, cells, agent_xy, distance)
+    d = np.where(np.isfinite(reach), d, np.inf)
+    k = int(np.argmin(d))
+    if not math.isfinite(float(d[k])) or any(
+        math.hypot(xy[k, 0] - a[0], xy[k, 1] - a[1]) <= config.stop_distance for a in avoid
+    ):
+        return None
+    return Waypoint(
+        (float(xy[k, 0]), float(xy[k, 1])),
+        "explore",
+        None,
+        value.value_at(float(xy[k, 0]), float(xy[k, 1])),
+        "no frontier left and no match: the navigable cell nearest the value-map maximum.",
+    )
+
+
+def choose_waypoint(
+    value: ValueMap | None,
+    fronts: Sequence[Frontier],
+    traversable: np.ndarray,
+    agent_xy: tuple[float, float],
+    goal_match: GoalMatch | None,
+    config: NavConfig,
+    *,
+    occ: DenseOccupancy,
+    distance: np.ndarray | None = None,
+    avoid: Sequence[tuple[float, float]] = (),
+    walls: np.ndarray | None = None,
+) -> Waypoint:
+    """Pick the next waypoint (see the module docstring): the matched goal, else the
+    frontier by the value map, else the navigable cell nearest the value-map maximum.
+
+    Args:
+        value: the value map H, or None (frontier-only exploration: the nearest frontier).
+        fronts: reachable frontiers (from `frontiers`).
+        traversable: [H, W] bool cells the agent may stand on, over `occ`'s window.
+        agent_xy: (x, y) metres.
+        goal_match: the matched instance, if any.
+        config: stop distance and radii.
+        occ: the occupancy window `traversable` and `distance` are over.
+        distance: [H, W] geodesic metres from the agent; frontiers or goal cells it cannot
+            reach are skipped (next best is taken); None = straight-line distances.
+        avoid: (x, y) of waypoints given up earlier (stuck, or reached without effect);
+            frontiers within `config.stop_distance` of one are skipped.
+        walls: [H, W] bool, the obstacle cells that block sight (`stop_in_sight`); None =
+            every obstacle cell.
+    """
+    if goal_match is not None:
+        goal = _goal_waypoint(goal_match, traversable, agent_xy, config, occ, distance, walls)
+        if goal is not None:
+            return goal
+        # The match has no reachable cell near it yet: keep exploring (next best).
+    peak = value.argmax_xy() if value is not None else None
+    frontier = _frontier_waypoint(_usable_frontiers(fronts, occ, avoid, config), value, peak)
+    if frontier is not None:
+        return frontier
     if peak is not None and value is not None:
-        cells = np.argwhere(traversable)
-        if len(cells):
-            xy = occ_xy(cells)
-            d = np.hypot(xy[:, 0] - peak[0], xy[:, 1] - peak[1])
-            reach = dist_of(cells)
-            d = np.where(np.isfinite(reach), d, np.inf)
-            k = int(np.argmin(d))
-            if math.isfinite(float(d[k])) and all(
-                math.hypot(xy[k, 0] - a[0], xy[k, 1] - a[1]) > config.stop_distance for a in avoid
-            ):
-                return Waypoint(
-                    (float(xy[k, 0]), float(xy[k, 1])),
-                    "explore",
-                    None,
-                    value.value_at(float(xy[k, 0]), float(xy[k, 1])),
-                    "no frontier left and no match: the navigable cell nearest the value-map "
-                    "maximum.",
-                )
+        explore = _explore_waypoint(
+            value, peak, traversable, agent_xy, config, occ, distance, avoid
+        )
+        if explore is not None:
+            return explore
     return Waypoint(None, "none", None, 0.0, "no frontier left, no match and no value to follow.")

@@ -149,7 +149,8 @@ def constrained_pose(
         order = np.argsort(-p, kind="stable")
         return [int(i) for i in order if p[i] >= float(p.max()) - TIE][:MAX_CANDIDATES]
 
-    from glmap_tools.sqa.situate import TIE, _centroid, _free_cells, _stand_point
+    from glmap_tools.sqa.place import centroid, free_cells, stand_point_near
+    from glmap_tools.sqa.situate import TIE
     from glmap_tools.sqa.stand import front_stand_point
 
     ids = [u.unit_id for u in instances]
@@ -159,12 +160,12 @@ def constrained_pose(
         for i in near_best(p_anchor):
             uid = ids[i]
             pt = front_stand_point(glmap, [uid], [], backrest=backrest)
-            pt = pt or _stand_point(glmap, _centroid(glmap, uid), [uid], None, [])
+            pt = pt or stand_point_near(glmap, centroid(glmap, uid), [uid], None, [])
             stands.append((pt[0], pt[1], uid))
     elif faces:
-        free, _ = _free_cells(glmap, set())
+        free, _ = free_cells(glmap, set())
         for j in faces:
-            centre = np.array(_centroid(glmap, ids[j]))
+            centre = np.array(centroid(glmap, ids[j]))
             pt = front_stand_point(glmap, [ids[j]], [], backrest=backrest)
             if pt is not None:
                 stands.append((pt[0], pt[1], None))
@@ -188,7 +189,7 @@ def constrained_pose(
                 f = ids[j]
                 if f == a:
                     continue
-                c = _centroid(glmap, f)
+                c = centroid(glmap, f)
                 h = math.atan2(c[1] - y, c[0] - x)
                 score = float(p_face[j]) + pose_score(x, y, h, tgts)  # type: ignore[index]
                 score += bonus if f == default_facing else 0.0

@@ -45,18 +45,17 @@ the 2D occupancy as walls do), and favouring the face that looks towards the fac
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError, NoMatchError
-from glmap_tools.map.occupancy import FREE
 from glmap_tools.sqa.constrain import constrained_pose, reading_text, targets
+from glmap_tools.sqa.phrases import core_phrase, split_situation
+from glmap_tools.sqa.place import centroid, closest_pair, stand_point_near
 from glmap_tools.sqa.reading import SituationReading, read_situation
 from glmap_tools.sqa.relations import prefer_related, relation_phrases
-from glmap_tools.sqa.sight import SEEN_MIN, SightCheck
 from glmap_tools.sqa.stand import front_stand_point
 
 if TYPE_CHECKING:
@@ -67,49 +66,9 @@ if TYPE_CHECKING:
 SIGMA = 0.5  # m: Eq. 7 bandwidth, the nav default (about a person's reach)
 MIN_SCORE = 0.15  # best p below this on both maps: the text matches nothing
 LOW_CONFIDENCE = 0.35  # best p below this: a result, marked low-confidence
-STAND_REACH = 0.6  # m from the anchor's cells: where one stands at it ...
-STAND_RADIUS = 1.2  # ... or, when nothing is free that close, at most this far
 MAX_TEXT = 512
 TIE = 0.05  # scores this close to the best count as equally good
 REGION_MARGIN = 0.1  # a region must beat the best anchor object by this to place the agent
-
-_FACING = re.compile(
-    r"\b(?:facing|face|looking (?:at|towards?)|look(?:ing)? towards?|turned towards?|"
-    r"with my (?:face|eyes) (?:to|towards?)|staring at)\s+(?P<target>.+)$"
-    r"|\b(?:with\s+)?(?P<target2>(?:the|a|an|my)\s+(?:(?!\bwith\b)[^,.;])+?)\s+(?:is\s+)?"
-    r"(?:right\s+)?in front of me\b",
-    re.IGNORECASE,
-)
-
-
-def split_situation(text: str) -> tuple[str, str]:
-    """(location phrase, facing phrase) of a situation text; facing '' when none is given.
-
-    >>> split_situation("I am sitting on the bed, facing the couch.")
-    ('I am sitting on the bed', 'the couch')
-    """
-    t = " ".join(text.split()).strip()
-    m = _FACING.search(t)
-    if not m:
-        return t.rstrip(" .,;"), ""
-    target = (m.group("target") or m.group("target2") or "").strip(" .,;")
-    location = (t[: m.start()] + " " + t[m.end() :]).strip(" .,;")
-    location = re.sub(r"\s*(?:,|\band\b|\bwhile\b|\bwith\b)\s*$", "", location).strip(" .,;")
-    return location or t, target
-
-
-_FILLER = re.compile(
-    r"^(?:(?:i am|i'm|i|am|we are|currently|right now|now|standing|stand|sitting|sit|lying|lie|"
-    r"leaning|waiting|at|by|on|in|near|next to|beside|close to|in front of|the edge of|"
-    r"edge of|the side of|side of|of|while|and|with)\b\s*)+",
-    re.IGNORECASE,
-)
-
-
-def core_phrase(phrase: str) -> str:
-    """The phrase without its leading pose and preposition words ('I am sitting on the')."""
-    out = _FILLER.sub("", phrase.strip()).strip(" .,;")
-    return out or phrase.strip()
 
 
 @dataclass(frozen=True)
@@ -185,110 +144,6 @@ def _top(units: list[UnitText], scores: np.ndarray, k: int = 3) -> tuple[ScoredU
     )
 
 
-def _free_cells(glmap: GLMap, exclude: set[tuple[int, int]]) -> tuple[np.ndarray, float]:
-    """[N, 2] world centres of cells where an agent can stand, and the cell size.
-
-    Seen-free cells clear of obstacles by the agent radius, outside the `exclude` cells
-    (the anchor's own footprint: one stands by the bed, the camera is not in it).
-    """
-    from glmap_tools.nav import NavConfig, traversable
-
-    occ = glmap.occupancy.to_dense()
-    ok = traversable(occ, NavConfig().agent_radius)
-    if exclude:
-        cells = np.array(sorted(exclude), dtype=np.int64)
-        r, c = cells[:, 1] - occ.origin[1], cells[:, 0] - occ.origin[0]
-        inside = (r >= 0) & (r < ok.shape[0]) & (c >= 0) & (c < ok.shape[1])
-        ok[r[inside], c[inside]] = False
-    if not ok.any():
-        ok = occ.state == FREE
-    rows, cols = np.nonzero(ok)
-    s = occ.cell_size
-    xy = np.stack(
-        [(cols + occ.origin[0] + 0.5) * s, (rows + occ.origin[1] + 0.5) * s], axis=1
-    ).astype(np.float64)
-    return xy, s
-
-
-def _stand_point(
-    glmap: GLMap,
-    peak: tuple[float, float],
-    anchor_ids: list[int],
-    toward: tuple[float, float] | None,
-    notes: list[str],
-) -> tuple[float, float]:
-    """l_a: a seen-free cell near the anchor units (or the peak), closest to `toward`."""
-    cells: set[tuple[int, int]] = set()
-    for uid in anchor_ids:
-        unit = glmap.unit(uid)
-        members = getattr(unit, "instance_ids", None) or [uid]
-        for m in members:
-            cells |= set(glmap.grid.cells_of_unit(int(m)))
-    free, s = _free_cells(glmap, cells)
-    if len(free) == 0:
-        notes.append("no seen-free cell in the map: l_a is the H_r peak itself")
-        return peak
-    if cells:
-        anchor_xy = (np.array(sorted(cells), dtype=np.float64) + 0.5) * s
-        # Distance from every free cell to the anchor's nearest cell.
-        from scipy.spatial import cKDTree
-
-        d, _ = cKDTree(anchor_xy).query(free)
-    else:
-        d = np.hypot(free[:, 0] - peak[0], free[:, 1] - peak[1])
-    near = free[d <= STAND_REACH]
-    if len(near) == 0:
-        near = free[d <= STAND_RADIUS]
-    if len(near) == 0:
-        k = int(np.argmin(d))
-        notes.append(f"no free cell within {STAND_RADIUS} m of the anchor; nearest is {d[k]:.2f} m")
-        return float(free[k, 0]), float(free[k, 1])
-    if toward is not None:
-        k = int(np.argmin(np.hypot(near[:, 0] - toward[0], near[:, 1] - toward[1])))
-        notes.append("l_a: the free cell by the anchor closest to what is faced")
-    else:
-        k = int(np.argmin(np.hypot(near[:, 0] - peak[0], near[:, 1] - peak[1])))
-        notes.append("l_a: the free cell nearest the H_r peak (nothing faced is named)")
-    return float(near[k, 0]), float(near[k, 1])
-
-
-def _centroid(glmap: GLMap, unit_id: int) -> tuple[float, float]:
-    c = glmap.instances[unit_id].gaussians.means.mean(axis=0)
-    return float(c[0]), float(c[1])
-
-
-def _closest_pair(
-    glmap: GLMap,
-    instances: list[UnitText],
-    p_anchor: np.ndarray,
-    p_face: np.ndarray | None,
-    sight: bool = True,
-) -> tuple[int, int | None]:
-    """(anchor id, facing id): the best-scored ones, ties (within TIE) broken by distance
-    among the pairs whose facing object is seen from the anchor's stand band."""
-    ids = [u.unit_id for u in instances]
-    cand_a = [i for i, p in enumerate(p_anchor) if p >= float(p_anchor.max()) - TIE]
-    if p_face is None or float(p_face.max()) < MIN_SCORE:
-        return ids[cand_a[0]], None
-    cand_f = [j for j, p in enumerate(p_face) if p >= float(p_face.max()) - TIE]
-    pairs = [(i, j) for i in cand_a for j in cand_f if i != j]
-    if sight and len(pairs) > 1:
-        # One sees what one faces: drop the pairs split by a wall, unless all are.
-        check = SightCheck(glmap)
-        shares = [check.seen_share(ids[i], ids[j]) for i, j in pairs]
-        seen = [p for p, sh in zip(pairs, shares, strict=True) if sh is None or sh >= SEEN_MIN]
-        pairs = seen or pairs
-    best: tuple[float, int, int] | None = None
-    for i, j in pairs:
-        a, f = _centroid(glmap, ids[i]), _centroid(glmap, ids[j])
-        d = math.hypot(a[0] - f[0], a[1] - f[1])
-        if best is None or d < best[0]:
-            best = (d, i, j)
-    if best is None:
-        return ids[cand_a[0]], ids[cand_f[0]]
-    return ids[best[1]], ids[best[2]]
-
-
 def situate(
     glmap: GLMap,
     text: str,
@@ -332,9 +187,87 @@ def situate(
         NoMatchError: nothing in the map matches the text (the best candidates and their
             scores are in the message; no pose is invented).
     """
-    from glmap_tools.nav.scorers import EmbeddingScorer, map_units
-    from glmap_tools.nav.value import TRUNCATE, map_window, value_map_from_scores
+    from glmap_tools.nav.scorers import EmbeddingScorer
 
+    text = _checked_text(glmap, text, reading)
+    if scorer is None:
+        scorer = EmbeddingScorer(glmap.embedder)
+    if split_text is None:
+        split_text = isinstance(scorer, EmbeddingScorer)
+    if reading is None:
+        reading = read_situation(text)
+    location, facing = _phrases(text, reading, split_text)
+    notes: list[str] = []
+    ev = _evidence(glmap, scorer, location, facing, split_text, relate, notes)
+    _check_some_match(ev, text)
+    h_r, h_o, peak_o = _heat_maps(glmap, ev, facing, sigma)
+    anchors = _top(ev.r_units, ev.r_scores)
+    facing_id = _top(ev.instances, ev.p_o, 1)[0].unit_id if peak_o is not None else None
+    peak_r, anchor_ids = _anchor(glmap, ev, h_r, peak_o, anchors, notes, text)
+    if split_text and len(ev.instances):
+        best_a = float(ev.p_anchor.max())
+        best_region = float(ev.p_r.max()) if len(ev.p_r) else 0.0
+        if best_a >= MIN_SCORE and best_a + REGION_MARGIN >= best_region:
+            # An object names where one stands: Eq. 7 sums a unit's score over all its
+            # cells, so a large region outweighs a small anchor at the peak; take the
+            # anchor object itself, and among equally good anchors and facing objects
+            # the pair closest together (one faces something in the same room).
+            p_face = ev.p_o if facing else None
+            pair = closest_pair(glmap, ev.instances, ev.p_anchor, p_face, sight, TIE, MIN_SCORE)
+            anchor_ids = [pair[0]]
+            peak_r = centroid(glmap, pair[0])
+            if pair[1] is not None:
+                peak_o = centroid(glmap, pair[1])
+                facing_id = pair[1]
+            notes.append(
+                "pose from the best anchor/facing pair (on ties: "
+                + ("the facing object in line of sight from the anchor, then " if sight else "")
+                + "the closest pair)"
+            )
+    x, y, heading = _pose(glmap, peak_r, peak_o, anchor_ids, front_side, backrest, notes)
+    tgts = targets(glmap, scorer, ev.instances, reading.constraints, TIE, MIN_SCORE)
+    if tgts:
+        x, y, heading, a_id, f_id = constrained_pose(
+            glmap,
+            ev.instances,
+            tgts,
+            (x, y, heading),
+            anchor_ids[0] if anchor_ids else None,
+            ev.p_anchor
+            if split_text and float(ev.p_anchor.max(initial=0.0)) >= MIN_SCORE
+            else None,
+            ev.p_o if peak_o is not None else None,
+            facing_id,
+            anchor_from_facing=ev.best_r < MIN_SCORE,
+            backrest=backrest,
+            notes=notes,
+        )
+        anchor_ids = [a_id] if a_id is not None else anchor_ids
+        facing_id = f_id
+    confidence = min(ev.best_r, ev.best_o) if facing else ev.best_r
+    return Situation(
+        x=x,
+        y=y,
+        heading=heading,
+        h_r=h_r,
+        h_o=h_o,
+        peak_r=peak_r,
+        peak_o=peak_o,
+        anchors=anchors,
+        facing=_top(ev.instances, ev.p_o),
+        confidence=confidence,
+        low_confidence=confidence < LOW_CONFIDENCE,
+        location_text=location,
+        facing_text=facing,
+        notes=notes,
+        anchor_id=anchor_ids[0] if anchor_ids else None,
+        facing_id=facing_id,
+        reading=reading,
+    )
+
+
+def _checked_text(glmap: GLMap, text: str, reading: SituationReading | None) -> str:
+    """The situation text (a reading's own words when `text` is empty), checked."""
     if reading is not None and (not isinstance(text, str) or not text.strip()):
         text = reading_text(reading)
     if not isinstance(text, str) or not text.strip():
@@ -348,24 +281,60 @@ def situate(
         raise InvalidInputError(
             "the map is empty: build it first (observe_frame, sim_step or glmap build)."
         )
-    if scorer is None:
-        scorer = EmbeddingScorer(glmap.embedder)
-    if split_text is None:
-        split_text = isinstance(scorer, EmbeddingScorer)
-    if reading is None:
-        reading = read_situation(text)
-    if split_text:
-        # Scored as "the <words>", as the phrases of the earlier split were.
-        location = f"the {reading.anchor}" if reading.anchor else ""
-        facing = f"the {reading.facing}" if reading.facing else ""
-        if not location and not facing and reading.constraints:
-            location = f"the {reading.constraints[0].object}"  # "the lamp is on my left"
-        if not location and not facing:
-            location = core_phrase(split_situation(text)[0])
-    else:
-        location = facing = text.strip()
+    return text
+
+
+def _phrases(text: str, reading: SituationReading, split_text: bool) -> tuple[str, str]:
+    """(location, facing) phrases to score: the reading's anchor and facing object, or the
+    whole text for both (a scorer that reads the whole text)."""
+    if not split_text:
+        return text.strip(), text.strip()
+    # Scored as "the <words>", as the phrases of the earlier split were.
+    location = f"the {reading.anchor}" if reading.anchor else ""
+    facing = f"the {reading.facing}" if reading.facing else ""
+    if not location and not facing and reading.constraints:
+        location = f"the {reading.constraints[0].object}"  # "the lamp is on my left"
+    if not location and not facing:
+        location = core_phrase(split_situation(text)[0])
+    return location, facing
+
+
+@dataclass(frozen=True)
+class _Evidence:
+    """The units scored against the phrases.
+
+    Attributes:
+        instances, regions: the map's units.
+        p_o: [len(instances)] facing scores; p_r: [len(regions)] location scores.
+        p_anchor: [len(instances)] anchor-object scores (zeros unless the text is split).
+        r_units, r_scores: what H_r is made of (regions, and instances when split).
+        best_r, best_o: the best location and facing scores.
+    """
+
+    instances: list[UnitText]
+    regions: list[UnitText]
+    p_o: np.ndarray
+    p_r: np.ndarray
+    p_anchor: np.ndarray
+    r_units: list[UnitText]
+    r_scores: np.ndarray
+    best_r: float
+    best_o: float
+
+
+def _evidence(
+    glmap: GLMap,
+    scorer: Scorer,
+    location: str,
+    facing: str,
+    split_text: bool,
+    relate: bool,
+    notes: list[str],
+) -> _Evidence:
+    """p_o, p_r and the anchor scores p_anchor of the map's units."""
+    from glmap_tools.nav.scorers import map_units
+
     instances, regions = map_units(glmap, "instances"), map_units(glmap, "regions")
-    notes: list[str] = []
     # Offline: an object is scored by its own words; the relations ("next to the fridge",
     # "in the kitchen") then tell same-named candidates apart by what is around them.
     parse = relate and split_text
@@ -383,117 +352,96 @@ def situate(
         p_anchor = prefer_related(glmap, scorer, instances, regions, p_anchor, loc_rels, TIE, notes)
         if facing:
             p_o = prefer_related(glmap, scorer, instances, regions, p_o, face_rels, TIE, notes)
-
     r_units = list(regions) + (list(instances) if split_text else [])
     r_scores = np.concatenate([p_r, p_anchor]) if split_text else p_r
     best_r = float(r_scores.max()) if len(r_scores) else 0.0
     best_o = float(p_o.max()) if len(p_o) else 0.0
-    if best_r < MIN_SCORE and best_o < MIN_SCORE:
-        cands = _top(r_units + list(instances), np.concatenate([r_scores, p_o]), 5)
-        shown = ", ".join(f"{u.kind} {u.unit_id} {u.text[:40]!r} ({u.score:.2f})" for u in cands)
-        raise NoMatchError(
-            f"nothing in the map matches the situation {text!r} (best scores below "
-            f"{MIN_SCORE}): {shown or 'no candidates'}. Describe it with objects the map "
-            "holds (find_instance / map_summary list them)."
-        )
+    return _Evidence(instances, regions, p_o, p_r, p_anchor, r_units, r_scores, best_r, best_o)
+
+
+def _check_some_match(ev: _Evidence, text: str) -> None:
+    """Raise NoMatchError, naming the best candidates, when nothing scores MIN_SCORE."""
+    if ev.best_r >= MIN_SCORE or ev.best_o >= MIN_SCORE:
+        return
+    cands = _top(ev.r_units + list(ev.instances), np.concatenate([ev.r_scores, ev.p_o]), 5)
+    shown = ", ".join(f"{u.kind} {u.unit_id} {u.text[:40]!r} ({u.score:.2f})" for u in cands)
+    raise NoMatchError(
+        f"nothing in the map matches the situation {text!r} (best scores below "
+        f"{MIN_SCORE}): {shown or 'no candidates'}. Describe it with objects the map "
+        "holds (find_instance / map_summary list them)."
+    )
+
+
+def _heat_maps(
+    glmap: GLMap, ev: _Evidence, facing: str, sigma: float
+) -> tuple[ValueMap, ValueMap | None, tuple[float, float] | None]:
+    """(H_r, H_o, l_o = argmax H_o): H_o only when something faced scores MIN_SCORE."""
+    from glmap_tools.nav.value import TRUNCATE, map_window, value_map_from_scores
+
     window = map_window(glmap, TRUNCATE * sigma)
     h_r = value_map_from_scores(
-        {u.unit_id: float(s) for u, s in zip(r_units, r_scores, strict=True)},
+        {u.unit_id: float(s) for u, s in zip(ev.r_units, ev.r_scores, strict=True)},
         glmap.grid,
         window,
         sigma,
-        unit_mass="cells",  # as tuned for localisation (session 4); the nav default is 'unit'
+        unit_mass="cells",  # as tuned for localisation; the nav default is 'unit'
     )
-    h_o = None
-    peak_o = None
-    if facing and best_o >= MIN_SCORE:
-        h_o = value_map_from_scores(
-            {u.unit_id: float(s) for u, s in zip(instances, p_o, strict=True)},
-            glmap.grid,
-            window,
-            sigma,
-            unit_mass="cells",
-        )
-        peak_o = h_o.argmax_xy()
-    anchors = _top(r_units, r_scores)
-    facing_id = _top(instances, p_o, 1)[0].unit_id if peak_o is not None else None
-    if h_r.empty or best_r < MIN_SCORE:
+    if not (facing and ev.best_o >= MIN_SCORE):
+        return h_r, None, None
+    h_o = value_map_from_scores(
+        {u.unit_id: float(s) for u, s in zip(ev.instances, ev.p_o, strict=True)},
+        glmap.grid,
+        window,
+        sigma,
+        unit_mass="cells",
+    )
+    return h_r, h_o, h_o.argmax_xy()
+
+
+def _anchor(
+    glmap: GLMap,
+    ev: _Evidence,
+    h_r: ValueMap,
+    peak_o: tuple[float, float] | None,
+    anchors: tuple[ScoredUnit, ...],
+    notes: list[str],
+    text: str,
+) -> tuple[tuple[float, float], list[int]]:
+    """(argmax H_r, the units l_a is placed at): the units whose cells carry the peak, or,
+    when nothing matches the location, the best faced object."""
+    if h_r.empty or ev.best_r < MIN_SCORE:
         if peak_o is None:
             raise NoMatchError(f"nothing in the map tells where {text!r} is.")
         notes.append("no unit matches the location: l_a from what is faced")
-        peak_r = peak_o
-        anchor_ids = [u.unit_id for u in _top(instances, p_o, 1)]
-    else:
-        peak_r = h_r.argmax_xy() or (0.0, 0.0)
-        # The units whose cells carry the peak decide where one stands.
-        anchor_ids = [
-            u.unit_id
-            for u in anchors
-            if glmap.grid.cell_of(*peak_r) in glmap.grid.cells_of_unit(u.unit_id)
-            or u.score >= 0.9 * anchors[0].score
-        ][:1] or [anchors[0].unit_id]
+        return peak_o, [u.unit_id for u in _top(ev.instances, ev.p_o, 1)]
+    peak_r = h_r.argmax_xy() or (0.0, 0.0)
+    anchor_ids = [
+        u.unit_id
+        for u in anchors
+        if glmap.grid.cell_of(*peak_r) in glmap.grid.cells_of_unit(u.unit_id)
+        or u.score >= 0.9 * anchors[0].score
+    ][:1] or [anchors[0].unit_id]
+    return peak_r, anchor_ids
+
+
+def _pose(
+    glmap: GLMap,
+    peak_r: tuple[float, float],
+    peak_o: tuple[float, float] | None,
+    anchor_ids: list[int],
+    front_side: bool,
+    backrest: bool,
+    notes: list[str],
+) -> tuple[float, float, float]:
+    """(x, y, theta): l_a on the anchor's front side (or by it, nearest l_o), facing l_o
+    (or the anchor when nothing is faced)."""
     stand: tuple[float, float] | None = None
-    if split_text and len(instances):
-        best_a = float(p_anchor.max())
-        best_region = float(p_r.max()) if len(p_r) else 0.0
-        if best_a >= MIN_SCORE and best_a + REGION_MARGIN >= best_region:
-            # An object names where one stands: Eq. 7 sums a unit's score over all its
-            # cells, so a large region outweighs a small anchor at the peak; take the
-            # anchor object itself, and among equally good anchors and facing objects
-            # the pair closest together (one faces something in the same room).
-            pair = _closest_pair(glmap, instances, p_anchor, p_o if facing else None, sight)
-            anchor_ids = [pair[0]]
-            peak_r = _centroid(glmap, pair[0])
-            if pair[1] is not None:
-                peak_o = _centroid(glmap, pair[1])
-                facing_id = pair[1]
-            notes.append(
-                "pose from the best anchor/facing pair (on ties: "
-                + ("the facing object in line of sight from the anchor, then " if sight else "")
-                + "the closest pair)"
-            )
-    if stand is None and front_side and anchor_ids and anchor_ids[0] in glmap.instances:
+    if front_side and anchor_ids and anchor_ids[0] in glmap.instances:
         stand = front_stand_point(glmap, anchor_ids[:1], notes, backrest=backrest)
-    x, y = stand or _stand_point(glmap, peak_r, anchor_ids, peak_o, notes)
+    x, y = stand or stand_point_near(glmap, peak_r, anchor_ids, peak_o, notes)
     if peak_o is not None and math.hypot(peak_o[0] - x, peak_o[1] - y) > 1e-6:
         heading = math.atan2(peak_o[1] - y, peak_o[0] - x)
     else:
         heading = math.atan2(peak_r[1] - y, peak_r[0] - x) if (x, y) != peak_r else 0.0
         notes.append("no facing target: heading towards the anchor")
-    tgts = targets(glmap, scorer, instances, reading.constraints, TIE, MIN_SCORE)
-    if tgts:
-        x, y, heading, a_id, f_id = constrained_pose(
-            glmap,
-            instances,
-            tgts,
-            (x, y, heading),
-            anchor_ids[0] if anchor_ids else None,
-            p_anchor if split_text and float(p_anchor.max(initial=0.0)) >= MIN_SCORE else None,
-            p_o if peak_o is not None else None,
-            facing_id,
-            anchor_from_facing=best_r < MIN_SCORE,
-            backrest=backrest,
-            notes=notes,
-        )
-        anchor_ids = [a_id] if a_id is not None else anchor_ids
-        facing_id = f_id
-    confidence = min(best_r, best_o) if facing else best_r
-    return Situation(
-        x=x,
-        y=y,
-        heading=heading,
-        h_r=h_r,
-        h_o=h_o,
-        peak_r=peak_r,
-        peak_o=peak_o,
-        anchors=anchors,
-        facing=_top(instances, p_o),
-        confidence=confidence,
-        low_confidence=confidence < LOW_CONFIDENCE,
-        location_text=location,
-        facing_text=facing,
-        notes=notes,
-        anchor_id=anchor_ids[0] if anchor_ids else None,
-        facing_id=facing_id,
-        reading=reading,
-    )
+    return x, y, heading
