@@ -51,6 +51,7 @@ EPISODES = [
     ("objectnav", 8, "frontier"),
 ]
 GOLDEN_EPISODES = EPISODES[:3]
+ACTION_LETTERS = {"stop": "s", "move_forward": "f", "turn_left": "l", "turn_right": "r"}
 TOURS = ["s00", "s01"]
 
 
@@ -438,7 +439,7 @@ def golden_record(max_steps: int = 40) -> list[dict[str, Any]]:
         out.append(
             {
                 "episode": r["episode"],
-                "actions": "".join(s["action"][0] for s in r["steps"]),
+                "actions": "".join(ACTION_LETTERS[s["action"]] for s in r["steps"]),
                 "poses": [[round(float(v), 6) for v in s["pose"]] for s in r["steps"]],
                 "matched": [s["matched"] for s in r["steps"]],
                 "instances": sorted((int(i), u[0], u[2]) for i, u in r["map"]["instances"].items()),
@@ -484,7 +485,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     if args.golden:
-        GOLDEN.write_text(json.dumps(golden_record(), indent=1) + "\n")
+        episodes = [json.dumps(e, separators=(",", ":")) for e in golden_record()]
+        GOLDEN.write_text("[\n" + ",\n".join(episodes) + "\n]\n")
         print(f"wrote {GOLDEN}")
         return 0
     if args.against:
