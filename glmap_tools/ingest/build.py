@@ -101,6 +101,7 @@ class BuildStats:
         regions: regions in the map.
         gaussians: instance Gaussians in the map.
         seconds: wall time from opening the folder to the renamed file.
+        cpu_s: CPU seconds of this process (all threads) over the same span.
         peak_rss_mb: the process's peak resident memory (MiB) when the map was written.
     """
 
@@ -110,6 +111,7 @@ class BuildStats:
     regions: int
     gaussians: int
     seconds: float
+    cpu_s: float
     peak_rss_mb: float
 
     @property
@@ -129,6 +131,12 @@ class BuiltMap:
 def peak_rss_mb() -> float:
     """This process's peak resident set size so far, in MiB (Linux reports KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def cpu_seconds() -> float:
+    """CPU seconds (user + system, all threads) this process has used so far."""
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
 
 
 def make_embedder(name: str) -> Embedder:
@@ -253,7 +261,7 @@ def build_map(
     if out.is_dir():
         raise StoreError(f"{str(out)!r} is a folder; pass the path of a map file as --out.")
     check_settings(settings)
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), cpu_seconds()
     sequence = open_sequence(
         folder,
         depth_scale=settings.depth_scale,
@@ -319,6 +327,7 @@ def build_map(
         regions=s.regions,
         gaussians=s.gaussians,
         seconds=time.perf_counter() - start,
+        cpu_s=cpu_seconds() - cpu_start,
         peak_rss_mb=peak_rss_mb(),
     )
     return BuiltMap(glmap, sequence, stats)

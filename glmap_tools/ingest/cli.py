@@ -171,7 +171,7 @@ def _run_one(args: argparse.Namespace) -> int:
 
 def _run_many(args: argparse.Namespace) -> int:
     from glmap_tools.ingest.batch import build_many
-    from glmap_tools.ingest.summary import format_table
+    from glmap_tools.ingest.summary import cpu_per_frame, format_table
 
     if args.out is None:
         raise InvalidInputError(
@@ -190,10 +190,11 @@ def _run_many(args: argparse.Namespace) -> int:
     )
     print(format_table(result.rows))
     built, skipped, failed = (result.count(s) for s in ("built", "skipped", "failed"))
-    frames = sum(r.frames or 0 for r in result.rows if r.status == "built")
+    frames, cpu_s = cpu_per_frame(result.rows)
+    cost = f" ({1e3 * cpu_s / frames:.0f} CPU ms per frame)" if frames else ""
     print(
         f"built {built}, skipped {skipped}, failed {failed} scan(s); {frames} frames in "
-        f"{result.wall_s:.0f} s; maps in {args.out}, summary in {result.summary}"
+        f"{result.wall_s:.0f} s{cost}; maps in {args.out}, summary in {result.summary}"
     )
     if failed:
         print(f"rerun the same command to retry the {failed} failed scan(s)")

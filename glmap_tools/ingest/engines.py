@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from glmap_tools.ingest.build import BuildSettings
+from glmap_tools.ingest.build import BuildSettings, cpu_seconds
 from glmap_tools.ingest.summary import ScanResult
 
 POLL_S = 0.5  # how often the driver refreshes the frame bar while it waits
@@ -88,6 +88,7 @@ def build_scan(task: ScanTask, progress: Callable[[int, int], None]) -> ScanResu
         gaussians=s.gaussians,
         seconds=round(s.seconds, 2),
         frames_per_s=round(s.frames_per_s, 2),
+        cpu_s=round(cpu_seconds(), 2),
         peak_rss_mb=round(s.peak_rss_mb, 1),
         host=socket.gethostname(),
     )

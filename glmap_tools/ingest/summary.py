@@ -29,6 +29,7 @@ class ScanResult:
         gaussians: instance Gaussians in the map.
         seconds: build wall time.
         frames_per_s: frames / seconds.
+        cpu_s: CPU seconds of the scan's process, start-up (imports, embedder) included.
         peak_rss_mb: the building process's peak resident memory, MiB.
         host: the machine that built it.
         error: why it failed ("" otherwise).
@@ -44,6 +45,7 @@ class ScanResult:
     gaussians: int | None = None
     seconds: float | None = None
     frames_per_s: float | None = None
+    cpu_s: float | None = None
     peak_rss_mb: float | None = None
     host: str = ""
     error: str = ""
@@ -69,17 +71,21 @@ def skipped_row(scan: Scan, out: Path, earlier: dict[str, ScanResult]) -> ScanRe
     return row
 
 
+def cpu_per_frame(rows: Iterable[ScanResult]) -> tuple[int, float]:
+    """(frames, CPU seconds) of the rows built in this run."""
+    built = [r for r in rows if r.status == "built" and r.frames and r.cpu_s is not None]
+    return sum(r.frames or 0 for r in built), sum(r.cpu_s or 0.0 for r in built)
+
+
 def summary_json(rows: list[ScanResult], wall_s: float, settings: BuildSettings) -> str:
     counts = {s: sum(r.status == s for r in rows) for s in ("built", "skipped", "failed")}
-    built = [r for r in rows if r.status == "built" and r.frames and r.seconds]
-    frames = sum(r.frames or 0 for r in built)
-    cpu_s = sum(r.seconds or 0.0 for r in built)
+    frames, cpu_s = cpu_per_frame(rows)
     doc: dict[str, Any] = {
         "scans": [asdict(r) for r in rows],
         "counts": counts,
         "wall_s": round(wall_s, 2),
         "frames_built": frames,
-        "seconds_per_frame": round(cpu_s / frames, 4) if frames else None,
+        "cpu_s_per_frame": round(cpu_s / frames, 4) if frames else None,
         "settings": json.loads(json.dumps(asdict(settings), default=str)),
     }
     return json.dumps(doc, indent=2) + "\n"
