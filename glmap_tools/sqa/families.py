@@ -232,106 +232,162 @@ def answer_family(
     """
     from glmap_tools.sqa.answer import MapAnswer
 
-    labels = list(where.labels.values())
     near = [n for n in where.nearby if n.unit_id not in skip]
     if kind == "in_room":
-        r = room(where)
-        if not r.supported:
-            return MapAnswer("", kind, False, r.evidence)
-        asked = parts.get("room", "")
-        same = asked.replace("room", "").strip() in r.answer or r.answer in asked
-        return MapAnswer("yes" if same else "no", kind, True, f"I am in the {r.answer}")
+        return _in_room(parts, room(where))
     if kind == "turn":
-        turn = parts.get("turn", "around")
-        t = (
-            180.0
-            if ("around" in turn or "back" in turn or "180" in turn)
-            else (90.0 if "left" in turn else -90.0)
-        )
-        ask = parts.get("ask", "in front of me")
-        a = next((v for k, v in DIRECTION_OF.items() if k in ask), 0.0)
-        if "ahead" in ask:
-            a = 0.0
-        centre = math.remainder(math.radians(a + t), math.tau)
-        c = math.degrees(centre)
-        hits = [
-            n
-            for n in near
-            if abs(math.remainder(math.radians(n.bearing - c), math.tau)) <= math.pi / 4
-        ]
-        if not hits:
-            return MapAnswer("nothing", kind, True, f"nothing within 45 deg of {c:.0f} deg")
-        h = hits[0]
-        return MapAnswer(h.label, kind, True, f"after a {t:.0f} deg turn: unit {h.unit_id}")
+        return _turn(parts, near)
     obj = parts.get("object", "")
-    label = match(obj, labels)
+    label = match(obj, list(where.labels.values()))
     if kind in ("count", "parity", "exists"):
-        side = side_of(parts)
-        if label is None:
-            if kind == "exists":
-                return MapAnswer("no", kind, True, f"no unit is a {obj!r}")
-            return MapAnswer("", kind, False, f"no unit is a {obj!r}")
-        units = [n for n in near if n.label == label and n.distance <= AROUND and in_side(n, side)]
-        count = len(units)
-        why = f"{count} x {label} ({side or 'around'}, within {AROUND:.0f} m)"
-        if kind == "count":
-            return MapAnswer(str(count), kind, True, why)
-        if kind == "parity":
-            return MapAnswer("even" if count % 2 == 0 else "odd", kind, True, why)
-        return MapAnswer("yes" if count else "no", kind, True, why)
+        return _count(kind, parts, near, obj, label)
     if label is None:
         if kind == "see":
             return MapAnswer("no", kind, True, f"no unit is a {obj!r}")
         return MapAnswer("", kind, False, f"no unit is a {obj!r}")
     cands = [n for n in near if n.label == label]
-    if kind == "direction":
-        if not cands:
-            return MapAnswer("", kind, False, f"no {label} within {AROUND:.0f} m in this room")
-        n = cands[0]
-        return MapAnswer(
-            direction_word(n.bearing), kind, True, f"unit {n.unit_id} at {n.bearing:.0f} deg"
-        )
-    if kind == "see":
-        seen = [n for n in cands if abs(n.bearing) <= FOV / 2]
-        why = f"{len(seen)} {label} within {FOV / 2:.0f} deg of ahead, no wall between"
-        return MapAnswer("yes" if seen else "no", kind, True, why)
-    if kind == "touch":
-        if not cands:
-            return MapAnswer("no", kind, True, f"no {label} nearby")
-        n = cands[0]
-        ok = n.distance <= ARM
-        return MapAnswer("yes" if ok else "no", kind, True, f"unit {n.unit_id} {n.distance:.1f} m")
+    by_label = {
+        "direction": _direction,
+        "see": _see,
+        "touch": _touch,
+        "shape": _described,
+        "state": _described,
+    }
+    if kind in by_label:
+        return by_label[kind](kind, label, cands)
     if kind == "beside":
-        if not cands:
-            return MapAnswer("", kind, False, f"no {label} nearby")
-        base = cands[0]
-        sign = 1.0 if parts.get("side") == "left" else -1.0
-        bx, by = (
-            (base.footprint[0] + base.footprint[2]) / 2,
-            (base.footprint[1] + base.footprint[3]) / 2,
-        )
-        by_it = []
-        for n in near:
-            if n.unit_id == base.unit_id:
-                continue
-            cx, cy = (n.footprint[0] + n.footprint[2]) / 2, (n.footprint[1] + n.footprint[3]) / 2
-            gap = math.hypot(cx - bx, cy - by)
-            if gap <= BESIDE and sign * (n.bearing - base.bearing) > 0:
-                by_it.append((gap, n))
-        if not by_it:
-            return MapAnswer(
-                "nothing", kind, True, f"nothing within {BESIDE} m of unit {base.unit_id}"
-            )
-        gap, n = min(by_it, key=lambda t: t[0])
-        return MapAnswer(n.label, kind, True, f"unit {n.unit_id} {gap:.1f} m from {base.unit_id}")
-    if kind in ("shape", "state"):
-        words = SHAPES if kind == "shape" else STATES
-        for n in cands or []:
-            found = [w for w in re.findall(r"[a-z-]+", n.text.lower()) if w in words]
-            if found:
-                w = "closed" if found[0] == "shut" else found[0]
-                return MapAnswer(w, kind, True, f"unit {n.unit_id}: {n.text[:60]!r}")
-        return MapAnswer(
-            "", kind, False, f"cannot tell from the map: no {kind} in the {label}'s description"
-        )
+        return _beside(parts, label, near, cands)
     return MapAnswer("", kind, False, "no rule for this kind of question")
+
+
+def _in_room(parts: dict[str, str], r: MapAnswer) -> MapAnswer:
+    """Whether the room read from the map is the room asked about."""
+    from glmap_tools.sqa.answer import MapAnswer
+
+    if not r.supported:
+        return MapAnswer("", "in_room", False, r.evidence)
+    asked = parts.get("room", "")
+    same = asked.replace("room", "").strip() in r.answer or r.answer in asked
+    return MapAnswer("yes" if same else "no", "in_room", True, f"I am in the {r.answer}")
+
+
+def _turn(parts: dict[str, str], near: list[Nearby]) -> MapAnswer:
+    """The nearest unit within 45 degrees of the asked direction after the turn."""
+    from glmap_tools.sqa.answer import MapAnswer
+
+    turn = parts.get("turn", "around")
+    t = (
+        180.0
+        if ("around" in turn or "back" in turn or "180" in turn)
+        else (90.0 if "left" in turn else -90.0)
+    )
+    ask = parts.get("ask", "in front of me")
+    a = next((v for k, v in DIRECTION_OF.items() if k in ask), 0.0)
+    if "ahead" in ask:
+        a = 0.0
+    centre = math.remainder(math.radians(a + t), math.tau)
+    c = math.degrees(centre)
+    hits = [
+        n for n in near if abs(math.remainder(math.radians(n.bearing - c), math.tau)) <= math.pi / 4
+    ]
+    if not hits:
+        return MapAnswer("nothing", "turn", True, f"nothing within 45 deg of {c:.0f} deg")
+    h = hits[0]
+    return MapAnswer(h.label, "turn", True, f"after a {t:.0f} deg turn: unit {h.unit_id}")
+
+
+def _count(
+    kind: str, parts: dict[str, str], near: list[Nearby], obj: str, label: str | None
+) -> MapAnswer:
+    """count / parity / exists: the units of the label around (on the asked side)."""
+    from glmap_tools.sqa.answer import MapAnswer
+
+    side = side_of(parts)
+    if label is None:
+        if kind == "exists":
+            return MapAnswer("no", kind, True, f"no unit is a {obj!r}")
+        return MapAnswer("", kind, False, f"no unit is a {obj!r}")
+    units = [n for n in near if n.label == label and n.distance <= AROUND and in_side(n, side)]
+    count = len(units)
+    why = f"{count} x {label} ({side or 'around'}, within {AROUND:.0f} m)"
+    if kind == "count":
+        return MapAnswer(str(count), kind, True, why)
+    if kind == "parity":
+        return MapAnswer("even" if count % 2 == 0 else "odd", kind, True, why)
+    return MapAnswer("yes" if count else "no", kind, True, why)
+
+
+def _direction(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:
+    """Which way the nearest unit of the label lies."""
+    from glmap_tools.sqa.answer import MapAnswer
+
+    if not cands:
+        return MapAnswer("", kind, False, f"no {label} within {AROUND:.0f} m in this room")
+    n = cands[0]
+    return MapAnswer(
+        direction_word(n.bearing), kind, True, f"unit {n.unit_id} at {n.bearing:.0f} deg"
+    )
+
+
+def _see(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:
+    """Whether a unit of the label lies within the field of view, no wall between."""
+    from glmap_tools.sqa.answer import MapAnswer
+
+    seen = [n for n in cands if abs(n.bearing) <= FOV / 2]
+    why = f"{len(seen)} {label} within {FOV / 2:.0f} deg of ahead, no wall between"
+    return MapAnswer("yes" if seen else "no", kind, True, why)
+
+
+def _touch(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:
+    """Whether the nearest unit of the label is within reach of an arm."""
+    from glmap_tools.sqa.answer import MapAnswer
+
+    if not cands:
+        return MapAnswer("no", kind, True, f"no {label} nearby")
+    n = cands[0]
+    ok = n.distance <= ARM
+    return MapAnswer("yes" if ok else "no", kind, True, f"unit {n.unit_id} {n.distance:.1f} m")
+
+
+def _beside(
+    parts: dict[str, str], label: str, near: list[Nearby], cands: list[Nearby]
+) -> MapAnswer:
+    """The unit closest to the nearest unit of the label, on the asked side of it."""
+    from glmap_tools.sqa.answer import MapAnswer
+
+    kind = "beside"
+    if not cands:
+        return MapAnswer("", kind, False, f"no {label} nearby")
+    base = cands[0]
+    sign = 1.0 if parts.get("side") == "left" else -1.0
+    bx, by = (
+        (base.footprint[0] + base.footprint[2]) / 2,
+        (base.footprint[1] + base.footprint[3]) / 2,
+    )
+    by_it = []
+    for n in near:
+        if n.unit_id == base.unit_id:
+            continue
+        cx, cy = (n.footprint[0] + n.footprint[2]) / 2, (n.footprint[1] + n.footprint[3]) / 2
+        gap = math.hypot(cx - bx, cy - by)
+        if gap <= BESIDE and sign * (n.bearing - base.bearing) > 0:
+            by_it.append((gap, n))
+    if not by_it:
+        return MapAnswer("nothing", kind, True, f"nothing within {BESIDE} m of unit {base.unit_id}")
+    gap, n = min(by_it, key=lambda t: t[0])
+    return MapAnswer(n.label, kind, True, f"unit {n.unit_id} {gap:.1f} m from {base.unit_id}")
+
+
+def _described(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:
+    """shape / state: the first such word in the descriptions of the label's units."""
+    from glmap_tools.sqa.answer import MapAnswer
+
+    words = SHAPES if kind == "shape" else STATES
+    for n in cands or []:
+        found = [w for w in re.findall(r"[a-z-]+", n.text.lower()) if w in words]
+        if found:
+            w = "closed" if found[0] == "shut" else found[0]
+            return MapAnswer(w, kind, True, f"unit {n.unit_id}: {n.text[:60]!r}")
+    return MapAnswer(
+        "", kind, False, f"cannot tell from the map: no {kind} in the {label}'s description"
+    )

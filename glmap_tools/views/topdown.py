@@ -288,45 +288,18 @@ def draw_topdown(
         InvalidInputError: nothing to draw (no instances and no observed space), a bad
             agent pose, heat map, max_side or metres_per_pixel.
     """
-    if isinstance(max_side, bool) or not isinstance(max_side, numbers.Integral):
-        raise InvalidInputError(f"max_side={max_side!r} must be an integer number of pixels.")
-    if not 64 <= int(max_side) <= MAX_SIDE:
-        raise InvalidInputError(f"max_side={max_side!r} must be in 64..{MAX_SIDE} pixels.")
-    if heatmap is not None and not isinstance(heatmap, HeatMap):
-        raise InvalidInputError(
-            f"heatmap is a {type(heatmap).__name__}; pass a glmap_tools.views.HeatMap."
-        )
+    _check_arguments(max_side, heatmap)
     agent_xyh = _agent_xy_heading(agent) if agent is not None else None
     cells = _unit_cells(glmap)
-    cell = glmap.config.cell_size
     if window is not None:
         lo, hi = _window_bounds(window)
         frame = None
     else:
         extra = [agent_xyh[:2]] if agent_xyh is not None else []
         lo, hi = _content_bounds(glmap, cells, extra, heatmap)
-    keep = (
-        frame is not None
-        and metres_per_pixel is None
-        and max(frame.width, frame.height) <= max_side
-        and frame.holds(lo, hi)
-    )
-    if not keep:
-        frame = choose_frame(lo, hi, cell / MAX_PIXELS_PER_CELL, int(max_side), metres_per_pixel)
-    assert frame is not None
-    canvas = Canvas(frame, cell, UNSEEN)
-    legend = ["Light grey = never observed."]
-    if _paint_occupancy(canvas, glmap):
-        legend.append("White = seen free, dark grey = obstacle.")
-    # Largest footprints first, so a chair stays visible on top of the floor under it.
-    for uid, c in sorted(cells.items(), key=lambda item: (-len(item[1]), item[0])):
-        canvas.paint(c, palette(uid))
-    if cells:
-        legend.append("Coloured cells = instance footprints (a colour per id).")
-    if heatmap is not None:
-        drawn = _heat_overlay(canvas, heatmap)
-        if drawn is not None:
-            legend.append(f"Heat overlay: blue = {drawn[0]:.3g} .. red = {drawn[1]:.3g}.")
+    frame = _frame_for(lo, hi, frame, glmap.config.cell_size, int(max_side), metres_per_pixel)
+    canvas = Canvas(frame, glmap.config.cell_size, UNSEEN)
+    legend = _paint_cells(canvas, glmap, cells, heatmap)
     image = canvas.image()
     writer = Labels(image)
     if ticks:
@@ -356,12 +329,7 @@ def draw_topdown(
     if writer.skipped:
         legend.append(f"{writer.skipped} labels left out where they would overlap others.")
     if agent_xyh is not None:
-        x, y, heading = agent_xyh
-        tip = (x + 0.5 * math.cos(heading), y + 0.5 * math.sin(heading))
-        start, end = frame.px(x, y), frame.px(*tip)
-        cv2.arrowedLine(image, start, end, AGENT_RGB, 2, cv2.LINE_AA, tipLength=0.35)
-        cv2.circle(image, start, 3, AGENT_RGB, -1, cv2.LINE_AA)
-        legend.append(f"Red arrow = the agent at ({x:.2f}, {y:.2f}) facing its heading.")
+        legend.append(_draw_agent(image, frame, agent_xyh))
     return TopDownImage(
         image,
         frame.x0,
@@ -372,6 +340,72 @@ def draw_topdown(
         label_boxes=tuple(writer.boxes),
         frame=frame,
     )
+
+
+def _check_arguments(max_side: int, heatmap: HeatMap | None) -> None:
+    if isinstance(max_side, bool) or not isinstance(max_side, numbers.Integral):
+        raise InvalidInputError(f"max_side={max_side!r} must be an integer number of pixels.")
+    if not 64 <= int(max_side) <= MAX_SIDE:
+        raise InvalidInputError(f"max_side={max_side!r} must be in 64..{MAX_SIDE} pixels.")
+    if heatmap is not None and not isinstance(heatmap, HeatMap):
+        raise InvalidInputError(
+            f"heatmap is a {type(heatmap).__name__}; pass a glmap_tools.views.HeatMap."
+        )
+
+
+def _frame_for(
+    lo: np.ndarray,
+    hi: np.ndarray,
+    frame: TopDownFrame | None,
+    cell: float,
+    max_side: int,
+    metres_per_pixel: float | None,
+) -> TopDownFrame:
+    """`frame` while everything still fits in it at no fixed scale, else a new one."""
+    keep = (
+        frame is not None
+        and metres_per_pixel is None
+        and max(frame.width, frame.height) <= max_side
+        and frame.holds(lo, hi)
+    )
+    if keep:
+        assert frame is not None
+        return frame
+    return choose_frame(lo, hi, cell / MAX_PIXELS_PER_CELL, max_side, metres_per_pixel)
+
+
+def _paint_cells(
+    canvas: Canvas,
+    glmap: GLMap,
+    cells: dict[int, np.ndarray],
+    heatmap: HeatMap | None,
+) -> list[str]:
+    """Paint occupancy, instance footprints and the heat overlay; the legend so far."""
+    legend = ["Light grey = never observed."]
+    if _paint_occupancy(canvas, glmap):
+        legend.append("White = seen free, dark grey = obstacle.")
+    # Largest footprints first, so a chair stays visible on top of the floor under it.
+    for uid, c in sorted(cells.items(), key=lambda item: (-len(item[1]), item[0])):
+        canvas.paint(c, palette(uid))
+    if cells:
+        legend.append("Coloured cells = instance footprints (a colour per id).")
+    if heatmap is not None:
+        drawn = _heat_overlay(canvas, heatmap)
+        if drawn is not None:
+            legend.append(f"Heat overlay: blue = {drawn[0]:.3g} .. red = {drawn[1]:.3g}.")
+    return legend
+
+
+def _draw_agent(
+    image: np.ndarray, frame: TopDownFrame, agent_xyh: tuple[float, float, float]
+) -> str:
+    """Draw the agent as a red arrow along its heading; its legend line."""
+    x, y, heading = agent_xyh
+    tip = (x + 0.5 * math.cos(heading), y + 0.5 * math.sin(heading))
+    start, end = frame.px(x, y), frame.px(*tip)
+    cv2.arrowedLine(image, start, end, AGENT_RGB, 2, cv2.LINE_AA, tipLength=0.35)
+    cv2.circle(image, start, 3, AGENT_RGB, -1, cv2.LINE_AA)
+    return f"Red arrow = the agent at ({x:.2f}, {y:.2f}) facing its heading."
 
 
 def _draw_regions(
