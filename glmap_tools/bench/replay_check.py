@@ -405,6 +405,8 @@ def situate_against(tree: Path, results: Path) -> tuple[int, list[str]]:
             glmap = GLMap.open(path, embedder=embedder())
             labels = sorted({u.label for u in glmap.instances.values()})[:8]
             texts += [f"I am next to the {a}, facing the {b}." for a in labels for b in labels]
+            texts += [f"I am at the {a}, the {b} is on my left." for a in labels for b in labels]
+            texts += [f"The {b} is behind me." for b in labels]
             texts += [f"sitting in the {r.text.split('|')[0][:40]}" for r in glmap.regions.values()]
             try:
                 for text in texts:

@@ -262,6 +262,81 @@ def _nearest_in(nearby: Sequence[Nearby], lo: float, hi: float, exclude: set[int
     return None
 
 
+def _nearest_towards(kind: str, where: Surroundings, skip: set[int]) -> tuple[Nearby | None, str]:
+    """(the nearest unit on the asked side, the rule used): left, right, front or behind."""
+    if kind in ("left", "right"):
+        lo, hi = SIDE_SECTORS[kind]
+        return _nearest_in(where.nearby, lo, hi, skip), f"nearest unit {lo:.0f}..{hi:.0f} deg"
+    if kind == "front":
+        n = _nearest_in(where.nearby, -45.0, 45.0, skip)
+        return n, "nearest unit within 45 deg of straight ahead"
+    n = next(
+        (x for x in where.nearby if x.unit_id not in skip and abs(x.bearing) >= BEHIND),
+        None,
+    )
+    return n, f"nearest unit at |bearing| >= {BEHIND:.0f} deg"
+
+
+def _colour(label: str | None, obj: str | None, where: Surroundings) -> MapAnswer:
+    """The first colour word in the descriptions of the label's units, nearest first."""
+    kind = "color"
+    if label is None:
+        return MapAnswer("", kind, False, f"no unit is a {obj!r}")
+    cands = [n for n in where.nearby if n.label == label] or [
+        Nearby(uid, lab, "", math.inf, 0.0, "", 0.0, 0.0, (0, 0, 0, 0))
+        for uid, lab in where.labels.items()
+        if lab == label
+    ]
+    for n in cands:
+        text = n.text or where_text(where, n.unit_id)
+        colour = next((c for c in re.findall(r"[a-z]+", text.lower()) if c in COLOURS), None)
+        if colour:
+            return MapAnswer(colour, kind, True, f"unit {n.unit_id}: {text[:80]!r}")
+    return MapAnswer("", kind, False, f"no colour in the description of the {label}")
+
+
+def _count_in_region(label: str | None, region_text: str, where: Surroundings) -> MapAnswer:
+    """How many units of the label the best-matching region holds."""
+    kind = "count"
+    region = _best_region(region_text, where)
+    if label is None or region is None:
+        return MapAnswer("", kind, False, "no matching unit label or region")
+    rid, text, members = region
+    count = sum(where.labels.get(m) == label for m in members)
+    return MapAnswer(str(count), kind, True, f"region {rid} {text[:60]!r}: {count} x {label}")
+
+
+def _on(base: Nearby | None, obj: str | None, where: Surroundings) -> MapAnswer:
+    """The nearest unit resting on `base` (above its top, over its footprint)."""
+    kind = "on"
+    if base is None:
+        return MapAnswer("", kind, False, f"no {obj!r} nearby")
+    on = [
+        n
+        for n in where.nearby
+        if n.unit_id != base.unit_id
+        and n.z_min >= base.z_max - 0.1
+        and _overlap(n.footprint, base.footprint)
+    ]
+    if not on:
+        return MapAnswer("nothing", kind, True, f"nothing above unit {base.unit_id}")
+    return MapAnswer(on[0].label, kind, True, f"unit {on[0].unit_id} on {base.unit_id}")
+
+
+def _reach(target: Nearby | None, obj: str | None) -> MapAnswer:
+    """Whether the target lies within the reaching cone ahead."""
+    kind = "reach"
+    if target is None:
+        return MapAnswer("no", kind, True, f"no {obj!r} within reach")
+    ok = abs(target.bearing) <= REACH_CONE
+    return MapAnswer(
+        "yes" if ok else "no",
+        kind,
+        True,
+        f"unit {target.unit_id}: {target.bearing:.0f} deg, {target.distance:.1f} m",
+    )
+
+
 class OfflineAnswerer:
     """Answers situated questions from `Surroundings` (see the module docstring)."""
 
@@ -285,75 +360,21 @@ class OfflineAnswerer:
         if side is not None:
             parts["object"] = phrase
             where = replace(where, nearby=tuple(n for n in where.nearby if in_side(n, side)))
-        if kind in ("left", "right"):
-            lo, hi = SIDE_SECTORS[kind]
-            n = _nearest_in(where.nearby, lo, hi, skip)
-            return self._object(kind, n, f"nearest unit {lo:.0f}..{hi:.0f} deg")
-        if kind == "front":
-            n = _nearest_in(where.nearby, -45.0, 45.0, skip)
-            return self._object(kind, n, "nearest unit within 45 deg of straight ahead")
-        if kind == "behind":
-            n = next(
-                (x for x in where.nearby if x.unit_id not in skip and abs(x.bearing) >= BEHIND),
-                None,
-            )
-            return self._object(kind, n, f"nearest unit at |bearing| >= {BEHIND:.0f} deg")
+        if kind in ("left", "right", "front", "behind"):
+            return self._object(kind, *_nearest_towards(kind, where, skip))
         if kind == "room":
             return _room(where)
+        obj = parts.get("object", "")
+        label = _match_label(obj, labels)
+        asked = parts.get("object")  # as the question named it, for the evidence
         if kind == "color":
-            label = _match_label(parts.get("object", ""), labels)
-            if label is None:
-                return MapAnswer("", kind, False, f"no unit is a {parts.get('object')!r}")
-            cands = [n for n in where.nearby if n.label == label] or [
-                Nearby(uid, lab, "", math.inf, 0.0, "", 0.0, 0.0, (0, 0, 0, 0))
-                for uid, lab in where.labels.items()
-                if lab == label
-            ]
-            for n in cands:
-                text = n.text or where_text(where, n.unit_id)
-                colour = next(
-                    (c for c in re.findall(r"[a-z]+", text.lower()) if c in COLOURS), None
-                )
-                if colour:
-                    return MapAnswer(colour, kind, True, f"unit {n.unit_id}: {text[:80]!r}")
-            return MapAnswer("", kind, False, f"no colour in the description of the {label}")
+            return _colour(label, asked, where)
         if kind == "count":
-            label = _match_label(parts.get("object", ""), labels)
-            region = _best_region(parts.get("where", ""), where)
-            if label is None or region is None:
-                return MapAnswer("", kind, False, "no matching unit label or region")
-            rid, text, members = region
-            count = sum(where.labels.get(m) == label for m in members)
-            return MapAnswer(
-                str(count), kind, True, f"region {rid} {text[:60]!r}: {count} x {label}"
-            )
+            return _count_in_region(label, parts.get("where", ""), where)
         if kind == "on":
-            label = _match_label(parts.get("object", ""), labels)
-            base = _pick(where.nearby, label, parts.get("object", ""))
-            if base is None:
-                return MapAnswer("", kind, False, f"no {parts.get('object')!r} nearby")
-            on = [
-                n
-                for n in where.nearby
-                if n.unit_id != base.unit_id
-                and n.z_min >= base.z_max - 0.1
-                and _overlap(n.footprint, base.footprint)
-            ]
-            if not on:
-                return MapAnswer("nothing", kind, True, f"nothing above unit {base.unit_id}")
-            return MapAnswer(on[0].label, kind, True, f"unit {on[0].unit_id} on {base.unit_id}")
+            return _on(_pick(where.nearby, label, obj), asked, where)
         if kind == "reach":
-            label = _match_label(parts.get("object", ""), labels)
-            target = _pick(where.nearby, label, parts.get("object", ""))
-            if target is None:
-                return MapAnswer("no", kind, True, f"no {parts.get('object')!r} within reach")
-            ok = abs(target.bearing) <= REACH_CONE
-            return MapAnswer(
-                "yes" if ok else "no",
-                kind,
-                True,
-                f"unit {target.unit_id}: {target.bearing:.0f} deg, {target.distance:.1f} m",
-            )
+            return _reach(_pick(where.nearby, label, obj), asked)
         return MapAnswer("", kind, False, "no rule for this kind of question")
 
     @staticmethod

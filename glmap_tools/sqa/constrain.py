@@ -144,36 +144,12 @@ def constrained_pose(
     within TIE of the best (or, with no anchor, around each facing candidate), headed at
     each facing candidate, or, with nothing faced, at the heading that fits best. The
     pose the earlier rules chose wins exact ties (a bonus of TIE / 10)."""
-
-    def near_best(p: np.ndarray) -> list[int]:
-        order = np.argsort(-p, kind="stable")
-        return [int(i) for i in order if p[i] >= float(p.max()) - TIE][:MAX_CANDIDATES]
-
-    from glmap_tools.sqa.place import centroid, free_cells, stand_point_near
+    from glmap_tools.sqa.place import centroid
     from glmap_tools.sqa.situate import TIE
-    from glmap_tools.sqa.stand import front_stand_point
 
     ids = [u.unit_id for u in instances]
-    faces = near_best(p_face) if p_face is not None else []
-    stands: list[tuple[float, float, int | None]] = []
-    if p_anchor is not None and not anchor_from_facing:
-        for i in near_best(p_anchor):
-            uid = ids[i]
-            pt = front_stand_point(glmap, [uid], [], backrest=backrest)
-            pt = pt or stand_point_near(glmap, centroid(glmap, uid), [uid], None, [])
-            stands.append((pt[0], pt[1], uid))
-    elif faces:
-        free, _ = free_cells(glmap, set())
-        for j in faces:
-            centre = np.array(centroid(glmap, ids[j]))
-            pt = front_stand_point(glmap, [ids[j]], [], backrest=backrest)
-            if pt is not None:
-                stands.append((pt[0], pt[1], None))
-            if len(free):
-                d = np.hypot(*(free - centre).T)
-                ring = free[(d >= 0.8) & (d <= 2.5)]
-                step = max(1, len(ring) // 48)
-                stands += [(float(q[0]), float(q[1]), None) for q in ring[::step]]
+    faces = _near_best(p_face) if p_face is not None else []
+    stands = _stand_candidates(glmap, ids, p_anchor, faces, anchor_from_facing, backrest)
     if not stands:
         stands = [(default[0], default[1], default_anchor)]
     best: tuple[float, float, float, float, int | None, int | None] | None = None
@@ -208,3 +184,46 @@ def constrained_pose(
         + f" (fit {best[0]:.2f})"
     )
     return best[1], best[2], best[3], best[4] if best[4] is not None else default_anchor, best[5]
+
+
+def _near_best(p: np.ndarray) -> list[int]:
+    """Indices of the scores within TIE of the best, best first (at most MAX_CANDIDATES)."""
+    from glmap_tools.sqa.situate import TIE
+
+    order = np.argsort(-p, kind="stable")
+    return [int(i) for i in order if p[i] >= float(p.max()) - TIE][:MAX_CANDIDATES]
+
+
+def _stand_candidates(
+    glmap: GLMap,
+    ids: list[int],
+    p_anchor: np.ndarray | None,
+    faces: list[int],
+    anchor_from_facing: bool,
+    backrest: bool,
+) -> list[tuple[float, float, int | None]]:
+    """(x, y, anchor id) stand points: one at each anchor within TIE of the best, or with
+    no anchor, the front of each facing candidate and a ring of free cells around it."""
+    from glmap_tools.sqa.place import centroid, free_cells, stand_point_near
+    from glmap_tools.sqa.stand import front_stand_point
+
+    stands: list[tuple[float, float, int | None]] = []
+    if p_anchor is not None and not anchor_from_facing:
+        for i in _near_best(p_anchor):
+            uid = ids[i]
+            pt = front_stand_point(glmap, [uid], [], backrest=backrest)
+            pt = pt or stand_point_near(glmap, centroid(glmap, uid), [uid], None, [])
+            stands.append((pt[0], pt[1], uid))
+    elif faces:
+        free, _ = free_cells(glmap, set())
+        for j in faces:
+            centre = np.array(centroid(glmap, ids[j]))
+            pt = front_stand_point(glmap, [ids[j]], [], backrest=backrest)
+            if pt is not None:
+                stands.append((pt[0], pt[1], None))
+            if len(free):
+                d = np.hypot(*(free - centre).T)
+                ring = free[(d >= 0.8) & (d <= 2.5)]
+                step = max(1, len(ring) // 48)
+                stands += [(float(q[0]), float(q[1]), None) for q in ring[::step]]
+    return stands

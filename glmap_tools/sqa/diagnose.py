@@ -73,7 +73,7 @@ def classify(glmap: Any, layout: Any, q: dict[str, Any], s: Any) -> dict[str, An
     }
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m glmap_tools.sqa.diagnose", description=__doc__)
     p.add_argument("--split", choices=["tune", "bench"], default="tune")
     p.add_argument("--situations", type=int, default=8, help="situations per scene")
@@ -105,7 +105,11 @@ def main(argv: list[str] | None = None) -> int:
         help="situations in many phrasings (glmap_tools.sim.qa_phrasings); causes per form",
     )
     p.add_argument("--show", default="", help="print the rows with these causes (comma list)")
-    args = p.parse_args(argv)
+    return p
+
+
+def diagnose_rows(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """One classified row per situation of the split's first scenes (`classify`)."""
 
     from glmap_tools.eval.sqa import SqaSpec, _embedder, scene_map
     from glmap_tools.sim.benchmark import bench_layout, split_dir
@@ -115,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     spec = SqaSpec(split=args.split, situations=args.situations, seed=args.seed)
     manifest = json.loads((split_dir(args.split) / "split.json").read_text(encoding="utf-8"))
     embedder = _embedder(spec.embedder)
-    rows = []
+    rows: list[dict[str, Any]] = []
     for entry in manifest["scenes"][: args.scenes or None]:
         scene = entry["scene"]
         layout = bench_layout(split_dir(args.split) / scene / "layout.json")
@@ -142,6 +146,11 @@ def main(argv: list[str] | None = None) -> int:
             form = {"form": q["situation_form"]} if "situation_form" in q else {}
             rows.append({"scene": scene, **form, **classify(glmap, layout, q, s)})
         glmap.close()
+    return rows
+
+
+def _print_summary(rows: list[dict[str, Any]], args: argparse.Namespace) -> None:
+    """Causes over all rows and per phrasing form; the rows asked for; the JSON file."""
     causes = Counter(r["cause"] for r in rows)
     n = len(rows)
     print(f"{args.split}: {n} situations; within 1 m and 45 deg: {causes['ok'] / max(n, 1):.3f}")
@@ -158,6 +167,11 @@ def main(argv: list[str] | None = None) -> int:
             print(json.dumps(r))
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1) + "\n", encoding="utf-8")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    _print_summary(diagnose_rows(args), args)
     return 0
 
 

@@ -204,26 +204,13 @@ def situate(
     anchors = _top(ev.r_units, ev.r_scores)
     facing_id = _top(ev.instances, ev.p_o, 1)[0].unit_id if peak_o is not None else None
     peak_r, anchor_ids = _anchor(glmap, ev, h_r, peak_o, anchors, notes, text)
-    if split_text and len(ev.instances):
-        best_a = float(ev.p_anchor.max())
-        best_region = float(ev.p_r.max()) if len(ev.p_r) else 0.0
-        if best_a >= MIN_SCORE and best_a + REGION_MARGIN >= best_region:
-            # An object names where one stands: Eq. 7 sums a unit's score over all its
-            # cells, so a large region outweighs a small anchor at the peak; take the
-            # anchor object itself, and among equally good anchors and facing objects
-            # the pair closest together (one faces something in the same room).
-            p_face = ev.p_o if facing else None
-            pair = closest_pair(glmap, ev.instances, ev.p_anchor, p_face, sight, TIE, MIN_SCORE)
-            anchor_ids = [pair[0]]
-            peak_r = centroid(glmap, pair[0])
-            if pair[1] is not None:
-                peak_o = centroid(glmap, pair[1])
-                facing_id = pair[1]
-            notes.append(
-                "pose from the best anchor/facing pair (on ties: "
-                + ("the facing object in line of sight from the anchor, then " if sight else "")
-                + "the closest pair)"
-            )
+    pair = _object_pair(glmap, ev, facing, split_text, sight, notes)
+    if pair is not None:
+        anchor_ids = [pair[0]]
+        peak_r = centroid(glmap, pair[0])
+        if pair[1] is not None:
+            peak_o = centroid(glmap, pair[1])
+            facing_id = pair[1]
     x, y, heading = _pose(glmap, peak_r, peak_o, anchor_ids, front_side, backrest, notes)
     tgts = targets(glmap, scorer, ev.instances, reading.constraints, TIE, MIN_SCORE)
     if tgts:
@@ -422,6 +409,37 @@ def _anchor(
         or u.score >= 0.9 * anchors[0].score
     ][:1] or [anchors[0].unit_id]
     return peak_r, anchor_ids
+
+
+def _object_pair(
+    glmap: GLMap,
+    ev: _Evidence,
+    facing: str,
+    split_text: bool,
+    sight: bool,
+    notes: list[str],
+) -> tuple[int, int | None] | None:
+    """(anchor id, facing id) when an object names where one stands, else None.
+
+    Eq. 7 sums a unit's score over all its cells, so a large region outweighs a small
+    anchor at the peak; the anchor object itself is taken when it scores MIN_SCORE and a
+    region beats it by less than REGION_MARGIN, and among equally good anchors and facing
+    objects the pair closest together (one faces something in the same room).
+    """
+    if not (split_text and len(ev.instances)):
+        return None
+    best_a = float(ev.p_anchor.max())
+    best_region = float(ev.p_r.max()) if len(ev.p_r) else 0.0
+    if not (best_a >= MIN_SCORE and best_a + REGION_MARGIN >= best_region):
+        return None
+    p_face = ev.p_o if facing else None
+    pair = closest_pair(glmap, ev.instances, ev.p_anchor, p_face, sight, TIE, MIN_SCORE)
+    notes.append(
+        "pose from the best anchor/facing pair (on ties: "
+        + ("the facing object in line of sight from the anchor, then " if sight else "")
+        + "the closest pair)"
+    )
+    return pair
 
 
 def _pose(
