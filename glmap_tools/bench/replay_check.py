@@ -39,6 +39,8 @@ from typing import Any
 
 import numpy as np
 
+from glmap_tools.bench.report import Report
+
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 GOLDEN = Path(__file__).resolve().parents[2] / "tests" / "data" / "replay_golden.json"
@@ -492,7 +494,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {GOLDEN}")
         return 0
     if args.against:
-        tree, failed, total = Path(args.against), False, 0
+        tree, differing, total, ran = Path(args.against), 0, 0, 0
+        report = Report(f"bench replay-check against {tree}")
         runs = [
             (f"{t}/{i}/{p}", partial(play_against, tree, t, i, p, args.max_steps))
             for t, i, p in EPISODES
@@ -504,15 +507,13 @@ def main(argv: list[str] | None = None) -> int:
             if args.only and not name.startswith(args.only):
                 continue
             n, diff = run()
-            total += n
-            failed |= bool(diff)
-            print(
-                f"{name}: {n} steps, "
-                + ("DIFFERENT:\n  " + "\n  ".join(diff) if diff else "identical"),
-                flush=True,
-            )
-        print(("DIFFERENT" if failed else "identical") + f" to {tree} over {total} frames")
-        return int(failed)
+            total, ran, differing = total + n, ran + 1, differing + bool(diff)
+            unit = "situations" if name == "situate" else "frames"
+            verdict = "DIFFERENT:\n  " + "\n  ".join(diff) if diff else "identical"
+            report.info(f"{name}: {n} {unit}, {verdict}")
+        report.check(f"runs identical ({total} frames/situations)", ran - differing, ">=", ran)
+        report.finish()
+        return int(differing > 0)  # unlike a missed speed target, a difference is a failure
     record: dict[str, Any] = {"episodes": [], "tours": []}
     for task, index, policy in EPISODES:
         r = play(task, index, policy, args.max_steps)
