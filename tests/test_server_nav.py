@@ -60,16 +60,19 @@ async def chat_episode(client: Client, reset: dict, budget: int = 10) -> tuple[d
     return await call("sim_step", {"action": "stop"}), calls
 
 
-@pytest.mark.slow  # loads MiniLM; plays six bench episodes
-async def test_a_chat_client_finishes_bench_episodes_of_five_scenes_in_at_most_ten_calls(tmp_path):
-    episodes = [f"bench/objectnav/s{k:02d}-000" for k in (0, 1, 4, 5, 7)]
-    episodes.append("bench/instnav/s01-000")
+CHAT_EPISODES = [f"bench/objectnav/s{k:02d}-000" for k in (0, 1, 4, 5, 7)] + [
+    "bench/instnav/s01-000"
+]
+
+
+@pytest.mark.slow  # loads MiniLM; plays a bench episode (one test each, to spread over workers)
+@pytest.mark.parametrize("episode", CHAT_EPISODES)
+async def test_a_chat_client_finishes_a_bench_episode_in_at_most_ten_calls(tmp_path, episode):
     defaults = ServerConfig(maps_dir=tmp_path / "maps", warm_up=False)  # MiniLM, 320x240
     async with Client(build_server(defaults)) as client:
-        played = [await play(client, e) for e in episodes]  # as docs/mcp.md tells a client
-    for episode, (final, calls) in zip(episodes, played, strict=True):
-        assert final["status"] == "success", (episode, final, calls)
-        assert len(calls) <= 10 and calls[0] == "sim_reset" and calls[-1] == "sim_step"
+        final, calls = await play(client, episode)  # as docs/mcp.md tells a client
+    assert final["status"] == "success", (episode, final, calls)
+    assert len(calls) <= 10 and calls[0] == "sim_reset" and calls[-1] == "sim_step"
 
 
 @pytest.mark.slow  # loads MiniLM (the hashing embedder does not match goals well)
