@@ -139,6 +139,25 @@ class _RayWorker:
         return self.worker.run(job)
 
 
+def connect(address: str, local_cpus: int) -> tuple[Any, bool]:
+    """(the ray module, whether this call started Ray): Ray at `address`; 'local' starts an
+    instance with `local_cpus` CPUs; one already running in this process is used as it is.
+
+    Raises:
+        RayUnavailableError: Ray missing or the address not answering (within 10 s).
+    """
+    ray = _import_ray()
+    check_address(address)
+    started_here = not ray.is_initialized()
+    if started_here:
+        kw: dict[str, Any] = {"log_to_driver": False}
+        if address == "local":
+            kw.update(num_cpus=max(1, local_cpus), include_dashboard=False)
+        os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+        ray.init(address=address, **kw)
+    return ray, started_here
+
+
 def run_ray(
     jobs: Sequence[Job],
     workers: int,
@@ -154,15 +173,7 @@ def run_ray(
     Raises:
         RayUnavailableError: Ray missing or the address not answering (within 10 s).
     """
-    ray = _import_ray()
-    check_address(address)
-    started_here = not ray.is_initialized()
-    if started_here:
-        kw: dict[str, Any] = {"log_to_driver": False}
-        if address == "local":
-            kw.update(num_cpus=max(1, workers), include_dashboard=False)
-        os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-        ray.init(address=address, **kw)
+    ray, started_here = connect(address, workers)
     actors: list[Any] = []
     try:
         actor_cls = ray.remote(num_cpus=1)(_RayWorker)

@@ -210,16 +210,9 @@ def run_ray(
     Raises:
         RayUnavailableError: Ray missing, or the address not answering.
     """
-    from glmap_tools.eval.ray_engine import _import_ray, check_address
+    from glmap_tools.eval.ray_engine import connect
 
-    ray = _import_ray()
-    check_address(address)
-    started_here = not ray.is_initialized()
-    if started_here:
-        kw: dict[str, Any] = {"log_to_driver": False}
-        if address == "local":
-            kw.update(num_cpus=ray_cpus(address, workers), include_dashboard=False)
-        ray.init(address=address, **kw)
+    ray, started_here = connect(address, ray_cpus("local", workers))
     try:
         at_once = ray_cpus(address, workers)
         counter = ray.remote(num_cpus=0)(_FrameCounter).remote()
