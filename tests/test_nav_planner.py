@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
 from glmap_tools.nav import (
@@ -226,3 +228,38 @@ def test_a_boxed_in_agent_reaches_nothing_and_plans_say_so() -> None:
     inside, outside = occ.index_to_world(15, 15), occ.index_to_world(25, 25)
     with pytest.raises(UnreachableGoalError):
         plan(occ, inside, 0.0, outside)
+
+
+def test_a_goal_fenced_in_by_blocked_cells_with_free_cells_elsewhere_is_unreachable() -> None:
+    # A 9x9 grid: a free strip at the left edge, the goal in the middle of a blocked block.
+    trav = np.zeros((9, 9), dtype=bool)
+    trav[:, 0] = True
+    field = geodesic(trav, (4, 4), 0.1)
+    assert field[4, 4] == 0.0
+    assert np.isinf(np.delete(field.ravel(), 4 * 9 + 4)).all()
+    # Free cells touching the goal only diagonally: FMM's axis stencil cannot start there.
+    trav[3, 3] = trav[5, 5] = True
+    field = geodesic(trav, (4, 4), 0.1, speed=np.ones((9, 9)))
+    assert np.isinf(field[:, 0]).all()
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    shape=st.tuples(st.integers(2, 12), st.integers(2, 12)),
+    data=st.data(),
+    with_speed=st.booleans(),
+)
+def test_geodesic_over_random_grids_returns_a_field_and_never_raises(
+    shape: tuple[int, int], data: st.DataObject, with_speed: bool
+) -> None:
+    h, w = shape
+    cells = data.draw(st.lists(st.booleans(), min_size=h * w, max_size=h * w))
+    trav = np.array(cells, dtype=bool).reshape(h, w)
+    goal = (data.draw(st.integers(0, h - 1)), data.draw(st.integers(0, w - 1)))
+    speed = np.full((h, w), 0.5) if with_speed else None
+    field = geodesic(trav, goal, 0.05, speed=speed)
+    reference = reference_geodesic(trav, goal, 0.05, speed=speed)
+    assert field.shape == (h, w) and field[goal] == 0.0
+    # A finite cost exactly where the 8-connected reference reaches (FMM may also cut a
+    # diagonal the reference refuses, never the other way round).
+    assert not (np.isinf(field) & np.isfinite(reference)).any()

@@ -44,7 +44,7 @@ def geodesic(
     trav = np.asarray(trav, dtype=bool)
     mask = ~trav
     mask[goal_rc] = False
-    if mask.sum() == mask.size - 1:  # nothing around the source to march into
+    if not _has_free_side(mask, goal_rc):  # fenced in: nothing to march into
         out = np.full(trav.shape, np.inf)
         out[goal_rc] = 0.0
         return out
@@ -61,6 +61,14 @@ def geodesic(
     out = np.ma.filled(dist, np.inf).astype(np.float64) + 0.5 * cell_size / source_speed
     out[goal_rc] = 0.0
     return out
+
+
+def _has_free_side(mask: np.ndarray, rc: tuple[int, int]) -> bool:
+    """Whether a 4-neighbour of `rc` is unmasked: FMM's axis stencils need one to start."""
+    h, w = mask.shape
+    r, c = rc
+    sides = ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1))
+    return any(0 <= i < h and 0 <= j < w and not mask[i, j] for i, j in sides)
 
 
 def reference_geodesic(
