@@ -190,3 +190,23 @@ async def test_a_save_that_fills_the_disk_is_an_error_and_leaves_the_old_file(
         assert str(tmp_path) not in text
     assert path.read_bytes() == before
     assert files(tmp_path / "maps") == {"flat.glmap"}  # no temporary file left
+
+
+async def test_loading_a_map_during_a_simulator_episode_ends_it_and_never_writes_its_frames(
+    tmp_path,
+):
+    async with Client(build_server(config(tmp_path, sim_size=(96, 72)))) as client:
+        await client.call_tool("observe_frame", frame_args())
+        await client.call_tool("save_map", {"name": "mine"})
+        await client.call_tool("sim_reset", {"scene": 0, "seed": 1})
+        await client.call_tool("sim_step", {"action": "turn_left"})
+        loaded = await client.call_tool("load_map", {"name": "mine"})
+        assert not loaded.is_error, loaded.content[0].text
+        assert "episode was ended" in loaded.structured_content["simulator"]
+        assert await counts(client) == (1, 3, 1)
+        step = await client.call_tool("sim_step", {"action": "move_forward"})
+        assert step.is_error and "call sim_reset" in step.content[0].text
+        assert await counts(client) == (1, 3, 1)
+    async with Client(build_server(config(tmp_path))) as client:
+        await client.call_tool("load_map", {"name": "mine"})
+        assert await counts(client) == (1, 3, 1)  # the file on disk holds only the user's frame

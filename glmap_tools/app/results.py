@@ -66,6 +66,9 @@ class MapInfo(SessionInfo):
 
     summary: MapSummary
     resources: list[str] = Field(description="glmap:// resources to read this map")
+    simulator: str | None = Field(
+        default=None, description="what became of the session's simulator episode, if any"
+    )
 
 
 class SavedMap(SessionInfo):

@@ -28,6 +28,19 @@ MapName = Annotated[
 ]
 
 
+# A loaded map is the user's saved work: simulator frames never go into it unasked.
+EPISODE_ENDED = (
+    "the simulator episode was ended: its frames stay in the map it was building, never in "
+    "a loaded one; sim_reset starts a new episode (keep_map=true adds its frames to this map)"
+)
+
+
+def _end_episode(session: Session) -> None:
+    if session.sim is not None:
+        session.sim.close()
+    session.sim = session.nav = None
+
+
 def _info(session: Session) -> MapInfo:
     with locked(session) as glmap:
         return MapInfo(
@@ -86,8 +99,16 @@ async def load_map(name: MapName, call: Call, session: SessionArg = "") -> MapIn
     registry = call.state.registry
 
     def run() -> MapInfo:
-        registry.load_map(target, name)
-        return _info(target)
+        with target.sim_lock:  # a sim_step in flight finishes first
+            before = target.live
+            registry.load_map(target, name)
+            ended = target.sim is not None and target.live is not before
+            if ended:
+                _end_episode(target)
+        info = _info(target)
+        if ended:
+            info.simulator = EPISODE_ENDED
+        return info
 
     return await in_thread(run)
 
