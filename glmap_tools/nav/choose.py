@@ -8,7 +8,7 @@ its waypoint; `decide` (nav/policy.py) writes both into the episode's `NavState`
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -16,11 +16,20 @@ from glmap_tools.nav.config import NavConfig
 from glmap_tools.nav.perceive import Surroundings
 from glmap_tools.nav.planner import Plan, plan_on_field
 from glmap_tools.nav.value import ValueMap
-from glmap_tools.nav.waypoint import GoalMatch, Waypoint, choose_waypoint
+from glmap_tools.nav.waypoint import (
+    GoalMatch,
+    Waypoint,
+    choose_waypoint,
+    distance_to_cells,
+    in_clear_sight,
+)
 
 PROGRESS = 0.25  # metres of progress toward the waypoint that reset the stuck counter
 HOLD_AFTER_TURNS = 6  # turns in place after which the waypoint is held until the agent moves
 ATTEMPTS = 8  # waypoints tried in one step before looking around
+# Metres: a matched unit this close is never left for a stop with nothing to do; the agent
+# stops for it instead (a give-up stop beside the goal lost episodes within reach).
+MATCH_NEAR = 1.5
 
 XY = tuple[float, float]
 
@@ -83,6 +92,25 @@ def look_around(xy: XY, reason: str) -> tuple[Waypoint, Plan]:
     )
 
 
+def _stop_for(match: GoalMatch, req: PlanRequest, why: str) -> Choice:
+    """Stop where the agent stands, for the matched unit."""
+    xy = req.xy
+    here = distance_to_cells(match.cells, xy, req.sur.occ.cell_size)
+    reason = f"instance {match.unit_id} matches the goal and is {here:.2f} m away: {why}"
+    wp = Waypoint(xy, "goal", match.unit_id, match.score, reason)
+    return Choice(wp, Plan(np.array([xy]), 0.0, "stop", True, xy), req.avoid)
+
+
+def stop_would_count_here(match: GoalMatch, req: PlanRequest) -> bool:
+    """The simulator's success rule read on the map at the agent: within `success_radius`
+    of the unit's cells with no wall of the map on the line to them."""
+    occ = req.sur.occ
+    if distance_to_cells(match.cells, req.xy, occ.cell_size) > req.config.success_radius:
+        return False
+    rc = np.array(occ.world_to_index(*req.xy))[None]
+    return bool(in_clear_sight(match, occ, rc, req.walls)[0])
+
+
 def _held(req: PlanRequest) -> Choice | None:
     """The previous frontier waypoint, kept after `HOLD_AFTER_TURNS` turns in place with no
     match while it can be reached: a value map that changes with every view (the egocentric
@@ -135,6 +163,13 @@ def choose_and_plan(req: PlanRequest) -> Choice:
             # Frontiers the planner cannot reach yet (a pinch left by bumps): look around.
             waypoint, plan = look_around(xy, "no frontier can be reached: look around.")
             return Choice(waypoint, plan, tuple(avoid), frozenset(rejected))
+        if (
+            wp.xy is None
+            and req.match is not None
+            and (distance_to_cells(req.match.cells, xy, sur.occ.cell_size) <= MATCH_NEAR)
+        ):
+            done = _stop_for(req.match, req, "nothing else is left to do, so stop here.")
+            return replace(done, avoid=tuple(avoid), rejected=frozenset(rejected))
         if wp.xy is None:
             plan = Plan(np.zeros((0, 2)), math.inf, "stop", False, xy)
             return Choice(wp, plan, tuple(avoid), frozenset(rejected))
@@ -144,6 +179,9 @@ def choose_and_plan(req: PlanRequest) -> Choice:
         out = plan_to(sur, xy, req.heading, wp.xy, config)
         if wp.kind == "goal" and not out.reachable:
             assert match is not None
+            if stop_would_count_here(match, req):
+                why = "its cells near it cannot be reached, and a stop here would count."
+                return replace(_stop_for(match, req, why), avoid=tuple(avoid))
             rejected.add(match.unit_id)
             match = None
             continue

@@ -160,6 +160,26 @@ def _distances(
     return np.hypot(xy[:, 0] - agent_xy[0], xy[:, 1] - agent_xy[1])
 
 
+def distances_to_cells(cells: np.ndarray, points_xy: np.ndarray, cell_size: float) -> np.ndarray:
+    """[N] metres from each of [N, 2] (x, y) points to the nearest point of the [K, 2] (i, j)
+    cells: `distance_to_cells` for many points (inf with no cells)."""
+    pts = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+    if len(cells) == 0:
+        return np.full(len(pts), np.inf)
+    lo = cells * cell_size  # [K, 2]
+    out = np.empty(len(pts))
+    for a in range(0, len(pts), 256):  # [256, K] at a time
+        p = pts[a : a + 256, None, :]
+        dx = np.maximum(
+            np.maximum(lo[None, :, 0] - p[..., 0], p[..., 0] - lo[None, :, 0] - cell_size), 0
+        )
+        dy = np.maximum(
+            np.maximum(lo[None, :, 1] - p[..., 1], p[..., 1] - lo[None, :, 1] - cell_size), 0
+        )
+        out[a : a + 256] = np.hypot(dx, dy).min(axis=1)
+    return out
+
+
 def _goal_waypoint(
     match: GoalMatch,
     traversable: np.ndarray,
@@ -169,38 +189,74 @@ def _goal_waypoint(
     distance: np.ndarray | None,
     walls: np.ndarray | None,
 ) -> Waypoint | None:
-    """The agent itself within `stop_distance` of the match (in sight with `stop_in_sight`),
-    else the nearest reachable navigable cell that is; None when there is none yet."""
+    """Where to go for a matched unit, by one rule for the stop and the approach cells.
+
+    A point is *within stop* when `distance_to_cells` from it to the unit's cells is at most
+    `stop_distance` (and, with `stop_in_sight`, the line to them crosses no wall). The agent
+    stops where it is within stop; else it heads for the nearest reachable navigable cell
+    whose centre is within stop with a cell to spare (landing off a cell's centre stays
+    within stop). With no such cell, the success rule itself decides: the agent stops where
+    a stop would count (within `success_radius`, in sight) rather than give the unit up;
+    else it heads for the reachable cell nearest the unit, when that is closer than here.
+    None when there is nothing to head for yet (keep exploring)."""
     s = occ.cell_size
     here = distance_to_cells(match.cells, agent_xy, s)
-    cand = np.zeros((0, 2), np.int64)
-    sight_note = ""
-    if here > config.stop_distance or config.stop_in_sight:
-        cand = goal_cells_near(match, occ, traversable, config.stop_distance - s)
-        d = _distances(occ, cand, agent_xy, distance)
-        cand, d = cand[np.isfinite(d)], d[np.isfinite(d)]
-    if config.stop_in_sight and len(cand):
-        agent_rc = np.array(occ.world_to_index(*agent_xy))
-        clear = in_clear_sight(match, occ, np.vstack([cand, agent_rc]), walls)
-        if clear[:-1].any():
-            cand, d = cand[clear[:-1]], d[clear[:-1]]
-            if here <= config.stop_distance and not clear[-1]:
-                here = math.inf  # within reach but out of sight: move to where it is seen
-                sight_note = " (it was within reach but out of sight here)"
+    sight = config.stop_in_sight
+    agent_rc = np.array(occ.world_to_index(*agent_xy))[None]
+    seen_here = bool(in_clear_sight(match, occ, agent_rc, walls)[0]) if sight else True
+    # Reachable navigable cells near the unit (a cell to spare on the EDT's rounding).
+    near = goal_cells_near(match, occ, traversable, config.success_radius + s)
+    d = _distances(occ, near, agent_xy, distance)
+    near, d = near[np.isfinite(d)], d[np.isfinite(d)]
+    unit_d = distances_to_cells(match.cells, _cell_xy(occ, near), s)
+    seen = in_clear_sight(match, occ, near, walls) if sight else np.ones(len(near), bool)
+    cand = unit_d <= config.stop_distance - s
+    # The sight rule applies when some reachable cell within stop is in sight; with none,
+    # the old rule (distance alone) does.
+    sight_rule = sight and bool((cand & seen).any())
+    if sight_rule:
+        cand &= seen
     matched = f"instance {match.unit_id} matches the goal (score {match.score:.2f})"
-    if here <= config.stop_distance:
+    if here <= config.stop_distance and (seen_here or not sight_rule):
         reason = f"{matched} and is {here:.2f} m away: within the stop distance."
         xy = np.array(agent_xy, dtype=float)
-    elif len(cand):
-        xy = _cell_xy(occ, cand[int(np.argmin(d))][None])[0]
+    elif cand.any():
+        note = (
+            " (it was within reach but out of sight here)" if here <= config.stop_distance else ""
+        )
+        k = int(np.argmin(np.where(cand, d, np.inf)))
+        xy = _cell_xy(occ, near[k][None])[0]
         reason = (
             f"{matched}; heading to the nearest navigable cell within "
             f"{config.stop_distance:.2f} m of it"
-            + (" in clear sight of it" if config.stop_in_sight else "")
-            + f"{sight_note}."
+            + (" in clear sight of it" if sight else "")
+            + f"{note}."
         )
     else:
-        return None
+        # No reachable cell within stop: the success rule decides, never a give-up.
+        # Cells under the agent's own footprint count as free (it stands there) but are no
+        # place to step to: they lie in an obstacle's margin.
+        xy_near = _cell_xy(occ, near)
+        off_foot = np.hypot(xy_near[:, 0] - agent_xy[0], xy_near[:, 1] - agent_xy[1]) > (
+            config.agent_radius + s
+        )
+        closer = (unit_d < here - s) & seen & off_foot
+        if here <= config.success_radius and seen_here and not closer.any():
+            reason = (
+                f"{matched} and is {here:.2f} m away in sight: no navigable cell within "
+                f"{config.stop_distance:.2f} m of it can be reached, and a stop here is "
+                f"within the success radius ({config.success_radius:.2f} m)."
+            )
+            xy = np.array(agent_xy, dtype=float)
+        elif closer.any():
+            k = int(np.argmin(np.where(closer, unit_d + 1e-3 * d, np.inf)))
+            xy = _cell_xy(occ, near[k][None])[0]
+            reason = (
+                f"{matched}; no navigable cell within {config.stop_distance:.2f} m of it can "
+                f"be reached: heading to the reachable cell nearest it ({unit_d[k]:.2f} m)."
+            )
+        else:
+            return None
     return Waypoint((float(xy[0]), float(xy[1])), "goal", match.unit_id, match.score, reason)
 
 
