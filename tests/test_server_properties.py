@@ -26,6 +26,7 @@ from glmap_tools.app.frames import png_base64
 from glmap_tools.gaussians.ply import read_ply
 from glmap_tools.map.store import MapStore
 from glmap_tools.server import build_server
+from glmap_tools.server.build import BUG_NOTE
 from tests.test_server_fixtures import config, frame_args
 
 CALL_TIMEOUT = 30.0
@@ -259,7 +260,8 @@ def test_random_and_malformed_calls_never_crash_hang_or_half_write(harness, call
         result = harness.call(name, args)
         if result.is_error:
             text = result.content[0].text
-            # A crash reaches the client as the bare prefix; a tool error says what to fix.
+            # A crash is worded as a bug to report; a tool error says what to fix.
+            assert BUG_NOTE not in text, f"crash in {name}: {args}: {text}"
             assert text.strip() != f"Error executing tool {name}", f"crash in {name}: {args}"
             if before is not None:
                 assert harness.frames() == before, f"a rejected frame changed the map: {text}"

@@ -147,7 +147,15 @@ class MapStore:
                 f"folder {str(path.parent)!r} does not exist; create it or choose another path."
             )
         # Build in a temporary file beside the target, then rename: no partial map files.
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        except OSError as exc:  # a read-only or immutable folder, a name too long, ...
+            kept = "the old file is unchanged" if path.exists() else "no file was made"
+            raise StoreError(
+                f"cannot create a file in the folder {str(path.parent)!r} to write the map "
+                f"file {path.name!r}: {exc.strerror or exc}; {kept}. Make the folder writable "
+                "by the server (or choose another folder), then save again."
+            ) from None
         os.close(fd)
         try:
             conn = _connect(Path(tmp))

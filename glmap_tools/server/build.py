@@ -7,10 +7,12 @@ import logging
 import os
 from collections.abc import AsyncIterator, Awaitable, Callable
 from contextlib import asynccontextmanager
+from pathlib import Path
 from typing import Any
 
 from mcp.server.mcpserver import Context, Image, MCPServer
-from mcp.server.mcpserver.exceptions import ToolError
+from mcp.server.mcpserver.exceptions import ToolError, UnexpectedToolError
+from mcp.shared.exceptions import MCPError
 from mcp.types import CallToolResult, InputRequiredResult, TextContent, Tool, ToolAnnotations
 from pydantic import BaseModel, ValidationError
 
@@ -27,6 +29,9 @@ from glmap_tools.server import resources
 from glmap_tools.server.context import app_state, call_of
 
 logger = logging.getLogger(__name__)
+
+BUG_NOTE = "This is a bug in glmap-tools"  # in every crash's message (the property test's mark)
+CRASH_TEXT_CHARS = 500  # of the exception's text shown to the client
 
 INSTRUCTIONS = """\
 GLMap keeps a 3D map of a place built from posed RGB-D frames: instances (objects, with
@@ -58,6 +63,7 @@ class GLMapServer(MCPServer[AppState]):
     """
 
     background: Background
+    pinned: bool = False  # --map: every call holds the saved map's lock (guard_calls)
 
     async def list_tools(self) -> list[Tool]:
         tools = lean_tools(await super().list_tools())
@@ -69,6 +75,64 @@ class GLMapServer(MCPServer[AppState]):
         name: str,
         arguments: dict[str, Any],
         context: Context[AppState, Any] | None = None,
+    ) -> CallToolResult | InputRequiredResult:
+        """Run one tool call; an unexpected exception becomes a clear tool error.
+
+        No call ends in the SDK's bare "Error executing tool X": a crash (any exception
+        but a ToolError or a protocol error) is logged once with its own traceback and
+        answered with `crash_message` (the tool, the exception's type and text, and that
+        it is a bug to report).
+        """
+        try:
+            return await self._pinned_call(name, arguments, context)
+        except MCPError:
+            raise
+        except UnexpectedToolError as exc:
+            raise self._crashed(name, unwrapped(exc), context) from None
+        except ToolError:
+            raise
+        except Exception as exc:
+            raise self._crashed(name, exc, context) from None
+
+    def _crashed(
+        self, name: str, exc: BaseException, context: Context[AppState, Any] | None
+    ) -> ToolError:
+        logger.error(
+            "glmap-mcp: tool %r crashed (a bug in glmap-tools): %s: %s",
+            name,
+            type(exc).__name__,
+            exc,
+            exc_info=(type(exc), exc, exc.__traceback__),
+        )
+        folder = None
+        if context is not None:
+            try:
+                folder = app_state(context).registry.maps_dir
+            except Exception:  # no lifespan state (a crash before it): nothing to hide
+                folder = None
+        return ToolError(crash_message(name, exc, folder))
+
+    async def _pinned_call(
+        self, name: str, arguments: dict[str, Any], context: Context[AppState, Any] | None
+    ) -> CallToolResult | InputRequiredResult:
+        """`_call`, bracketed by the pinned map's enter/exit with `--map` (app.persist);
+        a failure to lock or open the map is the call's tool error."""
+        import anyio.to_thread
+
+        pin = app_state(context).registry.pin if self.pinned and context is not None else None
+        if pin is None:
+            return await self._call(name, arguments, context)
+        try:
+            await anyio.to_thread.run_sync(pin.enter)
+        except GLMapError as exc:
+            raise ToolError(str(exc)) from exc
+        try:
+            return await self._call(name, arguments, context)
+        finally:
+            await anyio.to_thread.run_sync(pin.exit)
+
+    async def _call(
+        self, name: str, arguments: dict[str, Any], context: Context[AppState, Any] | None
     ) -> CallToolResult | InputRequiredResult:
         tool = self._tool_manager.get_tool(name)
         if tool is not None:  # unknown names: the SDK's error
@@ -149,8 +213,8 @@ def mcp_tool(spec: ToolSpec) -> Callable[..., Awaitable[Any]]:
     """`spec`'s function as the MCP server registers it: the same name, description and
     parameters, its `call` taken from the request's context (`ctx: Context`, which the SDK
     fills in and leaves out of the input schema); a GLMapError becomes a tool error
-    carrying its message for the model (other exceptions stay crashes: the SDK logs them
-    and the model sees a generic error)."""
+    carrying its message for the model (any other exception is a crash, which
+    `GLMapServer.call_tool` logs and words as a bug to report)."""
     fn = spec.fn
     signature = inspect.signature(fn)
     params = [
@@ -242,23 +306,31 @@ def guard_calls(server: GLMapServer) -> None:
     """Bracket every tool call of `server` with the pinned map's enter/exit (`--map`, see
     glmap_tools.app.persist); a failure to lock or open the map becomes the call's tool error.
     """
-    import anyio.to_thread
+    server.pinned = True
 
-    original = server.call_tool
 
-    async def call_tool(
-        name: str, arguments: dict[str, Any], context: Context[AppState, Any] | None = None
-    ) -> CallToolResult | InputRequiredResult:
-        pin = app_state(context).registry.pin if context is not None else None
-        if pin is None:
-            return await original(name, arguments, context)
-        try:
-            await anyio.to_thread.run_sync(pin.enter)
-        except GLMapError as exc:
-            raise ToolError(str(exc)) from exc
-        try:
-            return await original(name, arguments, context)
-        finally:
-            await anyio.to_thread.run_sync(pin.exit)
+def unwrapped(exc: UnexpectedToolError) -> BaseException:
+    """What a tool really raised: the SDK wraps a crash (and a nested tool's crash) in
+    UnexpectedToolError, whose `__cause__` is the original."""
+    inner: BaseException = exc
+    while isinstance(inner, UnexpectedToolError) and inner.__cause__ is not None:
+        inner = inner.__cause__
+    return inner
 
-    server.call_tool = call_tool  # type: ignore[method-assign]
+
+def crash_message(name: str, exc: BaseException, maps_folder: Path | None = None) -> str:
+    """The text a client gets when `name` crashed on `exc`: the tool, the exception's type
+    and text (one line, the server's maps folder cut out, at most CRASH_TEXT_CHARS), and
+    that it is a bug to report."""
+    text = " ".join(str(exc).split())
+    if maps_folder is not None:
+        folder = str(maps_folder)
+        text = text.replace(folder + os.sep, "").replace(folder, "<maps folder>")
+    if len(text) > CRASH_TEXT_CHARS:
+        text = text[: CRASH_TEXT_CHARS - 3] + "..."
+    said = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return (
+        f"{name} failed with an unexpected {said}. {BUG_NOTE}, not in your call: please "
+        "report it to the glmap-tools maintainers with the tool's name, its arguments and "
+        "this message (the server logged the traceback)."
+    )
