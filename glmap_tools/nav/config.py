@@ -17,6 +17,14 @@ CATEGORY_MARGINS: dict[str, float | None] = {"objectnav": 0.0, "instnav": None}
 # (picture: cos 0.49-0.52, below the 0.65 of STOP_THRESHOLDS) are then all matched and no
 # other category is (cos >= 0.45 and margin >= 0: 100 % precision and recall on s00-s03).
 CATEGORY_STOP_THRESHOLD = 0.31
+# A unit the agent's 0.88 m camera cannot be expected to recognise is no goal: the rule by
+# which `glmap sim episodes` refuses goals (sim.episodes.MIN_GOAL_SIZE / MAX_GOAL_BOTTOM; a
+# test holds them equal). Metres: the largest side of the unit, the height of its bottom
+# above the floor (a ceiling light 2.7 m up, a picture's frame above a wardrobe).
+GOAL_MIN_SIZE = 0.15
+GOAL_MAX_BOTTOM = 1.8
+# Scores this close are a tie (identical texts: four "lamp" units at 0.923).
+SCORE_TIE = 1e-6
 POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
 ACTIONS = ("move_forward", "turn_left", "turn_right", "stop")
 UNIT_MASSES = ("unit", "cells")

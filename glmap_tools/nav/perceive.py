@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
-from glmap_tools.nav.config import NavConfig
+from glmap_tools.nav.config import GOAL_MAX_BOTTOM, GOAL_MIN_SIZE, SCORE_TIE, NavConfig
 from glmap_tools.nav.frontiers import Frontier, frontiers
 from glmap_tools.nav.grid import agent_rc, known_window, reframe, structure_walls
 from glmap_tools.nav.motion import bump_cells, clearance, masks
@@ -97,6 +97,29 @@ def surroundings_of(
     return Surroundings(occ, clear, trav, (ok, speed), field, fronts)
 
 
+def unfit_goals(glmap: GLMap) -> dict[int, str]:
+    """Instance id -> why the agent cannot be expected to reach or recognise it as a goal.
+
+    The rule `glmap sim episodes` refuses goals by (`GOAL_MAX_BOTTOM`, `GOAL_MIN_SIZE`), read
+    on the map: the lowest Gaussian mean above the floor, the largest side of the means'
+    box plus one grid cell (means sit inside an object's surface). A map without a floor
+    height keeps every instance on the height rule.
+    """
+    out: dict[int, str] = {}
+    cell = glmap.grid.cell_size
+    for uid, unit in glmap.instances.items():
+        if len(unit.gaussians) == 0:
+            continue
+        lo, hi = unit.bounds()
+        if glmap.floor_z is not None and float(lo[2]) - glmap.floor_z > GOAL_MAX_BOTTOM:
+            out[uid] = (
+                f"its bottom is {float(lo[2]) - glmap.floor_z:.2f} m up, over {GOAL_MAX_BOTTOM} m"
+            )
+        elif float(np.max(hi - lo)) + cell < GOAL_MIN_SIZE:
+            out[uid] = f"{float(np.max(hi - lo)) + cell:.2f} m at most, under {GOAL_MIN_SIZE} m"
+    return out
+
+
 def find_goal_match(
     glmap: GLMap,
     units: list[UnitText],
@@ -105,13 +128,16 @@ def find_goal_match(
     config: NavConfig,
     scorer: Scorer | None = None,
     goal: str = "",
+    prefer: int | None = None,
 ) -> GoalMatch | None:
     """The best-scoring instance at or above the stop threshold with enough observations.
 
     With `config.category_margin` set and a scorer that has `category_margins`, a candidate
     must instead score `config.category_threshold` and be closer to the goal than to any
     other label of the map by that margin (a category goal: "cabinet", not "kitchen cabinet").
-    `rejected`: instances given up (no way to reach them).
+    `rejected`: instances given up (no way to reach them) or unfit as goals (`unfit_goals`).
+    Ties (scores within `SCORE_TIE`, identical texts) go to `prefer` (the previous step's
+    match) when it is among them, else to the lowest id: the same unit step after step.
     """
     margins = getattr(scorer, "category_margins", None)
     by_category = config.category_margin is not None and margins is not None
@@ -129,13 +155,12 @@ def find_goal_match(
         vocabulary = [u.label for u in units if u.kind == "instance"]
         m = margins(goal, [u for u, _ in cand], vocabulary)
         cand = [c for c, v in zip(cand, m, strict=True) if v >= config.category_margin]
-    best: GoalMatch | None = None
-    for u, s in cand:
-        if best is None or s > best.score:
-            best = GoalMatch(
-                u.unit_id, float(s), u.observations, unit_cell_array(glmap.grid, u.unit_id)
-            )
-    return best
+    if not cand:
+        return None
+    top = max(s for _, s in cand)
+    tied = sorted((c for c in cand if c[1] >= top - SCORE_TIE), key=lambda c: c[0].unit_id)
+    u, s = next((c for c in tied if c[0].unit_id == prefer), tied[0])
+    return GoalMatch(u.unit_id, s, u.observations, unit_cell_array(glmap.grid, u.unit_id))
 
 
 def frame_score(glmap: GLMap, goal: str, scorer: Scorer, semantics: FrameSemantics | None) -> float:

@@ -35,6 +35,7 @@ from glmap_tools.nav.perceive import (
     find_goal_match,
     frame_score,
     surroundings_of,
+    unfit_goals,
     walls_of,
 )
 from glmap_tools.nav.planner import Plan
@@ -161,12 +162,21 @@ def _perceive_surroundings(
 
 
 def _score_units(
-    glmap: GLMap, goal: str, policy: str, scorer: Scorer, rejected: set[int], config: NavConfig
+    glmap: GLMap,
+    goal: str,
+    policy: str,
+    scorer: Scorer,
+    rejected: set[int],
+    config: NavConfig,
+    prefer: int | None = None,
 ) -> Scored:
-    """f_S of the units the policy reads, and the goal match among the instances."""
+    """f_S of the units the policy reads, and the goal match among the instances (units
+    the agent cannot be expected to recognise as goals left out; ties to `prefer`, the
+    previous match, else to the lowest id)."""
     units = map_units(glmap, "instances" if policy not in ("glmap", "glmap-region") else "both")
     scores = scorer.score(goal, units) if units else np.zeros(0)
-    match = find_goal_match(glmap, units, scores, rejected, config, scorer, goal)
+    unfit = set(unfit_goals(glmap)) if units else set()
+    match = find_goal_match(glmap, units, scores, rejected | unfit, config, scorer, goal, prefer)
     by_id = {u.unit_id: float(v) for u, v in zip(units, scores, strict=True)}
     return Scored(units, by_id, match)
 
@@ -283,7 +293,9 @@ def decide(
     # Perceive: bump marks, surroundings, unit scores and the goal match.
     bumped = bump_marks(glmap, xy, state.last_action, state.last_xy, state.last_heading, config)
     sur, blocked = _perceive_surroundings(glmap, xy, state.blocked | bumped, config)
-    scored = _score_units(glmap, goal, policy, scorer, state.rejected_units, config)
+    last = state.last_waypoint
+    prefer = last.unit_id if last is not None and last.kind == "goal" else None
+    scored = _score_units(glmap, goal, policy, scorer, state.rejected_units, config, prefer)
     match = scored.match
 
     # The value map: Eq. 7 over the units, or the egocentric accumulator.
