@@ -152,6 +152,11 @@ CATEGORY_MESH: dict[str, str] = {
     "closet": "primitive/wardrobe",
     "washing machine": "primitive/washer",
     "dresser": "primitive/dresser",
+    # Houses' clutter (generator categories drawn with primitives).
+    "vase": "primitive/cylinder",
+    "bowl": "primitive/cylinder",
+    "laundry basket": "primitive/cylinder",
+    "dryer": "primitive/washer",
 }
 
 

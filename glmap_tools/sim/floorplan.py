@@ -10,6 +10,10 @@ and `hallway=True` lays the rooms out in two rows along a long corridor (an extr
 type "hallway", `HALLWAY_WIDTH` wide, across the whole apartment) that opens to every room
 touching it; the others join by the spanning tree. The defaults draw exactly what they
 always drew, so existing seeds keep their apartments.
+
+Houses (`house=True`, the house splits): 7-11 furnished rooms along the hallway (8-12 rooms
+in all), always two bedrooms and two bathrooms, a dining room, and extras drawn from an
+office, a third bedroom, a third bathroom and a laundry room (`house_room_types`).
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ MIN_SIDE = 2.0  # metres
 MAX_ASPECT = 2.6
 HALLWAY_WIDTH = (1.3, 1.7)  # metres
 HALLWAY_ASPECT = (2.2, 3.2)  # apartment length / depth when the rooms line a hallway
+HOUSE_ASPECT = (1.5, 2.4)  # the same for houses: deeper rows, where small rooms stack
 
 AREA = {  # m^2 ranges per room type
     "living room": (20.0, 30.0),
@@ -38,6 +43,7 @@ AREA = {  # m^2 ranges per room type
     "bathroom": (4.5, 7.0),
     "office": (8.0, 11.0),
     "dining room": (10.0, 14.0),
+    "laundry room": (4.5, 7.0),
 }
 FLOORS = {
     "living room": ("light oak parquet", "dark wood floor", "blue-grey vinyl"),
@@ -47,7 +53,12 @@ FLOORS = {
     "office": ("light oak parquet", "blue-grey vinyl", "beige carpet"),
     "dining room": ("dark wood floor", "light oak parquet", "terracotta tiles"),
     "hallway": ("light oak parquet", "grey tiles", "dark wood floor"),
+    "laundry room": ("white tiles", "grey tiles", "blue-grey vinyl"),
 }
+HOUSE_TRIES = 2000  # floor plans drawn for a house: many small rooms fail MIN_SIDE more often
+HOUSE_ROOMS = (7, 11)  # furnished rooms of a house (a hallway comes on top)
+HOUSE_BASE = ("living room", "kitchen", "bedroom", "bedroom", "bathroom", "bathroom", "dining room")
+HOUSE_EXTRA = ("office", "bedroom", "bathroom", "laundry room")
 
 
 @dataclass(frozen=True)
@@ -76,6 +87,18 @@ def room_types(n_rooms: int, rng: np.random.Generator) -> list[str]:
     extra = ["office", "dining room", "bedroom"]
     rng.shuffle(extra)
     return base + extra[: n_rooms - len(base)]
+
+
+def house_room_types(n_rooms: int, rng: np.random.Generator) -> list[str]:
+    """The room types of a house of `n_rooms` furnished rooms: two bedrooms, two bathrooms,
+    a living room, a kitchen, a dining room and `n_rooms` - 7 extras (`HOUSE_EXTRA`)."""
+    if not HOUSE_ROOMS[0] <= n_rooms <= HOUSE_ROOMS[1]:
+        raise InvalidInputError(
+            f"n_rooms={n_rooms} must be in {HOUSE_ROOMS[0]}..{HOUSE_ROOMS[1]} for a house."
+        )
+    extra = list(HOUSE_EXTRA)
+    rng.shuffle(extra)
+    return list(HOUSE_BASE) + extra[: n_rooms - len(HOUSE_BASE)]
 
 
 def _slice(rect: Rect, areas: list[float], ids: list[int], out: dict[int, Rect]) -> None:
@@ -138,11 +161,14 @@ def _split(order: list[int], areas: list[float]) -> int:
 
 
 def _hallway_rects(
-    order: list[int], areas: list[float], rng: np.random.Generator
+    order: list[int],
+    areas: list[float],
+    rng: np.random.Generator,
+    aspects: tuple[float, float] = HALLWAY_ASPECT,
 ) -> dict[int, Rect]:
     """Two rows of rooms along a corridor (key len(order)) that runs the apartment's length."""
     total = sum(areas)
-    aspect = float(rng.uniform(*HALLWAY_ASPECT))
+    aspect = float(rng.uniform(*aspects))
     corridor = _round(float(rng.uniform(*HALLWAY_WIDTH)))
     length = _round(math.sqrt(total * aspect))
     k = _split(order, areas)
@@ -162,6 +188,7 @@ def generate_floorplan(
     tries: int = 200,
     area_scale: float = 1.0,
     hallway: bool = False,
+    house: bool = False,
 ) -> tuple[list[Room], list[Opening]]:
     """Rooms (rectangles, counter-clockwise) and the openings that connect them all.
 
@@ -171,16 +198,19 @@ def generate_floorplan(
         tries: floor plans drawn before giving up.
         area_scale: multiplies every room's target area (1.0: the usual apartment).
         hallway: line the rooms along a corridor (the last room, type "hallway").
+        house: `n_rooms` in 7..11 of `house_room_types` (implies `hallway`).
     """
     if not 0.5 <= area_scale <= 3.0:
         raise InvalidInputError(f"area_scale={area_scale!r} must be in [0.5, 3].")
-    types = room_types(n_rooms, rng)
+    types = house_room_types(n_rooms, rng) if house else room_types(n_rooms, rng)
+    hallway = hallway or house
+    tries = max(tries, HOUSE_TRIES) if house else tries
     for _ in range(tries):
         order = list(range(n_rooms))
         rng.shuffle(order)
         areas = [float(rng.uniform(*AREA[types[i]])) * area_scale for i in order]
         if hallway:
-            rects = _hallway_rects(order, areas, rng)
+            rects = _hallway_rects(order, areas, rng, HOUSE_ASPECT if house else HALLWAY_ASPECT)
         else:
             total = sum(areas)
             aspect = float(rng.uniform(1.1, 1.7))

@@ -267,6 +267,22 @@ def hallway(planner: RoomPlanner, maker: SpecMaker) -> list[RegionPlan]:
     return []
 
 
+def laundry_room(planner: RoomPlanner, maker: SpecMaker) -> list[RegionPlan]:
+    """Houses: a washing machine (and often a dryer) with a basket and a cabinet."""
+    washer = planner.against_wall(maker.make("washing machine"))
+    laundry = _keep(washer)
+    if washer is not None and _chance(planner, 0.7):
+        laundry += _keep(
+            planner.beside(maker.make("dryer"), washer, int(planner.rng.choice([-1, 1])))
+        )
+    laundry += _keep(planner.corner(maker.make("laundry basket")))
+    if _chance(planner, 0.6):
+        planner.against_wall(maker.make("cabinet"))
+    if _chance(planner, 0.5):
+        planner.corner(maker.make("trash can"))
+    return [("laundry area", "for washing and drying clothes", laundry)] if laundry else []
+
+
 RECIPES: dict[str, Recipe] = {
     "living room": living_room,
     "kitchen": kitchen,
@@ -275,6 +291,7 @@ RECIPES: dict[str, Recipe] = {
     "office": office,
     "dining room": dining_room,
     "hallway": hallway,
+    "laundry room": laundry_room,
 }
 
 DECOR = ["small plant", "picture", "trash can", "box", "plant"]

@@ -126,6 +126,17 @@ KINDS: dict[str, Kind] = {
     "box": Kind("box", "kenney/cardboardBoxOpen", (0.5, 0.4, 0.35), 0.15, {},
                 {"material": "cardboard"}),
     "books": Kind("books", "kenney/books", (0.25, 0.18, 0.22), 0.1, {"color": ART_COLORS}),
+    # Houses: clutter and the laundry room.
+    "vase": Kind("vase", "primitive/cylinder", (0.16, 0.16, 0.3), 0.2, {"color": POT_COLORS}),
+    "bowl": Kind("bowl", "primitive/cylinder", (0.25, 0.25, 0.08), 0.15,
+                 {"color": ["white", "blue", "red", "green", "black"]}),
+    "pillow": Kind("pillow", "kenney/pillowBlue", (0.5, 0.15, 0.4), 0.1,
+                   {"color": CUSHION_COLORS}),
+    "laundry basket": Kind("laundry basket", "primitive/cylinder", (0.45, 0.45, 0.5), 0.1,
+                           {"color": ["white", "grey", "blue", "brown"]}),
+    "dryer": Kind("dryer", "primitive/washer", (0.6, 0.6, 0.85), 0.0, {"color": ["white", "grey"]}),
+    "doormat": Kind("doormat", "kenney/rugDoormat", (0.8, 0.5, 0.02), 0.1,
+                    {"color": ["brown", "grey", "black"]}, flat=True),
 }  # fmt: skip
 
 
