@@ -161,18 +161,7 @@ def run(args: argparse.Namespace) -> int:
         complete_only=args.complete_only,
     )
     print((result.out / "summary.md").read_text(encoding="utf-8"))
-    print(
-        f"played {result.ran} episodes in {result.wall_s:.0f} s "
-        f"({result.episodes_per_hour:.0f} per hour), skipped {result.skipped} finished ones; "
-        f"results in {result.out}"
-    )
-    for f in result.failures[:3]:
-        last = (f.error or "").strip().splitlines()[-1:]
-        print(f"FAILED {f.job.agent} on {f.job.episode_id}: {' '.join(last)}")
-    if result.failures:
-        print(
-            f"{len(result.failures)} episodes failed (server logs: {result.out / 'logs'}); "
-            "rerun the same command to retry them."
-        )
-        return 1
-    return 0
+    from glmap_tools.eval.run import run_report
+
+    print(run_report(result))
+    return 1 if result.failures else 0

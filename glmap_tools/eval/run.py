@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import sys
 import time
 from collections.abc import Iterator
@@ -16,7 +17,7 @@ from glmap_tools.eval.by_difficulty import (
     difficulty_rows,
     episode_difficulties,
 )
-from glmap_tools.eval.results import ResultsDir, write_json
+from glmap_tools.eval.results import ResultsDir, _safe, write_json
 from glmap_tools.eval.spec import (
     EvalSpec,
     episode_key,
@@ -38,8 +39,9 @@ class EvalRun:
         out: the results folder.
         records: agent -> episode id -> record, for the selected episodes that are finished.
         summary: the table's numbers over `records`.
-        ran: episodes played now; skipped: episodes found finished in `out`.
-        failures: jobs whose episode raised (their error text is in each Outcome).
+        ran: episodes played to the end now; skipped: episodes found finished in `out`.
+        failures: jobs whose episode raised (their error text is in each Outcome; the
+            text is kept in `failure_file`, its cause in one line is `failure_cause`).
         wall_s: seconds spent playing.
         mixed: `out` holds results of more than one setting (see ResultsDir).
         total: (agent, episode) pairs selected.
@@ -61,9 +63,79 @@ class EvalRun:
     by_difficulty: list[dict[str, Any]] = field(default_factory=list)
 
     @property
+    def tried(self) -> int:
+        """Episodes this run set out to play: finished now plus failed."""
+        return self.ran + len(self.failures)
+
+    @property
     def episodes_per_hour(self) -> float:
         """Episodes played per hour of wall time in this run (0 when none ran)."""
         return self.ran / self.wall_s * 3600.0 if self.ran and self.wall_s > 0 else 0.0
+
+    def failure_file(self, failure: Outcome) -> Path:
+        """Where the failed episode's full error text (its traceback) is kept."""
+        return failure_path(self.out, failure)
+
+
+FAILURES_DIR = "failures"  # out/failures/<agent>/<episode>.txt: each failed episode's traceback
+_EXC_PREFIX = re.compile(r"^(?:[A-Za-z_][\w.]*\.)?[A-Z]\w*(?:Error|Exception|Warning)?: ")
+CAUSE_CHARS = 300
+
+
+def failure_path(out: Path, failure: Outcome) -> Path:
+    """out/failures/<agent>/<episode>.txt for a failed episode."""
+    return out / FAILURES_DIR / _safe(failure.job.agent) / f"{_safe(failure.job.episode_id)}.txt"
+
+
+def failure_cause(error: str | None) -> str:
+    """One readable line from a failed episode's error text (a traceback): its last line,
+    the client's wrapper type (`agents.trace.ToolCallError: `) taken off, white space
+    collapsed, cut to `CAUSE_CHARS`."""
+    lines = [ln.strip() for ln in (error or "").strip().splitlines() if ln.strip()]
+    if not lines:
+        return "no error text came back from the worker"
+    # The exception line may run over several lines (a message with newlines): from the
+    # last line that starts with an exception's name on.
+    start = max(
+        (k for k, ln in enumerate(lines) if _EXC_PREFIX.match(ln) and not ln.startswith("File ")),
+        default=len(lines) - 1,
+    )
+    text = " ".join(lines[start:])
+    first = _EXC_PREFIX.match(text)
+    if first and ("ToolCallError" in first.group(0) or "RuntimeError" in first.group(0)):
+        text = text[first.end() :]
+    text = " ".join(text.split())
+    return text if len(text) <= CAUSE_CHARS else text[: CAUSE_CHARS - 1] + "…"
+
+
+def run_report(run: EvalRun) -> str:
+    """What `glmap eval` prints after the table: episodes tried, finished and failed (a
+    rerun that retried failing episodes says so, never "played 0"), and each failure's cause
+    in one line with where its traceback is."""
+    head = (
+        f"played {run.tried} episodes in {run.wall_s:.0f} s: {run.ran} finished "
+        f"({run.episodes_per_hour:.0f} per hour), {len(run.failures)} failed; "
+        f"skipped {run.skipped} finished ones; results in {run.out}"
+    )
+    if not run.tried:
+        head = (
+            f"played 0 episodes: the {run.skipped} selected were finished already; "
+            f"results in {run.out}"
+        )
+    lines = [head]
+    for f in run.failures[:5]:
+        lines.append(
+            f"FAILED {f.job.agent} on {f.job.episode_id}: {failure_cause(f.error)} "
+            f"(traceback: {run.failure_file(f)})"
+        )
+    if len(run.failures) > 5:
+        lines.append(f"... and {len(run.failures) - 5} more in {run.out / FAILURES_DIR}")
+    if run.failures:
+        lines.append(
+            f"{len(run.failures)} episodes failed (tracebacks: {run.out / FAILURES_DIR}; server "
+            f"logs: {run.out / 'logs'}); rerun the same command to retry them."
+        )
+    return "\n".join(lines)
 
 
 def _engine(
@@ -188,6 +260,9 @@ def run_eval(
                 outcome = _check_scorer(outcome, spec.scorer)
                 if outcome.record is None:
                     failures.append(outcome)
+                    failed = failure_path(results.root, outcome)
+                    failed.parent.mkdir(parents=True, exist_ok=True)
+                    failed.write_text(outcome.error or "", encoding="utf-8")
                     bar.set_postfix(failed=len(failures))
                 else:
                     job = outcome.job
@@ -236,16 +311,23 @@ def _write_summary(run: EvalRun) -> None:
         head += "Warning: this folder mixes results run with different settings (eval.json).\n\n"
     by_difficulty = "\n## By difficulty\n\n" + difficulty_markdown(run.by_difficulty, s.agents)
     (run.out / "summary.md").write_text(
-        head + markdown(run.summary) + by_difficulty, encoding="utf-8"
+        head + markdown(run.summary) + by_difficulty + _failed_markdown(run), encoding="utf-8"
     )
     data = {
         "config": s.result_config(),
         "selection": {"scenes": s.scenes, "episodes_per_scene": s.episodes_per_scene},
         "agents": list(s.agents),
         "ran": run.ran,
+        "tried": run.tried,
         "skipped": run.skipped,
         "failed": [
-            {"agent": f.job.agent, "episode_id": f.job.episode_id, "error": f.error}
+            {
+                "agent": f.job.agent,
+                "episode_id": f.job.episode_id,
+                "cause": failure_cause(f.error),
+                "traceback": str(run.failure_file(f)),
+                "error": f.error,
+            }
             for f in run.failures
         ],
         "wall_s": round(run.wall_s, 2),
@@ -255,3 +337,21 @@ def _write_summary(run: EvalRun) -> None:
         "by_difficulty": run.by_difficulty,
     }
     write_json(run.out / "summary.json", json.loads(json.dumps(data)))
+
+
+def _failed_markdown(run: EvalRun) -> str:
+    """A table of the episodes that failed in this run: agent, episode, cause, traceback."""
+    if not run.failures:
+        return ""
+    lines = [
+        "",
+        f"## Failed episodes ({len(run.failures)} of {run.tried} played in this run)",
+        "",
+        "| Agent | Episode | Cause | Traceback |",
+        "|---|---|---|---|",
+    ]
+    for f in run.failures:
+        cause = failure_cause(f.error).replace("|", "\\|")
+        where = run.failure_file(f).relative_to(run.out)
+        lines.append(f"| {f.job.agent} | {f.job.episode_id} | {cause} | {where} |")
+    return "\n".join(lines) + "\n"
