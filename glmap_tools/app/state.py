@@ -404,6 +404,16 @@ class SessionRegistry:
         self._release(session.live)
         trim()
 
+    def end_transport(self, transport_id: str) -> None:
+        """The stateful HTTP session `transport_id` ended (DELETE, idle timeout): so does
+        the session it made, with its pending frames and its map (a saved file stays)."""
+        with self._lock:
+            handle = self._by_transport.pop(transport_id, None)
+            session = self._sessions.get(handle) if handle not in (None, DEFAULT_HANDLE) else None
+            if session is not None:
+                del self._sessions[session.handle]
+                self._close_session(session)
+
     def close(self) -> None:
         """Close every session and map (lifespan exit)."""
         if self.pin is not None:

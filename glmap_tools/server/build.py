@@ -64,6 +64,33 @@ class GLMapServer(MCPServer[AppState]):
 
     background: Background
     pinned: bool = False  # --map: every call holds the saved map's lock (guard_calls)
+    state: AppState | None = None  # the lifespan's state while it runs
+
+    def streamable_http_app(self, **kwargs: Any) -> Any:
+        """The SDK's streamable HTTP app, whose ended sessions (DELETE, idle timeout) end
+        their GLMap sessions too: pending frames and the unsaved map go (`end_transport`)."""
+        app = super().streamable_http_app(**kwargs)
+        manager = self._lowlevel_server.session_manager
+        discard = manager._discard_session  # the SDK's one exit for every ended session
+
+        async def discard_and_end(session_id: str, transport: Any) -> None:
+            try:
+                await discard(session_id, transport)
+            finally:
+                await self._transport_ended(session_id)
+
+        manager._discard_session = discard_and_end  # type: ignore[method-assign]
+        return app
+
+    async def _transport_ended(self, transport_id: str) -> None:
+        import anyio
+        import anyio.to_thread
+
+        state = self.state
+        if state is None:
+            return
+        with anyio.CancelScope(shield=True):  # a cancelled request still lets go
+            await anyio.to_thread.run_sync(lambda: state.registry.end_transport(transport_id))
 
     async def list_tools(self) -> list[Tool]:
         tools = lean_tools(await super().list_tools())
@@ -284,7 +311,11 @@ def build_server(
     @asynccontextmanager
     async def lifespan(_: MCPServer[AppState]) -> AsyncIterator[AppState]:
         with opened_state(config, perception, background) as state:
-            yield state
+            server.state = state
+            try:
+                yield state
+            finally:
+                server.state = None
 
     server = GLMapServer(
         "glmap",
