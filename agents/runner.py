@@ -47,6 +47,7 @@ LLM_ENV = {
     "host": "OLLAMA_HOST",
     "prompts": "GLMAP_PROMPTS",
     "scorer": "GLMAP_SCORER",
+    "perception": "GLMAP_SIM_PERCEPTION",  # the workers' simulator perception (--perception)
 }
 DEFAULT_LLM_MODEL = "qwen3:8b"
 AGENT_SIZE = "320x240"
@@ -66,6 +67,9 @@ class EpisodeResult(BaseModel):
     tool_calls: int = Field(description="MCP tool calls the episode took, sim_reset included")
     wall_s: float
     seed: int
+    outcome: str = Field(
+        default="", description="success or the kind of failure (glmap_tools.sim.outcome)"
+    )
     tokens: int = Field(default=0, description="model tokens (llm-tools), prompt + output")
     turns: int = Field(default=0, description="model calls (llm-tools)")
     prompts: dict[str, str] = Field(
@@ -152,6 +156,7 @@ async def play_episode(
         "steps": int(final["steps"]),
         "path_length": float(final.get("path_length", 0.0)),
         "collisions": int(final.get("collisions", 0)),
+        "outcome": str(final.get("outcome", "")),
         "tool_calls": len(client.records),
         "wall_s": round(time.perf_counter() - start_time, 3),
         "seed": seed,

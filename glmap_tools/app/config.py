@@ -18,6 +18,7 @@ REQUEST_TIMEOUT_S = 10.0
 MAX_CONNECTIONS = 64
 
 EmbedderName = Literal["minilm", "hashing"]
+SimPerception = Literal["auto", "gt", "detector"]
 EMBEDDERS: tuple[str, ...] = ("minilm", "hashing")
 
 MIB = 1024 * 1024
@@ -55,6 +56,9 @@ class ServerConfig:
             JIT compilation.
         sim_size: (width, height) of the simulator's camera images.
         sim_max_steps: actions per simulator episode before it is cut off.
+        sim_perception: the simulator's perception: 'gt' (exact), 'detector' (errs like an
+            open-vocabulary detector and a captioner, `sim/detector.py`) or 'auto' (the
+            split's own: 'detector' for the houses split, else 'gt').
         compute_threads: BLAS and torch threads while the server runs (None: leave the
             process as it is); 1 keeps latency low and steady when calls overlap.
         llm: the language backends: text merger and f_S scorer (offline by default; "llm"
@@ -81,6 +85,7 @@ class ServerConfig:
     warm_up: bool = True
     sim_size: tuple[int, int] = (320, 240)
     sim_max_steps: int = 500
+    sim_perception: SimPerception = "auto"
     compute_threads: int | None = 1
     llm: LLMSettings = field(default_factory=LLMSettings)
     map_name: str | None = None
@@ -121,6 +126,10 @@ class ServerConfig:
         if not (32 <= sw <= 1920 and 32 <= sh <= 1440):
             raise InvalidInputError(
                 f"sim_size={self.sim_size!r} must be (width, height) within 32..1920 x 32..1440."
+            )
+        if self.sim_perception not in ("auto", "gt", "detector"):
+            raise InvalidInputError(
+                f"sim_perception={self.sim_perception!r} is not one of 'auto', 'gt', 'detector'."
             )
         if not (isinstance(self.sim_max_steps, int) and self.sim_max_steps >= 1):
             raise InvalidInputError(f"sim_max_steps={self.sim_max_steps!r} must be >= 1.")

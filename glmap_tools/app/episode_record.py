@@ -133,9 +133,9 @@ def restore_episode(session: Session, text: str, config: ServerConfig, embedder:
     sim = session.sim
     if sim is None or sim.key != key:
         if bench is not None:
-            fresh = simulator.open_bench(bench, size, max_steps)
+            fresh = simulator.open_bench(bench, size, max_steps, config.sim_perception)
         else:
-            fresh = simulator.open_episode(task, scene, size, max_steps)
+            fresh = simulator.open_episode(task, scene, size, max_steps, config.sim_perception)
         if sim is not None:
             sim.close()
         sim = session.sim = fresh

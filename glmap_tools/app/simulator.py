@@ -113,7 +113,16 @@ class SimEpisode:
         self.run(shut)
 
 
-def open_episode(task: str, scene: int, size: tuple[int, int], max_steps: int) -> SimEpisode:
+def perception_of(perception: str, bench: Any = None) -> str:
+    """'gt' or 'detector': `perception`, or for 'auto' the split's own ('gt' off a split)."""
+    if perception != "auto":
+        return perception
+    return str(getattr(bench, "perception", None) or "gt") if bench is not None else "gt"
+
+
+def open_episode(
+    task: str, scene: int, size: tuple[int, int], max_steps: int, perception: str = "auto"
+) -> SimEpisode:
     """Create the env for (task, scene) on the simulator thread.
 
     Raises:
@@ -129,7 +138,10 @@ def open_episode(task: str, scene: int, size: tuple[int, int], max_steps: int) -
 
         cls = ObjectNavEnv if task == "objectnav" else InstNavEnv
         return cls(
-            scene_seed=scene, camera=CameraSpec(width=size[0], height=size[1]), max_steps=max_steps
+            scene_seed=scene,
+            camera=CameraSpec(width=size[0], height=size[1]),
+            max_steps=max_steps,
+            perception=perception_of(perception),
         )
 
     return SimEpisode(task, scene, on_sim_thread(make), key=(task, scene, size, max_steps))
@@ -147,7 +159,9 @@ def bench_episode(episode_id: str, scene_dirs: Any = None) -> Any:
     return lookup(episode_id, scene_dirs)
 
 
-def open_bench(bench: Any, size: tuple[int, int], max_steps: int) -> SimEpisode:
+def open_bench(
+    bench: Any, size: tuple[int, int], max_steps: int, perception: str = "auto"
+) -> SimEpisode:
     """Create the env of a benchmark episode's scene on the simulator thread."""
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
@@ -155,7 +169,10 @@ def open_bench(bench: Any, size: tuple[int, int], max_steps: int) -> SimEpisode:
         from glmap_tools.sim.benchmark import make_env
         from glmap_tools.sim.render import CameraSpec
 
-        return make_env(bench, CameraSpec(width=size[0], height=size[1]), max_steps=max_steps)
+        camera = CameraSpec(width=size[0], height=size[1])
+        env = make_env(bench, camera, max_steps=max_steps)
+        env.perception = perception_of(perception, bench)
+        return env
 
     key = ("bench", str(bench.layout_path), bench.task, size, max_steps)
     return SimEpisode(bench.task, -1, on_sim_thread(make), key=key, bench=bench)
@@ -296,4 +313,13 @@ def status(sim: SimEpisode) -> dict[str, Any]:
         out["spl"] = round(float(info["spl"]), 4)
         out["distance_to_goal"] = round(float(info["distance_to_goal"]), 3)
         out["path_length"] = round(float(info["path_length"]), 3)
+        from glmap_tools.sim.outcome import episode_outcome
+
+        out["outcome"] = episode_outcome(
+            bool(info["success"]),
+            sim.truncated,
+            float(info["distance_to_goal"]),
+            bool(info.get("goal_seen", True)),
+            bool(info.get("goal_recognised", True)),
+        )
     return out

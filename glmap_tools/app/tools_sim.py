@@ -61,6 +61,7 @@ async def sim_reset(
     if bench is not None and goal:
         raise InvalidInputError("give episode or goal, not both: an episode has its goal.")
 
+    perception = state.config.sim_perception
     def run() -> ImageResult:
         with target.sim_lock:  # a sim_step in flight finishes first
             return reset()
@@ -73,9 +74,9 @@ async def sim_reset(
             key = (task, scene, wh, steps)
         if sim is None or sim.key != key:
             if bench is not None:
-                fresh = simulator.open_bench(bench, wh, steps)  # type: ignore[arg-type]
+                fresh = simulator.open_bench(bench, wh, steps, perception)  # type: ignore[arg-type]
             else:
-                fresh = simulator.open_episode(task, scene, wh, steps)  # type: ignore[arg-type]
+                fresh = simulator.open_episode(task, scene, wh, steps, perception)  # type: ignore[arg-type]
             if sim is not None:
                 sim.close()
             sim = target.sim = fresh

@@ -64,6 +64,12 @@ def _register_nav(kinds: argparse._SubParsersAction, task: str) -> None:
     p.add_argument("--seed", type=int, default=0, help="base seed of every episode")
     p.add_argument("--max-steps", type=int, default=500, help="step limit of an episode")
     p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
+    p.add_argument(
+        "--perception",
+        choices=["auto", "gt", "detector"],
+        default="auto",
+        help="the simulator's perception: exact (gt), a detector's errors, or the split's own",
+    )
     p.add_argument("--resamples", type=int, default=2000, help="bootstrap resamples")
     p.add_argument("--traces", action="store_true", help="write trace + report per episode")
     p.add_argument(
@@ -134,6 +140,11 @@ def run(args: argparse.Namespace) -> int:
 
         split, scenes_dir = parse_scene_dir(args.scenes_dir)
     llm_model, prompts = _llm_settings(args, agents)
+    import os
+
+    from agents.runner import LLM_ENV
+
+    os.environ[LLM_ENV["perception"]] = args.perception  # to the workers' servers
     spec = EvalSpec(
         task=args.task,
         split=split,
@@ -145,6 +156,7 @@ def run(args: argparse.Namespace) -> int:
         max_steps=args.max_steps,
         embedder=args.embedder,
         scorer=args.scorer,
+        perception=args.perception,
         llm_model=llm_model,
         prompts=prompts,
     )

@@ -26,6 +26,7 @@ RESULT_KEYS = (
     "max_steps",
     "embedder",
     "scorer",
+    "perception",
     "llm_model",
     "prompts",
 )
@@ -103,6 +104,7 @@ class EvalSpec:
         max_steps: actions before an episode is cut off (500 in the benchmark).
         embedder: the server's text embedder, 'minilm' or 'hashing'.
         scorer: f_S of the servers' value maps, 'embedding' (offline) or 'llm' (Ollama).
+        perception: the simulator's perception, 'gt', 'detector' or 'auto' (the split's).
         llm_model: the Ollama model of the llm-tools agent or the llm scorer ('' when
             neither plays).
         prompts: the prompt set they used, as a digest of every prompt's name@hash.
@@ -120,6 +122,7 @@ class EvalSpec:
     max_steps: int = 500
     embedder: str = "minilm"
     scorer: str = "embedding"
+    perception: str = "auto"
     llm_model: str = ""
     prompts: str = ""
     scenes_dir: Path | None = None
@@ -135,6 +138,7 @@ class EvalSpec:
             object.__setattr__(self, "scenes_dir", check_scene_dir(Path(self.scenes_dir)))
         check_choice("embedder", self.embedder, EMBEDDERS)
         check_choice("scorer", self.scorer, SCORERS)
+        check_choice("perception", self.perception, ("auto", "gt", "detector"))
         for name in ("scenes", "episodes_per_scene", "max_steps"):
             value = getattr(self, name)
             if value is None and name != "max_steps":
@@ -160,6 +164,7 @@ class EvalSpec:
             for k in RESULT_KEYS
             if (k not in ("llm_model", "prompts") or d[k])
             and (k != "scorer" or d[k] != "embedding")
+            and (k != "perception" or d[k] != "auto")
         ]
         return {**{k: d[k] for k in keys}, "image_size": AGENT_SIZE}
 

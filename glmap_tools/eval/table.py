@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -48,6 +48,8 @@ class Summary:
         paired: (reference agent, other agent) -> metric key -> Interval of reference - other
             over the episodes both finished.
         resamples, confidence, seed: the bootstrap's settings.
+        outcomes: agent -> how its episodes ended (`glmap_tools.sim.outcome.OUTCOMES`) ->
+            episodes; records without an outcome are left out.
     """
 
     rows: dict[str, dict[str, Interval]]
@@ -56,6 +58,7 @@ class Summary:
     resamples: int
     confidence: float
     seed: int
+    outcomes: dict[str, dict[str, int]] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         def iv(i: Interval) -> dict[str, float]:
@@ -76,6 +79,7 @@ class Summary:
                 {"reference": r, "other": o, **{k: iv(v) for k, v in m.items()}}
                 for (r, o), m in self.paired.items()
             ],
+            "outcomes": self.outcomes,
         }
 
 
@@ -133,7 +137,20 @@ def summarize(
                 diffs[m.key] = paired_difference(va, vb, **kw)
         paired[(reference, other)] = diffs
     episodes = {a: len(records.get(a, {})) for a in agents}
-    return Summary(rows, episodes, paired, resamples, confidence, seed)
+    outcomes = {a: _outcomes(records.get(a, {})) for a in agents}
+    return Summary(rows, episodes, paired, resamples, confidence, seed, outcomes)
+
+
+def _outcomes(records: Mapping[str, Mapping[str, Any]]) -> dict[str, int]:
+    """How many episodes ended each way (the failure taxonomy), in the taxonomy's order."""
+    from glmap_tools.sim.outcome import OUTCOMES
+
+    counts = dict.fromkeys(OUTCOMES, 0)
+    for record in records.values():
+        kind = record.get("outcome")
+        if kind in counts:
+            counts[kind] += 1
+    return counts if any(counts.values()) else {}
 
 
 def _cell(i: Interval | None, digits: int, sign: bool = False) -> str:
@@ -161,6 +178,13 @@ def markdown(summary: Summary) -> str:
             n = max((i.n for i in diffs.values()), default=0)
             cells = [_cell(diffs.get(m.key), m.digits, sign=True) for m in PAIRED]
             lines.append(f"| {ref} − {other} | {n} | " + " | ".join(cells) + " |")
+    if any(summary.outcomes.values()):
+        kinds = next(iter(o for o in summary.outcomes.values() if o))
+        heads = ["How episodes ended", *kinds]
+        lines += ["", "| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
+        for agent, counts in summary.outcomes.items():
+            if counts:
+                lines.append(f"| {agent} | " + " | ".join(str(counts[k]) for k in kinds) + " |")
     pct = round(summary.confidence * 100)
     lines += [
         "",

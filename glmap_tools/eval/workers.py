@@ -127,7 +127,7 @@ class EpisodeWorker:
             self._loop.close()
 
     async def _hold(self, embedder: str, compute_threads: int) -> None:
-        from agents.runner import open_session
+        from agents.runner import LLM_ENV, open_session
         from glmap_tools.server import ServerConfig
 
         llm = server_llm_settings()
@@ -139,6 +139,7 @@ class EpisodeWorker:
             compute_threads=compute_threads,
             llm=llm,
             scene_dirs=self._scene_dirs,
+            sim_perception=os.environ.get(LLM_ENV["perception"]) or "auto",  # type: ignore[arg-type]
         )
         self._stop = asyncio.Event()
         async with open_session(config) as session:

@@ -132,6 +132,13 @@ def build_parser() -> argparse.ArgumentParser:
         "geometric+mllm: an Ollama vision model names them; mllm: MLLM + GroundingDINO + SAM",
     )
     g.add_argument("--detector", type=Path, help="GroundingDINO model folder (--perception mllm)")
+    p.add_argument(
+        "--sim-perception",
+        choices=["auto", "gt", "detector"],
+        default="auto",
+        help="the simulator's perception: exact (gt), a detector's errors (sim/design.md), "
+        "or the split's own (auto: detector on the houses split)",
+    )
     g.add_argument("--segmenter", type=Path, help="SAM model folder (--perception mllm)")
     from glmap_tools.cli import show_defaults
 
@@ -156,6 +163,7 @@ def config_from_args(args: argparse.Namespace) -> ServerConfig:
         map_name=args.map,
         map_wait_s=args.map_wait,
         scene_dirs=_scene_dirs(args.scenes_dir),
+        sim_perception=args.sim_perception,
     )
 
 

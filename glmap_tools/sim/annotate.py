@@ -4,6 +4,8 @@ The output feeds `glmap_tools.perception.annotated.semantics_from_annotation` di
 objects with fewer than `min_pixels` pixels in the frame are dropped and their pixels set to
 0 (every listed object has pixels, every non-zero pixel is a listed object); regions become
 groups restricted to their visible members, and are left out when no member is visible.
+A group's description names only its visible members, with the region's name and purpose
+(a captioner cannot name what it has not seen).
 """
 
 from __future__ import annotations
@@ -12,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from glmap_tools.sim.layout import Layout
+from glmap_tools.sim.describe import count_phrase
+from glmap_tools.sim.layout import Layout, Region
 
 REFERENCE_PIXELS = 640 * 480
 REFERENCE_MIN_PIXELS = 64  # at 640x480; scaled with the image area
@@ -54,5 +57,22 @@ def annotate_view(
     for region in layout.regions:
         members = [m for m in region.members if m in keep_set]
         if members:
-            groups.append({"id": region.id, "description": region.description, "members": members})
+            groups.append(visible_group(region, members, [by_id[m].category for m in members]))
     return mask, {"objects": objects, "groups": groups}
+
+
+def region_purpose(region: Region) -> str:
+    """The purpose clause of a generated region's description ("for eating meals"), or ''."""
+    at = region.description.rfind(", for ")
+    return region.description[at + 2 :] if at >= 0 else ""
+
+
+def visible_group(region: Region, members: list[int], labels: list[str]) -> dict[str, Any]:
+    """The annotation group of `region` as seen: its visible `members` and their `labels`.
+
+    The description is "<name>: <the visible members counted>, <purpose>", e.g. "cooking
+    area: a kitchen cabinet, for preparing food" while only a cabinet is in view.
+    """
+    purpose = region_purpose(region)
+    text = f"{region.name}: {count_phrase(labels)}" + (f", {purpose}" if purpose else "")
+    return {"id": region.id, "description": text, "members": list(members)}

@@ -11,8 +11,9 @@ An episode ends on stop (terminated) or after `max_steps` steps (truncated). Suc
 agent stopped within `success_distance` metres of a goal object's footprint surface (planar
 distance from its centre to the footprint rectangle), with no wall in between.
 
-`info` carries the ground-truth perception of the frame (`instance_mask` [H, W] int32 and
-`annotation` in the format of `glmap_tools.perception.annotated`) and the metrics
+`info` carries the perception of the frame (`instance_mask` [H, W] int32 and `annotation`
+in the format of `glmap_tools.perception.annotated`): exact with `perception="gt"`, or with
+the errors of a detector and a captioner with `"detector"` (`detector.py`), and the metrics
 `success`, `spl`, `distance_to_goal` (geodesic metres), `path_length`, `collided`, `steps`.
 """
 
@@ -28,7 +29,8 @@ import numpy as np
 from gymnasium import spaces
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.sim.annotate import annotate_view
+from glmap_tools.sim.annotate import annotate_view, default_min_pixels
+from glmap_tools.sim.detector import PERCEPTIONS, DetectorRates, detect_view, load_rates
 from glmap_tools.sim.episodes import (
     MIN_START_DISTANCE,
     SUCCESS_DISTANCE,
@@ -70,6 +72,9 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
         turn_angle_deg: degrees per turn.
         success_distance: metres from a goal footprint that count as arrived.
         min_object_pixels: objects smaller in a frame are left out of the annotation.
+        perception: "gt" (exact labels and masks) or "detector" (misses, confusions, false
+            positives, bleeding masks, wrong colours: `sim/detector.py`).
+        detector_rates: the detector's rates (default: the bundled `detector_rates.json`).
         render_mode: None or "rgb_array".
         grid: the layout's navigation grid when the caller already built it (shared by many
             environments on one scene, e.g. the benchmark's); built here when None.
@@ -92,7 +97,11 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
         min_object_pixels: int | None = None,
         render_mode: str | None = None,
         grid: NavGrid | None = None,
+        perception: str = "gt",
+        detector_rates: DetectorRates | None = None,
     ) -> None:
+        if perception not in PERCEPTIONS:
+            raise InvalidInputError(f"perception={perception!r} is not one of {list(PERCEPTIONS)}.")
         if render_mode not in (None, "rgb_array"):
             raise InvalidInputError(f"render_mode={render_mode!r}; use None or 'rgb_array'.")
         if max_steps < 1:
@@ -109,6 +118,8 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
         self.max_steps = int(max_steps)
         self.success_distance = float(success_distance)
         self.min_object_pixels = min_object_pixels
+        self.perception = perception
+        self.detector_rates = detector_rates or (load_rates() if perception == "detector" else None)
         self.render_mode = render_mode
         self.episodes: EpisodeSet | None = None
         if episodes is not None:
@@ -146,6 +157,7 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
         self._steps = 0
         self._path_length = 0.0
         self._over = True
+        self._goal_seen = self._goal_recognised = False
 
     # ------------------------------------------------------------------ episodes
     def _next_episode(self, options: dict[str, Any]) -> Episode:
@@ -234,6 +246,7 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
         x, y = self.episode.start_position
         self.state = AgentState(float(x), float(y), float(self.episode.start_heading))
         self._steps, self._path_length, self._over = 0, 0.0, False
+        self._goal_seen = self._goal_recognised = False
         obs = self._observe()
         return obs, self._info(collided=False, stopped=False)
 
@@ -286,9 +299,8 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
 
     def _info(self, collided: bool, stopped: bool) -> dict[str, Any]:
         assert self.episode is not None and self._view is not None
-        mask, annotation = annotate_view(
-            self._view.instance_mask, self.layout, self.min_object_pixels
-        )
+        mask, annotation = self._perceive(self._view)
+        self._note_goal(self._view.instance_mask, annotation)
         success = bool(stopped and self.reaches_goal())
         shortest = self.episode.geodesic_distance
         spl = shortest / max(shortest, self._path_length, 1e-9) if success else 0.0
@@ -303,9 +315,46 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
             "path_length": self._path_length,
             "steps": self._steps,
             "collided": collided,
+            "goal_seen": self._goal_seen,
+            "goal_recognised": self._goal_recognised,
             "position": self.state.xy.copy(),
             "heading": self.state.heading,
         }
+
+    def _note_goal(self, instance_mask: np.ndarray, annotation: dict[str, Any]) -> None:
+        """Whether a goal object was ever in view (as many pixels as a detection needs)
+        and ever perceived with the goal's category (the failure taxonomy's ground truth)."""
+        assert self.episode is not None
+        goals = self.episode.goal_object_ids
+        h, w = instance_mask.shape
+        need = self.min_object_pixels or default_min_pixels(h, w)
+        counts = np.bincount(instance_mask.ravel(), minlength=max(goals) + 1)
+        if any(counts[i] >= need for i in goals):
+            self._goal_seen = True
+        category = self.layout.object(goals[0]).category
+        if any(o["id"] in goals and o["label"] == category for o in annotation["objects"]):
+            self._goal_recognised = True
+
+    def _perceive(self, view: RenderedView) -> tuple[np.ndarray, dict[str, Any]]:
+        if self.perception == "gt":
+            return annotate_view(view.instance_mask, self.layout, self.min_object_pixels)
+        assert self.episode is not None
+        if self.detector_rates is None:
+            self.detector_rates = load_rates()
+        episode = self.episode
+        goal = self.layout.object(episode.goal_object_ids[0]).category
+        key = f"{self.task}/{episode.episode_id}/{episode.start_position}/{episode.goal_text}"
+        return detect_view(
+            view.instance_mask,
+            view.depth,
+            self.layout,
+            self.camera.intrinsics,
+            self.state.pose(self.camera.camera_height).matrix,
+            goal_category=goal,
+            episode=key,
+            rates=self.detector_rates,
+            min_pixels=self.min_object_pixels,
+        )
 
 
 class ObjectNavEnv(NavEnv):

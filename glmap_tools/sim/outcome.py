@@ -1,0 +1,43 @@
+"""How a navigation episode ended: success, or which kind of failure (the failure taxonomy).
+
+Kinds, first that applies:
+
+- `success`;
+- `stopped short`: stopped within `SHORT_M` geodesic metres of a cell that would have counted;
+- `stopped at a false positive`: stopped farther away (the agent took something else for the
+  goal, or gave up where no goal was);
+- out of steps: `goal never seen` (no goal object was ever in view with as many pixels as a
+  detection needs), `goal seen, not recognised` (in view, never perceived with the goal's
+  category), or `timeout` (recognised, never reached).
+"""
+
+from __future__ import annotations
+
+OUTCOMES = (
+    "success",
+    "stopped short",
+    "stopped at a false positive",
+    "goal never seen",
+    "goal seen, not recognised",
+    "timeout",
+)
+SHORT_M = 1.0  # geodesic metres from the nearest goal cell
+
+
+def episode_outcome(
+    success: bool,
+    truncated: bool,
+    distance_to_goal: float,
+    goal_seen: bool,
+    goal_recognised: bool,
+) -> str:
+    """The kind of `OUTCOMES` an ended episode falls in (see the module docstring)."""
+    if success:
+        return "success"
+    if not truncated:
+        return "stopped short" if distance_to_goal <= SHORT_M else "stopped at a false positive"
+    if not goal_seen:
+        return "goal never seen"
+    if not goal_recognised:
+        return "goal seen, not recognised"
+    return "timeout"
