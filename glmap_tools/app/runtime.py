@@ -4,12 +4,17 @@ A tool is an async function whose first parameter is `call: Call` and whose othe
 parameters (`Annotated[..., Field(...)]`) are its arguments; it returns a pydantic result
 or an `ImageResult`. The adapters build the `Call`: glmap_tools.server from an MCP
 request, glmap_tools.toolset for a call in this process.
+
+A `Call` may carry a `Sampler`: the calling client's model (MCP sampling). `session_of`
+offers it, with the session's `SamplingUsage`, to the model calls the tool makes on its
+worker threads (glmap_tools.language.sampling).
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Awaitable, Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import anyio.to_thread
@@ -17,6 +22,7 @@ import anyio.to_thread
 from glmap_tools.app.config import ServerConfig
 from glmap_tools.app.session import Session
 from glmap_tools.app.state import SessionRegistry
+from glmap_tools.language.sampling import Sampler, SamplingUsage, bind
 
 if TYPE_CHECKING:
     from glmap_tools.app.background import Background
@@ -44,6 +50,7 @@ class AppState:
             means annotations are required.
         background: the start-up work (embedder, kernels) calls wait for, if any.
         pending: frames whose segments wait for label_segments (made on first use).
+        sampling_usage: what sampling cost each session, by handle (the latest 4096).
     """
 
     config: ServerConfig
@@ -52,6 +59,21 @@ class AppState:
     perception: PerceptionBackend | None = None
     background: Background | None = None
     pending: PendingFrames | None = None
+    sampling_usage: OrderedDict[str, SamplingUsage] = field(default_factory=OrderedDict)
+
+    def usage_of(self, handle: str) -> SamplingUsage:
+        """The sampling figures of session `handle` (new ones on first use)."""
+        usage = self.sampling_usage.get(handle)
+        if usage is None:
+            usage = self.sampling_usage[handle] = SamplingUsage()
+            while len(self.sampling_usage) > MAX_USAGE_RECORDS:
+                self.sampling_usage.popitem(last=False)
+        else:
+            self.sampling_usage.move_to_end(handle)
+        return usage
+
+
+MAX_USAGE_RECORDS = 4096
 
 
 @dataclass(frozen=True)
@@ -63,12 +85,15 @@ class Call:
         transport_id: the Mcp-Session-Id of a stateful HTTP connection, else None.
         over_http: whether the call came over HTTP (several clients may share the server).
         progress: receives (progress, total, message) as a long call advances; None drops it.
+        sampler: asks the calling client's model for a completion (MCP sampling); None
+            when the client offers none (its model parts then use their fallbacks).
     """
 
     state: AppState
     transport_id: str | None = None
     over_http: bool = False
     progress: AsyncProgress | None = None
+    sampler: Sampler | None = None
 
     async def report_progress(
         self, progress: float, total: float | None = None, message: str | None = None
@@ -114,9 +139,20 @@ DROPS = Hints()  # may drop the current map (destructive, not idempotent)
 CALL_PARAMETER = "call"  # the name every tool function gives its Call
 
 
+def offer_sampling(call: Call, session: Session) -> None:
+    """Let the model calls of this tool call (its worker threads included) ask the call's
+    sampler, counting in `session`'s usage (glmap_tools.language.sampling.bind)."""
+    if not call.state.config.llm.uses_sampling:
+        return
+    bind(call.sampler, call.state.usage_of(session.handle))
+
+
 def session_of(call: Call, handle: str | None) -> Session:
-    """The session this call works in (see glmap_tools.app.state)."""
-    return call.state.registry.resolve(handle or None, call.transport_id)
+    """The session this call works in (see glmap_tools.app.state); the call's sampler is
+    offered to the model calls it makes (`offer_sampling`)."""
+    session = call.state.registry.resolve(handle or None, call.transport_id)
+    offer_sampling(call, session)
+    return session
 
 
 def session_for_new_map(call: Call, handle: str | None) -> Session:
@@ -130,8 +166,11 @@ def session_for_new_map(call: Call, handle: str | None) -> Session:
     handle = handle or None
     shared = call.transport_id is None or registry.pin is not None
     if handle is None and call.over_http and shared:
-        return registry.start_session()
-    return registry.resolve(handle, call.transport_id, restart=True)
+        session = registry.start_session()
+    else:
+        session = registry.resolve(handle, call.transport_id, restart=True)
+    offer_sampling(call, session)
+    return session
 
 
 async def in_thread(fn: Callable[[], T]) -> T:

@@ -14,6 +14,7 @@ from glmap_tools.app.results import ImageResult, Picture
 from glmap_tools.app.runtime import ADDS, DROPS, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import Session, locked
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.language.sampling import usage_report
 
 Action = Literal["move_forward", "turn_left", "turn_right", "stop"]
 Size = Literal["160x120", "320x240", "640x480"]
@@ -36,6 +37,9 @@ def _reply(session: Session, sim: simulator.SimEpisode, updates: list[str]) -> I
     info["session"] = session.handle
     info["map_updates"] = updates
     info["actions"] = list(simulator.ACTIONS)
+    llm = usage_report()  # the client's model through MCP sampling: calls, tokens, fallbacks
+    if llm:
+        info["llm"] = llm
     return ImageResult(data=info, images=[Picture(format="jpeg", data=_jpeg(sim.obs["rgb"]))])
 
 

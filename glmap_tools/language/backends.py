@@ -1,12 +1,18 @@
-"""Choosing the language backends from settings: offline defaults, or an LLM through Ollama.
+"""Choosing the language backends from settings: offline defaults, an LLM through Ollama, or
+the calling client's model through MCP sampling.
 
 One place turns `LLMSettings` (from config files, `glmap` and `glmap-mcp` flags) into the
 parts the map and the planner use:
 
-- text merger (buffers past 300 words): "extractive" (default, offline) or "llm";
-- unit scorer f_S (value map, paper Eq. 7): "embedding" (default, offline) or "llm".
+- text merger (buffers past 300 words): "extractive" (default, offline), "llm" (Ollama) or
+  "sampling" (the MCP client's model; `glmap-mcp` only);
+- unit scorer f_S (value map, paper Eq. 7): "embedding" (default, offline), "llm" or
+  "sampling".
 
-Nothing here loads a model at import; an LLM backend only talks to Ollama when used.
+A sampling part falls back (`fallback`: "offline" = embedding scorer / extractive merger,
+"ollama" = the Ollama model, "none" = the error) when the client cannot or does not answer;
+see glmap_tools.language.sampling. Nothing here loads a model at import; an LLM backend
+only talks to Ollama (or the client) when used.
 """
 
 from __future__ import annotations
@@ -18,8 +24,16 @@ from typing import Any
 
 from glmap_tools.errors import InvalidInputError, did_you_mean
 
-TEXT_MERGERS = ("extractive", "llm")
-SCORERS = ("embedding", "llm")
+TEXT_MERGERS = ("extractive", "llm", "sampling")
+SCORERS = ("embedding", "llm", "sampling")
+FALLBACKS = ("offline", "ollama", "none")
+# `glmap-mcp --llm`: one word for both parts (the scorer's and the merger's backends).
+LLM_CHOICES = {
+    "embedding": ("embedding", "extractive"),
+    "ollama": ("llm", "llm"),
+    "sampling": ("sampling", "sampling"),
+}
+SAMPLING_BATCH = 40  # units per sampling call: a client's model reads longer lists well
 
 
 @dataclass(frozen=True)
@@ -27,8 +41,12 @@ class LLMSettings:
     """Which backends to use and how to reach the model.
 
     Attributes:
-        text_merger: "extractive" or "llm".
-        scorer: "embedding" or "llm".
+        text_merger: "extractive", "llm" (Ollama) or "sampling" (the MCP client's model).
+        scorer: "embedding", "llm" (Ollama) or "sampling" (the MCP client's model).
+        fallback: what a sampling part uses when the client fails, refuses or times out:
+            "offline" (embedding scorer, extractive merger), "ollama" (`model` on `host`)
+            or "none" (the error reaches the tool call).
+        sampling_timeout: seconds to wait for the client's answer to one sampling request.
         model: Ollama model tag for the LLM parts (the paper: Qwen3-8B for text).
         host: Ollama URL (None = $OLLAMA_HOST or http://127.0.0.1:11434).
         timeout: seconds per request.
@@ -38,6 +56,8 @@ class LLMSettings:
 
     text_merger: str = "extractive"
     scorer: str = "embedding"
+    fallback: str = "offline"
+    sampling_timeout: float = 60.0
     model: str = "qwen3:8b"
     host: str | None = None
     timeout: float = 120.0
@@ -48,15 +68,37 @@ class LLMSettings:
         for name, value, choices in (
             ("text_merger", self.text_merger, TEXT_MERGERS),
             ("scorer", self.scorer, SCORERS),
+            ("fallback", self.fallback, FALLBACKS),
         ):
             if value not in choices:
                 raise InvalidInputError(
                     f"{name}={value!r} is not one of {list(choices)}.{did_you_mean(value, choices)}"
                 )
+        if not 0 < self.sampling_timeout <= 3600:
+            raise InvalidInputError(
+                f"sampling_timeout={self.sampling_timeout!r} s must be in (0, 3600]."
+            )
 
     @property
     def uses_llm(self) -> bool:
-        return "llm" in (self.text_merger, self.scorer)
+        """Whether a part talks to Ollama (a sampling part may, as its fallback)."""
+        ollama_fallback = self.uses_sampling and self.fallback == "ollama"
+        return "llm" in (self.text_merger, self.scorer) or ollama_fallback
+
+    @property
+    def uses_sampling(self) -> bool:
+        """Whether a part asks the MCP client's model (sampling)."""
+        return "sampling" in (self.text_merger, self.scorer)
+
+    def sampling_client(self) -> Any:
+        """The `SamplingClient` for these settings (one per part; cheap)."""
+        from glmap_tools.language.sampling import SamplingClient
+        from glmap_tools.language.transcript import Transcript
+
+        return SamplingClient(
+            timeout=self.sampling_timeout,
+            transcript=Transcript(self.transcript) if self.transcript else None,
+        )
 
     def client(self) -> Any:
         """The `OllamaClient` for these settings (one per call site; cheap)."""
@@ -78,6 +120,23 @@ class LLMSettings:
 
 def make_text_merger(settings: LLMSettings, embedder: Any) -> Any:
     """The text merger the settings ask for (`TextMerger`)."""
+    if settings.text_merger == "sampling":
+        from glmap_tools.language.llm_merger import LLMTextMerger
+        from glmap_tools.language.sampling import FallbackMerger
+
+        primary = LLMTextMerger(settings.sampling_client(), settings.prompt_set())
+        if settings.fallback == "none":
+            return FallbackMerger(primary, None)
+        fallback = LLMSettings(
+            text_merger="llm" if settings.fallback == "ollama" else "extractive",
+            model=settings.model,
+            host=settings.host,
+            timeout=settings.timeout,
+            prompts=settings.prompts,
+            transcript=settings.transcript,
+        )
+        name = "ollama" if settings.fallback == "ollama" else "extractive"
+        return FallbackMerger(primary, make_text_merger(fallback, embedder), name)
     if settings.text_merger == "llm":
         from glmap_tools.language.llm_merger import LLMTextMerger
 
@@ -89,6 +148,24 @@ def make_text_merger(settings: LLMSettings, embedder: Any) -> Any:
 
 def make_scorer(settings: LLMSettings, embedder: Any) -> Any:
     """The unit scorer f_S the settings ask for (`glmap_tools.nav.Scorer`)."""
+    if settings.scorer == "sampling":
+        from glmap_tools.language.llm_scorer import LLMScorer
+        from glmap_tools.language.sampling import FallbackScorer
+
+        client = settings.sampling_client()
+        primary = LLMScorer(client, settings.prompt_set(), batch_size=SAMPLING_BATCH)
+        if settings.fallback == "none":
+            return FallbackScorer(primary, None)
+        fallback = LLMSettings(
+            scorer="llm" if settings.fallback == "ollama" else "embedding",
+            model=settings.model,
+            host=settings.host,
+            timeout=settings.timeout,
+            prompts=settings.prompts,
+            transcript=settings.transcript,
+        )
+        name = "ollama" if settings.fallback == "ollama" else "embedding"
+        return FallbackScorer(primary, make_scorer(fallback, embedder), name)
     if settings.scorer == "llm":
         from glmap_tools.language.llm_scorer import LLMScorer
 
@@ -98,21 +175,48 @@ def make_scorer(settings: LLMSettings, embedder: Any) -> Any:
     return EmbeddingScorer(embedder)
 
 
-def add_llm_arguments(parser: argparse.ArgumentParser, *, scorer: bool = True) -> None:
-    """Add --text-merger, --scorer, --llm-model, --ollama-host, --llm-timeout, --prompts."""
+def add_llm_arguments(
+    parser: argparse.ArgumentParser, *, scorer: bool = True, sampling: bool = False
+) -> None:
+    """Add --text-merger, --scorer, --llm-model, --ollama-host, --llm-timeout, --prompts;
+    with `sampling` (an MCP server) also --llm, --llm-fallback and --sampling-timeout."""
     g = parser.add_argument_group("language backends (offline by default)")
+    merger_choices = TEXT_MERGERS if sampling else TEXT_MERGERS[:2]
     g.add_argument(
         "--text-merger",
-        choices=TEXT_MERGERS,
+        choices=merger_choices,
         default="extractive",
-        help="rewrites text buffers past 300 words: extractive (offline) or llm (Ollama)",
+        help="rewrites text buffers past 300 words: extractive (offline), llm (Ollama)"
+        + (" or sampling (the MCP client's model)" if sampling else ""),
     )
     if scorer:
         g.add_argument(
             "--scorer",
-            choices=SCORERS,
+            choices=SCORERS if sampling else SCORERS[:2],
             default="embedding",
-            help="f_S for the value map: embedding cosine (offline) or llm (Ollama)",
+            help="f_S for the value map: embedding cosine (offline), llm (Ollama)"
+            + (" or sampling (the MCP client's model)" if sampling else ""),
+        )
+    if sampling:
+        g.add_argument(
+            "--llm",
+            choices=list(LLM_CHOICES),
+            default=None,
+            help="both parts at once: embedding (offline), ollama, or sampling (ask the "
+            "client's model through MCP sampling, when the client declares it)",
+        )
+        g.add_argument(
+            "--llm-fallback",
+            choices=FALLBACKS,
+            default="offline",
+            help="when a sampling request fails, is refused or times out: offline "
+            "(embedding / extractive), ollama, or none (the tool call fails)",
+        )
+        g.add_argument(
+            "--sampling-timeout",
+            type=float,
+            default=60.0,
+            help="seconds to wait for the client's answer to one sampling request",
         )
     g.add_argument("--llm-model", default="qwen3:8b", help="Ollama model for the llm parts")
     g.add_argument("--ollama-host", default=None, help="Ollama URL ($OLLAMA_HOST or local)")
@@ -122,9 +226,15 @@ def add_llm_arguments(parser: argparse.ArgumentParser, *, scorer: bool = True) -
 
 def settings_from_args(args: argparse.Namespace) -> LLMSettings:
     """`LLMSettings` from arguments added by `add_llm_arguments`."""
+    scorer, merger = getattr(args, "scorer", "embedding"), args.text_merger
+    both = getattr(args, "llm", None)
+    if both is not None:
+        scorer, merger = LLM_CHOICES[both]
     return LLMSettings(
-        text_merger=args.text_merger,
-        scorer=getattr(args, "scorer", "embedding"),
+        text_merger=merger,
+        scorer=scorer,
+        fallback=getattr(args, "llm_fallback", "offline"),
+        sampling_timeout=getattr(args, "sampling_timeout", 60.0),
         model=args.llm_model,
         host=args.ollama_host,
         timeout=args.llm_timeout,

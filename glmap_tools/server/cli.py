@@ -121,7 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
         "answers (docs/mcp.md, Start-up), then exit (for setup)",
     )
     p.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
-    add_llm_arguments(p)
+    add_llm_arguments(p, sampling=True)
     g = p.add_argument_group("perception of frames without annotations")
     g.add_argument(
         "--perception",

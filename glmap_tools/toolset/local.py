@@ -41,6 +41,8 @@ if TYPE_CHECKING:
     from anyio.from_thread import BlockingPortal
     from mcp.types import Tool
 
+    from glmap_tools.language.sampling import Sampler
+
 
 class Toolset:
     """The GLMap tools over one app state (embedder, sessions, maps) in this process.
@@ -56,6 +58,8 @@ class Toolset:
         perception: turns a frame into semantics when observe_frame gets no annotations.
         tools: names of the tools to offer; default all.
         on_progress: called with (progress, total, message) as long calls advance.
+        sampler: the model of `--llm sampling` parts (`config.llm`): an async function
+            like `glmap_tools.language.sampling.Sampler`; None: those parts fall back.
     """
 
     def __init__(
@@ -65,10 +69,12 @@ class Toolset:
         *,
         tools: Iterable[str] | None = None,
         on_progress: ProgressCallback | None = None,
+        sampler: Sampler | None = None,
     ) -> None:
         self.config = config or ServerConfig()
         self.perception = perception
         self.on_progress = on_progress
+        self.sampler = sampler
         by_name = {t.name: t for t in TOOLS}
         names = list(by_name) if tools is None else list(tools)
         for name in names:
@@ -149,7 +155,8 @@ class Toolset:
 
             names = [t.name for t in pending]
             await anyio.to_thread.run_sync(lambda: self._background.wait(names))
-        return await spec.fn(**validated, call=Call(state, progress=self._progress))
+        call = Call(state, progress=self._progress, sampler=self.sampler)
+        return await spec.fn(**validated, call=call)
 
     async def _progress(self, progress: float, total: float | None, message: str | None) -> None:
         if self.on_progress is not None:
