@@ -47,6 +47,11 @@ def episode_record(session: Session) -> str | None:
         "actions": "".join(str(a) for a in sim.actions),
         "nav": nav_memory(nav.state) if nav is not None else None,
     }
+    if nav is not None and nav.client is not None and not nav.client.empty:
+        record["client_scores"] = {  # set_goal_scores: the client's f_S
+            "units": sorted([uid, s] for uid, s in nav.client.units.items()),
+            "priors": sorted([k, s] for k, s in nav.client.priors.items()),
+        }
     return json.dumps(record, sort_keys=True, separators=(",", ":"))
 
 
@@ -155,3 +160,12 @@ def restore_episode(session: Session, text: str, config: ServerConfig, embedder:
         navsession.follow(nav, sim, cell, reach)
     if rec.get("nav"):
         apply_memory(nav.state, rec["nav"])
+    client = rec.get("client_scores")
+    if client:
+        from glmap_tools.nav.scorers import ClientScores
+
+        nav.client = ClientScores(
+            nav.goal,
+            {int(u): float(s) for u, s in client.get("units", [])},
+            {str(k): float(s) for k, s in client.get("priors", [])},
+        )

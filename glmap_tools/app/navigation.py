@@ -10,6 +10,7 @@ import numpy as np
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
     from glmap_tools.nav import NavConfig, NavDecision, NavState, Scorer
+    from glmap_tools.nav.scorers import ClientScores
     from glmap_tools.perception.semantics import FrameSemantics
 
 
@@ -25,6 +26,8 @@ class NavSession:
         embedder: the text embedder (frame scores of the egocentric baseline).
         path: [(x, y)] agent positions, one per integrated frame.
         decision: the latest `NavDecision` (drawn by value_map), or None.
+        client: the client's f_S for the goal (set_goal_scores), or None; sim_reset starts
+            a new NavSession, so a new episode starts without them.
     """
 
     goal: str
@@ -34,7 +37,20 @@ class NavSession:
     embedder: Embedder
     path: list[tuple[float, float]] = field(default_factory=list)
     decision: NavDecision | None = None
+    client: ClientScores | None = None
     _text_vecs: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def goal_scorer(self, fused_into: dict[int, int] | None = None) -> Scorer:
+        """f_S for the episode: the client's scores over the configured scorer, or the
+        configured scorer alone. `fused_into` (the map's): client scores of fused ids move
+        to the unit they became."""
+        from glmap_tools.nav.scorers import ClientScorer
+
+        if self.client is None or self.client.empty:
+            return self.scorer
+        if fused_into:
+            self.client.follow(fused_into)
+        return ClientScorer(self.scorer, self.client, self.config.stop_threshold)
 
     def frame_score(self, semantics: FrameSemantics) -> float:
         """What the frame shows scored against the goal (f_S of its best object or group).

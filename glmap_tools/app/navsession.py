@@ -9,6 +9,7 @@ unit, one action and one integrated frame at a time, until arrived, blocked or o
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -215,7 +216,12 @@ def no_progress_steps(config: Any) -> int:
 
 
 def walk_to(
-    session: Session, sim: simulator.SimEpisode, target: Target, max_steps: int, config: Any
+    session: Session,
+    sim: simulator.SimEpisode,
+    target: Target,
+    max_steps: int,
+    config: Any,
+    on_step: Callable[[int, int], None] | None = None,
 ) -> dict[str, Any]:
     """Walk to `target` until arrived, blocked or `max_steps`; return what happened.
 
@@ -230,6 +236,8 @@ def walk_to(
         'step budget' | 'episode over', "walk_steps", "walked_m", "walk_collisions",
         "planned_m", "aim_xy", "remaining_m", "reason"}; for a unit also "unit_id",
         "unit_distance_m", "in_sight", "would_succeed"; when not reached, "blocked_by".
+
+    `on_step(steps, max_steps)` is called before each step (progress notifications).
 
     Raises:
         OutsideMapError, UnreachableGoalError: a point target, before the first step.
@@ -271,6 +279,8 @@ def walk_to(
         if since >= no_progress_steps(config):
             outcome = "blocked"
             break
+        if on_step is not None:
+            on_step(steps, max_steps)
         simulator.step(sim, step.action)
         integrate(session, sim)
         steps += 1

@@ -131,8 +131,8 @@ async def observe_frame(
 async def find_instance(
     query: Query, call: Call, top_k: TopK = 5, session: SessionArg = ""
 ) -> AgentHits:
-    """Find objects by description ('something to sit on'), best first: id, description,
-    score, match (false: nothing mapped fits), centroid, bounds (m)."""
+    """Find objects by description ('something to sit on'), best first; match false:
+    nothing mapped fits."""
     target = session_of(call, session)
 
     def run() -> AgentHits:

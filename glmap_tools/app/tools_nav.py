@@ -1,4 +1,5 @@
-"""Navigation tools: value_map, frontiers, navigate_to, look_around, nav_step.
+"""Navigation tools: value_map (and the client's f_S), frontiers, navigate_to, look_around,
+nav_step.
 
 The policy and the planner are `glmap_tools.nav` (value map of Eq. 7, frontiers, waypoint,
 FMM plan); these tools run them on the session's map and, in the simulator, act on them.
@@ -9,6 +10,7 @@ import math
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
+import anyio.from_thread
 import numpy as np
 from pydantic import Field
 
@@ -16,14 +18,14 @@ from glmap_tools.app import navsession, simulator
 from glmap_tools.app.inputs import SessionArg
 from glmap_tools.app.navdraw import contact_sheet, jpeg, nav_image
 from glmap_tools.app.results import ImageResult, Picture
-from glmap_tools.app.runtime import ADDS, READ_ONLY, Call, ToolSpec, in_thread, session_of
+from glmap_tools.app.runtime import ADDS, READ_ONLY, REPLACES, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import Session, locked
 from glmap_tools.errors import InvalidInputError
 
 Units = Literal["both", "instances", "regions"]
 Policy = Literal["glmap", "glmap-instance", "glmap-region", "egocentric", "frontier"]
 POLICY_OF_UNITS = {"both": "glmap", "instances": "glmap-instance", "regions": "glmap-region"}
-Goal = Annotated[str, Field(max_length=256, description="what to find; omit: the episode's")]
+Goal = Annotated[str, Field(max_length=256, description="omit: the episode's")]
 
 
 def in_episode(session: Session, fn: Callable[[], ImageResult]) -> ImageResult:
@@ -31,6 +33,16 @@ def in_episode(session: Session, fn: Callable[[], ImageResult]) -> ImageResult:
     sim_reset from another call waits for it (and it never acts on a replaced episode)."""
     with session.sim_lock:
         return fn()
+
+
+def progress_from_thread(call: Call) -> Callable[[float, float | None, str], None]:
+    """Report progress from a worker thread (`in_thread`) as MCP progress notifications."""
+
+    def report(done: float, total: float | None, message: str) -> None:
+        if call.progress is not None:
+            anyio.from_thread.run(call.report_progress, done, total, message)
+
+    return report
 
 
 def _goal(session: Session, goal: str) -> str:
@@ -63,7 +75,8 @@ def _decide(session: Session, goal: str, policy: str) -> tuple[Any, tuple[float,
     nav = navsession.of(session)
     with locked(session) as glmap:
         if nav is not None:
-            state, scorer, config = nav.state, nav.scorer, nav.config
+            state, config = nav.state, nav.config
+            scorer = nav.goal_scorer(glmap.fused_into)
             # Count every step taken since sim_reset (look_around, navigate_to, sim_step
             # included), so a full turn already taken counts as the policy's initial spin.
             state.steps = max(state.steps, len(nav.path) - 1)
@@ -98,6 +111,24 @@ def _waypoint(decision: Any, agent: tuple[float, float, float]) -> dict[str, Any
     return out
 
 
+def _top_units(session: Session, goal: str, scores: dict[int, float], k: int = 5) -> list[Any]:
+    """The k best-scored units: [id, kind, s_u, by] (by: 'client', 'prior' or 'scorer')."""
+    from glmap_tools.nav.scorers import ClientScorer, map_units
+
+    nav = navsession.of(session)
+    with locked(session) as glmap:
+        units = [u for u in map_units(glmap) if scores.get(u.unit_id, 0.0) > 0]
+        scorer = nav.goal_scorer() if nav is not None else None
+    units.sort(key=lambda u: (-scores[u.unit_id], u.unit_id))
+    units = units[:k]
+    by = (
+        scorer.sources(goal, units) if isinstance(scorer, ClientScorer) else ["scorer"] * len(units)
+    )
+    return [
+        [u.unit_id, u.kind, round(scores[u.unit_id], 3), b] for u, b in zip(units, by, strict=True)
+    ]
+
+
 def _nav_png(session: Session, decision: Any, agent: tuple[float, float, float]) -> bytes:
     with locked(session) as glmap:
         image = nav_image(
@@ -112,14 +143,32 @@ def _nav_png(session: Session, decision: Any, agent: tuple[float, float, float])
 
 
 async def value_map(
-    call: Call, goal: Goal = "", units: Units = "both", session: SessionArg = ""
+    call: Call,
+    goal: Goal = "",
+    units: Units = "both",
+    scores: dict[int, float] | None = None,
+    priors: dict[str, float] | None = None,
+    clear: bool = False,
+    session: SessionArg = "",
 ) -> ImageResult:
-    """Where the goal likely is: the Eq. 7 value map of the chosen units, frontiers, the
-    waypoint and its path."""
+    """Eq. 7: where the goal likely is, frontiers, waypoint, path; top_units: [id, kind,
+    s_u, by]. scores (unit id), priors (region kind, 'kitchen'): your f_S 0..1 of the
+    episode's goal, until clear or sim_reset."""
     target = session_of(call, session)
 
     def run() -> ImageResult:
         wanted = _goal(target, goal)
+        from glmap_tools.nav.scorers import same_goal
+
+        client = None
+        if scores or priors or clear:
+            nav = navsession.of(target)
+            if nav is not None and goal.strip() and not same_goal(goal, nav.goal):
+                raise InvalidInputError(
+                    f"scores and priors are for the episode's goal {nav.goal!r}, not {goal!r}; "
+                    "leave goal out to give them."
+                )
+            client = set_client_scores(target, scores, priors, clear)
         decision, agent = _decide(target, wanted, POLICY_OF_UNITS[units])
         top = decision.value.top_cells(5) if decision.value is not None else []
         info = {
@@ -129,8 +178,15 @@ async def value_map(
             "waypoint": _waypoint(decision, agent),
             "matched_unit": decision.matched_unit,
             "top_cells": [[round(x, 2), round(y, 2), round(v, 3)] for x, y, v in top],
+            "top_units": _top_units(target, wanted, decision.scores),
             "frontiers": len(decision.frontiers),
         }
+        nav = navsession.of(target)
+        if client is None and nav is not None and nav.client is not None:
+            with locked(target) as glmap:
+                client = held_scores(glmap, nav.client)
+        if client is not None and (client["scores"] or client["priors"]):
+            info["client"] = client
         png = _nav_png(target, decision, agent)
         return ImageResult(data=info, images=[Picture(format="png", data=png)])
 
@@ -142,8 +198,7 @@ async def frontiers(
     top_k: Annotated[int, Field(ge=1, le=50)] = 8,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Reachable edges of explored space, nearest first: xy, path_m (walk to the nearest
-    cell), distance_m, bearing_deg (straight to xy)."""
+    """Reachable frontiers, nearest first; bearing_deg: from the heading, + = left."""
     from glmap_tools.nav import NavConfig, NavState
     from glmap_tools.nav.policy import surroundings
 
@@ -177,9 +232,10 @@ async def navigate_to(
     max_steps: Annotated[int, Field(ge=1, le=500)] = 100,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Walk (simulator) to (x, y), or within 0.75 m of unit_id in clear sight, round
-    collisions. would_succeed: stop here counts if the unit is the goal."""
+    """Walk (simulator) to (x, y), or within 0.75 m of unit_id in clear sight
+    (would_succeed: a stop would count)."""
     target = session_of(call, session)
+    report = progress_from_thread(call)
     if (unit_id is None) == (x is None or y is None) or (x is None) != (y is None):
         raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
 
@@ -199,7 +255,17 @@ async def navigate_to(
         else:
             goal = navsession.Target((float(x), float(y)))  # type: ignore[arg-type]
         with locked(target):
-            walk = navsession.walk_to(target, sim, goal, max_steps, nav.config)
+            walk = navsession.walk_to(
+                target,
+                sim,
+                goal,
+                max_steps,
+                nav.config,
+                lambda k, n: report(k, n, f"navigate_to step {k + 1}"),
+            )
+            if unit_id is not None:
+                walk.update(_unit_score(target, nav, int(unit_id)))
+        report(max_steps, max_steps, walk["outcome"])
         info = {**walk, **simulator.status(sim)}
         info.pop("camera_pose", None)
         return ImageResult(data=info, images=[Picture(format="jpeg", data=jpeg(sim.obs["rgb"]))])
@@ -208,15 +274,17 @@ async def navigate_to(
 
 
 async def look_around(call: Call, session: SessionArg = "") -> ImageResult:
-    """Turn a full circle in place (simulator), adding every frame to the map."""
+    """Turn a full circle (simulator), every frame into the map."""
     target = session_of(call, session)
+    report = progress_from_thread(call)
 
     def run() -> ImageResult:
         sim, _ = navsession.running(target)
         turns = round(2 * math.pi / sim.env.motion.turn_angle)
         frames, labels = [], []
         with locked(target):
-            for _ in range(turns):
+            for k in range(turns):
+                report(k, turns, f"turn {k + 1}/{turns}")
                 simulator.step(sim, "turn_left")
                 navsession.integrate(target, sim)
                 frames.append(sim.obs["rgb"])
@@ -224,6 +292,7 @@ async def look_around(call: Call, session: SessionArg = "") -> ImageResult:
                 labels.append(f"step {sim.info['steps']}  {heading:.0f} deg")
                 if sim.over:
                     break
+        report(turns, turns, "done")
         info = simulator.status(sim)
         info.pop("camera_pose", None)
         with locked(target) as glmap:
@@ -232,6 +301,24 @@ async def look_around(call: Call, session: SessionArg = "") -> ImageResult:
         return ImageResult(data=info, images=[Picture(format="jpeg", data=jpeg(sheet))])
 
     return await in_thread(lambda: in_episode(target, run))
+
+
+def _unit_score(session: Session, nav: Any, unit_id: int) -> dict[str, Any]:
+    """{goal_score, score_by} of one unit for the episode's goal (by 'client', 'prior' or
+    'scorer')."""
+    from glmap_tools.nav.scorers import ClientScorer, UnitText, map_units
+
+    with locked(session) as glmap:
+        kind = glmap.unit(unit_id).kind
+        units: list[UnitText] = [u for u in map_units(glmap, kind + "s") if u.unit_id == unit_id]
+        scorer = nav.goal_scorer(glmap.fused_into)
+        score = float(scorer.score(nav.goal, units)[0]) if units else 0.0
+    by = (
+        scorer.sources(nav.goal, units)[0]
+        if isinstance(scorer, ClientScorer) and units
+        else "scorer"
+    )
+    return {"goal_score": round(score, 3), "score_by": by}
 
 
 def _goal_unit(
@@ -269,20 +356,22 @@ async def nav_step(
     images: bool = False,
     session: SessionArg = "",
 ) -> ImageResult:
-    """A policy takes up to `actions` steps (simulator; glmap*: Eq. 7, egocentric: VLFM-like,
-    frontier: nearest). Returns before the policy's stop (see goal_unit) unless
+    """Up to `actions` policy steps (simulator), short of its stop (goal_unit) unless
     execute_stop."""
     target = session_of(call, session)
+    report = progress_from_thread(call)
 
     def run() -> ImageResult:
         sim, nav = navsession.running(target)
         decisions = []
         decision: Any = None
-        agent = start = simulator.agent_pose(sim)
+        agent = simulator.agent_pose(sim)
         collisions = sim.collisions
         outcome = "actions done"
+        walked = 0.0
         with locked(target):
-            for _ in range(actions):
+            for k in range(actions):
+                report(k, actions, f"nav_step {k + 1}/{actions}")
                 decision, agent = _decide(target, nav.goal, policy)
                 if decision.action == "stop" and not execute_stop:
                     outcome = "policy would stop here"
@@ -290,6 +379,7 @@ async def nav_step(
                 simulator.step(sim, decision.action)
                 navsession.integrate(target, sim)
                 after = simulator.agent_pose(sim)
+                walked += math.dist(agent[:2], after[:2])
                 decisions.append(
                     {
                         "step": int(sim.info["steps"]),
@@ -309,10 +399,16 @@ async def nav_step(
         info: dict[str, Any] = {
             "outcome": outcome,
             "actions": counts,
-            "moved_m": round(math.dist(start[:2], end[:2]), 2),
+            "walked_m": round(walked, 2),  # path length, as navigate_to's
             "new_collisions": sim.collisions - collisions,
             "waypoint": _waypoint(decision, agent) if decision is not None else None,
         }
+        if nav.client is not None and not nav.client.empty:
+            info["client_scores"] = {
+                "units": len(nav.client.units),
+                "priors": len(nav.client.priors),
+            }
+        report(actions, actions, outcome)
         goal_unit = _goal_unit(target, decision, end, nav.config) if decision is not None else None
         if goal_unit is not None and not sim.over:
             info["goal_unit"] = goal_unit
@@ -338,8 +434,71 @@ async def nav_step(
     return await in_thread(lambda: in_episode(target, run))
 
 
+def _checked_client_scores(
+    glmap: Any, scores: dict[int, float], priors: dict[str, float]
+) -> tuple[dict[int, float], dict[str, float], dict[int, int]]:
+    """(scores by live id, priors, {fused id: live id}) or raise before anything changes."""
+    from glmap_tools.nav.scorers import check_unit_score, kind_pattern
+
+    live: dict[int, float] = {}
+    followed: dict[int, int] = {}
+    for uid, score in scores.items():
+        value = check_unit_score(score, f"unit {uid}")
+        unit = int(uid)
+        while unit in glmap.fused_into and not (unit in glmap.instances or unit in glmap.regions):
+            unit = glmap.fused_into[unit]
+        if unit != uid:
+            followed[int(uid)] = unit
+        glmap.unit(unit)  # an unknown id raises UnknownIdError with the closest one
+        live[unit] = max(value, live.get(unit, 0.0)) if unit in live else value
+    kinds: dict[str, float] = {}
+    for kind, score in priors.items():
+        kind_pattern(kind)  # an empty kind raises
+        kinds[" ".join(kind.lower().split())] = check_unit_score(score, f"kind {kind!r}")
+    return live, kinds, followed
+
+
+def set_client_scores(
+    session: Session,
+    scores: dict[int, float] | None,
+    priors: dict[str, float] | None,
+    clear: bool,
+) -> dict[str, Any]:
+    """Check and keep the client's f_S of the episode's goal; return what is held now:
+    {"scores": [[id, kind, s]], "priors": [[kind, s, [region ids naming it]]], "followed":
+    ["12->7": a fused id's score moved to the unit it became]}. Nothing changes on an error."""
+    from glmap_tools.nav.scorers import ClientScores
+
+    _, nav = navsession.running(session)
+    with locked(session) as glmap:
+        units, kinds, followed = _checked_client_scores(glmap, scores or {}, priors or {})
+        if clear or nav.client is None:
+            nav.client = ClientScores(nav.goal)
+        nav.client.units.update(units)
+        nav.client.priors.update(kinds)
+        followed.update(nav.client.follow(glmap.fused_into))
+        return held_scores(glmap, nav.client, followed)
+
+
+def held_scores(glmap: Any, client: Any, followed: dict[int, int] | None = None) -> dict[str, Any]:
+    """The client's scores as value_map shows them (see `set_client_scores`)."""
+    from glmap_tools.nav.scorers import kind_pattern
+
+    regions = sorted((r.id, r.text.lower()) for r in glmap.regions.values())
+    out: dict[str, Any] = {
+        "scores": [[u, glmap.unit(u).kind, s] for u, s in sorted(client.units.items())],
+        "priors": [
+            [k, s, [r for r, t in regions if kind_pattern(k).search(t)]]
+            for k, s in sorted(client.priors.items())
+        ],
+    }
+    if followed:
+        out["followed"] = [f"{a}->{b}" for a, b in sorted(followed.items())]
+    return out
+
+
 TOOLS = [
-    ToolSpec(value_map, READ_ONLY),
+    ToolSpec(value_map, REPLACES),  # keeps the client's scores
     ToolSpec(frontiers, READ_ONLY),
     ToolSpec(navigate_to, ADDS),
     ToolSpec(look_around, ADDS),

@@ -91,8 +91,8 @@ async def locate_situation(
     reading: ReadingIn | None = None,
     session: SessionArg = "",
 ) -> ImageResult:
-    """Situated QA: place a situation (text, or a reading) in the map: pose, units around,
-    heat map, 4 views; situation.reading shows how it was read (fix it, pass it back)."""
+    """Situated QA: place a situation (text or reading) in the map: pose, nearby units, heat
+    map, 4 views; situation.reading: how it was read (fix, pass back)."""
     from glmap_tools.errors import InvalidInputError
 
     if not situation.strip() and reading is None:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+import math
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -188,3 +190,143 @@ class EmbeddingScorer:
         """[N] scores in [0, 1] (see the class docstring)."""
         cos = self.cosines(goal, units)
         return np.clip((cos - self.floor) / (1.0 - self.floor), 0.0, 1.0).astype(np.float64)
+
+
+# ---------------------------------------------------------------------- the client's f_S
+
+SOURCES = ("client", "prior", "scorer")  # where a unit's score came from
+
+
+def same_goal(a: str, b: str) -> bool:
+    """Whether two goal texts name the same goal (case and spacing aside)."""
+    return " ".join(a.lower().split()) == " ".join(b.lower().split())
+
+
+def check_unit_score(score: object, what: str) -> float:
+    """`score` as a float in [0, 1], or raise InvalidInputError naming `what` and the fix."""
+    value = float(score) if isinstance(score, int | float) and not isinstance(score, bool) else None
+    if value is None or not math.isfinite(value) or not 0.0 <= value <= 1.0:
+        raise InvalidInputError(
+            f"score {score!r} for {what} is not in [0, 1]; give how likely it is to be or "
+            "hold the goal, 0 (surely not) to 1 (surely)."
+        )
+    return value
+
+
+def kind_pattern(kind: str) -> re.Pattern[str]:
+    """Whole words of `kind` ('kitchen', 'sleeping area') inside a unit's text."""
+    words = kind.lower().split()
+    if not words:
+        raise InvalidInputError(
+            f"prior kind {kind!r} is empty; name a kind of room or region, e.g. 'kitchen'."
+        )
+    return re.compile(r"\b" + r"\s+".join(re.escape(w) for w in words) + r"s?\b")
+
+
+@dataclass
+class ClientScores:
+    """The client's f_S for one goal: scores per unit id and priors per region kind.
+
+    A unit score overrides every other score of that unit; a prior scores each region whose
+    text holds the kind's words (the best prior when several match); the rest keep the
+    configured scorer's score. Fused ids are followed to the unit they became.
+
+    Attributes:
+        goal: the goal text the scores are for.
+        units: unit id -> s_u in [0, 1].
+        priors: kind ('kitchen', 'sleeping area') -> s_u in [0, 1] of regions of that kind.
+    """
+
+    goal: str
+    units: dict[int, float] = field(default_factory=dict)
+    priors: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def empty(self) -> bool:
+        return not self.units and not self.priors
+
+    def follow(self, fused_into: Mapping[int, int]) -> dict[int, int]:
+        """Move scores of fused ids onto the unit they became (the higher score wins when two
+        meet); return {fused id: surviving id} of the ids moved."""
+        moved: dict[int, int] = {}
+        for uid in [u for u in self.units if u in fused_into]:
+            live = uid
+            while live in fused_into:
+                live = fused_into[live]
+            score = self.units.pop(uid)
+            self.units[live] = max(score, self.units.get(live, 0.0))
+            moved[uid] = live
+        return moved
+
+    def prior_of(self, text: str) -> float | None:
+        """The best prior whose kind the text names, or None."""
+        hits = [s for k, s in self.priors.items() if kind_pattern(k).search(text.lower())]
+        return max(hits) if hits else None
+
+    def source(self, unit: UnitText) -> str:
+        """'client' (a unit score), 'prior' (a region of a scored kind) or 'scorer'."""
+        if unit.unit_id in self.units:
+            return "client"
+        if unit.kind == "region" and self.prior_of(unit.text) is not None:
+            return "prior"
+        return "scorer"
+
+
+class ClientScorer:
+    """f_S with the client's judgement first: `ClientScores` where they say something, the
+    configured scorer elsewhere (and for any other goal).
+
+    The goal match reads `category_margins` when the base scorer has one: a unit the client
+    scored then matches when its score reaches `match_at` (the task's stop threshold),
+    whatever the map's vocabulary says; the others keep the base scorer's margin.
+
+    Args:
+        base: the configured scorer (embedding, LLM).
+        client: the client's scores.
+        match_at: the score at which a client-scored instance counts as the goal.
+    """
+
+    def __init__(self, base: Scorer, client: ClientScores, match_at: float) -> None:
+        self.base = base
+        self.client = client
+        self.match_at = float(match_at)
+        margins = getattr(base, "category_margins", None)
+        # find_goal_match looks the attribute up: None means "no margin check".
+        self.category_margins: Callable[..., np.ndarray] | None = (
+            self._margins if margins is not None else None
+        )
+
+    def applies(self, goal: str) -> bool:
+        return same_goal(goal, self.client.goal)
+
+    def sources(self, goal: str, units: Sequence[UnitText]) -> list[str]:
+        """[N] where each unit's score comes from (`SOURCES`)."""
+        if not self.applies(goal):
+            return ["scorer"] * len(units)
+        return [self.client.source(u) for u in units]
+
+    def score(self, goal: str, units: Sequence[UnitText]) -> np.ndarray:
+        """[N] scores in [0, 1]: the client's where given, else the base scorer's."""
+        out = np.asarray(self.base.score(goal, units), dtype=np.float64).copy()
+        if not self.applies(goal):
+            return out
+        for k, u in enumerate(units):
+            if u.unit_id in self.client.units:
+                out[k] = self.client.units[u.unit_id]
+            elif u.kind == "region":
+                prior = self.client.prior_of(u.text)
+                if prior is not None:
+                    out[k] = prior
+        return out
+
+    def _margins(
+        self, goal: str, units: Sequence[UnitText], labels: Sequence[str] | None = None
+    ) -> np.ndarray:
+        base = getattr(self.base, "category_margins")  # noqa: B009 (checked in __init__)
+        out = np.asarray(base(goal, units, labels), dtype=np.float64).copy()
+        if not self.applies(goal):
+            return out
+        for k, u in enumerate(units):
+            if u.unit_id in self.client.units:
+                out[k] = np.inf if self.client.units[u.unit_id] >= self.match_at else -np.inf
+        return out
