@@ -20,15 +20,19 @@ room polygon, the room is the bounding rectangle of all footprints grown by `mar
 
 Several rooms: `"rooms": [{"type", "polygon"}, ...]` (ids 1, 2, ... in order) and
 `"openings": [{"id", "rooms": [a, b], "center": [x, y], "width"}]` on the walls they share;
-each object belongs to the room its centre stands in. Rooms may be turned: a box with yaw 0
-(what a scanner that fits axis-aligned boxes gives) in a room whose walls are turned more
-than `AXIS_ALIGNED_DEG` is read as the bounding box of a box square to those walls
-(`box_in_room_frame`), and each such box is reported.
+each object belongs to the room its centre stands in. Rooms may be turned: a box square to
+the scan's axes (yaw 0, or a yaw or rotation within `SQUARE_DEG` of a multiple of 90 deg: what
+a scanner that fits axis-aligned boxes gives) in a room whose walls are turned more than
+`AXIS_ALIGNED_DEG` is read as the bounding box of a box square to those walls
+(`box_in_room_frame`; a thin wall box such as a picture as a 5 cm thin box), and each such
+box is reported. A box with a rotation of its own is taken as given; when a box in a turned
+room was left as given and then crosses a wall, the refusal says why the fix was skipped.
 """
 
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -99,20 +103,49 @@ def room_yaw(polygon: np.ndarray) -> float:
     return float((yaw + math.pi / 4) % (math.pi / 2) - math.pi / 4)
 
 
+MIN_SIDE = 0.05  # metres: the thinnest side of a box read inside a bounding box
+THIN_FIT = 0.05  # metres (or 5 % of the box) a thin box's bounding box may be off the given one
+
+
 def box_in_room_frame(size_xy: np.ndarray, yaw: float) -> np.ndarray | None:
     """The (width, depth) of a box turned by `yaw` whose axis-aligned bounding box is
-    `size_xy`, or None when no box with both sides >= 5 cm has that bounding box.
+    `size_xy`, or None when no box with both sides >= `MIN_SIDE` has that bounding box.
 
     A scan that fits axis-aligned boxes to the objects of a room turned by `yaw` gives
-    each object's bounding box, not the object: w cos + d sin = X, w sin + d cos = Y.
+    each object's bounding box, not the object: w cos + d sin = X, w sin + d cos = Y. A thin
+    box (a picture on a turned wall, 3 cm deep) solves to a side under 5 cm, or below 0 with
+    the scan's noise: it is read as a `MIN_SIDE`-thin box whose other side fits the bounding
+    box best (least squares), when that box's bounding box lies within `THIN_FIT` of the
+    given one.
     """
     c, s = abs(math.cos(yaw)), abs(math.sin(yaw))
     det = c * c - s * s
     if abs(det) < 0.2:  # near 45 deg the two sides cannot be told apart
         return None
-    w = (c * size_xy[0] - s * size_xy[1]) / det
-    d = (c * size_xy[1] - s * size_xy[0]) / det
-    return np.array([w, d]) if min(w, d) >= 0.05 else None
+    x, y = float(size_xy[0]), float(size_xy[1])
+    w = (c * x - s * y) / det
+    d = (c * y - s * x) / det
+    if min(w, d) >= MIN_SIDE:
+        return np.array([w, d])
+    best: tuple[float, np.ndarray] | None = None
+    for thin_is_depth in (True, False):
+        # The long side L with the thin side t: bbox (L c + t s, L s + t c) when the thin
+        # side is the depth, (t c + L s, t s + L c) when it is the width.
+        t = MIN_SIDE
+        if thin_is_depth:
+            long_ = (x - t * s) * c + (y - t * c) * s
+            fit = np.array([long_ * c + t * s, long_ * s + t * c])
+            box = np.array([long_, t])
+        else:
+            long_ = (x - t * c) * s + (y - t * s) * c
+            fit = np.array([t * c + long_ * s, t * s + long_ * c])
+            box = np.array([t, long_])
+        off = float(np.max(np.abs(fit - [x, y])))
+        if long_ >= MIN_SIDE and (best is None or off < best[0]):
+            best = (off, box)
+    if best is None or best[0] > max(THIN_FIT, 0.05 * max(x, y)):
+        return None
+    return best[1]
 
 
 def _scan_rooms(meta: Mapping[str, Any]) -> list[dict[str, Any]]:
@@ -215,7 +248,8 @@ def layout_from_scan(
         yaw, size = _box_pose(entry, size, up_rotation, where)
         boxes.append((entry, category, center, size, yaw))
     rooms = _scan_rooms(meta)
-    boxes = _into_room_frames(boxes, rooms)
+    skipped: dict[int, str] = {}
+    boxes = _into_room_frames(boxes, rooms, skipped)
     if use_meshes:
         _warn_unknown_categories([category for _, category, _, _, _ in boxes], aliases)
     bottom = min(c[2] - s[2] / 2 for _, _, c, s, _ in boxes) if floor_z is None else floor_z
@@ -246,29 +280,69 @@ def layout_from_scan(
         room.setdefault("id", 1)
         room.setdefault("type", "room")
         room.setdefault("wall_height", max(2.6, top + 0.2))
-    return layout_from_dict(
-        {
-            "name": name or str(meta.get("name", "scan")),
-            "rooms": rooms,
-            "openings": list(meta.get("openings", [])),
-            "objects": objects,
-            "regions": list(meta.get("regions", [])),
-        }
-    )
+    try:
+        return layout_from_dict(
+            {
+                "name": name or str(meta.get("name", "scan")),
+                "rooms": rooms,
+                "openings": list(meta.get("openings", [])),
+                "objects": objects,
+                "regions": list(meta.get("regions", [])),
+            }
+        )
+    except InvalidInputError as exc:
+        said = _say_skipped(exc, skipped)
+        if said is exc:
+            raise
+        raise said from exc
 
 
-def _into_room_frames(boxes: list[Any], rooms: list[dict[str, Any]]) -> list[Any]:
-    """Boxes with no yaw of their own (a scan's axis-aligned bounding boxes) in a room
-    whose walls are turned become boxes turned with the room (`box_in_room_frame`); each
-    one turned is reported with a `LayoutWarning`."""
+SQUARE_DEG = 1.0  # a box's yaw within this of a multiple of 90 deg is square to the scan axes
+
+
+def _square_to_axes(yaw: float) -> bool:
+    """Whether a box turned by `yaw` stands square to the scan's axes (its box is then its
+    axis-aligned bounding box, whether given as yaw 0 or an identity rotation)."""
+    off = (math.degrees(yaw) + 45.0) % 90.0 - 45.0
+    return abs(off) <= SQUARE_DEG
+
+
+def _into_room_frames(
+    boxes: list[Any], rooms: list[dict[str, Any]], skipped: dict[int, str] | None = None
+) -> list[Any]:
+    """Boxes square to the scan's axes (yaw 0, or a rotation that is a multiple of 90 deg:
+    a scan's axis-aligned bounding boxes) in a room whose walls are turned become boxes
+    turned with the room (`box_in_room_frame`); each one turned is reported with a
+    `LayoutWarning`. `skipped` collects, by object id, why a box in a turned room was left
+    as given (so a later refusal can say the fix did not apply)."""
     out = []
-    for entry, category, center, size, yaw in boxes:
+    for i, (entry, category, center, size, yaw) in enumerate(boxes):
         room = _containing(rooms, center[:2]) if "polygon" in rooms[0] else None
-        turned = None
-        if room is not None and yaw == 0.0 and "rotation" not in entry:
+        turned, walls, why = None, 0.0, ""
+        if room is not None:
             walls = room_yaw(np.asarray(room["polygon"], dtype=np.float64))
-            if abs(math.degrees(walls)) > AXIS_ALIGNED_DEG:
-                turned = box_in_room_frame(size[:2], walls)
+        if room is not None and abs(math.degrees(walls)) > AXIS_ALIGNED_DEG:
+            if _square_to_axes(yaw):
+                c, s_ = abs(math.cos(yaw)), abs(math.sin(yaw))
+                bbox = np.array([size[0] * c + size[1] * s_, size[0] * s_ + size[1] * c])
+                turned = box_in_room_frame(bbox, walls)
+                if turned is None:
+                    why = (
+                        f"no box turned {math.degrees(walls):.1f} deg with the walls of room "
+                        f"{room.get('id', 1)} has its {bbox[0]:.2f} x {bbox[1]:.2f} m "
+                        "bounding box"
+                        + (
+                            " (walls near 45 deg)"
+                            if abs(abs(math.degrees(walls)) - 45) < 12
+                            else ""
+                        )
+                    )
+            else:
+                why = (
+                    f"its box carries its own rotation ({math.degrees(yaw):.1f} deg; the walls "
+                    f"of room {room.get('id', 1)} are turned {math.degrees(walls):.1f} deg), "
+                    "so it was taken as given"
+                )
         if turned is not None:
             warnings.warn(
                 f"object {entry.get('id', '?')} ({category!r}): its axis-aligned box is read "
@@ -280,5 +354,22 @@ def _into_room_frames(boxes: list[Any], rooms: list[dict[str, Any]]) -> list[Any
             )
             size = np.array([turned[0], turned[1], size[2]])
             yaw = walls
+        elif why and skipped is not None:
+            skipped[int(entry.get("id", i + 1))] = why
         out.append((entry, category, center, size, yaw))
     return out
+
+
+_NAMED_OBJECT = re.compile(r"\(object (\d+),")
+
+
+def _say_skipped(exc: InvalidInputError, skipped: dict[int, str]) -> InvalidInputError:
+    """`exc` with, for the object it names, why the turned-room fix did not apply."""
+    named = _NAMED_OBJECT.search(str(exc))
+    if named is None or int(named.group(1)) not in skipped:
+        return exc
+    oid = int(named.group(1))
+    return InvalidInputError(
+        f"{exc} The turned-room fix (a scan's axis-aligned box read square to turned walls) "
+        f"was skipped for object {oid}: {skipped[oid]}."
+    )
