@@ -16,7 +16,7 @@ from glmap_tools.errors import InvalidInputError, did_you_mean
 from glmap_tools.language.backends import SCORERS
 
 TASKS = ("objectnav", "instnav")
-SPLITS = ("tune", "bench")
+SPLITS = ("tune", "bench", "house-tune", "house-bench")  # = sim.scene_dirs.BUILT_IN_SPLITS
 EMBEDDERS = ("minilm", "hashing")
 # Settings that change what one episode's result is; a results folder holds one set of them.
 RESULT_KEYS = (

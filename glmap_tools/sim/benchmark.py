@@ -3,7 +3,13 @@
 Two splits that never share a scene: "tune" (scene seeds 1000-1099, for tuning thresholds)
 and "bench" (seeds 2000+, for the reported figures). Apartments are large: rooms of 1.3x the
 usual area lined up along a hallway that runs the apartment's length
-(`generate_apartment(..., area_scale, hallway=True)`). Every episode:
+(`generate_apartment(..., area_scale, hallway=True)`). Since issue 38 these two are the
+regression set; the house splits "house-tune" (seeds 3000+) and "house-bench" (seeds 4000+)
+hold houses (`generate_house`: 8-12 rooms, repeated room types, clutter, goal objects in
+unlikely rooms), ObjectNav goals weighted towards HM3D's six categories
+(`SplitSpec.hm3d_share`), InstNav goals mostly among same-category instances
+(`SplitSpec.multi_share`), and a `perception` default ("detector") in `split.json`. Every
+episode:
 
 - starts on navigable floor at least `MIN_GEODESIC` metres (geodesic) from the goal;
 - starts out of sight of every goal object (`sight.SightChecker`: walls and tall objects
@@ -37,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
+from glmap_tools.sim.clutter import GOAL_CATEGORIES, UNLIKELY_RATE
 from glmap_tools.sim.episodes import (
     SUCCESS_DISTANCE,
     TASKS,
@@ -50,6 +57,7 @@ from glmap_tools.sim.layout import Layout
 from glmap_tools.sim.layout_io import layout_to_dict, load_layout
 from glmap_tools.sim.navigation import MIN_PASSAGE_CELLS, NavGrid, build_nav_grid
 from glmap_tools.sim.scene_dirs import (
+    BUILT_IN_SPLITS,
     BenchEpisode,
     SceneDirs,
     read_scene_episodes,
@@ -62,7 +70,7 @@ if TYPE_CHECKING:  # importing env pulls in the renderer
     from glmap_tools.sim.env import NavEnv
     from glmap_tools.sim.render import CameraSpec
 
-SPLITS = ("tune", "bench")
+SPLITS = BUILT_IN_SPLITS  # ("tune", "bench", "house-tune", "house-bench")
 DATA_ROOT = Path(__file__).resolve().parent.parent / "data" / "benchmark"
 MAX_STEPS = 500
 MIN_GEODESIC = 2.0  # metres from start to the nearest goal cell
@@ -72,21 +80,50 @@ COMMAND = "python -m glmap_tools.sim.benchmark --out glmap_tools/data/benchmark"
 
 @dataclass(frozen=True)
 class SplitSpec:
-    """How one split is generated."""
+    """How one split is generated.
+
+    Attributes:
+        house: houses (`generate_house`, rooms drawn from the seed) instead of apartments.
+        perception: the perception the split is meant to be played with by default
+            ("gt" or "detector"; written to `split.json`, read by `split_perception`).
+        hm3d_share: ObjectNav: the chance that an episode's goal is one of HM3D's six
+            categories (`clutter.GOAL_CATEGORIES`) present in the scene; None: every
+            category equally likely (the regression splits).
+        multi_share: InstNav: the chance that the target is one of at least two objects of
+            its category in the scene; None: every describable object equally likely.
+        seeable_only: goals only among objects the camera can be expected to recognise
+            (`episodes.unseeable`).
+    """
 
     name: str
     seeds: tuple[int, ...]
     episodes_per_scene: int  # per task
     area_scale: float = 1.3
     hallway: bool = True
+    house: bool = False
+    perception: str = "gt"
+    hm3d_share: float | None = None
+    multi_share: float | None = None
+    seeable_only: bool = False
 
-    def n_rooms(self, seed: int) -> int:
+    def n_rooms(self, seed: int) -> int | None:
+        if self.house:
+            return None  # 7-11 furnished rooms drawn from the seed, plus the hallway
         return 6 + seed % 2  # six or seven furnished rooms, plus the hallway
+
+
+def _house_split(name: str, seeds: range) -> SplitSpec:
+    return SplitSpec(
+        name, tuple(seeds), 20, area_scale=1.0, house=True, perception="detector",
+        hm3d_share=0.6, multi_share=0.8, seeable_only=True,
+    )  # fmt: skip
 
 
 SPLIT_SPECS = {
     "tune": SplitSpec("tune", tuple(range(1000, 1004)), 25),
     "bench": SplitSpec("bench", tuple(range(2000, 2012)), 20),
+    "house-tune": _house_split("house-tune", range(3000, 3004)),
+    "house-bench": _house_split("house-bench", range(4000, 4012)),
 }
 
 
@@ -107,10 +144,35 @@ def scene_name(index: int) -> str:
 
 
 def make_layout(spec: SplitSpec, seed: int) -> Layout:
-    """The split's apartment for `seed` (what `layout.json` holds)."""
+    """The split's apartment or house for `seed` (what `layout.json` holds)."""
+    if spec.house:
+        return generate_apartment(seed, area_scale=spec.area_scale, house=True)
     return generate_apartment(
         seed, n_rooms=spec.n_rooms(seed), area_scale=spec.area_scale, hallway=spec.hallway
     )
+
+
+def goal_weights(layout: Layout, task: str, pool: Any, spec: SplitSpec) -> np.ndarray | None:
+    """The chance of each goal of `pool` to be an episode's goal under `spec`'s mix, or None
+    for a uniform draw (the regression splits draw exactly as they always did).
+
+    ObjectNav with `hm3d_share`: HM3D's categories share that much, the others the rest;
+    InstNav with `multi_share`: targets with another object of their category share that
+    much, the others the rest (each group uniform; an empty group gives its share away).
+    """
+    share = spec.hm3d_share if task == "objectnav" else spec.multi_share
+    if share is None:
+        return None
+    counts: dict[str, int] = {}
+    for o in layout.objects:
+        counts[o.category] = counts.get(o.category, 0) + 1
+    if task == "objectnav":
+        first = np.array([text in GOAL_CATEGORIES for text, _, _ in pool])
+    else:
+        first = np.array([counts[layout.object(ids[0]).category] >= 2 for _, ids, _ in pool])
+    if first.all() or not first.any():
+        return np.full(len(pool), 1.0 / len(pool))
+    return np.where(first, share / first.sum(), (1.0 - share) / (~first).sum())
 
 
 def hidden_episodes(
@@ -121,13 +183,15 @@ def hidden_episodes(
     grid: NavGrid | None = None,
     min_distance: float = MIN_GEODESIC,
     tries: int = START_TRIES,
+    spec: SplitSpec | None = None,
 ) -> EpisodeSet:
     """`count` episodes whose starts are out of sight of every goal object (deterministic).
 
     Goals are drawn uniformly from the task's reachable goals, starts uniformly from the
     navigable cells at least `min_distance` geodesic metres away; a start with a goal in
     sight, or joined to every goal cell only through a passage narrower than
-    `MIN_PASSAGE_CELLS` (`NavGrid.passable_parts`), is drawn again.
+    `MIN_PASSAGE_CELLS` (`NavGrid.passable_parts`), is drawn again. A house split's `spec`
+    weights the goals (`goal_weights`) and keeps only seeable ones.
 
     Raises:
         InvalidInputError: more than twice as many goals in a row as there are goals found
@@ -138,7 +202,9 @@ def hidden_episodes(
         raise InvalidInputError(f"count={count!r} must be a positive integer.")
     grid = grid or build_nav_grid(layout)
     sight = SightChecker(layout, grid)
-    pool = goal_pool(layout, task, grid, SUCCESS_DISTANCE, min_distance)
+    seeable = spec is not None and spec.seeable_only
+    pool = goal_pool(layout, task, grid, SUCCESS_DISTANCE, min_distance, seeable)
+    weights = goal_weights(layout, task, pool, spec) if spec is not None else None
     starts = [np.argwhere(np.isfinite(f) & (f >= min_distance)) for _, _, f in pool]
     parts = grid.passable_parts()
     goal_parts = [set(np.unique(parts[(f == 0) & (parts > 0)]).tolist()) for _, _, f in pool]
@@ -154,7 +220,11 @@ def hidden_episodes(
         return None
 
     while len(episodes) < count:
-        g = int(rng.integers(len(pool)))
+        g = (
+            int(rng.integers(len(pool)))
+            if weights is None
+            else int(rng.choice(len(pool), p=weights))
+        )
         text, ids, field = pool[g]
         cell = hidden_start(g, rng)
         if cell is not None and int(parts[cell]) not in goal_parts[g]:
@@ -195,7 +265,7 @@ def hidden_episodes(
 
 def scene_episodes(spec: SplitSpec, seed: int, layout: Layout, task: str) -> EpisodeSet:
     """The split's episode set of one scene and task (what `sNN/<task>.json` holds)."""
-    return hidden_episodes(layout, task, spec.episodes_per_scene, seed)
+    return hidden_episodes(layout, task, spec.episodes_per_scene, seed, spec=spec)
 
 
 def _dump(data: dict[str, Any]) -> str:
@@ -215,7 +285,8 @@ def write_split(split: str, out: Path) -> tuple[dict[str, list[EpisodeSet]], dic
     layouts: dict[str, Layout] = {}
     scenes = []
     for index, seed in enumerate(spec.seeds):
-        layout = layouts[f"apartment-{seed}"] = make_layout(spec, seed)
+        layout = make_layout(spec, seed)
+        layouts[layout.name] = layout
         scene_dir = folder / scene_name(index)
         scene_dir.mkdir(parents=True, exist_ok=True)
         (scene_dir / "layout.json").write_text(_dump(layout_to_dict(layout)), encoding="utf-8")
@@ -226,13 +297,28 @@ def write_split(split: str, out: Path) -> tuple[dict[str, list[EpisodeSet]], dic
             )
             sets[task].append(episode_set)
         scenes.append({"scene": scene_name(index), "seed": seed, "layout": layout.name})
+    generator: dict[str, Any] = {
+        "area_scale": spec.area_scale,
+        "hallway": spec.hallway,
+        "n_rooms": "6 + seed % 2",
+    }
+    if spec.house:
+        generator = {
+            "house": True,
+            "area_scale": spec.area_scale,
+            "n_rooms": "7-11 + hallway",
+            "unlikely_rate": UNLIKELY_RATE,
+        }
     manifest = {
         "format": "glmap-sim-benchmark",
         "version": 1,
         "split": split,
         "command": COMMAND,
-        "generator": {"area_scale": spec.area_scale, "hallway": spec.hallway,
-                      "n_rooms": "6 + seed % 2"},
+        "generator": generator,
+        **({"perception": spec.perception} if spec.house else {}),
+        **({"goals": {"hm3d_share": spec.hm3d_share, "hm3d_categories": list(GOAL_CATEGORIES),
+                      "instnav_multi_share": spec.multi_share,
+                      "seeable_only": spec.seeable_only}} if spec.house else {}),
         "episodes_per_scene": spec.episodes_per_scene,
         "min_geodesic": MIN_GEODESIC,
         "min_passage_cells": MIN_PASSAGE_CELLS,
@@ -270,6 +356,12 @@ def split_statistics(sets: list[EpisodeSet], layouts: dict[str, Layout]) -> dict
 def split_dir(split: str, root: Path | None = None) -> Path:
     _check_split(split)
     return (root or DATA_ROOT) / split
+
+
+def split_perception(split: str) -> str:
+    """The perception a built-in split is played with by default: its `split.json`'s
+    "perception" ("detector" for the house splits), "gt" where the file has none."""
+    return str(_manifest(split).get("perception", "gt"))
 
 
 @functools.lru_cache(maxsize=8)

@@ -26,7 +26,7 @@ from typing import Any
 from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
 from glmap_tools.sim.episodes import TASKS, Episode, episodes_from_dict
 
-BUILT_IN_SPLITS = ("tune", "bench")
+BUILT_IN_SPLITS = ("tune", "bench", "house-tune", "house-bench")
 NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_-]{0,23}$")
 SceneDirs = Mapping[str, Path]  # split name -> scene folder
 
@@ -38,7 +38,7 @@ class BenchEpisode:
     Attributes:
         episode_id: "<split>/<task>/<scene>-<index>", e.g. "bench/objectnav/s03-017".
         task: "objectnav" or "instnav".
-        split: "tune", "bench", or the name of a scene folder.
+        split: "tune", "bench", "house-tune", "house-bench", or a scene folder's name.
         scene: the scene's folder in the split ("s03"); the layout itself has its own name
             (e.g. "apartment-<seed>").
         layout_path: the scene's layout JSON.
@@ -59,7 +59,7 @@ def check_split_name(name: str) -> str:
     built-in split's name.
 
     Raises:
-        InvalidInputError: a name of another form, or 'tune'/'bench'.
+        InvalidInputError: a name of another form, or a built-in split's.
     """
     if not isinstance(name, str) or not NAME_PATTERN.match(name):
         raise InvalidInputError(
