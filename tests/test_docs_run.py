@@ -19,8 +19,9 @@ by default: python compiles, `glmap` arguments parse, other commands answer --he
 `GLMAP_DOCS_SLOW=1` runs them all. Any other marker, e.g. `<!-- docs-test: live-ollama -->`,
 names what the block needs that a test machine lacks, and the block is not run; except
 `<!-- docs-test: venv NAME -->`: a python block run by the framework venv .ci/venvs/NAME
-(`bash .ci/frameworks.sh` builds them; GLMAP_FRAMEWORK_VENVS=0 skips such blocks), with this
-venv's `glmap-mcp` first on PATH.
+(`bash .ci/frameworks.sh` builds them; GLMAP_FRAMEWORK_VENVS=0 skips such blocks) as a new
+user runs it: neither this venv's `bin` on PATH nor the repository on the Python path, and
+$GLMAP_MCP set to this venv's `glmap-mcp` by absolute path, as the pages' setup says.
 """
 
 from __future__ import annotations
@@ -56,6 +57,7 @@ NOT_RUN = {
     "python -m pytest": "is the test suite itself",
     "claude": "needs the Claude Code CLI",
     "which": "depends on the reader's PATH",
+    "export": "sets a variable of the reader's shell (GLMAP_MCP: the test sets it itself)",
 }
 # Command heads that are slow wherever they appear, and why.
 SLOW = {
@@ -195,8 +197,16 @@ def run_python(block: Block, cwd: Path) -> None:
         assert Path(python).exists(), f"{block} needs {python}: run bash .ci/frameworks.sh"
     script = cwd / f"block_{block.line}.py"
     script.write_text(block.text, encoding="utf-8")
-    env = dict(os.environ, PYTHONPATH=str(REPO), PYOPENGL_PLATFORM="egl", HF_HUB_OFFLINE="1")
-    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"  # glmap-mcp
+    env = dict(os.environ, PYOPENGL_PLATFORM="egl", HF_HUB_OFFLINE="1")
+    here = Path(sys.executable).parent
+    if block.venv is None:
+        env["PYTHONPATH"] = str(REPO)
+        env["PATH"] = f"{here}{os.pathsep}{env.get('PATH', '')}"  # glmap-mcp
+    else:  # a framework's own venv knows glmap-mcp only by the absolute path in $GLMAP_MCP
+        env.pop("PYTHONPATH", None)
+        paths = env.get("PATH", "").split(os.pathsep)
+        env["PATH"] = os.pathsep.join(p for p in paths if p and Path(p).resolve() != here.resolve())
+        env["GLMAP_MCP"] = str(here / "glmap-mcp")
     done = subprocess.run(
         [python, str(script)], cwd=cwd, env=env, capture_output=True, text=True, timeout=900
     )

@@ -26,6 +26,14 @@ if TYPE_CHECKING:
     from glmap_tools.map import GLMap
     from glmap_tools.perception.semantics import FrameSemantics
 
+# Per-call clients (a server process per tool call, e.g. LangChain's get_tools()) lose the
+# episode between calls; the message names both ways to keep it (docs/frameworks/langchain.md).
+NO_EPISODE = (
+    "no simulator episode in this session; call sim_reset first. A client that starts a "
+    "server per tool call keeps no episode between calls: launch glmap-mcp with --map NAME, "
+    "or keep one session open (e.g. LangChain's client.session(...))."
+)
+
 
 def start(
     session: Session, sim: simulator.SimEpisode, embedder: Embedder, scorer: Any = None
@@ -56,7 +64,7 @@ def active_sim(session: Session) -> simulator.SimEpisode:
     """The session's simulator episode, or raise saying to call sim_reset."""
     sim = session.sim
     if sim is None:
-        raise InvalidInputError("no simulator episode in this session; call sim_reset first.")
+        raise InvalidInputError(NO_EPISODE)
     return sim
 
 
@@ -65,7 +73,7 @@ def running(session: Session) -> tuple[simulator.SimEpisode, NavSession]:
     sim = active_sim(session)
     nav = of(session)
     if nav is None:
-        raise InvalidInputError("no simulator episode in this session; call sim_reset first.")
+        raise InvalidInputError(NO_EPISODE)
     if sim.over:
         raise InvalidInputError("the episode is over; call sim_reset to start another.")
     return sim, nav

@@ -61,11 +61,11 @@ async def sim_reset(
     target = session_of(call, session)
     wh = tuple(int(v) for v in size.split("x")) if size else state.config.sim_size
     steps = max_steps or state.config.sim_max_steps
+    perception = state.config.sim_perception
     bench = simulator.bench_episode(episode, state.config.scene_dirs) if episode else None
     if bench is not None and goal:
         raise InvalidInputError("give episode or goal, not both: an episode has its goal.")
 
-    perception = state.config.sim_perception
     def run() -> ImageResult:
         with target.sim_lock:  # a sim_step in flight finishes first
             return reset()
@@ -111,7 +111,7 @@ async def sim_step(
     target = session_of(call, session)
     sim: simulator.SimEpisode | None = target.sim
     if sim is None:
-        raise InvalidInputError("no simulator episode in this session; call sim_reset first.")
+        raise InvalidInputError(navsession.NO_EPISODE)
     episode = sim
     resets = sim.resets  # the episode this call acts in; a sim_reset meanwhile refuses it
     updates: list[str] = []

@@ -1,11 +1,13 @@
 """Play the scripted ObjectNav episode through langchain-mcp-adapters (runs in .ci/venvs/langchain).
 
-    python tests/frameworks/run_langchain.py per-call|session GLMAP_MCP MAPS_DIR
+    python tests/frameworks/run_langchain.py per-call|session|no-map GLMAP_MCP MAPS_DIR
 
 per-call: the default `MultiServerMCPClient(...).get_tools()`, which starts a fresh server for
 every tool call; the server is launched with `--map` so those processes share one map and
 episode. session: one server for the whole episode through `client.session(...)` and
-`load_mcp_tools`. The loop and its model (langchain-core's GenericFakeChatModel, whose
+`load_mcp_tools`. no-map: `get_tools()` on a server launched without `--map`: `sim_reset`,
+then the `sim_step` that finds no episode in its new process; prints its reply (the error).
+The loop and its model (langchain-core's GenericFakeChatModel, whose
 messages come from tests/frameworks/episode.py) are in langchain_loop.py. Prints one JSON
 object: the replies, how many image blocks each tool's reply carried, the tool names and
 the seconds taken.
@@ -37,11 +39,16 @@ async def main(mode: str, command: str, maps_dir: str) -> dict[str, Any]:
     start = time.perf_counter()
     if mode == "per-call":
         out = await play(await client.get_tools())
+    elif mode == "no-map":
+        tools = {t.name: t for t in await client.get_tools()}
+        await tools["sim_reset"].ainvoke({"episode": "tune/objectnav/s03-013", "size": "160x120"})
+        reply = await tools["sim_step"].ainvoke({"action": "turn_left"})
+        return {"reply": [block.get("text", block.get("type")) for block in reply]}
     elif mode == "session":
         async with client.session("glmap") as session:
             out = await play(await load_mcp_tools(session))
     else:
-        raise SystemExit(f"mode {mode!r}: use per-call or session")
+        raise SystemExit(f"mode {mode!r}: use per-call, session or no-map")
     return {**out, "seconds": round(time.perf_counter() - start, 1)}
 
 

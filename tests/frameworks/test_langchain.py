@@ -28,6 +28,14 @@ def test_langchain_default_get_tools_keeps_the_episode_with_the_map_option(tmp_p
     assert (tmp_path / "langchain-test.glmap").exists()
 
 
+@pytest.mark.slow  # a fresh glmap-mcp for each of the two calls
+def test_langchain_get_tools_without_the_map_option_says_how_to_keep_the_episode(tmp_path):
+    out = run_json("langchain", "run_langchain.py", "no-map", str(GLMAP_MCP), str(tmp_path))
+    (error,) = out["reply"]  # the adapters hand the model the error text as the reply
+    assert error.startswith("Error executing tool sim_step: no simulator episode in this session")
+    assert "--map NAME" in error and "client.session(...)" in error
+
+
 @pytest.mark.slow  # starts glmap-mcp
 def test_langchain_explicit_session_plays_the_episode_on_one_server(tmp_path):
     out = played("session", str(tmp_path))
