@@ -78,7 +78,8 @@ def context_notes(info: dict[str, Any], ids: bool = False) -> str:
     rows = info.get("around", {}).get("nearby", [])
     hidden = set(info.get("around", {}).get("behind_walls", []))  # another room's
     by_dir: dict[str, list[str]] = {}
-    for uid, label, dist, _, direction in rows:
+    for row in rows:  # named fields (locate_situation) or bare rows (Surroundings.as_dict)
+        uid, label, dist, _, direction = row.values() if isinstance(row, dict) else row
         if uid in hidden:
             continue
         by_dir.setdefault(direction, []).append(

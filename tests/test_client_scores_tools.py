@@ -82,3 +82,24 @@ async def test_bearing_is_described_as_relative_to_the_heading(tmp_path):
 
     field = FromAgent.model_fields["bearing_deg"]
     assert field.description == "degrees from the agent's heading, + = to its left"
+
+
+async def test_locate_situation_names_the_fields_of_each_nearby_unit(tmp_path):
+    from agents.sqa import context_notes
+    from tests.test_server_fixtures import frame_args
+
+    async with Client(build_server(config(tmp_path))) as client:
+        for eye in ((0.0, -2.6, 1.4), (-2.5, 1.5, 1.4)):
+            assert not (await client.call_tool("observe_frame", frame_args(eye))).is_error
+        args = {"situation": "I am standing next to the dining table, facing the blue chair"}
+        info = ok(await client.call_tool("locate_situation", args))
+    nearby = info["around"]["nearby"]
+    assert nearby and all(
+        list(n) == ["id", "label", "distance_m", "bearing_deg", "direction"] for n in nearby
+    )
+    assert [n["distance_m"] for n in nearby] == sorted(n["distance_m"] for n in nearby)
+    front = [n for n in nearby if n["direction"] == "front"]
+    assert all(-45 <= n["bearing_deg"] < 45 for n in front)
+    notes = context_notes(info, ids=True)  # the SQA agent reads the named fields
+    first = nearby[0]
+    assert f"{first['label']} ({first['distance_m']} m, id {first['id']})" in notes

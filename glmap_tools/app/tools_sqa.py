@@ -33,6 +33,10 @@ class ReadingIn(BaseModel):
     constraints: list[ConstraintIn] = Field(default_factory=list, max_length=8)
 
 
+# The fields of one nearby unit (`Nearby.as_row`): bearing from the heading, + = left.
+NEARBY_FIELDS = ("id", "label", "distance_m", "bearing_deg", "direction")
+
+
 def locate(
     glmap: Any,
     situation: str,
@@ -61,7 +65,9 @@ def locate(
     s = situate(glmap, situation, reading=SituationReading.from_dict(reading) if reading else None)
     views = labelled_views(glmap, s.x, s.y, s.heading)
     where = surroundings(glmap, s.x, s.y, s.heading)
-    info: dict[str, Any] = {"situation": s.as_dict(), "around": where.as_dict(max_units=12)}
+    around = where.as_dict(max_units=12)
+    around["nearby"] = [dict(zip(NEARBY_FIELDS, row, strict=True)) for row in around["nearby"]]
+    info: dict[str, Any] = {"situation": s.as_dict(), "around": around}
     info["views"] = [[v.direction, round(v.heading_deg)] for v in views]
     if question.strip():
         a, _ = answer_at(glmap, s, question, where=where)
