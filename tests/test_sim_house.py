@@ -113,3 +113,13 @@ def test_the_apartment_default_is_unchanged_by_the_house_option() -> None:
     assert layout.name == "apartment-7"
     house_only = {"vase", "bowl", "pillow", "laundry basket", "dryer", "doormat"}
     assert not house_only & set(layout.categories)
+
+
+def test_glmap_sim_new_writes_a_house(tmp_path, capsys) -> None:
+    from glmap_tools.cli import main as glmap_main
+    from glmap_tools.sim.layout_io import load_layout
+
+    out = tmp_path / "house.json"
+    assert glmap_main(["sim", "new", "--house", "--seed", "4", "--out", str(out)]) == 0
+    assert load_layout(out).name == "house-4"
+    assert "second bathroom" in capsys.readouterr().out

@@ -39,7 +39,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("new", help="generate a furnished apartment layout (JSON)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same layout)")
-    p.add_argument("--rooms", type=int, help="number of rooms, 3..7 (default: from the seed)")
+    p.add_argument(
+        "--rooms", type=int, help="furnished rooms, 3..7 (houses 7..11; default: from the seed)"
+    )
+    p.add_argument(
+        "--house",
+        action="store_true",
+        help="a house: 8-12 rooms along a hallway, two bedrooms and bathrooms at least, "
+        "clutter, now and then a goal object in an unlikely room (the house splits')",
+    )
     p.add_argument("--out", type=Path, required=True, help="layout JSON to write")
     p.add_argument("--topdown", type=Path, help="also write a top-down PNG of the layout")
     p.add_argument("--overwrite", action="store_true")
@@ -138,7 +146,7 @@ def run_new(args: argparse.Namespace) -> int:
     from glmap_tools.sim.layout_io import save_layout
 
     _check_out(args.out, args.overwrite)
-    layout = generate_apartment(args.seed, n_rooms=args.rooms)
+    layout = generate_apartment(args.seed, n_rooms=args.rooms, house=args.house)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     save_layout(layout, args.out)
     rooms = ", ".join(r.name for r in layout.rooms)
