@@ -12,6 +12,7 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 import numpy as np
 import pytest
 
+from glmap_tools.errors import InvalidInputError
 from glmap_tools.sim.benchmark import (
     SPLIT_SPECS,
     bench_episode,
@@ -27,6 +28,7 @@ from glmap_tools.sim.benchmark import (
 from glmap_tools.sim.clutter import GOAL_CATEGORIES, unlikely_categories
 from glmap_tools.sim.episodes import TASKS, episodes_to_dict, goal_distance_field, goal_pool
 from glmap_tools.sim.layout_io import layout_to_dict
+from glmap_tools.sim.scene_dirs import read_scene_episodes
 
 HOUSE_SPLITS = ("house-tune", "house-bench")
 
@@ -132,3 +134,26 @@ def test_goal_weights_give_each_group_its_share_and_leave_the_old_splits_uniform
     hm3d = np.array([text in GOAL_CATEGORIES for text, _, _ in pool])
     assert weights[hm3d].sum() == pytest.approx(0.6)
     assert goal_weights(layout, "objectnav", pool, SPLIT_SPECS["bench"]) is None
+
+
+def test_every_episode_carries_its_split_perception_and_a_scene_folder_may_name_one(
+    tmp_path,
+) -> None:
+    assert {be.perception for be in load_split("house-tune", "objectnav")} == {"detector"}
+    assert {be.perception for be in load_split("tune", "objectnav")} == {"gt"}
+    scene = tmp_path / "mine" / "a"
+    scene.mkdir(parents=True)
+    source = split_dir("house-tune") / "s00"
+    for name in ("layout.json", "objectnav.json"):
+        (scene / name).write_text((source / name).read_text())
+    folder = tmp_path / "mine"
+    assert {be.perception for be in load_split("mine", "objectnav", {"mine": folder})} == {"gt"}
+    (folder / "split.json").write_text(json.dumps({"perception": "detector"}))
+    read_scene_episodes.cache_clear()
+    assert {be.perception for be in load_split("mine", "objectnav", {"mine": folder})} == {
+        "detector"
+    }
+    (folder / "split.json").write_text(json.dumps({"perception": "noisy"}))
+    read_scene_episodes.cache_clear()
+    with pytest.raises(InvalidInputError, match="'noisy' is not one of"):
+        load_split("mine", "objectnav", {"mine": folder})

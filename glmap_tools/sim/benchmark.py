@@ -63,6 +63,7 @@ from glmap_tools.sim.scene_dirs import (
     read_scene_episodes,
     scene_dir_episode,
     scene_dir_episodes,
+    split_perception_of,
 )
 from glmap_tools.sim.sight import SightChecker
 
@@ -360,8 +361,10 @@ def split_dir(split: str, root: Path | None = None) -> Path:
 
 def split_perception(split: str) -> str:
     """The perception a built-in split is played with by default: its `split.json`'s
-    "perception" ("detector" for the house splits), "gt" where the file has none."""
-    return str(_manifest(split).get("perception", "gt"))
+    "perception" ("detector" for the house splits), "gt" where the file has none (each
+    `BenchEpisode.perception` carries it too)."""
+    _manifest(split)  # a missing split.json says how to regenerate it
+    return split_perception_of(split_dir(split))
 
 
 @functools.lru_cache(maxsize=8)

@@ -29,6 +29,7 @@ from glmap_tools.sim.episodes import TASKS, Episode, episodes_from_dict
 BUILT_IN_SPLITS = ("tune", "bench", "house-tune", "house-bench")
 NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_-]{0,23}$")
 SceneDirs = Mapping[str, Path]  # split name -> scene folder
+PERCEPTIONS = ("gt", "detector")
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,8 @@ class BenchEpisode:
         layout_path: the scene's layout JSON.
         episode: the episode (start, heading, goal text and object ids, geodesic metres,
             difficulty when the file has it).
+        perception: the perception the split is played with by default: its `split.json`'s
+            "perception" ("detector" for the house splits), else "gt".
     """
 
     episode_id: str
@@ -52,6 +55,7 @@ class BenchEpisode:
     scene: str
     layout_path: Path
     episode: Episode
+    perception: str = "gt"
 
 
 def check_split_name(name: str) -> str:
@@ -121,15 +125,37 @@ def check_scene_dir(folder: Path) -> Path:
     return folder
 
 
+def _split_manifest(folder: Path) -> dict[str, Any]:
+    manifest = folder / "split.json"
+    if not manifest.is_file():
+        return {}
+    data = json.loads(manifest.read_text(encoding="utf-8"))
+    return data if isinstance(data, dict) else {}
+
+
 def scene_names(folder: Path) -> tuple[str, ...]:
     """The folder's scenes: split.json's "scenes" when it has them, else every sub-folder
     with a layout.json, in name order."""
-    manifest = folder / "split.json"
-    if manifest.is_file():
-        data: dict[str, Any] = json.loads(manifest.read_text(encoding="utf-8"))
-        if isinstance(data.get("scenes"), list):
-            return tuple(str(s["scene"]) for s in data["scenes"])
+    data = _split_manifest(folder)
+    if isinstance(data.get("scenes"), list):
+        return tuple(str(s["scene"]) for s in data["scenes"])
     return tuple(sorted(p.parent.name for p in folder.glob("*/layout.json")))
+
+
+def split_perception_of(folder: Path) -> str:
+    """The perception a split folder is played with by default: its `split.json`'s
+    "perception" ("gt" or "detector"), "gt" where it names none.
+
+    Raises:
+        InvalidInputError: a "perception" other than "gt" or "detector".
+    """
+    perception = _split_manifest(folder).get("perception", "gt")
+    if perception not in PERCEPTIONS:
+        raise InvalidInputError(
+            f"{folder / 'split.json'}: perception {perception!r} is not one of {PERCEPTIONS}; "
+            'write "gt" or "detector", or leave it out (gt).'
+        )
+    return str(perception)
 
 
 @functools.lru_cache(maxsize=32)
@@ -139,6 +165,7 @@ def read_scene_episodes(
     """Every `task` episode of `scenes` under `folder`, as episodes of split `split`
     (scene order, then file order); a scene without a `<task>.json` has none."""
     out = []
+    perception = split_perception_of(folder)
     for scene in scenes:
         path = folder / scene / f"{task}.json"
         if not path.is_file():
@@ -153,6 +180,7 @@ def read_scene_episodes(
                     scene=scene,
                     layout_path=folder / scene / "layout.json",
                     episode=e,
+                    perception=perception,
                 )
             )
     return tuple(out)
