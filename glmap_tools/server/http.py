@@ -13,9 +13,12 @@ Here each connection is an `h11` protocol that
   still sending its request (never one whose request has arrived and is being answered), so
   an attacker's half-sent requests cannot lock out a client that sends whole requests;
 - may send a request line and headers of at most MAX_HEADER_BYTES (16 KiB), else gets 431
-  and is closed.
+  and is closed: every head counts, on a new connection and on a kept-alive one whose
+  previous reply is still being made (that reply is sent first).
 
-`RepeatFilter` lets the same log message through a few times a minute and then counts it.
+`RepeatFilter` lets the same log message through a few times a minute and then counts it;
+`DisconnectFilter` drops the SDK's traceback of a client gone before its request arrived
+(the deadline's own line says so).
 """
 
 from __future__ import annotations
@@ -82,15 +85,19 @@ class GuardedH11Protocol(H11Protocol):
         self._deadline: Any = None
         self._head_bytes = 0  # bytes of the current request's head received so far
         self._tail = b""  # the last bytes received, to find a head's end across reads
+        self._refused = False  # an overlong head arrived while a reply was being made
         self._arm()
         if len(self.connections) > self.max_connections:
             self._close_one_receiving()
 
     def _head_too_long(self, data: bytes) -> bool:
-        """Answer 431 and close if this request's line and headers pass MAX_HEADER_BYTES.
+        """Whether this request's line and headers, with `data`, pass MAX_HEADER_BYTES.
 
-        h11 limits only a head that arrives in pieces; one sent whole (200 KB in one write)
-        was parsed and accepted (issue 27 item 6).
+        Counted on every read that carries a head: on an idle connection, and on a kept-alive
+        one whose previous reply is still being made (h11 then only buffers the bytes, and
+        parses the whole head at once when the reply is done). h11 limits only a head it
+        parses in pieces; one sent whole (200 KB in one write, issue 27 item 6) or behind a
+        pending reply (issue 41 item 5) was accepted.
         """
         end = (self._tail + data).find(b"\r\n\r\n")
         size = self._head_bytes + (len(data) if end < 0 else max(0, end - len(self._tail)))
@@ -98,6 +105,10 @@ class GuardedH11Protocol(H11Protocol):
         if size <= self.max_header_bytes:
             self._head_bytes = size if end < 0 else 0
             return False
+        return True
+
+    def _refuse_head(self) -> None:
+        """Answer 431 and close."""
         type(self).closed_header += 1
         body = f"request line and headers over {self.max_header_bytes} bytes\n".encode()
         self.transport.write(
@@ -106,7 +117,6 @@ class GuardedH11Protocol(H11Protocol):
             + body
         )
         self.transport.close()
-        return True
 
     def _receiving(self) -> bool:
         """Still sending its request: its headers, or a body the app is waiting for."""
@@ -142,16 +152,26 @@ class GuardedH11Protocol(H11Protocol):
 
     def data_received(self, data: bytes) -> None:
         self._arm()  # a request starts (or goes on): it has request_timeout to finish
-        if self.conn.their_state is h11.IDLE and self._head_too_long(data):
+        if self._refused:
+            return  # an overlong head behind a pending reply: 431 once the reply is sent
+        before = self.conn.their_state
+        if before in (h11.IDLE, h11.DONE) and self._head_too_long(data):
+            if before is h11.IDLE:
+                self._refuse_head()
+            else:  # the previous request is still being answered: answer it first
+                self._refused = True
             return
         super().data_received(data)
-        if self.conn.their_state is not h11.IDLE:
-            self._head_bytes = 0  # the request's head is parsed; the next one counts anew
+        if before is h11.IDLE and self.conn.their_state is not h11.IDLE:
+            self._head_bytes, self._tail = 0, b""  # the head is parsed; the next counts anew
         if not self._receiving():
             self._disarm()
 
     def on_response_complete(self) -> None:
         super().on_response_complete()
+        if self._refused and not self.transport.is_closing():
+            self._refuse_head()
+            return
         if self._receiving() and self.conn.their_state is h11.SEND_BODY:
             self._arm()
 
@@ -198,8 +218,68 @@ class RepeatFilter(logging.Filter):
 
 
 def quiet_repeats(names: tuple[str, ...] = ("uvicorn.error", "uvicorn.access")) -> RepeatFilter:
-    """Install one RepeatFilter on uvicorn's loggers (and their handlers' records)."""
+    """Install one RepeatFilter on uvicorn's loggers (and their handlers' records), and a
+    DisconnectFilter (`quiet_disconnects`)."""
+    quiet_disconnects()
     repeat = RepeatFilter()
     for name in names:
         logging.getLogger(name).addFilter(repeat)
     return repeat
+
+
+DISCONNECT_LOGGERS = (
+    "mcp.server.streamable_http",
+    "mcp.server._streamable_http_modern",
+    "mcp.server.streamable_http_manager",
+    "uvicorn.error",
+)
+
+
+def _is_disconnect(exc: BaseException | None) -> bool:
+    """`exc` is starlette's ClientDisconnect (alone, in a group, or as the cause)."""
+    from starlette.requests import ClientDisconnect
+
+    seen = 0
+    while exc is not None and seen < 8:
+        if isinstance(exc, ClientDisconnect):
+            return True
+        if isinstance(exc, BaseExceptionGroup):
+            return all(_is_disconnect(e) for e in exc.exceptions)
+        exc, seen = exc.__cause__ or exc.__context__, seen + 1
+    return False
+
+
+class DisconnectFilter(logging.Filter):
+    """Drop the record of a request whose client went before its body arrived.
+
+    The request deadline closes such a connection and says so in one line
+    (`GuardedH11Protocol._too_slow`); the MCP SDK then logged the same event again as
+    "Error handling POST request" with a ClientDisconnect traceback (issue 41 item 6).
+    A client that hangs up mid-request is no server error either.
+
+    Attributes:
+        dropped: records dropped so far.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.dropped = 0
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.exc_info and _is_disconnect(record.exc_info[1]):
+            self.dropped += 1
+            return False
+        return True
+
+    def remove(self) -> None:
+        """Take this filter off the loggers `quiet_disconnects` put it on."""
+        for name in DISCONNECT_LOGGERS:
+            logging.getLogger(name).removeFilter(self)
+
+
+def quiet_disconnects() -> DisconnectFilter:
+    """Install one DisconnectFilter on the loggers that report a client's disconnect."""
+    quiet = DisconnectFilter()
+    for name in DISCONNECT_LOGGERS:
+        logging.getLogger(name).addFilter(quiet)
+    return quiet
