@@ -86,7 +86,8 @@ class RecordedModel:
         key = request_key("POST", SAMPLING_PATH, body)
         if key in self.by_key:
             return types.CreateMessageResult.model_validate(self.by_key[key])
-        text = "\n".join(m["content"] for m in body["messages"])
+        # The Ollama path sends an image inside its message; sampling as a message of its own.
+        text = "\n".join(m["content"] for m in body["messages"] if m["content"] != "[image]")
         if text in self.by_text:
             return reply(self.by_text[text], "recorded")
         closest = ""

@@ -33,11 +33,12 @@ from glmap_tools.language.sampling import (
     usage_report,
 )
 from glmap_tools.nav.scorers import UnitText
+from glmap_tools.perception.backends import model_perception
 from glmap_tools.server import build_server
 from glmap_tools.server.cli import build_parser, config_from_args
 from tests import llm_scenarios as sc
 from tests.sampling_replay import NAV_CASSETTE, NAV_GOAL, RecordedModel, nav_episode
-from tests.test_server_fixtures import config
+from tests.test_server_fixtures import config, scene
 
 pytestmark = pytest.mark.anyio
 SAMPLING = LLMSettings(scorer="sampling", text_merger="sampling")
@@ -169,6 +170,45 @@ async def test_a_text_buffer_past_its_limit_is_merged_by_the_client_model(tmp_pa
     assert model.requests and not model.misses, model.misses
     assert "Merge them into one description" in model.requests[0]["messages"][0]["content"]
     assert sc.CHAIR_BASE in json.dumps(found.structured_content)
+
+
+async def test_the_client_model_names_the_segments_of_a_frame_from_its_contact_sheet(tmp_path):
+    model = RecordedModel("segment_naming.jsonl")  # the Ollama path's recording
+    settings = LLMSettings(mllm="sampling")
+    server = build_server(
+        config(tmp_path, llm=settings), model_perception("geometric+mllm", settings)
+    )
+    frame, _ = synthetic.view(scene(), sc.SEGMENT_EYE, (0.0, 0.3, 0.4), 320, 240)
+    async with Client(server, sampling_callback=model, mode="legacy") as client:
+        observed = await client.call_tool("observe_frame", observe_arguments(frame, None, [], []))
+        assert not observed.is_error, observed.content[0].text
+        found = await client.call_tool("find_instance", {"query": "table", "top_k": 3})
+    assert model.requests and not model.misses, model.misses
+    assert [m["content"] for m in model.requests[0]["messages"]][0] == "[image]"  # the sheet
+    expected = json.loads((sc.CASSETTES / "segment_naming.result.json").read_text())
+    labels = sorted(h["label"] for h in found.structured_content["hits"])  # type: ignore[index]
+    assert labels == sorted(label for label, _ in expected["instances"])
+
+
+async def test_segments_the_client_model_does_not_name_stay_pending_for_label_segments(
+    tmp_path, caplog
+):
+    async def refuse(context: Any, params: types.CreateMessageRequestParams) -> Any:
+        return types.ErrorData(code=-1, message="the user declined")
+
+    settings = LLMSettings(mllm="sampling")
+    server = build_server(
+        config(tmp_path, llm=settings), model_perception("geometric+mllm", settings)
+    )
+    frame, _ = synthetic.view(scene(), sc.SEGMENT_EYE, (0.0, 0.3, 0.4), 320, 240)
+    with caplog.at_level(logging.WARNING, logger="glmap_tools.sampling"):
+        async with Client(server, sampling_callback=refuse, mode="legacy") as client:
+            observed = await client.call_tool(
+                "observe_frame", observe_arguments(frame, None, [], [])
+            )
+    assert not observed.is_error, observed.content[0].text
+    assert "label_segments" in observed.content[0].text
+    assert any("used pending segments" in r.getMessage() for r in caplog.records)
 
 
 # ------------------------------------------------------------ without MCP

@@ -36,6 +36,8 @@ from glmap_tools.app.runtime import (
 )
 from glmap_tools.app.session import locked
 from glmap_tools.app.views import describe_topdown, topdown
+from glmap_tools.errors import LLMError
+from glmap_tools.language.sampling import fallback_message, note_fallback
 from glmap_tools.map import FREE, OBSTACLE
 from glmap_tools.map.report import UnitInfo
 from glmap_tools.views import TopDownImage
@@ -111,7 +113,16 @@ async def observe_frame(
             pending = await tools_perception.observe_unannotated(state, target, frame)
             return pending  # type: ignore[return-value]  # the SDK checks it as ObserveResult
         perceive = state.perception
-        semantics = await in_thread(lambda: perceive(frame))
+        try:
+            semantics = await in_thread(lambda: perceive(frame))
+        except LLMError as exc:  # the client's model (sampling) did not name the segments
+            if not state.config.llm.uses_sampling or state.config.llm.fallback == "none":
+                raise
+            note_fallback(
+                fallback_message("naming the segments", exc, "pending segments for label_segments")
+            )
+            pending = await tools_perception.observe_unannotated(state, target, frame)
+            return pending  # type: ignore[return-value]  # the SDK checks it as ObserveResult
     await call.report_progress(1, 3, f"fusing {len(semantics.objects)} objects")
     await in_thread(lambda: embed_ahead(state.embedder, semantics))  # outside the lock
 

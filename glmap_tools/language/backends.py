@@ -27,11 +27,12 @@ from glmap_tools.errors import InvalidInputError, did_you_mean
 TEXT_MERGERS = ("extractive", "llm", "sampling")
 SCORERS = ("embedding", "llm", "sampling")
 FALLBACKS = ("offline", "ollama", "none")
+MLLMS = ("ollama", "sampling")
 # `glmap-mcp --llm`: one word for both parts (the scorer's and the merger's backends).
 LLM_CHOICES = {
-    "embedding": ("embedding", "extractive"),
-    "ollama": ("llm", "llm"),
-    "sampling": ("sampling", "sampling"),
+    "embedding": ("embedding", "extractive", "ollama"),
+    "ollama": ("llm", "llm", "ollama"),
+    "sampling": ("sampling", "sampling", "sampling"),
 }
 SAMPLING_BATCH = 40  # units per sampling call: a client's model reads longer lists well
 
@@ -47,6 +48,9 @@ class LLMSettings:
             "offline" (embedding scorer, extractive merger), "ollama" (`model` on `host`)
             or "none" (the error reaches the tool call).
         sampling_timeout: seconds to wait for the client's answer to one sampling request.
+        mllm: the vision model of the model-backed perception (`--perception
+            geometric+mllm`, `mllm`): "ollama" (`model`) or "sampling" (the client's model;
+            a frame it cannot name keeps its segments pending for label_segments).
         model: Ollama model tag for the LLM parts (the paper: Qwen3-8B for text).
         host: Ollama URL (None = $OLLAMA_HOST or http://127.0.0.1:11434).
         timeout: seconds per request.
@@ -58,6 +62,7 @@ class LLMSettings:
     scorer: str = "embedding"
     fallback: str = "offline"
     sampling_timeout: float = 60.0
+    mllm: str = "ollama"
     model: str = "qwen3:8b"
     host: str | None = None
     timeout: float = 120.0
@@ -69,6 +74,7 @@ class LLMSettings:
             ("text_merger", self.text_merger, TEXT_MERGERS),
             ("scorer", self.scorer, SCORERS),
             ("fallback", self.fallback, FALLBACKS),
+            ("mllm", self.mllm, MLLMS),
         ):
             if value not in choices:
                 raise InvalidInputError(
@@ -88,7 +94,7 @@ class LLMSettings:
     @property
     def uses_sampling(self) -> bool:
         """Whether a part asks the MCP client's model (sampling)."""
-        return "sampling" in (self.text_merger, self.scorer)
+        return "sampling" in (self.text_merger, self.scorer, self.mllm)
 
     def sampling_client(self) -> Any:
         """The `SamplingClient` for these settings (one per part; cheap)."""
@@ -111,6 +117,22 @@ class LLMSettings:
             timeout=self.timeout,
             transcript=Transcript(self.transcript) if self.transcript else None,
         )
+
+    def vision_client(self) -> Any:
+        """The vision model of the model-backed perception: the client's (sampling) or
+        `model` on Ollama."""
+        if self.mllm == "sampling":
+            from glmap_tools.language.sampling import SamplingClient
+            from glmap_tools.language.transcript import Transcript
+
+            return SamplingClient(
+                timeout=self.sampling_timeout,
+                vision=True,
+                transcript=Transcript(self.transcript) if self.transcript else None,
+            )
+        from glmap_tools.language.llm import OllamaClient
+
+        return OllamaClient(self.model, host=self.host, timeout=self.timeout, vision=True)
 
     def prompt_set(self) -> Any:
         from glmap_tools.language.prompts import PromptSet, default_prompts
@@ -202,8 +224,9 @@ def add_llm_arguments(
             "--llm",
             choices=list(LLM_CHOICES),
             default=None,
-            help="both parts at once: embedding (offline), ollama, or sampling (ask the "
-            "client's model through MCP sampling, when the client declares it)",
+            help="every model part at once (f_S, text merger, the --perception MLLM): "
+            "embedding (offline), ollama, or sampling (ask the client's model through MCP "
+            "sampling, when the client declares it)",
         )
         g.add_argument(
             "--llm-fallback",
@@ -226,13 +249,14 @@ def add_llm_arguments(
 
 def settings_from_args(args: argparse.Namespace) -> LLMSettings:
     """`LLMSettings` from arguments added by `add_llm_arguments`."""
-    scorer, merger = getattr(args, "scorer", "embedding"), args.text_merger
+    scorer, merger, mllm = getattr(args, "scorer", "embedding"), args.text_merger, "ollama"
     both = getattr(args, "llm", None)
     if both is not None:
-        scorer, merger = LLM_CHOICES[both]
+        scorer, merger, mllm = LLM_CHOICES[both]
     return LLMSettings(
         text_merger=merger,
         scorer=scorer,
+        mllm=mllm,
         fallback=getattr(args, "llm_fallback", "offline"),
         sampling_timeout=getattr(args, "sampling_timeout", 60.0),
         model=args.llm_model,

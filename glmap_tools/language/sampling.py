@@ -271,14 +271,15 @@ class SamplingClient:
         return reply
 
 
-def _fallback_message(what: str, exc: Exception, fallback: str) -> str:
+def fallback_message(what: str, exc: Exception, fallback: str) -> str:
+    """'<what> by the client's model failed (<why>); used <fallback> instead'."""
     text = " ".join(str(exc).split())
     if len(text) > 240:
         text = text[:240] + "..."
     return f"{what} by the client's model failed ({text}); used {fallback} instead"
 
 
-def _note(message: str) -> None:
+def note_fallback(message: str) -> None:
     """Say that a part fell back: a log line (once per reason in a row) and the usage."""
     binding = _ACTIVE.get()
     if binding is None or binding.usage.last_fallback != message:
@@ -317,7 +318,7 @@ class FallbackScorer:
         except LLMError as exc:
             if self.fallback is None:
                 raise
-            _note(_fallback_message("scoring", exc, f"the {self.fallback_name} scorer"))
+            note_fallback(fallback_message("scoring", exc, f"the {self.fallback_name} scorer"))
             return np.asarray(self.fallback.score(goal, units), dtype=np.float64)
 
 
@@ -346,5 +347,7 @@ class FallbackMerger:
         except LLMError as exc:
             if self.fallback is None:
                 raise
-            _note(_fallback_message("merging a text", exc, f"the {self.fallback_name} merger"))
+            note_fallback(
+                fallback_message("merging a text", exc, f"the {self.fallback_name} merger")
+            )
             return str(self.fallback.merge(texts, max_words))

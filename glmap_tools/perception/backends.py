@@ -13,7 +13,8 @@ MODEL_PERCEPTIONS = ("geometric+mllm", "mllm")
 def model_perception(
     kind: str, settings: Any, detector: Path | None = None, segmenter: Path | None = None
 ) -> Any:
-    """A frame -> FrameSemantics backend that uses a vision model through Ollama.
+    """A frame -> FrameSemantics backend that uses a vision model (Ollama, or the MCP
+    client's model when `settings.mllm` is "sampling").
 
     Args:
         kind: "geometric+mllm" (model-free segments named by the MLLM) or "mllm" (the
@@ -26,9 +27,7 @@ def model_perception(
     """
     if kind not in MODEL_PERCEPTIONS:
         raise InvalidInputError(f"perception {kind!r} is not one of {list(MODEL_PERCEPTIONS)}.")
-    from glmap_tools.language.llm import OllamaClient
-
-    client = OllamaClient(settings.model, host=settings.host, timeout=settings.timeout, vision=True)
+    client = settings.vision_client()  # Ollama, or the MCP client's model (sampling)
     if kind == "mllm":
         from glmap_tools.perception.grounding import GroundedSegmenter, MLLMGroundedPerception
 
