@@ -156,7 +156,7 @@ async def play_episode(
         "steps": int(final["steps"]),
         "path_length": float(final.get("path_length", 0.0)),
         "collisions": int(final.get("collisions", 0)),
-        "outcome": str(final.get("outcome", "")),
+        "outcome": str(final.get("episode_outcome", "")),
         "tool_calls": len(client.records),
         "wall_s": round(time.perf_counter() - start_time, 3),
         "seed": seed,

@@ -315,7 +315,7 @@ def status(sim: SimEpisode) -> dict[str, Any]:
         out["path_length"] = round(float(info["path_length"]), 3)
         from glmap_tools.sim.outcome import episode_outcome
 
-        out["outcome"] = episode_outcome(
+        out["episode_outcome"] = episode_outcome(
             bool(info["success"]),
             sim.truncated,
             float(info["distance_to_goal"]),

@@ -41,6 +41,7 @@ from glmap_tools.nav.perceive import (
 from glmap_tools.nav.planner import Plan
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
 from glmap_tools.nav.value import ValueMap, value_map_from_scores
+from glmap_tools.nav.verify import outvoted
 from glmap_tools.nav.waypoint import GoalMatch, Waypoint
 
 if TYPE_CHECKING:
@@ -172,11 +173,15 @@ def _score_units(
 ) -> Scored:
     """f_S of the units the policy reads, and the goal match among the instances (units
     the agent cannot be expected to recognise as goals left out; ties to `prefer`, the
-    previous match, else to the lowest id)."""
+    previous match, else to the lowest id). The glmap policies verify the match over the
+    views the map fused (`nav/verify.py`): an outvoted candidate gives way to the next."""
     units = map_units(glmap, "instances" if policy not in ("glmap", "glmap-region") else "both")
     scores = scorer.score(goal, units) if units else np.zeros(0)
-    unfit = set(unfit_goals(glmap)) if units else set()
-    match = find_goal_match(glmap, units, scores, rejected | unfit, config, scorer, goal, prefer)
+    skip = set(unfit_goals(glmap)) if units else set()
+    match = find_goal_match(glmap, units, scores, rejected | skip, config, scorer, goal, prefer)
+    while policy in POLICY_UNITS and match is not None and outvoted(glmap, match.unit_id):
+        skip.add(match.unit_id)
+        match = find_goal_match(glmap, units, scores, rejected | skip, config, scorer, goal, prefer)
     by_id = {u.unit_id: float(v) for u, v in zip(units, scores, strict=True)}
     return Scored(units, by_id, match)
 

@@ -1,0 +1,72 @@
+"""Goal verification over fused views: a unit the map saw more often as something else
+does not hold the goal for the glmap policies; the baselines keep VLFM's rule."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from glmap_tools import synthetic as scenes
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.nav import NavConfig, NavState, decide
+from glmap_tools.nav.verify import covered_share, outvoted, same_place
+
+TABLE = ("table", "a large oak dining table")
+DESK = ("desk", "a desk")
+CONFIG = NavConfig(stop_threshold=0.5, min_observations=2, initial_spin=0)
+
+
+def build(labels: list[tuple[str, str]]) -> GLMap:
+    """A table seen from the room's centre, perceived in view k as `labels[k]`."""
+    boxes = scenes.floor(6.0) + scenes.table(1.5, 0.0, object_id=2)
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    for k, text in enumerate(labels):
+        a = math.radians(-10 + 20 * k / max(len(labels) - 1, 1))
+        frame, ids = scenes.view(boxes, (0.0, 0.0, 0.88), (math.cos(a), math.sin(a), 0.88), 96, 72)
+        glmap.integrate(frame, scenes.semantics(ids, {2: text}))
+    return glmap
+
+
+def desk_unit(glmap: GLMap) -> int:
+    return next(i for i, u in glmap.instances.items() if u.label == "desk")
+
+
+def test_a_box_inside_another_is_covered_and_a_box_beside_it_is_not() -> None:
+    lo, hi = np.zeros(3), np.ones(3)
+    assert covered_share(lo + 0.2, hi - 0.2, lo, hi) == pytest.approx(1.0)
+    assert covered_share(lo + 2, hi + 2, lo, hi) == 0.0
+    flat = (np.array([0.2, 0.5, 0.2]), np.array([0.8, 0.5, 0.8]))  # a picture's flat box
+    assert covered_share(*flat, lo, hi) == pytest.approx(1.0)
+    assert same_place(lo + 0.05, hi - 0.05, lo, hi)
+    # A pillow on a bed lies inside the bed's box, but the bed is not at the pillow's place.
+    assert not same_place(np.array([0.4, 0.4, 0.5]), np.array([0.6, 0.6, 0.6]), lo, hi)
+
+
+def test_a_table_seen_twice_as_a_desk_and_six_times_as_a_table_is_outvoted() -> None:
+    glmap = build([TABLE, DESK, TABLE, TABLE, DESK, TABLE, TABLE, TABLE])
+    assert len(glmap.instances) == 2
+    assert outvoted(glmap, desk_unit(glmap))
+    table = next(i for i, u in glmap.instances.items() if u.label == "table")
+    assert not outvoted(glmap, table)
+
+
+def test_the_glmap_policy_does_not_stop_at_an_outvoted_desk_but_the_frontier_baseline_does() -> (
+    None
+):
+    glmap = build([TABLE, DESK, TABLE, TABLE, DESK, TABLE, TABLE, TABLE])
+    desk = desk_unit(glmap)
+    for policy, holds in (("glmap", False), ("glmap-instance", False), ("frontier", True)):
+        d = decide(glmap, (0.0, 0.0), 0.0, "desk", policy=policy, state=NavState(), config=CONFIG)
+        matched = d.waypoint.kind == "goal" and d.waypoint.unit_id == desk
+        assert matched == holds, (policy, d.waypoint)
+
+
+def test_a_desk_seen_as_a_desk_more_often_than_as_a_table_still_holds_the_goal() -> None:
+    glmap = build([DESK, DESK, TABLE, DESK, DESK])
+    desk = desk_unit(glmap)
+    assert not outvoted(glmap, desk)
+    d = decide(glmap, (0.0, 0.0), 0.0, "desk", policy="glmap", state=NavState(), config=CONFIG)
+    assert d.waypoint.kind == "goal" and d.waypoint.unit_id == desk
