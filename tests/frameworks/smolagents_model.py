@@ -22,8 +22,11 @@ class ScriptedModel(Model):
         super().__init__(model_id="scripted")
         self.replies: list[episode.Reply] = []
         self.pending: str | None = None
+        self.images_seen = 0  # the most image blocks one request to the model carried
 
     def generate(self, messages: list[ChatMessage], *args: Any, **kwargs: Any) -> ChatMessage:
+        blocks = [b for m in messages if not isinstance(m.content, str) for b in m.content or []]
+        self.images_seen = max(self.images_seen, sum(b.get("type") == "image" for b in blocks))
         if self.pending is not None:
             self.replies.append((self.pending, episode.reply_json(printed(messages[-1]))))
         call = episode.next_call(self.replies)

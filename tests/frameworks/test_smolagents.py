@@ -27,6 +27,15 @@ def test_smolagents_code_agent_plays_the_episode_through_tool_collection(tmp_pat
     assert out["reply_type"] == "str"
 
 
+@pytest.mark.slow  # starts glmap-mcp
+def test_the_documented_adapter_hands_the_replies_images_to_the_code_agents_model(tmp_path):
+    out = run_json("smolagents", "run_smolagents.py", str(GLMAP_MCP), str(tmp_path), "pictures")
+    assert out["answer"] == "episode over"
+    assert episode.problems([tuple(r) for r in out["replies"]]) == []
+    assert sum(out["step_images"]) >= 5 and out["images_seen"] >= 1
+    assert out["formats"] == ["JPEG", "PNG"]  # camera views, and the maps (value_map, nav_step)
+
+
 @pytest.mark.slow  # plays 29 simulator steps
 def test_smolagents_code_agent_plays_the_episode_with_the_in_process_tools(tmp_path):
     # The same episode through Toolset.as_smolagents_tools() in this venv (no MCP adapter):
