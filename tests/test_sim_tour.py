@@ -96,3 +96,22 @@ def test_cli_reports_a_bad_layout_with_a_clear_error(tmp_path, capsys, layout) -
     path.write_text(json.dumps(data))
     assert glmap_main(["sim", "episodes", str(path), "--out", str(tmp_path / "e.json")]) == 1
     assert "Did you mean 'kenney/loungeSofa'" in capsys.readouterr().err
+
+
+def test_a_tour_with_detector_perception_writes_fewer_and_different_annotations(
+    layout, tmp_path
+) -> None:
+    counts = {}
+    for perception in ("gt", "detector"):
+        out = tmp_path / perception
+        write_tour(layout, out, SMALL, step=0.5, spin=4, max_frames=12, perception=perception)
+        labels = []
+        for i in range(12):
+            semantics = read_annotation(out, f"{i:05d}", (SMALL.height, SMALL.width))
+            assert semantics is not None
+            labels += [(i, o.local_id, o.label) for o in semantics.objects]
+        counts[perception] = labels
+    assert len(counts["detector"]) < len(counts["gt"])  # misses
+    assert set(counts["detector"]) != set(counts["gt"])
+    with pytest.raises(Exception, match="perception='yolo'"):
+        write_tour(layout, tmp_path / "x", SMALL, max_frames=1, perception="yolo")

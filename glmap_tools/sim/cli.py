@@ -72,6 +72,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--step", type=float, default=0.4, help="metres between walking frames")
     p.add_argument("--spin", type=int, default=8, help="headings looked at in each room")
     p.add_argument("--max-frames", type=int, help="stop after this many frames")
+    p.add_argument(
+        "--perception",
+        choices=["gt", "detector"],
+        default="gt",
+        help="annotations: exact (gt) or with a detector's errors (sim/design.md)",
+    )
     _add_camera(p)
     p.set_defaults(func=run_tour)
 
@@ -208,7 +214,15 @@ def run_tour(args: argparse.Namespace) -> int:
     from glmap_tools.sim.tour import write_tour
 
     layout = load_layout(args.layout)
-    n = write_tour(layout, args.out, _camera(args), args.step, args.spin, args.max_frames)
+    n = write_tour(
+        layout,
+        args.out,
+        _camera(args),
+        args.step,
+        args.spin,
+        args.max_frames,
+        perception=args.perception,
+    )
     print(
         f"wrote {n} frames to {args.out} (color/, depth/, annotations/, trajectory.log, "
         f"camera_intrinsics.json); look at {args.out}/topdown.png and {args.out}/preview/"

@@ -29,6 +29,7 @@ from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
 from glmap_tools.ingest.images import write_annotation
 from glmap_tools.sim.annotate import annotate_view
+from glmap_tools.sim.detector import PERCEPTIONS, detect_view, load_rates
 from glmap_tools.sim.layout import Layout
 from glmap_tools.sim.navigation import NavGrid, build_nav_grid
 from glmap_tools.sim.render import CameraSpec, SceneRenderer
@@ -195,8 +196,16 @@ def write_tour(
     spin: int = 8,
     max_frames: int | None = None,
     preview_every: int = 5,
+    perception: str = "gt",
 ) -> int:
-    """Render the tour into folder `out` (see the module docstring); returns the frame count."""
+    """Render the tour into folder `out` (see the module docstring); returns the frame count.
+
+    `perception`: "gt" (exact annotations) or "detector" (a detector's misses, confusions,
+    bleeding masks and wrong colours, `sim/detector.py`; no goal, so no goal hallucinations).
+    """
+    if perception not in PERCEPTIONS:
+        raise InvalidInputError(f"perception={perception!r} is not one of {list(PERCEPTIONS)}.")
+    rates = load_rates() if perception == "detector" else None
     folder = Path(out)
     camera = camera or CameraSpec()
     grid = build_nav_grid(layout)
@@ -209,7 +218,19 @@ def write_tour(
         for i, stop in enumerate(stops):
             pose = Pose.from_position_heading(stop.x, stop.y, camera.camera_height, stop.heading)
             view = renderer.render(pose)
-            mask, annotation = annotate_view(view.instance_mask, layout)
+            if rates is None:
+                mask, annotation = annotate_view(view.instance_mask, layout)
+            else:
+                mask, annotation = detect_view(
+                    view.instance_mask,
+                    view.depth,
+                    layout,
+                    camera.intrinsics,
+                    pose.matrix,
+                    goal_category="",
+                    episode="tour",
+                    rates=rates,
+                )
             stem = f"{i:05d}"
             cv2.imwrite(str(folder / "color" / f"{stem}.png"), view.rgb[:, :, ::-1])
             depth_mm = np.clip(np.round(view.depth * 1000.0), 0, 65535).astype(np.uint16)
