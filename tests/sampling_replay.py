@@ -13,7 +13,7 @@ glmap-ollama-cassette format of glmap_tools.language.ollama_replay, tests/casset
 A request that no recording holds is answered with an error naming the closest one (and
 counted in `misses`), so a test fails where the prompt changed.
 
-    python -m tests.sampling_replay     # rewrite the sampling cassette (scripted stand-in)
+    python -m tests.sampling_replay     # rewrite the sampling cassettes (scripted stand-ins)
 """
 
 from __future__ import annotations
@@ -32,6 +32,8 @@ CASSETTES = Path(__file__).parent / "cassettes"
 SAMPLING_PATH = "sampling/createMessage"
 NAV_CASSETTE = "sampling_nav.jsonl"
 NAV_GOAL = "sofa"
+SITUATION_CASSETTE = "sampling_situation.jsonl"
+SITUATION = "I am sitting on the red wooden chair, facing the dining table."
 HAND_WRITTEN = (
     "written by hand: replies from a scripted stand-in (tests/sampling_replay.py, keyword "
     "rules, no language model); replace with a real recording"
@@ -114,6 +116,17 @@ def keyword_scores(params: types.CreateMessageRequestParams) -> types.CreateMess
     return reply(json.dumps({"scores": scores}))
 
 
+def situation_reading(params: types.CreateMessageRequestParams) -> types.CreateMessageResult:
+    """Plays a reader: the offline reader's reading of the quoted situation, posture added."""
+    from glmap_tools.sqa.reading import read_situation
+
+    text = request_body(params)["messages"][0]["content"]
+    situation = re.search(r'home: "(.*)"\.', text).group(1)  # type: ignore[union-attr]
+    reading = read_situation(situation).as_dict()
+    reading["posture"] = "sitting" if "sitting" in situation else reading["posture"]
+    return reply(json.dumps({"reading": reading, "scores": []}))
+
+
 class Recorder:
     """A `sampling_callback` that answers with `responder` and keeps every exchange."""
 
@@ -138,6 +151,41 @@ async def nav_episode(client: Any) -> dict[str, Any]:
     return json.loads(result.content[0].text)  # type: ignore[no-any-return]
 
 
+async def situated(client: Any) -> dict[str, Any]:
+    """The call the reading test makes: the fixture scene observed, then locate_situation."""
+    from tests.test_server_fixtures import frame_args
+
+    await client.call_tool("observe_frame", frame_args())
+    result = await client.call_tool("locate_situation", {"situation": SITUATION})
+    return json.loads(result.content[0].text)  # type: ignore[no-any-return]
+
+
+def _write(name: str, recorder: Recorder) -> None:
+    unique = {request_key(m, p, b): (m, p, b, s, r) for m, p, b, s, r in recorder.exchanges}
+    write_cassette(CASSETTES / name, list(unique.values()), source=HAND_WRITTEN, record=RECORD)
+    print(f"wrote {CASSETTES / name}: {len(unique)} exchanges")
+
+
+def write_situation_cassette(maps_dir: Path) -> None:
+    """Play `situated` against the scripted reader and write tests/cassettes/SITUATION."""
+    import anyio
+    from mcp import Client
+
+    from glmap_tools.language.backends import LLMSettings
+    from glmap_tools.server import build_server
+    from tests.test_server_fixtures import config
+
+    recorder = Recorder(situation_reading)
+
+    async def play() -> None:
+        server = build_server(config(maps_dir, llm=LLMSettings(reader="sampling")))
+        async with Client(server, sampling_callback=recorder, mode="legacy") as client:
+            await situated(client)
+
+    anyio.run(play)
+    _write(SITUATION_CASSETTE, recorder)
+
+
 def write_nav_cassette(maps_dir: Path) -> None:
     """Play `nav_episode` against the scripted stand-in and write tests/cassettes/NAV."""
     import anyio
@@ -155,16 +203,13 @@ def write_nav_cassette(maps_dir: Path) -> None:
             await nav_episode(client)
 
     anyio.run(play)
-    unique = {request_key(m, p, b): (m, p, b, s, r) for m, p, b, s, r in recorder.exchanges}
-    write_cassette(
-        CASSETTES / NAV_CASSETTE, list(unique.values()), source=HAND_WRITTEN, record=RECORD
-    )
-    print(f"wrote {CASSETTES / NAV_CASSETTE}: {len(unique)} exchanges")
+    _write(NAV_CASSETTE, recorder)
 
 
 if __name__ == "__main__":
     import tempfile
 
     with tempfile.TemporaryDirectory() as folder:
-        write_nav_cassette(Path(folder))
+        write_nav_cassette(Path(folder) / "nav")
+        write_situation_cassette(Path(folder) / "situation")
     sys.exit(0)

@@ -37,7 +37,14 @@ from glmap_tools.perception.backends import model_perception
 from glmap_tools.server import build_server
 from glmap_tools.server.cli import build_parser, config_from_args
 from tests import llm_scenarios as sc
-from tests.sampling_replay import NAV_CASSETTE, NAV_GOAL, RecordedModel, nav_episode
+from tests.sampling_replay import (
+    NAV_CASSETTE,
+    NAV_GOAL,
+    SITUATION_CASSETTE,
+    RecordedModel,
+    nav_episode,
+    situated,
+)
 from tests.test_server_fixtures import config, scene
 
 pytestmark = pytest.mark.anyio
@@ -209,6 +216,27 @@ async def test_segments_the_client_model_does_not_name_stay_pending_for_label_se
     assert not observed.is_error, observed.content[0].text
     assert "label_segments" in observed.content[0].text
     assert any("used pending segments" in r.getMessage() for r in caplog.records)
+
+
+async def test_the_client_model_reads_the_situation_that_locate_situation_places(tmp_path):
+    model = RecordedModel(SITUATION_CASSETTE)
+    server = build_server(config(tmp_path, llm=LLMSettings(reader="sampling")))
+    async with Client(server, sampling_callback=model, mode="legacy") as client:
+        info = await situated(client)
+    assert model.requests and not model.misses, model.misses
+    recorded = model.cassettes[0].exchanges[0]["response"]["body"]["content"]["text"]
+    assert info["read_by"] == "the client's model (sampling)"
+    assert info["situation"]["reading"] == json.loads(recorded)["reading"]
+    assert info["situation"]["reading"]["posture"] == "sitting"  # the rule reader has none
+
+
+async def test_a_situation_the_client_model_cannot_read_is_read_by_the_rules(tmp_path, caplog):
+    server = build_server(config(tmp_path, llm=LLMSettings(reader="sampling")))
+    with caplog.at_level(logging.WARNING, logger="glmap_tools.sampling"):
+        async with Client(server, mode="legacy") as client:  # no sampling declared
+            info = await situated(client)
+    assert info["read_by"] == "rules (fallback)" and info["situation"]["reading"]["anchor"]
+    assert any("used the rule reader instead" in r.getMessage() for r in caplog.records)
 
 
 # ------------------------------------------------------------ without MCP

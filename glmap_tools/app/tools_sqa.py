@@ -83,6 +83,39 @@ def locate(
     return info, images
 
 
+def model_reading(settings: Any, situation: str) -> tuple[dict[str, Any] | None, str]:
+    """The situation read by the configured model (`LLMSettings.reader`), or None for the
+    offline reader; and who read it, for the result.
+
+    A sampling reader that fails, is refused or times out falls back (`settings.fallback`:
+    Ollama, else the offline reader; "none" raises) and says so in a log line.
+    """
+    from glmap_tools.errors import LLMError
+    from glmap_tools.language.backends import LLMSettings
+    from glmap_tools.language.sampling import fallback_message, note_fallback
+    from glmap_tools.sqa.llm_reading import llm_read_situation
+
+    reader = settings.reader
+    if reader == "rules" or not situation.strip():
+        return None, "rules"
+    if reader == "llm":
+        reading = llm_read_situation(settings.client(), situation, prompts=settings.prompt_set())
+        return reading.as_dict(), f"ollama {settings.model}"
+    try:
+        client = settings.sampling_client()
+        reading = llm_read_situation(client, situation, prompts=settings.prompt_set())
+        return reading.as_dict(), "the client's model (sampling)"
+    except LLMError as exc:
+        if settings.fallback == "none":
+            raise
+        if settings.fallback == "ollama":
+            note_fallback(fallback_message("reading the situation", exc, "ollama"))
+            ollama = LLMSettings(**{**vars(settings), "reader": "llm"})
+            return model_reading(ollama, situation)
+        note_fallback(fallback_message("reading the situation", exc, "the rule reader"))
+        return None, "rules (fallback)"
+
+
 async def locate_situation(
     call: Call,
     situation: Annotated[
@@ -108,10 +141,15 @@ async def locate_situation(
         )
     target = session_of(call, session)
     read = reading.model_dump() if reading is not None else None
+    read_by = "given" if read is not None else "rules"
+    if read is None and call.state.config.llm.reader != "rules":  # off the map's lock
+        read, read_by = await in_thread(lambda: model_reading(call.state.config.llm, situation))
 
     def run() -> ImageResult:
         with locked(target) as glmap:
             info, images = locate(glmap, situation, question, topdown, read)
+        if read_by not in ("given", "rules"):
+            info["read_by"] = read_by
         sit = info["situation"]
         note = (
             f"At ({sit['x']}, {sit['y']}) facing {sit['heading_deg']} deg"

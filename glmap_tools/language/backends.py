@@ -28,11 +28,12 @@ TEXT_MERGERS = ("extractive", "llm", "sampling")
 SCORERS = ("embedding", "llm", "sampling")
 FALLBACKS = ("offline", "ollama", "none")
 MLLMS = ("ollama", "sampling")
+READERS = ("rules", "llm", "sampling")
 # `glmap-mcp --llm`: one word for both parts (the scorer's and the merger's backends).
-LLM_CHOICES = {
-    "embedding": ("embedding", "extractive", "ollama"),
-    "ollama": ("llm", "llm", "ollama"),
-    "sampling": ("sampling", "sampling", "sampling"),
+LLM_CHOICES = {  # (scorer, text_merger, mllm, reader)
+    "embedding": ("embedding", "extractive", "ollama", "rules"),
+    "ollama": ("llm", "llm", "ollama", "llm"),
+    "sampling": ("sampling", "sampling", "sampling", "sampling"),
 }
 SAMPLING_BATCH = 40  # units per sampling call: a client's model reads longer lists well
 
@@ -51,6 +52,8 @@ class LLMSettings:
         mllm: the vision model of the model-backed perception (`--perception
             geometric+mllm`, `mllm`): "ollama" (`model`) or "sampling" (the client's model;
             a frame it cannot name keeps its segments pending for label_segments).
+        reader: who reads locate_situation's situation text into the reading form:
+            "rules" (the offline reader), "llm" (`model` on Ollama) or "sampling".
         model: Ollama model tag for the LLM parts (the paper: Qwen3-8B for text).
         host: Ollama URL (None = $OLLAMA_HOST or http://127.0.0.1:11434).
         timeout: seconds per request.
@@ -63,6 +66,7 @@ class LLMSettings:
     fallback: str = "offline"
     sampling_timeout: float = 60.0
     mllm: str = "ollama"
+    reader: str = "rules"
     model: str = "qwen3:8b"
     host: str | None = None
     timeout: float = 120.0
@@ -75,6 +79,7 @@ class LLMSettings:
             ("scorer", self.scorer, SCORERS),
             ("fallback", self.fallback, FALLBACKS),
             ("mllm", self.mllm, MLLMS),
+            ("reader", self.reader, READERS),
         ):
             if value not in choices:
                 raise InvalidInputError(
@@ -89,12 +94,12 @@ class LLMSettings:
     def uses_llm(self) -> bool:
         """Whether a part talks to Ollama (a sampling part may, as its fallback)."""
         ollama_fallback = self.uses_sampling and self.fallback == "ollama"
-        return "llm" in (self.text_merger, self.scorer) or ollama_fallback
+        return "llm" in (self.text_merger, self.scorer, self.reader) or ollama_fallback
 
     @property
     def uses_sampling(self) -> bool:
         """Whether a part asks the MCP client's model (sampling)."""
-        return "sampling" in (self.text_merger, self.scorer, self.mllm)
+        return "sampling" in (self.text_merger, self.scorer, self.mllm, self.reader)
 
     def sampling_client(self) -> Any:
         """The `SamplingClient` for these settings (one per part; cheap)."""
@@ -224,7 +229,8 @@ def add_llm_arguments(
             "--llm",
             choices=list(LLM_CHOICES),
             default=None,
-            help="every model part at once (f_S, text merger, the --perception MLLM): "
+            help="every model part at once (f_S, text merger, the --perception MLLM, the "
+            "situation reader): "
             "embedding (offline), ollama, or sampling (ask the client's model through MCP "
             "sampling, when the client declares it)",
         )
@@ -249,14 +255,16 @@ def add_llm_arguments(
 
 def settings_from_args(args: argparse.Namespace) -> LLMSettings:
     """`LLMSettings` from arguments added by `add_llm_arguments`."""
-    scorer, merger, mllm = getattr(args, "scorer", "embedding"), args.text_merger, "ollama"
+    scorer, merger = getattr(args, "scorer", "embedding"), args.text_merger
+    mllm, reader = "ollama", "rules"
     both = getattr(args, "llm", None)
     if both is not None:
-        scorer, merger, mllm = LLM_CHOICES[both]
+        scorer, merger, mllm, reader = LLM_CHOICES[both]
     return LLMSettings(
         text_merger=merger,
         scorer=scorer,
         mllm=mllm,
+        reader=reader,
         fallback=getattr(args, "llm_fallback", "offline"),
         sampling_timeout=getattr(args, "sampling_timeout", 60.0),
         model=args.llm_model,
