@@ -316,8 +316,9 @@ def narrow_passages(layout: Layout) -> list[str]:
     Why such a passage is impassable rather than a steering problem: the agent turns in
     30 deg steps from its start heading and moves 0.25 m at a time, so its heading can be up
     to 15 deg off a passage's axis; through a one-cell (0.41 m) gap it must keep its centre
-    on a 5 cm line, which a 0.25 m step leaves unless the heading is within 11 deg of the
-    axis. `glmap sim episodes` draws no start that needs such a passage.
+    on a 5 cm line, which a 0.25 m step leaves unless the heading is within about 6 deg of
+    the axis (about 1 start heading in 3). `glmap sim episodes` draws no start that needs
+    such a passage.
     """
     grid = build_nav_grid(layout)
     labels = grid.passable_parts(MIN_PASSAGE_CELLS)
