@@ -294,3 +294,14 @@ def test_glmap_mcp_llm_sampling_sets_both_parts_and_the_fallback(tmp_path: Path)
     plain = config_from_args(build_parser().parse_args(["--scorer", "sampling"])).llm
     assert (plain.scorer, plain.text_merger) == ("sampling", "extractive")
     assert not config_from_args(build_parser().parse_args([])).llm.uses_sampling
+
+
+def test_with_fallback_ollama_a_failed_sampling_request_asks_the_ollama_model():
+    from glmap_tools.language.ollama_replay import ScriptedOllama
+
+    with ScriptedOllama(sc.keyword_scores) as ollama:
+        settings = LLMSettings(scorer="sampling", fallback="ollama", host=ollama.host)
+        scorer = make_scorer(settings, HashingEmbedder())
+        scores = scorer.score("tv", sc.NAV_UNITS)  # outside a tool call: no client to ask
+    assert ollama.requests and scorer.fallback_name == "ollama"
+    np.testing.assert_allclose(scores, [0.92, 0.05, 0.92, 0.92, 0.05])

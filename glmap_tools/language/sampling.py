@@ -281,11 +281,19 @@ def fallback_message(what: str, exc: Exception, fallback: str) -> str:
 
 def note_fallback(message: str) -> None:
     """Say that a part fell back: a log line (once per reason in a row) and the usage."""
+    global _LAST_UNBOUND
     binding = _ACTIVE.get()
-    if binding is None or binding.usage.last_fallback != message:
+    if binding is None:  # outside a tool call (e.g. an episode replayed at start-up)
+        if message != _LAST_UNBOUND:
+            logger.warning("glmap: %s", message)
+        _LAST_UNBOUND = message
+        return
+    if binding.usage.last_fallback != message:
         logger.warning("glmap: %s", message)
-    if binding is not None:
-        binding.usage.fell_back(message)
+    binding.usage.fell_back(message)
+
+
+_LAST_UNBOUND = ""
 
 
 class FallbackScorer:
