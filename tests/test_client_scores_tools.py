@@ -103,3 +103,24 @@ async def test_locate_situation_names_the_fields_of_each_nearby_unit(tmp_path):
     notes = context_notes(info, ids=True)  # the SQA agent reads the named fields
     first = nearby[0]
     assert f"{first['label']} ({first['distance_m']} m, id {first['id']})" in notes
+
+
+def test_the_match_threshold_depends_on_what_a_query_asks_for():
+    from glmap_tools.map.queries import MATCH_RULES, match_threshold, query_kind
+
+    class Embedder:
+        name = "all-MiniLM-L6-v2"
+        default_tau_match = 0.49
+
+    class Map:
+        embedder = Embedder()
+
+    assert query_kind("instance", "desk") == "name"
+    assert query_kind("instance", "somewhere to sit") == "use"
+    assert query_kind("region", "a place to eat") == "region"
+    rules = MATCH_RULES["all-MiniLM-L6-v2"]
+    # "desk" reached a chair at 0.497: no match by name; a region needs less than an instance.
+    assert match_threshold(Map(), "instance", "desk") == rules["name"] > 0.497  # type: ignore[arg-type]
+    assert rules["region"] < rules["use"] <= 0.49 < rules["name"]
+    Embedder.name = "hashing-256"  # not calibrated per kind: its one threshold
+    assert match_threshold(Map(), "region", "kitchen") == 0.49  # type: ignore[arg-type]

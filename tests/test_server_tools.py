@@ -81,17 +81,20 @@ async def test_find_instance_ranks_the_described_chair_first_with_its_geometry(t
 )  # hashing loads in the request; minilm loads on the background task
 async def test_every_hit_carries_a_calibrated_match_flag_over_mcp(tmp_path, embedder):
     from glmap_tools.language.embed import HashingEmbedder, MiniLMEmbedder
+    from glmap_tools.map.queries import MATCH_RULES
 
-    tau = {"hashing": HashingEmbedder, "minilm": MiniLMEmbedder}[embedder].default_tau_match
+    model = {"hashing": HashingEmbedder, "minilm": MiniLMEmbedder}[embedder]
+    rules = MATCH_RULES.get(getattr(model, "name", ""), {})  # by what a query asks for
+    tau = {k: rules.get(k, model.default_tau_match) for k in ("name", "region")}
     server = build_server(dataclasses.replace(config(tmp_path), embedder=embedder))
     async with Client(server) as client:
         await client.call_tool("observe_frame", frame_args())
         chair = await client.call_tool("find_instance", {"query": "a blue office chair"})
         bath = await client.call_tool("find_instance", {"query": "a white bathtub"})
         region = await client.call_tool("find_region", {"query": "dining corner"})
-    for result in (chair, bath, region):
+    for result, asks in ((chair, "name"), (bath, "name"), (region, "region")):
         for hit in result.structured_content["hits"]:
-            assert hit["match"] is (hit["score"] >= tau), hit
+            assert hit["match"] is (hit["score"] >= tau[asks]), hit
     assert chair.structured_content["hits"][0]["match"] is True
     assert not any(h["match"] for h in bath.structured_content["hits"])
 
