@@ -9,8 +9,8 @@ real models (rates in `data/detector_rates.json`, their sources in `sim/design.m
   more often for few pixels and at distance, and more for some objects than others (a
   per-object difficulty drawn once per scene: a real detector misreads the same armchair
   again and again);
-- false positives: at a per-frame rate, the goal's category on a wrong object or on a
-  segment of wall or floor;
+- false positives: at a per-frame rate, the goal's category on an object of the goal's
+  confusion group (a sink taken for a toilet) or on a segment of wall or floor;
 - masks that bleed a few pixels across depth edges; a wrong colour in a share of
   descriptions;
 - region descriptions from the perceived members only (`annotate.visible_group`).
@@ -372,19 +372,26 @@ def _false_positive(
     rates: DetectorRates,
     min_pixels: int,
 ) -> None:
-    """At the per-frame rate, label a wrong object or a background segment as the goal."""
+    """At the per-frame rate, label an object that looks like the goal (its confusion
+    group) or a background segment as the goal."""
     happens, on_object, pick, colour, where = rng.random(5)
     if happens >= rates.false_positive_per_frame or not goal_category:
         return
     by_id = layout.objects_by_id
     name = list(COLORS)[min(int(colour * len(COLORS)), len(COLORS) - 1)]
-    wrong = sorted(
-        i for i in labels if by_id[i].category != goal_category and labels[i] != goal_category
+    # Detectors' false positives are mostly objects that look like the class (Hoiem et al.
+    # 2012): a wrong object gets the goal's label only if it is of the goal's group.
+    similar = sorted(
+        i
+        for i in labels
+        if by_id[i].category != goal_category
+        and labels[i] != goal_category
+        and goal_category in rates.group_of(by_id[i].category)
     )
-    if on_object < rates.false_positive_on_object_share and wrong:
-        similar = [i for i in wrong if goal_category in rates.group_of(by_id[i].category)]
-        pool = similar or wrong
-        i = pool[min(int(pick * len(pool)), len(pool) - 1)]
+    if on_object < rates.false_positive_on_object_share:
+        if not similar:
+            return  # nothing in view looks like the goal
+        i = similar[min(int(pick * len(similar)), len(similar) - 1)]
         labels[i] = goal_category
         attributes = dict(by_id[i].attributes)
         texts[i] = object_description(goal_category, attributes)
