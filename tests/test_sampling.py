@@ -305,3 +305,34 @@ def test_with_fallback_ollama_a_failed_sampling_request_asks_the_ollama_model():
         scores = scorer.score("tv", sc.NAV_UNITS)  # outside a tool call: no client to ask
     assert ollama.requests and scorer.fallback_name == "ollama"
     np.testing.assert_allclose(scores, [0.92, 0.05, 0.92, 0.92, 0.05])
+
+
+async def answer_situated(client: Client) -> dict[str, Any]:
+    """The Ollama path's SQA scenario (tests/llm_scenarios.sqa_mllm) over MCP."""
+    from tests.test_server_fixtures import frame_args
+
+    for eye in ((0.0, -2.6, 1.4), (-2.5, 1.5, 1.4)):
+        assert not (await client.call_tool("observe_frame", frame_args(eye))).is_error
+    args = {"situation": sc.SQA_SITUATION, "question": sc.SQA_QUESTION}
+    return ok(await client.call_tool("locate_situation", args))
+
+
+async def test_the_client_model_answers_the_situated_question_from_the_four_views(tmp_path):
+    model = RecordedModel("sqa_mllm.jsonl")  # the Ollama path's recording answers
+    server = build_server(config(tmp_path, llm=LLMSettings(answerer="sampling")))
+    async with Client(server, sampling_callback=model, mode="legacy") as client:
+        info = await answer_situated(client)
+    assert model.requests and not model.misses, model.misses
+    assert [m["content"] for m in model.requests[0]["messages"]][0] == "[image]"  # the views
+    recorded = json.loads(model.cassettes[0].exchanges[0]["response"]["body"]["message"]["content"])
+    assert info["model_answer"] == {**recorded, "by": "the client's model (sampling)"}
+    assert info["map_answer"]["answer"]  # the map's own answer stays beside it
+
+
+async def test_a_question_the_client_model_cannot_answer_keeps_the_map_answer(tmp_path, caplog):
+    server = build_server(config(tmp_path, llm=LLMSettings(answerer="sampling")))
+    with caplog.at_level(logging.WARNING, logger="glmap_tools.sampling"):
+        async with Client(server, mode="legacy") as client:  # no sampling declared
+            info = await answer_situated(client)
+    assert "model_answer" not in info and info["map_answer"]["answer"]
+    assert any("used the map's answer instead" in r.getMessage() for r in caplog.records)

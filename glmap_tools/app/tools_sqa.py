@@ -116,6 +116,35 @@ def model_reading(settings: Any, situation: str) -> tuple[dict[str, Any] | None,
         return None, "rules (fallback)"
 
 
+def model_answer(
+    settings: Any, situation: str, question: str, info: dict[str, Any], views_png: bytes
+) -> dict[str, Any] | None:
+    """The configured model's answer (`LLMSettings.answerer`) from the four views and the
+    map's notes (glmap_tools.sqa.mllm_answer), or None when a sampling request failed and
+    the map's answer stands (`settings.fallback`; "none" raises), said in a log line."""
+    from glmap_tools.errors import LLMError
+    from glmap_tools.language.sampling import fallback_message, note_fallback
+    from glmap_tools.sqa.mllm_answer import mllm_answer
+
+    by = "the client's model (sampling)" if settings.answerer == "sampling" else "ollama"
+    backend = "sampling" if settings.answerer == "sampling" else "ollama"
+    try:
+        reply = mllm_answer(
+            settings.vision_client(backend),
+            situation,
+            question,
+            info,
+            views_png,
+            settings.prompt_set(),
+        )
+    except LLMError as exc:
+        if settings.answerer != "sampling" or settings.fallback == "none":
+            raise
+        note_fallback(fallback_message("answering the question", exc, "the map's answer"))
+        return None
+    return {"answer": reply.answer, "confidence": reply.confidence, "by": by}
+
+
 async def locate_situation(
     call: Call,
     situation: Annotated[
@@ -142,14 +171,19 @@ async def locate_situation(
     target = session_of(call, session)
     read = reading.model_dump() if reading is not None else None
     read_by = "given" if read is not None else "rules"
-    if read is None and call.state.config.llm.reader != "rules":  # off the map's lock
-        read, read_by = await in_thread(lambda: model_reading(call.state.config.llm, situation))
+    settings = call.state.config.llm
+    if read is None and settings.reader != "rules":  # off the map's lock
+        read, read_by = await in_thread(lambda: model_reading(settings, situation))
 
     def run() -> ImageResult:
         with locked(target) as glmap:
             info, images = locate(glmap, situation, question, topdown, read)
         if read_by not in ("given", "rules"):
             info["read_by"] = read_by
+        if question.strip() and settings.answerer != "map":  # the views are made: ask
+            said = model_answer(settings, situation or str(read), question, info, images[1])
+            if said is not None:
+                info["model_answer"] = said
         sit = info["situation"]
         note = (
             f"At ({sit['x']}, {sit['y']}) facing {sit['heading_deg']} deg"

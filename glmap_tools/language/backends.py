@@ -29,11 +29,12 @@ SCORERS = ("embedding", "llm", "sampling")
 FALLBACKS = ("offline", "ollama", "none")
 MLLMS = ("ollama", "sampling")
 READERS = ("rules", "llm", "sampling")
+ANSWERERS = ("map", "llm", "sampling")
 # `glmap-mcp --llm`: one word for both parts (the scorer's and the merger's backends).
-LLM_CHOICES = {  # (scorer, text_merger, mllm, reader)
-    "embedding": ("embedding", "extractive", "ollama", "rules"),
-    "ollama": ("llm", "llm", "ollama", "llm"),
-    "sampling": ("sampling", "sampling", "sampling", "sampling"),
+LLM_CHOICES = {  # (scorer, text_merger, mllm, reader, answerer)
+    "embedding": ("embedding", "extractive", "ollama", "rules", "map"),
+    "ollama": ("llm", "llm", "ollama", "llm", "llm"),
+    "sampling": ("sampling", "sampling", "sampling", "sampling", "sampling"),
 }
 SAMPLING_BATCH = 40  # units per sampling call: a client's model reads longer lists well
 
@@ -54,6 +55,9 @@ class LLMSettings:
             a frame it cannot name keeps its segments pending for label_segments).
         reader: who reads locate_situation's situation text into the reading form:
             "rules" (the offline reader), "llm" (`model` on Ollama) or "sampling".
+        answerer: who answers locate_situation's question beside the map's answer: "map"
+            (the map alone), "llm" (`model` on Ollama, a vision model) or "sampling" (the
+            client's model), from the four views and the map's notes (prompt sqa_answer).
         model: Ollama model tag for the LLM parts (the paper: Qwen3-8B for text).
         host: Ollama URL (None = $OLLAMA_HOST or http://127.0.0.1:11434).
         timeout: seconds per request.
@@ -67,6 +71,7 @@ class LLMSettings:
     sampling_timeout: float = 60.0
     mllm: str = "ollama"
     reader: str = "rules"
+    answerer: str = "map"
     model: str = "qwen3:8b"
     host: str | None = None
     timeout: float = 120.0
@@ -80,6 +85,7 @@ class LLMSettings:
             ("fallback", self.fallback, FALLBACKS),
             ("mllm", self.mllm, MLLMS),
             ("reader", self.reader, READERS),
+            ("answerer", self.answerer, ANSWERERS),
         ):
             if value not in choices:
                 raise InvalidInputError(
@@ -94,12 +100,14 @@ class LLMSettings:
     def uses_llm(self) -> bool:
         """Whether a part talks to Ollama (a sampling part may, as its fallback)."""
         ollama_fallback = self.uses_sampling and self.fallback == "ollama"
-        return "llm" in (self.text_merger, self.scorer, self.reader) or ollama_fallback
+        parts = (self.text_merger, self.scorer, self.reader, self.answerer)
+        return "llm" in parts or ollama_fallback
 
     @property
     def uses_sampling(self) -> bool:
         """Whether a part asks the MCP client's model (sampling)."""
-        return "sampling" in (self.text_merger, self.scorer, self.mllm, self.reader)
+        parts = (self.text_merger, self.scorer, self.mllm, self.reader, self.answerer)
+        return "sampling" in parts
 
     def sampling_client(self) -> Any:
         """The `SamplingClient` for these settings (one per part; cheap)."""
@@ -123,10 +131,10 @@ class LLMSettings:
             transcript=Transcript(self.transcript) if self.transcript else None,
         )
 
-    def vision_client(self) -> Any:
-        """The vision model of the model-backed perception: the client's (sampling) or
-        `model` on Ollama."""
-        if self.mllm == "sampling":
+    def vision_client(self, backend: str | None = None) -> Any:
+        """A vision model: the client's ("sampling") or `model` on Ollama; by default the
+        one the model-backed perception uses (`mllm`)."""
+        if (backend or self.mllm) == "sampling":
             from glmap_tools.language.sampling import SamplingClient
             from glmap_tools.language.transcript import Transcript
 
@@ -230,7 +238,7 @@ def add_llm_arguments(
             choices=list(LLM_CHOICES),
             default=None,
             help="every model part at once (f_S, text merger, the --perception MLLM, the "
-            "situation reader): "
+            "situation reader and answerer): "
             "embedding (offline), ollama, or sampling (ask the client's model through MCP "
             "sampling, when the client declares it)",
         )
@@ -256,15 +264,16 @@ def add_llm_arguments(
 def settings_from_args(args: argparse.Namespace) -> LLMSettings:
     """`LLMSettings` from arguments added by `add_llm_arguments`."""
     scorer, merger = getattr(args, "scorer", "embedding"), args.text_merger
-    mllm, reader = "ollama", "rules"
+    mllm, reader, answerer = "ollama", "rules", "map"
     both = getattr(args, "llm", None)
     if both is not None:
-        scorer, merger, mllm, reader = LLM_CHOICES[both]
+        scorer, merger, mllm, reader, answerer = LLM_CHOICES[both]
     return LLMSettings(
         text_merger=merger,
         scorer=scorer,
         mllm=mllm,
         reader=reader,
+        answerer=answerer,
         fallback=getattr(args, "llm_fallback", "offline"),
         sampling_timeout=getattr(args, "sampling_timeout", 60.0),
         model=args.llm_model,
