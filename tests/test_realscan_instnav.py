@@ -47,7 +47,7 @@ def test_the_goal_is_read_as_category_and_relation() -> None:
     assert relational_goal("The lamp on the nightstand in the bedroom") == RelationalGoal(
         "lamp", "on", "nightstand"
     )
-    assert relational_goal("the chair in the kitchen") is None
+    assert relational_goal("the chair in the kitchen") == RelationalGoal("chair", "in", "kitchen")
     assert relational_goal("sofa") is None
     assert NEXT_TO == instnav.NEAR
 
@@ -89,3 +89,12 @@ def test_a_goal_whose_anchor_is_not_near_any_unit_matches_nothing(scanned) -> No
     config = NavConfig.for_task("instnav", initial_spin=0)
     d = decide(scanned, (0.0, 0.0), 0.0, "the chair next to the sofa", config=config)
     assert d.matched_unit is None
+
+
+def test_in_the_room_matches_only_a_category_the_map_holds_once(scanned) -> None:
+    config = NavConfig.for_task("instnav", initial_spin=0)
+    chair = next(u.id for u in scanned.instances.values() if u.label == "chair")
+    d = decide(scanned, (0.0, 0.0), 0.0, "the chair in the dining room", config=config)
+    assert d.matched_unit == chair
+    two = decide(scanned, (0.0, 0.0), 0.0, "the table in the dining room", config=config)
+    assert two.matched_unit is None  # two tables: the room cannot tell them apart here

@@ -171,10 +171,14 @@ def find_goal_match(
 
 
 # "the table next to the chair", "the lamp on the nightstand" (sim.instnav's InstNav goals;
-# a trailing "in the bedroom" is read past): the head phrase, the relation, the anchor phrase.
+# a trailing "in the bedroom" is read past), "the wardrobe in the bedroom": the head phrase,
+# the relation, the anchor phrase (a room's name for "in").
 _RELATION = re.compile(
     r"^(?:the|a|an)\s+(?P<head>.+?)\s+(?P<rel>next to|on)\s+(?:the|a|an)\s+"
     r"(?P<anchor>.+?)(?:\s+in\s+the\s+.+)?\.?$"
+)
+_IN_ROOM = re.compile(
+    r"^(?:the|a|an)\s+(?P<head>.+?)\s+(?P<rel>in)\s+(?:the|a|an)\s+(?P<anchor>.+?)\.?$"
 )
 NEXT_TO = 1.0  # metres between footprints for "next to" (sim.instnav.NEAR; a test holds it)
 ON_GAP = 0.1  # metres: "on" asks the two footprints to overlap, up to map rounding
@@ -192,7 +196,8 @@ class RelationalGoal:
 def relational_goal(goal: str) -> RelationalGoal | None:
     """ "the table next to the chair" -> ('table', 'next to', 'chair'); None for a goal of
     another form."""
-    m = _RELATION.match(" ".join(goal.lower().split()))
+    text = " ".join(goal.lower().split())
+    m = _RELATION.match(text) or _IN_ROOM.match(text)
     if m is None:
         return None
     return RelationalGoal(m["head"], m["rel"], m["anchor"])
@@ -228,8 +233,9 @@ def relation_match(
     relation, it matches an instance labelled with the goal's head category (the longest
     label of the map ending the head phrase), seen in `min_observations` frames, with no
     description beyond its label, that has an instance of the anchor's category within
-    `NEXT_TO` ("next to") or `ON_GAP` ("on") of its cells. Ties go to `prefer`, else to the
-    best score, else to the lowest id.
+    `NEXT_TO` ("next to") or `ON_GAP` ("on") of its cells; "in the <room>" only when the
+    map holds a single instance of the category. Ties go to `prefer`, else to the best
+    score, else to the lowest id.
     """
     rel = relational_goal(goal)
     if rel is None:
@@ -237,7 +243,7 @@ def relation_match(
     instances = [u for u in units if u.kind == "instance"]
     labels = {u.label.strip().lower() for u in instances if u.label.strip()}
     head, anchor = _named(rel.head, labels), _named(rel.anchor, labels)
-    if head is None or anchor is None or head == anchor:
+    if head is None or (rel.relation != "in" and (anchor is None or head == anchor)):
         return None
     score = {u.unit_id: float(v) for u, v in zip(units, scores, strict=True)}
     heads = [
@@ -248,6 +254,16 @@ def relation_match(
         and u.observations >= config.min_observations
         and _bare(u)
     ]
+    if rel.relation == "in":
+        # The map keeps no rooms of a scan: "in the <room>" singles out the head only when
+        # the map holds one instance of its category.
+        same = [u for u in instances if u.label.strip().lower() == head]
+        if len(same) != 1 or not heads:
+            return None
+        u = heads[0]
+        return GoalMatch(
+            u.unit_id, score[u.unit_id], u.observations, unit_cell_array(glmap.grid, u.unit_id)
+        )
     anchors = [u for u in instances if u.label.strip().lower() == anchor]
     if not heads or not anchors:
         return None
