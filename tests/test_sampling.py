@@ -327,6 +327,7 @@ async def test_the_client_model_answers_the_situated_question_from_the_four_view
     recorded = json.loads(model.cassettes[0].exchanges[0]["response"]["body"]["message"]["content"])
     assert info["model_answer"] == {**recorded, "by": "the client's model (sampling)"}
     assert info["map_answer"]["answer"]  # the map's own answer stays beside it
+    assert info["llm"]["sampling_calls"] == 1 and info["llm"]["fallbacks"] == 0
 
 
 async def test_a_question_the_client_model_cannot_answer_keeps_the_map_answer(tmp_path, caplog):
@@ -336,3 +337,45 @@ async def test_a_question_the_client_model_cannot_answer_keeps_the_map_answer(tm
             info = await answer_situated(client)
     assert "model_answer" not in info and info["map_answer"]["answer"]
     assert any("used the map's answer instead" in r.getMessage() for r in caplog.records)
+
+
+@pytest.mark.slow  # starts glmap-mcp as a client does (~10 s on two busy cores)
+async def test_glmap_mcp_over_stdio_asks_the_client_model_when_started_with_llm_sampling(
+    tmp_path,
+):
+    import os
+    import sys
+
+    from mcp import StdioServerParameters
+
+    model = RecordedModel(NAV_CASSETTE)
+    params = StdioServerParameters(
+        command=sys.executable,
+        args=["-m", "glmap_tools.server", "--llm", "sampling", "--maps-dir", str(tmp_path)]
+        + ["--embedder", "hashing", "--voxel-size", "0.04", "--no-warm-up"],
+        env={k: v for k, v in os.environ.items() if k in ("PYTHONPATH", "PYOPENGL_PLATFORM")},
+    )
+    # The handshake relay answers `initialize` first; the SDK still learns the client's
+    # capabilities, and the client's answers reach the server through it.
+    async with Client(params, sampling_callback=model, mode="legacy") as client:
+        value = await nav_episode(client)
+    assert model.requests and not model.misses, model.misses
+    assert value["top_units"][0][2] == pytest.approx(0.92)
+
+
+def test_an_in_process_toolset_asks_the_sampler_its_user_gives(tmp_path):
+    from glmap_tools.toolset import Toolset
+
+    asked: list[str] = []
+
+    async def sampler(messages: Any, **kw: Any) -> LLMReply:
+        asked.append(messages[0]["content"])
+        ids = [ln.split(":")[0] for ln in messages[0]["content"].splitlines() if ln[:1].isdigit()]
+        scores = [{"id": int(i), "probability": 0.25} for i in ids]
+        return LLMReply(json.dumps({"scores": scores}), model="mine")
+
+    settings = LLMSettings(scorer="sampling")
+    with Toolset(config(tmp_path, llm=settings), sampler=sampler) as tools:
+        reset = tools.call("sim_reset", {"scene": 0, "seed": 0, "goal": NAV_GOAL})
+    assert asked and reset.data["llm"]["sampling_calls"] == len(asked)
+    assert reset.data["llm"]["fallbacks"] == 0

@@ -11,6 +11,7 @@ from glmap_tools.app.inputs import SessionArg
 from glmap_tools.app.results import ImageResult, Picture
 from glmap_tools.app.runtime import READ_ONLY, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import locked
+from glmap_tools.language.sampling import usage_report
 from glmap_tools.views.common import encode_png
 
 MAX_SITUATION = 512
@@ -184,6 +185,9 @@ async def locate_situation(
             said = model_answer(settings, situation or str(read), question, info, images[1])
             if said is not None:
                 info["model_answer"] = said
+        llm = usage_report()  # the session's sampling: calls, tokens, fallbacks
+        if llm:
+            info["llm"] = llm
         sit = info["situation"]
         note = (
             f"At ({sit['x']}, {sit['y']}) facing {sit['heading_deg']} deg"
