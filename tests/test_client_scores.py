@@ -137,6 +137,10 @@ async def test_client_scores_steer_value_map_nav_step_and_navigate_to_until_sim_
         fresh = ok(await client.call_tool("value_map", {}))
     assert "sim_reset" in error(before)
     assert all(row[3] == "scorer" for row in plain["top_units"]) and "client" not in plain
+    for shown in (plain, steered, other_goal, fresh):  # never empty without saying why
+        assert shown["evidence"] in ("units", "region hint", "none")
+        assert (shown["top_cells"] == []) == (shown["evidence"] == "none"), shown
+    assert steered["evidence"] == "units"  # the client's 1.0 passes the gate
     held = steered["client"]
     assert held["scores"] == [[mine, "instance", 1.0]]
     assert held["priors"][0][:2] == ["area", 0.4] and region["id"] in held["priors"][0][2]

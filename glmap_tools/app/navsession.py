@@ -35,6 +35,12 @@ NO_EPISODE = (
 )
 
 
+# Below the evidence gate, the regions within this share of the best region's score guide
+# exploration (`NavConfig.region_hint`): a client's value map is empty only when no region
+# text says anything of the goal. The bench and eval keep NavConfig's default until measured.
+REGION_HINT = 0.8
+
+
 def start(
     session: Session, sim: simulator.SimEpisode, embedder: Embedder, scorer: Any = None
 ) -> NavSession:
@@ -48,8 +54,13 @@ def start(
         sim.task,
         forward_step=sim.env.motion.forward_step,
         turn_angle_deg=math.degrees(sim.env.motion.turn_angle),
+        region_hint=REGION_HINT,
     )
     scorer = scorer if scorer is not None else EmbeddingScorer(embedder)
+    if sim.task == "instnav":  # the goal's "next to ..." decides between look-alikes
+        from glmap_tools.nav.scorers import RelationScorer
+
+        scorer = RelationScorer(scorer, lambda: session.live.glmap)
     nav = NavSession(str(sim.obs["goal"]), NavState(scorer=scorer), config, scorer, embedder)
     session.nav = nav
     return nav

@@ -45,6 +45,14 @@ def progress_from_thread(call: Call) -> Callable[[float, float | None, str], Non
     return report
 
 
+def _config(session: Session) -> Any:
+    """The episode's NavConfig, or the defaults without an episode."""
+    from glmap_tools.nav import NavConfig
+
+    nav = navsession.of(session)
+    return nav.config if nav is not None else NavConfig()
+
+
 def _goal(session: Session, goal: str) -> str:
     if goal.strip():
         return goal.strip()
@@ -109,6 +117,18 @@ def _waypoint(decision: Any, agent: tuple[float, float, float]) -> dict[str, Any
         out.update(navsession.relative(agent, (float(w.xy[0]), float(w.xy[1]))))
     out["reason"] = w.reason
     return out
+
+
+def _evidence(session: Session, units: str, scores: dict[int, float], config: Any) -> str:
+    """What the value map stands on: 'units' (past the evidence gate), 'region hint'
+    (regions whose text suggests the goal) or 'none' (the nearest frontier decides)."""
+    from glmap_tools.nav.scorers import UNIT_KINDS, map_units
+    from glmap_tools.nav.value import evidence_scores
+
+    least = {"instance": config.min_instance_score, "region": config.min_region_score}
+    with locked(session) as glmap:
+        seen = [u for u in map_units(glmap, units) if u.unit_id in scores]
+    return evidence_scores(seen, scores, UNIT_KINDS[units], least, config.region_hint)[1]
 
 
 def _top_units(session: Session, goal: str, scores: dict[int, float], k: int = 5) -> list[Any]:
@@ -179,6 +199,7 @@ async def value_map(
             "matched_unit": decision.matched_unit,
             "top_cells": [[round(x, 2), round(y, 2), round(v, 3)] for x, y, v in top],
             "top_units": _top_units(target, wanted, decision.scores),
+            "evidence": _evidence(target, units, decision.scores, _config(target)),
             "frontiers": len(decision.frontiers),
         }
         nav = navsession.of(target)

@@ -33,6 +33,7 @@ chair at 0.45 stays `match: false`, i.e. not sure).
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -219,6 +220,8 @@ def find(glmap: GLMap, kind: str, text: str, k: int) -> list[UnitInfo]:
     ids, scores = text_scores(glmap, kind, text)
     if len(ids) == 0:
         return []
+    if kind == "instance":  # "the navy cabinet next to the fridge": the relation decides
+        scores = with_relation(glmap, ids, scores, text)
     tau = match_threshold(glmap, kind, text)
     k = min(int(k), len(ids))
     top = np.argpartition(-scores, k - 1)[:k]
@@ -231,6 +234,97 @@ def find(glmap: GLMap, kind: str, text: str, k: int) -> list[UnitInfo]:
         info.match = None if tau is None else bool(scores[i] >= tau)
         out.append(info)
     return out
+
+
+# ---------------------------------------------------------------------- relations
+
+NEAR_M = 1.0  # metres between footprints for "next to" (as the InstNav goals: sim.instnav)
+RELATION_WEIGHT = 0.1  # share of an instance's score that its relation decides
+RELATION_CANDIDATES = 50  # instances (best scores first) whose neighbours are looked at
+ANCHOR_FLOOR = 0.2  # anchor scores at or below this are no evidence (as EmbeddingScorer)
+_RELATION = re.compile(
+    r"^(?P<target>.+?)\s+(?:next to|near|beside|close to|by)\s+(?P<anchor>.+)$", re.IGNORECASE
+)
+_UNIT_ANCHOR = re.compile(r"^(?:the\s+)?(?:unit|instance|id)\s+#?(?P<id>\d+)$", re.IGNORECASE)
+_ROOM_TAIL = re.compile(r"\s+in the\s+[\w ]+$", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class Relation:
+    """ "<target> next to <anchor>": the anchor as a text, or as a unit id ("unit 12")."""
+
+    target: str
+    anchor: str
+    anchor_id: int | None = None
+
+
+def parse_relation(text: str) -> Relation | None:
+    """The "next to" relation of a query or goal, or None.
+
+    >>> parse_relation("the navy kitchen cabinet next to the white refrigerator")
+    Relation(target='the navy kitchen cabinet', anchor='the white refrigerator', anchor_id=None)
+    >>> parse_relation("a chair near unit 12").anchor_id
+    12
+    """
+    plain = " ".join(text.split()).rstrip("?!. ")
+    found = _RELATION.match(plain)
+    if found is None:
+        return None
+    anchor = _ROOM_TAIL.sub("", found.group("anchor")).strip()
+    unit = _UNIT_ANCHOR.match(anchor)
+    return Relation(found.group("target"), anchor, int(unit.group("id")) if unit else None)
+
+
+def _boxes(glmap: GLMap, ids: np.ndarray) -> np.ndarray:
+    """[N, 4] (i0, j0, i1, j1) cell box of each unit (NaN for a unit without cells)."""
+    out = np.full((len(ids), 4), np.nan)
+    for k, uid in enumerate(ids.tolist()):
+        cells = glmap.grid.cells_of_unit(int(uid))
+        if cells:
+            arr = np.array(sorted(cells), dtype=np.float64)
+            out[k] = (*arr.min(axis=0), *arr.max(axis=0))
+    return out
+
+
+def relation_evidence(
+    glmap: GLMap, ids: np.ndarray, relation: Relation, radius: float = NEAR_M
+) -> np.ndarray:
+    """[N] how well each instance of `ids` stands next to the relation's anchor, in [0, 1].
+
+    The best anchor score among the other instances whose footprint (cell box) lies within
+    `radius` metres of its own: 1 for the anchor unit when the relation names an id, else
+    the instance's score for the anchor text, mapped `clip((s - 0.2) / 0.8, 0, 1)`.
+    """
+    all_ids, _ = glmap.instance_matrix()
+    if len(ids) == 0 or len(all_ids) == 0:
+        return np.zeros(len(ids))
+    if relation.anchor_id is not None:
+        anchor = (all_ids == relation.anchor_id).astype(np.float64)
+    else:
+        _, a = text_scores(glmap, "instance", relation.anchor)
+        anchor = np.clip((np.asarray(a, np.float64) - ANCHOR_FLOOR) / (1 - ANCHOR_FLOOR), 0, 1)
+    mine, theirs = _boxes(glmap, np.asarray(ids)), _boxes(glmap, all_ids)
+    cell = glmap.grid.cell_size
+    # Gap between boxes, in cells (0 when they touch or overlap), per pair [N, M].
+    dx = np.maximum(theirs[None, :, 0] - mine[:, None, 2], mine[:, None, 0] - theirs[None, :, 2])
+    dy = np.maximum(theirs[None, :, 1] - mine[:, None, 3], mine[:, None, 1] - theirs[None, :, 3])
+    gap = np.hypot(np.maximum(dx - 1, 0), np.maximum(dy - 1, 0)) * cell
+    near = (gap <= radius) & (np.asarray(ids)[:, None] != all_ids[None, :])
+    return np.where(near, anchor[None, :], 0.0).max(axis=1)
+
+
+def with_relation(glmap: GLMap, ids: np.ndarray, scores: np.ndarray, text: str) -> np.ndarray:
+    """[N] instance scores with the query's "next to" relation deciding RELATION_WEIGHT of
+    each: s * (1 - w + w * evidence). Two instances that read alike ("a navy kitchen
+    cabinet") are told apart by what stands next to them; a score never rises, so a
+    threshold keeps meaning what it was calibrated for. Unchanged without a relation."""
+    relation = parse_relation(text)
+    if relation is None or len(ids) == 0:
+        return scores
+    top = np.argsort(-scores, kind="stable")[:RELATION_CANDIDATES]
+    evidence = np.zeros(len(ids))
+    evidence[top] = relation_evidence(glmap, ids[top], relation)
+    return scores * (1.0 - RELATION_WEIGHT + RELATION_WEIGHT * evidence)
 
 
 def units_at(glmap: GLMap, x: float, y: float, radius: float) -> list[UnitInfo]:

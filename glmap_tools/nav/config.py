@@ -70,6 +70,10 @@ class NavConfig:
             s_u at or above this (0 = every unit, Eq. 7 as written); with no unit left the
             waypoint is the nearest frontier. The evidence gate: with the offline scorer most
             scores are weak and their argmax points nowhere (nav/design.md "Evidence gate").
+        region_hint: when no unit passes the evidence gate, the regions scoring at least
+            this share of the best region's score enter Eq. 7 (`nav.value.evidence_scores`:
+            region texts that suggest the goal guide exploration before the nearest
+            frontier); 0 = none, the value map stays empty below the gate.
         unit_mass: how a unit's score s_u enters Eq. 7: 'unit' (default: s_u / |cells| on each
             cell, so every unit carries the mass s_u, as the single delta at p_u of Eq. 7 does)
             or 'cells' (s_u on each of its cells; situated localisation uses it).
@@ -98,6 +102,7 @@ class NavConfig:
     turn_cost: float = 0.02
     min_instance_score: float = 0.5
     min_region_score: float = 0.3
+    region_hint: float = 0.0
     unit_mass: str = "unit"
 
     def __post_init__(self) -> None:
@@ -161,6 +166,11 @@ class NavConfig:
                 raise InvalidInputError(
                     f"NavConfig.{name}={value!r} must be a score in [0, 1] (0 = keep every unit)."
                 )
+        if not (isinstance(self.region_hint, int | float) and 0.0 <= self.region_hint <= 1.0):
+            raise InvalidInputError(
+                f"NavConfig.region_hint={self.region_hint!r} must be a share in [0, 1] "
+                "(0 = no region hint below the evidence gate)."
+            )
         for name in ("clearance_cost", "safety_margin", "turn_cost"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):

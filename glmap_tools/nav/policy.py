@@ -40,7 +40,7 @@ from glmap_tools.nav.perceive import (
 )
 from glmap_tools.nav.planner import Plan
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
-from glmap_tools.nav.value import ValueMap, value_map_from_scores
+from glmap_tools.nav.value import ValueMap, evidence_scores, value_map_from_scores
 from glmap_tools.nav.verify import outvoted
 from glmap_tools.nav.waypoint import GoalMatch, Waypoint
 
@@ -192,11 +192,7 @@ def _unit_value_map(
     """Eq. 7 over the units the policy keeps, each above its kind's least score."""
     keep = UNIT_KINDS[POLICY_UNITS[policy]]
     least = {"instance": config.min_instance_score, "region": config.min_region_score}
-    used = {
-        u.unit_id: scored.by_id[u.unit_id]
-        for u in scored.units
-        if u.kind in keep and scored.by_id[u.unit_id] >= least[u.kind]
-    }
+    used, _ = evidence_scores(scored.units, scored.by_id, keep, least, config.region_hint)
     return value_map_from_scores(
         used, glmap.grid, occ, config.value_sigma, unit_mass=config.unit_mass
     )

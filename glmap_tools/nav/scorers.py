@@ -330,3 +330,37 @@ class ClientScorer:
             if u.unit_id in self.client.units:
                 out[k] = np.inf if self.client.units[u.unit_id] >= self.match_at else -np.inf
         return out
+
+
+class RelationScorer:
+    """f_S for goals with a "next to" relation (InstNav: "the navy kitchen cabinet next to
+    the white refrigerator"): the base score of each instance, of which the relation decides
+    `map.queries.RELATION_WEIGHT` by what stands next to the instance in the map
+    (`map.queries.with_relation`). Goals without a relation keep the base scores.
+
+    Args:
+        base: the configured scorer.
+        glmap_of: the map the units belong to (the session's current map).
+    """
+
+    def __init__(self, base: Scorer, glmap_of: Callable[[], GLMap]) -> None:
+        self.base = base
+        self.glmap_of = glmap_of
+        margins = getattr(base, "category_margins", None)
+        self.category_margins: Callable[..., np.ndarray] | None = margins
+
+    def score(self, goal: str, units: Sequence[UnitText]) -> np.ndarray:
+        """[N] scores in [0, 1]: the base scores, instances weighed by their relation."""
+        from glmap_tools.map.queries import parse_relation, with_relation
+
+        out = np.asarray(self.base.score(goal, units), dtype=np.float64).copy()
+        if parse_relation(goal) is None:
+            return out
+        glmap = self.glmap_of()
+        rows = [
+            k for k, u in enumerate(units) if u.kind == "instance" and u.unit_id in glmap.instances
+        ]
+        if rows:
+            ids = np.array([units[k].unit_id for k in rows], dtype=np.int64)
+            out[rows] = with_relation(glmap, ids, out[rows], goal)
+        return out

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import weakref
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -27,7 +27,7 @@ from glmap_tools.nav.grid import Window
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
-    from glmap_tools.nav.scorers import Scorer
+    from glmap_tools.nav.scorers import Scorer, UnitText
 
 TRUNCATE = 3.0  # kernel half-width in sigmas
 
@@ -290,3 +290,43 @@ def per_unit_mass(scores: Mapping[int, float], grid: IndexGrid) -> dict[int, flo
         int(uid): float(s) / max(1, len(unit_cell_array(grid, int(uid))))
         for uid, s in scores.items()
     }
+
+
+def evidence_scores(
+    units: Sequence[UnitText],
+    scores: Mapping[int, float],
+    kinds: Sequence[str],
+    least: Mapping[str, float],
+    region_hint: float,
+) -> tuple[dict[int, float], str]:
+    """The unit scores that enter Eq. 7, and what they are.
+
+    Units of `kinds` whose score reaches their kind's floor `least[kind]` (the evidence
+    gate: 'units'). When none does, the regions whose text suggests the goal ('region
+    hint'): every region scoring at least `region_hint` times the best region's score (> 0),
+    since the best-scoring region lies in the goal's room far more often than chance
+    (nav/design.md, "Evidence gate"); so the value map is empty only when no region text
+    says anything of the goal ('none'), and only then does the nearest frontier decide.
+
+    Args:
+        units: the scored units.
+        scores: unit id -> s_u.
+        kinds: the unit kinds the policy reads ('instance', 'region').
+        least: kind -> the least score that enters Eq. 7.
+        region_hint: share in (0, 1] of the best region score a hint region needs; 0 = no
+            hint (the value map stays empty below the gate).
+    """
+    used = {
+        u.unit_id: float(scores[u.unit_id])
+        for u in units
+        if u.kind in kinds and scores[u.unit_id] >= least[u.kind]
+    }
+    if used:
+        return used, "units"
+    if region_hint <= 0 or "region" not in kinds:
+        return {}, "none"
+    regions = {u.unit_id: float(scores[u.unit_id]) for u in units if u.kind == "region"}
+    best = max(regions.values(), default=0.0)
+    if best <= 0:
+        return {}, "none"
+    return {uid: s for uid, s in regions.items() if s >= region_hint * best}, "region hint"

@@ -1,0 +1,69 @@
+"""Relations for InstNav: two instances described alike ("a navy kitchen cabinet") are told
+apart by what stands next to them, in find_instance and in the InstNav scorer."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from glmap_tools.language import search_eval as se
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.map.queries import parse_relation
+from glmap_tools.nav import EmbeddingScorer, map_units
+from glmap_tools.nav.scorers import RelationScorer
+from glmap_tools.sim.generator import generate_apartment
+
+# Scene 1's kitchen, along x = 9.98: refrigerator (y 0.44), navy kitchen cabinet 9 (1.09),
+# sink (1.79), navy kitchen cabinet 11 (2.50), grey stove (3.10). Both cabinets read
+# "a navy kitchen cabinet".
+CABINETS = (9, 11)
+
+
+@functools.cache
+def kitchen() -> se.SceneMap:
+    return se.scene_map(generate_apartment(1), HashingEmbedder())
+
+
+def unit_of(layout_id: int) -> int:
+    sm = kitchen()
+    return next(u for u, lid in sm.layout_id.items() if lid == layout_id)
+
+
+def top_two(query: str) -> list[tuple[int, float]]:
+    sm = kitchen()
+    return [(sm.layout_id[h.id], float(h.score or 0)) for h in sm.glmap.find_instances(query, 2)]
+
+
+def test_two_alike_cabinets_tie_without_a_relation():
+    (a, sa), (b, sb) = top_two("a navy kitchen cabinet")
+    assert {a, b} == set(CABINETS) and sa == sb
+
+
+def test_the_relation_picks_the_cabinet_next_to_its_anchor():
+    by_stove = top_two("the navy kitchen cabinet next to the grey stove")
+    by_fridge = top_two("the navy kitchen cabinet next to the black refrigerator")
+    assert by_stove[0][0] == 11 and by_stove[1][0] == 9 and by_stove[0][1] > by_stove[1][1]
+    assert by_fridge[0][0] == 9 and by_fridge[1][0] == 11 and by_fridge[0][1] > by_fridge[1][1]
+    # A relation only ever lowers a score (the match threshold keeps its meaning).
+    plain = top_two("the navy kitchen cabinet")[0][1]
+    assert by_stove[0][1] <= plain + 1e-6
+
+
+def test_the_anchor_may_be_a_unit_id():
+    stove = unit_of(12)
+    assert parse_relation(f"a navy kitchen cabinet near unit {stove}").anchor_id == stove  # type: ignore[union-attr]
+    assert top_two(f"a navy kitchen cabinet next to unit {stove}")[0][0] == 11
+
+
+def test_the_instnav_scorer_weighs_alike_instances_by_their_neighbours():
+    sm = kitchen()
+    units = [u for u in map_units(sm.glmap, "instances") if sm.layout_id[u.unit_id] in CABINETS]
+    base = EmbeddingScorer(sm.glmap.embedder)
+    scorer = RelationScorer(base, lambda: sm.glmap)
+    goal = "the navy kitchen cabinet next to the grey stove"
+    layout_ids = [sm.layout_id[u.unit_id] for u in units]
+    scores = dict(zip(layout_ids, scorer.score(goal, units), strict=True))
+    assert scores[11] > scores[9]
+    plain = base.score("a navy kitchen cabinet", units)
+    assert np.array_equal(scorer.score("a navy kitchen cabinet", units), plain)  # no relation
