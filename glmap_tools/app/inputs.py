@@ -19,7 +19,7 @@ import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError
 
 from glmap_tools.app.config import MIB, ServerConfig
-from glmap_tools.app.images import decode_depth, decode_mask, decode_rgb
+from glmap_tools.app.images import decode_depth, decode_mask, decode_rgb, image_header
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Intrinsics, Pose
 from glmap_tools.geometry.adapters import from_dataset
@@ -272,6 +272,49 @@ def pose_of(src: PoseInput) -> Pose:
 # ---------------------------------------------------------------------- frame
 
 
+@dataclass(frozen=True)
+class FrameFiles:
+    """The still-encoded files of one observe_frame call and the frame's size.
+
+    Attributes:
+        rgb, depth, mask: the files' bytes (mask None without annotations).
+        width, height: the colour image's size from its header (nothing decoded yet).
+    """
+
+    rgb: bytes
+    depth: bytes
+    mask: bytes | None
+    width: int
+    height: int
+
+
+def read_frame_files(
+    rgb: FileInput,
+    depth: FileInput,
+    pose: PoseInput,
+    annotations: AnnotationInput | None,
+    config: ServerConfig,
+) -> FrameFiles:
+    """Check the pose, read (not decode) observe_frame's files, and the frame's size from
+    the colour file's header.
+
+    Raises:
+        InvalidInputError: a bad pose, a malformed or oversized file input, or a colour file
+            that is not a PNG or JPEG.
+    """
+    pose_of(pose)  # first, as before any file is read
+    budget = Budget(config.max_frame_bytes, config.max_frame_bytes)
+    rgb_bytes, _ = read_file_input(rgb, "rgb", config, budget)
+    depth_bytes, _ = read_file_input(depth, "depth", config, budget)
+    mask_bytes = (
+        read_file_input(annotations.mask, "annotations.mask", config, budget)[0]
+        if annotations is not None
+        else None
+    )
+    _, width, height, _, _ = image_header(rgb_bytes)
+    return FrameFiles(rgb_bytes, depth_bytes, mask_bytes, width, height)
+
+
 def decode_frame(
     rgb: FileInput,
     depth: FileInput,
@@ -286,17 +329,22 @@ def decode_frame(
     Raises:
         InvalidInputError: any malformed, oversized or inconsistent input.
     """
-    budget = Budget(config.max_frame_bytes, config.max_frame_bytes)
+    files = read_frame_files(rgb, depth, pose, annotations, config)
+    return decode_frame_files(files, depth_scale, intrinsics, pose, annotations, config)
+
+
+def decode_frame_files(
+    files: FrameFiles,
+    depth_scale: float,
+    intrinsics: IntrinsicsInput,
+    pose: PoseInput,
+    annotations: AnnotationInput | None,
+    config: ServerConfig,
+) -> tuple[RGBDFrame, FrameSemantics | None]:
+    """Decode and check the files `read_frame_files` read (see `decode_frame`)."""
     cam_pose = pose_of(pose)
-    rgb_bytes, _ = read_file_input(rgb, "rgb", config, budget)
-    depth_bytes, _ = read_file_input(depth, "depth", config, budget)
-    mask_bytes = (
-        read_file_input(annotations.mask, "annotations.mask", config, budget)[0]
-        if annotations is not None
-        else None
-    )
-    rgb_image = decode_rgb(rgb_bytes, config)
-    depth_m = decode_depth(depth_bytes, depth_scale, config)
+    rgb_image = decode_rgb(files.rgb, config)
+    depth_m = decode_depth(files.depth, depth_scale, config)
     h, w = depth_m.shape
     if rgb_image.shape[:2] != (h, w):
         raise InvalidInputError(
@@ -304,9 +352,9 @@ def decode_frame(
             "colour image registered to the depth image, at the same size."
         )
     frame = RGBDFrame(rgb_image, depth_m, intrinsics_of(intrinsics, w, h), cam_pose)
-    if annotations is None or mask_bytes is None:
+    if annotations is None or files.mask is None:
         return frame, None
-    mask = decode_mask(mask_bytes, config)
+    mask = decode_mask(files.mask, config)
     if mask.shape != (h, w):
         raise InvalidInputError(
             f"annotations.mask is {mask.shape[1]}x{mask.shape[0]} but depth is {w}x{h}; draw "

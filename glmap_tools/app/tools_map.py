@@ -11,12 +11,15 @@ from glmap_tools.app import tools_perception
 from glmap_tools.app.inputs import (
     AnnotationInput,
     FileInput,
+    FrameFiles,
     IntrinsicsInput,
     PoseInput,
     SessionArg,
-    decode_frame,
+    decode_frame_files,
     embed_ahead,
+    read_frame_files,
 )
+from glmap_tools.app.memory import frame_work, frame_work_bytes
 from glmap_tools.app.navsession import from_agent
 from glmap_tools.app.results import (
     Hits,
@@ -34,7 +37,7 @@ from glmap_tools.app.runtime import (
     in_thread,
     session_of,
 )
-from glmap_tools.app.session import locked
+from glmap_tools.app.session import Session, locked
 from glmap_tools.app.views import describe_topdown, topdown
 from glmap_tools.errors import LLMError
 from glmap_tools.language.sampling import fallback_message, note_fallback
@@ -104,9 +107,26 @@ async def observe_frame(
     or merge into instances; unannotated segments wait for label_segments."""
     state = call.state
     target = session_of(call, session)
+    files = await in_thread(lambda: read_frame_files(rgb, depth, pose, annotations, state.config))
+    # Frames in flight are bounded in bytes (app.memory.FrameWork): a call waits its turn.
+    async with frame_work(state).hold(frame_work_bytes(files.width, files.height)):
+        return await _observe(files, depth_scale, intrinsics, pose, annotations, call, target)
+
+
+async def _observe(
+    files: FrameFiles,
+    depth_scale: float,
+    intrinsics: IntrinsicsInput,
+    pose: PoseInput,
+    annotations: AnnotationInput | None,
+    call: Call,
+    target: Session,
+) -> ObserveResult:
+    """observe_frame's work on its read files: decode, perceive or park, integrate."""
+    state = call.state
     await call.report_progress(0, 3, "decoding the frame")
     frame, semantics = await in_thread(
-        lambda: decode_frame(rgb, depth, depth_scale, intrinsics, pose, annotations, state.config)
+        lambda: decode_frame_files(files, depth_scale, intrinsics, pose, annotations, state.config)
     )
     if semantics is None:
         if state.perception is None:  # geometry now, segments pending for label_segments
