@@ -185,3 +185,18 @@ def test_a_score_for_a_fused_id_is_kept_on_the_unit_it_became():
     assert live == {7: 0.6} and followed == {3: 7} and kinds == {"dining area": 1.0}
     with pytest.raises(UnknownIdError, match="Closest id: 7"):
         _checked_client_scores(Map(), {8: 0.5}, {})
+
+
+async def test_the_client_scores_go_on_in_the_next_server_of_a_kept_episode(tmp_path):
+    import sqlite3
+
+    start = {"episode": EPISODE, "size": "160x120"}
+    async with Client(build_server(config(tmp_path, map_name="ep"))) as client:
+        ok(await client.call_tool("sim_reset", start))
+        said = ok(await client.call_tool("value_map", {"priors": {"kitchen": 0.9}}))
+    async with Client(build_server(config(tmp_path, map_name="ep"))) as client:
+        again = ok(await client.call_tool("value_map", {}))
+    with sqlite3.connect(tmp_path / "maps" / "ep.glmap") as conn:
+        (text,) = conn.execute("SELECT value FROM meta WHERE key = 'extra.sim_episode'").fetchone()
+    assert json.loads(text)["client_scores"] == {"units": [], "priors": [["kitchen", 0.9]]}
+    assert again["client"] == said["client"]
