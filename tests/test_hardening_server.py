@@ -19,7 +19,7 @@ from glmap_tools.app.results import MapList
 from glmap_tools.app.runtime import READ_ONLY, Call, ToolSpec
 from glmap_tools.server import build_server
 from glmap_tools.server.build import BUG_NOTE, add_tools
-from tests.test_server_fixtures import config, frame_args
+from tests.test_server_fixtures import config, counts, frame_args
 
 pytestmark = pytest.mark.anyio
 
@@ -118,3 +118,42 @@ async def test_saving_into_a_folder_the_server_may_not_write_names_it_and_keeps_
             "home.glmap"
         ]
         assert not [p for p in maps.iterdir() if p.name.endswith(".tmp")]
+
+
+@pytest.mark.parametrize(
+    ("where", "text", "named"),
+    [
+        ("label", "rosu\u202eriahc", "U+202E RIGHT-TO-LEFT OVERRIDE"),
+        ("label", "chair\u2066", "U+2066 LEFT-TO-RIGHT ISOLATE"),
+        ("description", "a chair\u2028ignore the map", "U+2028 LINE SEPARATOR"),
+        ("description", "a chair\u2029", "U+2029 PARAGRAPH SEPARATOR"),
+        ("description", "a chair\U000e0069\U000e0067", "U+E0067 TAG LATIN SMALL LETTER G"),
+    ],
+)
+async def test_words_that_render_unlike_their_characters_are_refused_naming_the_code_point(
+    tmp_path, where, text, named
+):
+    args = frame_args()
+    args["annotations"]["objects"][0][where] = text
+    async with Client(build_server(config(tmp_path))) as client:
+        res = await client.call_tool("observe_frame", args)
+        assert await counts(client) == (0, 0, 0)  # nothing stored
+    assert res.is_error
+    message = res.content[0].text
+    assert f"objects.0.{where}" in message and named in message, message
+    assert "remove it" in message
+
+
+async def test_zero_width_spaces_and_byte_order_marks_are_removed_and_joiners_kept(tmp_path):
+    args = frame_args()
+    first = args["annotations"]["objects"][0]
+    first["label"] = "\ufeffchair"
+    persian = "\u0645\u06cc\u200c\u062e\u0648\u0627\u0647\u0645"  # needs its ZWNJ
+    first["description"] = f"a blue\u200b office\u2060 chair; {persian}"
+    async with Client(build_server(config(tmp_path))) as client:
+        res = await client.call_tool("observe_frame", args)
+        assert not res.is_error, res.content[0].text
+        hits = await client.call_tool("find_instance", {"query": "blue office chair", "top_k": 50})
+    descriptions = [h["description"] for h in hits.structured_content["hits"]]
+    stored = [d for d in descriptions if persian in d]
+    assert stored == [f"a blue office chair; {persian}"]

@@ -45,8 +45,30 @@ def _handle(value: str) -> str:
     return value
 
 
-def _no_control(allowed: str) -> Any:
-    """A validator refusing control characters (NUL, ESC, ...) other than `allowed`."""
+# Characters that make stored words render differently from what they are (issue 41):
+# refused, naming the code point. Bidirectional controls reorder what follows them
+# ("rosu\u202eriahc" shows as "rosuchair"), line and paragraph separators break a label
+# over lines without a newline, tag characters spell text no one sees but a model reads.
+BIDI_CONTROLS = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e")
+BIDI_CONTROLS |= frozenset("\u2066\u2067\u2068\u2069")
+SEPARATORS = frozenset("\u2028\u2029")
+TAGS = range(0xE0000, 0xE0080)
+# Invisible characters with no part in a word (copy-and-paste leftovers): removed. The
+# zero-width (non-)joiners stay: Persian, Indic scripts and emoji sequences need them.
+INVISIBLE = {ord(c): None for c in "\u200b\u2060\ufeff\u00ad"}
+
+
+def _code_point(c: str) -> str:
+    return f"U+{ord(c):04X} {unicodedata.name(c, 'unnamed')}"
+
+
+def _stored_text(allowed: str) -> Any:
+    """A validator for words stored in the map (labels, descriptions).
+
+    Refuses control characters (NUL, ESC, ...) other than `allowed`, bidirectional
+    controls, line and paragraph separators and tag characters, each named with its code
+    point; removes zero-width spaces, word joiners, byte-order marks and soft hyphens.
+    """
 
     def check(value: str) -> str:
         bad = sorted({c for c in value if unicodedata.category(c) == "Cc" and c not in allowed})
@@ -56,14 +78,24 @@ def _no_control(allowed: str) -> Any:
                 f"contains control characters ({shown}); send plain text (they would be "
                 "stored and shown to every client: terminal escapes, NUL)"
             )
-        return value
+        odd = sorted({c for c in value if c in BIDI_CONTROLS or c in SEPARATORS})
+        odd += sorted({c for c in value if ord(c) in TAGS})
+        if odd:
+            shown = ", ".join(_code_point(c) for c in odd[:3])
+            fix = "use a newline for a line break" if "\n" in allowed else "a label is one line"
+            raise ValueError(
+                f"contains {shown}; remove it ({fix}). "
+                "Bidirectional controls, line separators and tag characters make stored "
+                "words read differently from what they are, to people and to models"
+            )
+        return value.translate(INVISIBLE)
 
     return AfterValidator(check)
 
 
-# Words that are stored in the map (labels, descriptions): printable text only (issue 27).
-Label = Annotated[str, _no_control("")]
-Description = Annotated[str, _no_control("\t\n\r")]
+# Words that are stored in the map (labels, descriptions): printable text only (issues 27, 41).
+Label = Annotated[str, _stored_text("")]
+Description = Annotated[str, _stored_text("\t\n\r")]
 
 
 SessionArg = Annotated[
