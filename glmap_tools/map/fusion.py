@@ -98,7 +98,9 @@ def plan_frame(
         glmap.structure, glmap.structure_estimator, points, semantics, cfg
     )
 
-    observed, report.skipped = observe_instances(semantics, points, glmap.estimator)
+    observed, report.skipped = observe_instances(
+        semantics, points, glmap.estimator, np.asarray(frame.depth)
+    )
     texts = [o.text for o in observed] + [g.description.strip() for g in semantics.groups]
     embeddings = glmap.embedder.embed(texts) if texts else np.zeros((0, 1), np.float32)
     merge_text = partial(buffered_text, glmap.text_merger, cfg.max_text_words)

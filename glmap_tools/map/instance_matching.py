@@ -20,6 +20,7 @@ from glmap_tools.gaussians.merge import any_mergeable, remerge
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.map.dedup import fuse_instances, normalised
 from glmap_tools.map.frame_points import FramePoints
+from glmap_tools.map.mask_edges import depth_consistent
 from glmap_tools.map.matching import Matching, report_fused, text_candidates
 from glmap_tools.map.report import SkippedObservation, UnitChange, UpdateReport
 from glmap_tools.map.units import InstanceUnit
@@ -69,13 +70,21 @@ def geometrically_consistent(
 
 
 def observe_instances(
-    semantics: FrameSemantics, points: FramePoints, estimator: GaussianEstimator
+    semantics: FrameSemantics,
+    points: FramePoints,
+    estimator: GaussianEstimator,
+    depth: np.ndarray | None = None,
 ) -> tuple[list[ObservedInstance], list[SkippedObservation]]:
-    """Fit Gaussians to each object mask's points; objects that give none are skipped."""
+    """Fit Gaussians to each object mask's points; objects that give none are skipped.
+
+    With the frame's [H, W] `depth`, a mask's pixels across a depth edge from the rest of
+    it (a mask that bled past the outline) are left out (`mask_edges.depth_consistent`).
+    """
     observed: list[ObservedInstance] = []
     skipped: list[SkippedObservation] = []
     for obj in semantics.objects:
-        cloud = points.cloud(obj.mask)
+        mask = obj.mask if depth is None else depth_consistent(obj.mask, depth)
+        cloud = points.cloud(mask)
         gaussians = estimator.fit(cloud.points, cloud.colors)
         if len(gaussians) == 0:
             skipped.append(

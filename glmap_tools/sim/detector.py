@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import zlib
 from dataclasses import dataclass, fields
 from functools import cache
@@ -42,6 +43,7 @@ from glmap_tools.sim.palette import COLORS
 
 PERCEPTIONS = ("gt", "detector")
 RATES_FORMAT = "glmap-detector-rates"
+RATES_ENV = "GLMAP_DETECTOR_RATES"  # a rates file of one's own (every server and worker)
 
 
 @dataclass(frozen=True)
@@ -82,11 +84,13 @@ def _groups(groups: tuple[tuple[str, ...], ...]) -> dict[str, tuple[str, ...]]:
 
 
 def load_rates(path: str | Path | None = None) -> DetectorRates:
-    """Read the rates file (default: the bundled `data/detector_rates.json`).
+    """Read the rates file: `path`, else `$GLMAP_DETECTOR_RATES`, else the bundled
+    `data/detector_rates.json`.
 
     Raises:
         InvalidInputError: a missing or unknown key, or a rate outside its range.
     """
+    path = path or os.environ.get(RATES_ENV) or None
     if path is None:
         text = (resources.files("glmap_tools") / "data" / "detector_rates.json").read_text()
         where = "data/detector_rates.json"
