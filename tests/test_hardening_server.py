@@ -157,3 +157,28 @@ async def test_zero_width_spaces_and_byte_order_marks_are_removed_and_joiners_ke
     descriptions = [h["description"] for h in hits.structured_content["hits"]]
     stored = [d for d in descriptions if persian in d]
     assert stored == [f"a blue office chair; {persian}"]
+
+
+async def test_a_maps_folder_that_cannot_be_made_again_is_a_clear_error(tmp_path):
+    async with Client(build_server(config(tmp_path))) as client:
+        (tmp_path / "maps").rmdir()  # gone since the server started
+        with unwritable(tmp_path):
+            result = await client.call_tool("save_map", {"name": "home"})
+    assert result.is_error
+    text = result.content[0].text
+    assert "cannot create the folder '<maps folder>' for map files" in text, text
+    assert "writable by the server" in text and BUG_NOTE not in text
+
+
+def test_a_server_whose_maps_folder_cannot_be_made_says_which_and_why(tmp_path):
+    from glmap_tools.app.background import Background
+    from glmap_tools.app.lifespan import opened_state
+    from glmap_tools.errors import StoreError
+
+    with unwritable(tmp_path):
+        settings = config(tmp_path)
+        with (
+            pytest.raises(StoreError, match="cannot create the maps folder .*--maps-dir"),
+            opened_state(settings, None, Background(hold_s=0.0)),
+        ):
+            pass

@@ -21,6 +21,7 @@ from glmap_tools.app.config import ServerConfig
 from glmap_tools.app.runtime import AppState, PerceptionBackend
 from glmap_tools.app.state import SessionRegistry
 from glmap_tools.app.threads import limited_threads
+from glmap_tools.errors import StoreError
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
@@ -56,7 +57,13 @@ def opened_state(
     The MiniLM embedder loads on a background task unless it is the hashing one; the
     kernels warm up in the background when `config.warm_up`.
     """
-    config.maps_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        config.maps_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise StoreError(
+            f"cannot create the maps folder {str(config.maps_dir)!r}: {exc.strerror or exc}. "
+            "Create it, writable by the server, or choose another one (--maps-dir)."
+        ) from None
     with limited_threads(config.compute_threads):
         embedder: Embedder
         if config.embedder == "hashing":

@@ -176,8 +176,10 @@ class SessionRegistry:
                     f"a map named {stem!r} already exists; open it with load_map, or choose "
                     "another name."
                 )
-            self.maps_dir.mkdir(parents=True, exist_ok=True)
             from glmap_tools.map import GLMap
+            from glmap_tools.map.store import make_folder
+
+            make_folder(self.maps_dir)
 
             with paths_hidden(self.maps_dir):
                 glmap = GLMap.open(
@@ -249,7 +251,7 @@ class SessionRegistry:
                 file of the map itself is damaged and `overwrite` is false, or the write
                 failed (the old file is then unchanged).
         """
-        from glmap_tools.map.store import MapStore
+        from glmap_tools.map.store import MapStore, make_folder
 
         with self._lock:
             path = self.map_path(name)
@@ -274,7 +276,7 @@ class SessionRegistry:
                     f"a map named {stem!r} already exists; pass overwrite=true to replace it, "
                     "or choose another name."
                 )
-            self.maps_dir.mkdir(parents=True, exist_ok=True)
+            make_folder(self.maps_dir)
             with live.lock, paths_hidden(self.maps_dir):
                 old_store = live.glmap.store
                 live.glmap.store = MapStore.create_from(path, live.glmap, overwrite=overwrite)

@@ -45,7 +45,7 @@ if TYPE_CHECKING:
 FORMAT = "glmap-tools map"
 SCHEMA_VERSION = 2
 EXTRA_PREFIX = "extra."
-__all__ = ["FORMAT", "SCHEMA_VERSION", "InvalidStoreError", "MapStore"]
+__all__ = ["FORMAT", "SCHEMA_VERSION", "InvalidStoreError", "MapStore", "make_folder"]
 
 STRUCTURE_TABLE = """
 CREATE TABLE structure (ci INTEGER NOT NULL, cj INTEGER NOT NULL, keys BLOB NOT NULL,
@@ -450,6 +450,22 @@ class MapStore:
             state.floor_z,
             state.trajectory,
         )
+
+
+def make_folder(folder: Path) -> None:
+    """Create `folder` (and its parents) for map files.
+
+    Raises:
+        StoreError: it cannot be created (a read-only or immutable parent, a file in the
+            way); the message names it and the fix.
+    """
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise StoreError(
+            f"cannot create the folder {str(folder)!r} for map files: {exc.strerror or exc}. "
+            "Create it, writable by the server, or choose another folder (--maps-dir)."
+        ) from None
 
 
 def _fsync(path: Path) -> None:
