@@ -41,6 +41,8 @@ def test_a_box_inside_another_is_covered_and_a_box_beside_it_is_not() -> None:
     flat = (np.array([0.2, 0.5, 0.2]), np.array([0.8, 0.5, 0.8]))  # a picture's flat box
     assert covered_share(*flat, lo, hi) == pytest.approx(1.0)
     assert same_place(lo + 0.05, hi - 0.05, lo, hi)
+    # A partial view of a cabinet (its lower part) is at the cabinet's place.
+    assert same_place(np.array([0.0, 0.0, 0.0]), np.array([1.0, 0.8, 0.55]), lo, hi)
     # A pillow on a bed lies inside the bed's box, but the bed is not at the pillow's place.
     assert not same_place(np.array([0.4, 0.4, 0.5]), np.array([0.6, 0.6, 0.6]), lo, hi)
 

@@ -4,8 +4,10 @@ often is outvoted (the glmap policies; the baselines keep VLFM's rule, `min_obse
 A detector that takes a TV for a picture now and then leaves two units at one place: "a
 picture" seen twice and "a tv" seen ten times. The map remembers both; the candidate
 counts only if its views are at least as many as those of the other-labelled instances
-at the same place (`same_place`: each box covers `COVER` of the other, so a pillow on a
-bed, inside the bed's box but far smaller, is not outvoted by the bed).
+at the same place (`same_place`: the other's box covers `COVER` of the candidate's, and the
+candidate's covers `COVER_BACK` of the other's: a partial view of a cabinet taken for a TV
+stand still votes with the cabinet, while a pillow on a bed, inside the bed's box but far
+smaller, is not outvoted by the bed).
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ import numpy as np
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
 
-COVER = 0.5  # share of each box inside the other for two units to be at the same place
+COVER = 0.5  # share of the candidate's box inside the other's
+COVER_BACK = 0.25  # share of the other's box inside the candidate's (a partial view is smaller)
 
 
 def covered_share(
@@ -37,10 +40,11 @@ def _grown(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def same_place(lo: np.ndarray, hi: np.ndarray, other_lo: np.ndarray, other_hi: np.ndarray) -> bool:
-    """Whether two boxes ([3] min / max, metres) each cover `COVER` of the other."""
+    """Whether box `other` covers `COVER` of box (lo, hi) and (lo, hi) covers `COVER_BACK`
+    of `other` (boxes [3] min / max, metres)."""
     return (
         covered_share(lo, hi, other_lo, other_hi) >= COVER
-        and covered_share(other_lo, other_hi, lo, hi) >= COVER
+        and covered_share(other_lo, other_hi, lo, hi) >= COVER_BACK
     )
 
 
