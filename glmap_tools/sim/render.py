@@ -177,6 +177,9 @@ class SceneRenderer:
         seg, depth = self._renderer.render(
             self.scene, flags=pyrender.RenderFlags.SEG, seg_node_map=self.seg_node_map
         )
+        # Free the shared context for other threads at once: an env left open on one thread
+        # (a caller that never closes it) must not lock the size out for the simulator thread.
+        release_current_context()
         mask = ids_from_color(seg)
         return RenderedView(
             np.ascontiguousarray(rgb), np.ascontiguousarray(depth, dtype=np.float32), mask
