@@ -11,7 +11,8 @@ transformers or sentence-transformers, which take ~4 s to import. Its vectors eq
 sentence-transformers' to float32 precision (tests/test_embed.py).
 
 Texts are encoded in batches of equal token count, so there is no padding and no attention
-mask: every row of a batch is computed as it would be alone.
+mask, and each text of a batch goes through the layers on its own: its vector is the one it
+gets alone, bit for bit, on any BLAS.
 
 The dense layers of a short input (a search query: ~10 tokens) are computed in column panels
 narrow enough for OpenBLAS's small-matrix kernel, which reads the weights in place instead of
@@ -268,6 +269,11 @@ class BertSentenceEncoder:
 
         ids = np.asarray(ids, dtype=np.int64)
         b, n = ids.shape
+        if panels is not None and b > 1:
+            # One text per call: the products of a text then have the same shapes alone or
+            # in any batch, so its vector is the same bit for bit whatever BLAS does with
+            # more rows (some kernels sum in another order for another row count).
+            return np.concatenate([self._encode(ids[i : i + 1], panels) for i in range(b)])
         # Rows are [B * L, dim] for the dense layers, [B, H, L, d] for attention.
         x = (self.word[ids] + self.position[:n] + self.token_type).reshape(b * n, self.dim)
         x = _layer_norm(x, *self.embed_norm, self.eps)
