@@ -12,7 +12,7 @@ from glmap_tools import synthetic as scenes
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, MapConfig
 from glmap_tools.nav import NavConfig, NavState, decide
-from glmap_tools.nav.verify import covered_share, outvoted, same_place
+from glmap_tools.nav.verify import covered_share, note_missed, outvoted, same_place, seen_share
 
 TABLE = ("table", "a large oak dining table")
 DESK = ("desk", "a desk")
@@ -72,3 +72,23 @@ def test_a_desk_seen_as_a_desk_more_often_than_as_a_table_still_holds_the_goal()
     assert not outvoted(glmap, desk)
     d = decide(glmap, (0.0, 0.0), 0.0, "desk", policy="glmap", state=NavState(), config=CONFIG)
     assert d.waypoint.kind == "goal" and d.waypoint.unit_id == desk
+
+
+def test_a_unit_looked_at_again_without_being_seen_loses_its_pull_and_its_match() -> None:
+    # A desk detected once (a false positive), then looked at four times and not seen.
+    boxes = scenes.floor(6.0) + scenes.table(1.5, 0.0, object_id=2)
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    missed: dict[int, int] = {}
+    for k, text in enumerate([DESK, None, None, None, None]):
+        a = math.radians(-8 + 4 * k)
+        frame, ids = scenes.view(boxes, (0.0, 0.0, 0.88), (math.cos(a), math.sin(a), 0.88), 96, 72)
+        glmap.integrate(frame, scenes.semantics(ids, {2: text} if text else {}))
+        note_missed(missed, glmap, frame)
+    desk = desk_unit(glmap)
+    assert missed == {desk: 4} and seen_share(1, missed[desk]) == pytest.approx(0.2)
+    once = NavConfig(stop_threshold=0.5, min_observations=1, initial_spin=0)
+    state = NavState(missed=dict(missed))
+    d = decide(glmap, (0.0, 0.0), 0.0, "desk", policy="glmap", state=state, config=once)
+    assert not (d.waypoint.kind == "goal" and d.waypoint.unit_id == desk)
+    base = decide(glmap, (0.0, 0.0), 0.0, "desk", policy="frontier", state=NavState(), config=once)
+    assert base.waypoint.kind == "goal" and base.waypoint.unit_id == desk

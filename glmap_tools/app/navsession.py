@@ -107,6 +107,9 @@ def integrate(session: Session, sim: simulator.SimEpisode) -> str:
             recorder.committed(staged)
         if nav is not None:
             _follow(nav, sim, frame, semantics, glmap.grid.cell_size, glmap.config.max_range)
+            from glmap_tools.nav.verify import note_missed  # nav loads scipy: not at start
+
+            note_missed(nav.state.missed, glmap, frame)  # the looks that did not see a unit
     return summary
 
 

@@ -41,7 +41,7 @@ from glmap_tools.nav.perceive import (
 from glmap_tools.nav.planner import Plan
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
 from glmap_tools.nav.value import ValueMap, evidence_scores, value_map_from_scores
-from glmap_tools.nav.verify import outvoted
+from glmap_tools.nav.verify import note_missed, outvoted, seen_share
 from glmap_tools.nav.waypoint import GoalMatch, Waypoint
 
 if TYPE_CHECKING:
@@ -80,6 +80,8 @@ class NavState:
         last_waypoint: the previous step's waypoint.
         turns_in_place: turns in a row without moving, after the initial look around.
         steps: decisions taken.
+        missed: instance id -> frames that looked at it without seeing it (glmap policies,
+            `verify.missed_in_view`).
     """
 
     egocentric: EgocentricValueMap | None = None
@@ -95,6 +97,7 @@ class NavState:
     turns_in_place: int = 0
     steps: int = 0
     scorer: Scorer | None = None
+    missed: dict[int, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -170,6 +173,7 @@ def _score_units(
     rejected: set[int],
     config: NavConfig,
     prefer: int | None = None,
+    missed: dict[int, int] | None = None,
 ) -> Scored:
     """f_S of the units the policy reads, and the goal match among the instances (units
     the agent cannot be expected to recognise as goals left out; ties to `prefer`, the
@@ -179,20 +183,37 @@ def _score_units(
     scores = scorer.score(goal, units) if units else np.zeros(0)
     skip = set(unfit_goals(glmap)) if units else set()
     match = find_goal_match(glmap, units, scores, rejected | skip, config, scorer, goal, prefer)
-    while policy in POLICY_UNITS and match is not None and outvoted(glmap, match.unit_id):
+    while policy in POLICY_UNITS and match is not None and _doubted(glmap, match, missed or {}):
         skip.add(match.unit_id)
         match = find_goal_match(glmap, units, scores, rejected | skip, config, scorer, goal, prefer)
     by_id = {u.unit_id: float(v) for u, v in zip(units, scores, strict=True)}
     return Scored(units, by_id, match)
 
 
+def _doubted(glmap: GLMap, match: GoalMatch, missed: dict[int, int]) -> bool:
+    """Whether a goal match fails the verification over fused views (`nav/verify.py`):
+    outvoted at its place, or missed by most of the looks at it."""
+    seen = seen_share(match.observations, missed.get(match.unit_id, 0))
+    return seen < 0.5 or outvoted(glmap, match.unit_id)
+
+
 def _unit_value_map(
-    policy: str, glmap: GLMap, scored: Scored, occ: DenseOccupancy, config: NavConfig
+    policy: str,
+    glmap: GLMap,
+    scored: Scored,
+    occ: DenseOccupancy,
+    config: NavConfig,
+    missed: dict[int, int],
 ) -> ValueMap:
-    """Eq. 7 over the units the policy keeps, each above its kind's least score."""
+    """Eq. 7 over the units the policy keeps, each above its kind's least score; an
+    instance's f_S is weighted by the share of the looks at it that saw it."""
     keep = UNIT_KINDS[POLICY_UNITS[policy]]
     least = {"instance": config.min_instance_score, "region": config.min_region_score}
-    used, _ = evidence_scores(scored.units, scored.by_id, keep, least, config.region_hint)
+    by_id = dict(scored.by_id)
+    for u in scored.units:
+        if u.kind == "instance" and u.unit_id in missed:
+            by_id[u.unit_id] *= seen_share(u.observations, missed[u.unit_id])
+    used, _ = evidence_scores(scored.units, by_id, keep, least, config.region_hint)
     return value_map_from_scores(
         used, glmap.grid, occ, config.value_sigma, unit_mass=config.unit_mass
     )
@@ -274,7 +295,9 @@ def decide(
         scorer: f_S; default `EmbeddingScorer(glmap.embedder)` (kept in `state`).
         state: per-episode state; pass the same object every step (a fresh one if None).
         config: navigation settings.
-        frame: this step's frame (policy 'egocentric' projects it into its view cone).
+        frame: this step's frame (policy 'egocentric' projects it into its view cone; the
+            glmap policies count the units it looked at without seeing, `state.missed`;
+            a caller that passes no frame counts them itself, `verify.note_missed`).
         semantics: this frame's semantics, scored for the egocentric frame score (default:
             the instances the latest frame observed).
 
@@ -296,13 +319,16 @@ def decide(
     sur, blocked = _perceive_surroundings(glmap, xy, state.blocked | bumped, config)
     last = state.last_waypoint
     prefer = last.unit_id if last is not None and last.kind == "goal" else None
-    scored = _score_units(glmap, goal, policy, scorer, state.rejected_units, config, prefer)
+    missed = dict(state.missed)
+    if frame is not None and policy in POLICY_UNITS:
+        note_missed(missed, glmap, frame)
+    scored = _score_units(glmap, goal, policy, scorer, state.rejected_units, config, prefer, missed)
     match = scored.match
 
     # The value map: Eq. 7 over the units, or the egocentric accumulator.
     value: ValueMap | None = None
     if policy in POLICY_UNITS:
-        value = _unit_value_map(policy, glmap, scored, sur.occ, config)
+        value = _unit_value_map(policy, glmap, scored, sur.occ, config, missed)
     elif policy == "egocentric":
         if state.egocentric is None:
             state.egocentric = EgocentricValueMap(glmap.grid.cell_size, glmap.config.max_range)
@@ -334,6 +360,7 @@ def decide(
 
     # Act, and remember.
     _remember(state, choice, blocked, xy, heading, config)
+    state.missed = missed
     goal_unit = match.unit_id if match is not None and choice.waypoint.kind == "goal" else None
     return NavDecision(
         choice.plan.action,

@@ -1,5 +1,8 @@
 """Goal verification over fused views: a goal candidate the map saw as something else more
-often is outvoted (the glmap policies; the baselines keep VLFM's rule, `min_observations`).
+often is outvoted (the glmap policies; the baselines keep VLFM's rule, `min_observations`);
+a unit the agent looked at again without seeing it (`missed_in_view`) pulls the value map
+by the share of looks that saw it (`seen_share`): a false positive on a wall, seen once,
+stops drawing the agent once it has looked there again.
 
 A detector that takes a TV for a picture now and then leaves two units at one place: "a
 picture" seen twice and "a tv" seen ten times. The map remembers both; the candidate
@@ -17,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from glmap_tools.geometry.frame import RGBDFrame
     from glmap_tools.map.glmap import GLMap
 
 COVER = 0.5  # share of the candidate's box inside the other's
@@ -63,3 +67,51 @@ def outvoted(glmap: GLMap, unit_id: int) -> bool:
         if same_place(lo, hi, other_lo, other_hi):
             votes += other.observations
     return votes > unit.observations
+
+
+MISS_RANGE_M = 3.0  # a unit's centre nearer than this, in view and not hidden, should be seen
+MISS_MARGIN = 0.1  # share of the image width / height kept clear of the borders
+HIDDEN_M = 0.3  # something this much nearer than the centre hides it
+
+
+def missed_in_view(glmap: GLMap, frame: RGBDFrame) -> list[int]:
+    """Instances the latest frame looked at without observing them.
+
+    A unit counts when its centre lies in the image (away from the borders), in front of
+    the camera within `MISS_RANGE_M`, and the depth there does not put something more than
+    `HIDDEN_M` in front of it; the latest frame is `frame`, already integrated.
+    """
+    last = len(glmap.trajectory) - 1
+    camera_from_world = np.linalg.inv(frame.pose.matrix)
+    k = frame.intrinsics
+    depth = np.asarray(frame.depth)
+    h, w = depth.shape
+    out = []
+    for uid, unit in glmap.instances.items():
+        if unit.last_frame == last or len(unit.gaussians) == 0:
+            continue
+        c = camera_from_world[:3, :3] @ unit.centroid + camera_from_world[:3, 3]
+        z = float(c[2])
+        if not 0.3 < z < MISS_RANGE_M:
+            continue
+        u, v = k.fx * c[0] / z + k.cx, k.fy * c[1] / z + k.cy
+        if not (MISS_MARGIN * w <= u < (1 - MISS_MARGIN) * w):
+            continue
+        if not (MISS_MARGIN * h <= v < (1 - MISS_MARGIN) * h):
+            continue
+        d = float(depth[int(v), int(u)])
+        if d > 0 and d >= z - HIDDEN_M:
+            out.append(uid)
+    return out
+
+
+def note_missed(missed: dict[int, int], glmap: GLMap, frame: RGBDFrame) -> None:
+    """Count one more miss in `missed` (instance id -> frames) for each unit the latest
+    frame, `frame`, looked at without observing (`missed_in_view`)."""
+    for uid in missed_in_view(glmap, frame):
+        missed[uid] = missed.get(uid, 0) + 1
+
+
+def seen_share(observations: int, missed: int) -> float:
+    """The share of the looks at a unit that saw it: 1 for a unit never looked past."""
+    return observations / max(observations + missed, 1)
