@@ -296,66 +296,62 @@ def note_fallback(message: str) -> None:
 _LAST_UNBOUND = ""
 
 
-class FallbackScorer:
+class _WithFallback:
+    """A primary model part and the part that stands in when a request to it fails.
+
+    Args:
+        primary: the part that asks the client's model.
+        fallback: the stand-in; None: the primary's error is raised.
+        fallback_name: how the fallback is named in messages ("embedding", "ollama").
+    """
+
+    what = ""  # what the part does, for the fallback message
+    kind = ""  # what the fallback is, for the fallback message
+
+    def __init__(self, primary: Any, fallback: Any | None, fallback_name: str = "") -> None:
+        self.primary = primary
+        self.fallback = fallback
+        self.fallback_name = fallback_name or type(fallback).__name__
+
+    @property
+    def calls(self) -> int:
+        return int(getattr(self.primary, "calls", 0))
+
+    def _either(self, method: str, *args: Any) -> Any:
+        try:
+            return getattr(self.primary, method)(*args)
+        except LLMError as exc:
+            if self.fallback is None:
+                raise
+            note_fallback(fallback_message(self.what, exc, f"the {self.fallback_name} {self.kind}"))
+            return getattr(self.fallback, method)(*args)
+
+
+class FallbackScorer(_WithFallback):
     """f_S from the primary scorer (the client's model); the fallback when it fails.
 
     Satisfies `glmap_tools.nav.Scorer`. The primary's cache (goal + unit text) makes a
     unit scored once cost no further calls; a failed batch is not cached, so the next
-    decision asks again.
-
-    Args:
-        primary: e.g. `LLMScorer(SamplingClient())`.
-        fallback: e.g. `EmbeddingScorer(embedder)` or an Ollama `LLMScorer`; None: the
-            primary's error is raised.
-        fallback_name: how the fallback is named in messages ("embedding", "ollama").
+    decision asks again. Primary e.g. `LLMScorer(SamplingClient())`; fallback e.g.
+    `EmbeddingScorer(embedder)` or an Ollama `LLMScorer`.
     """
 
-    def __init__(self, primary: Any, fallback: Any | None, fallback_name: str = "") -> None:
-        self.primary = primary
-        self.fallback = fallback
-        self.fallback_name = fallback_name or type(fallback).__name__
-
-    @property
-    def calls(self) -> int:
-        return int(getattr(self.primary, "calls", 0))
+    what, kind = "scoring", "scorer"
 
     def score(self, goal: str, units: Sequence[Any]) -> np.ndarray:
         """[N] scores in [0, 1] of `units` for `goal` (see `glmap_tools.nav.Scorer`)."""
-        try:
-            return np.asarray(self.primary.score(goal, units), dtype=np.float64)
-        except LLMError as exc:
-            if self.fallback is None:
-                raise
-            note_fallback(fallback_message("scoring", exc, f"the {self.fallback_name} scorer"))
-            return np.asarray(self.fallback.score(goal, units), dtype=np.float64)
+        return np.asarray(self._either("score", goal, units), dtype=np.float64)
 
 
-class FallbackMerger:
+class FallbackMerger(_WithFallback):
     """`TextMerger` from the primary merger (the client's model); the fallback when it fails.
 
-    Args:
-        primary: e.g. `LLMTextMerger(SamplingClient())`.
-        fallback: e.g. `ExtractiveTextMerger(embedder)`; None: the primary's error is raised.
-        fallback_name: how the fallback is named in messages.
+    Primary e.g. `LLMTextMerger(SamplingClient())`; fallback e.g.
+    `ExtractiveTextMerger(embedder)`.
     """
 
-    def __init__(self, primary: Any, fallback: Any | None, fallback_name: str = "") -> None:
-        self.primary = primary
-        self.fallback = fallback
-        self.fallback_name = fallback_name or type(fallback).__name__
-
-    @property
-    def calls(self) -> int:
-        return int(getattr(self.primary, "calls", 0))
+    what, kind = "merging a text", "merger"
 
     def merge(self, texts: Sequence[str], max_words: int) -> str:
         """One description of at most `max_words` words (see `TextMerger.merge`)."""
-        try:
-            return str(self.primary.merge(texts, max_words))
-        except LLMError as exc:
-            if self.fallback is None:
-                raise
-            note_fallback(
-                fallback_message("merging a text", exc, f"the {self.fallback_name} merger")
-            )
-            return str(self.fallback.merge(texts, max_words))
+        return str(self._either("merge", texts, max_words))
