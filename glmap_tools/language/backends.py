@@ -153,6 +153,19 @@ class LLMSettings:
         return PromptSet(self.prompts) if self.prompts else default_prompts()
 
 
+def _fallback_settings(settings: LLMSettings, **part: str) -> LLMSettings:
+    """The settings of a sampling part's fallback: `part` (e.g. scorer="embedding") on the
+    Ollama model, host, timeout, prompts and transcript of `settings`."""
+    return LLMSettings(
+        model=settings.model,
+        host=settings.host,
+        timeout=settings.timeout,
+        prompts=settings.prompts,
+        transcript=settings.transcript,
+        **part,  # type: ignore[arg-type]
+    )
+
+
 def make_text_merger(settings: LLMSettings, embedder: Any) -> Any:
     """The text merger the settings ask for (`TextMerger`)."""
     if settings.text_merger == "sampling":
@@ -162,15 +175,9 @@ def make_text_merger(settings: LLMSettings, embedder: Any) -> Any:
         primary = LLMTextMerger(settings.sampling_client(), settings.prompt_set())
         if settings.fallback == "none":
             return FallbackMerger(primary, None)
-        fallback = LLMSettings(
-            text_merger="llm" if settings.fallback == "ollama" else "extractive",
-            model=settings.model,
-            host=settings.host,
-            timeout=settings.timeout,
-            prompts=settings.prompts,
-            transcript=settings.transcript,
-        )
-        name = "ollama" if settings.fallback == "ollama" else "extractive"
+        ollama = settings.fallback == "ollama"
+        fallback = _fallback_settings(settings, text_merger="llm" if ollama else "extractive")
+        name = "ollama" if ollama else "extractive"
         return FallbackMerger(primary, make_text_merger(fallback, embedder), name)
     if settings.text_merger == "llm":
         from glmap_tools.language.llm_merger import LLMTextMerger
@@ -191,15 +198,9 @@ def make_scorer(settings: LLMSettings, embedder: Any) -> Any:
         primary = LLMScorer(client, settings.prompt_set(), batch_size=SAMPLING_BATCH)
         if settings.fallback == "none":
             return FallbackScorer(primary, None)
-        fallback = LLMSettings(
-            scorer="llm" if settings.fallback == "ollama" else "embedding",
-            model=settings.model,
-            host=settings.host,
-            timeout=settings.timeout,
-            prompts=settings.prompts,
-            transcript=settings.transcript,
-        )
-        name = "ollama" if settings.fallback == "ollama" else "embedding"
+        ollama = settings.fallback == "ollama"
+        fallback = _fallback_settings(settings, scorer="llm" if ollama else "embedding")
+        name = "ollama" if ollama else "embedding"
         return FallbackScorer(primary, make_scorer(fallback, embedder), name)
     if settings.scorer == "llm":
         from glmap_tools.language.llm_scorer import LLMScorer

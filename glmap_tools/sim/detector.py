@@ -332,9 +332,9 @@ def detect_view(
         else:
             texts[i] = object_description(label, attributes)
 
-    out = np.zeros_like(mask)
-    for i in labels:
-        out[mask == i] = i
+    lut = np.zeros(int(mask.max()) + 1, dtype=np.int32)  # detected ids kept, the rest 0
+    lut[list(labels)] = list(labels)
+    out = lut[mask]
     _bleed(out, list(labels), rng, rates, w)
     _false_positive(out, depth, layout, labels, texts, goal_category, rng, rates, threshold)
 
