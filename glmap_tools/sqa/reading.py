@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.sqa import asides
 
 Side = Literal["left", "right", "behind", "front"]
 SIDES: tuple[str, ...] = ("left", "right", "behind", "front")
@@ -115,6 +116,7 @@ RELATIONS = (
     "between",
     "against",
     "along",
+    "out of",
     "over",
     "from",
     "with",
@@ -153,6 +155,21 @@ _IS = r"(?:is |are |stands |sits |lies )?"  # "the lamp (is) on my left"
 _THERE = r",? (?:is |are |there is |there are |there's |i (?:can )?see |i have |stands |sits )?"
 _JUST = r"(?:right |directly |straight |immediately |just )?"
 _AHEAD = r"(?:in front of me|ahead of me|before me|straight ahead|ahead)"
+# Where the object rests, after its side: "a bag on my left on the floor".
+# A participle after the object's noun starts an activity ("at the counter chopping onions");
+# nouns that end in -ing are not one ("dining table", "washing machine", "ceiling light").
+_ING_NOUNS = (
+    "dining|washing|living|ceiling|sitting|painting|building|clothing|drawing|reading|sewing|"
+    "changing|ironing|serving|baking|railing|landing|seating|heating|lighting|shelving|"
+    "sleeping|dressing|recording|swing|string|ring|king|spring|wing|ceiling|pudding|bedding"
+)
+_ACTIVITY_TAIL = re.compile(r"(?<=\w)\s+(?!(?:" + _ING_NOUNS + r")\b)[a-z]{3,}ing\b.*$")
+_PLACE_TAIL = r"(?: (?:on|by|near|next to|against|under|in) (?:the|a|an) [\w -]+)?"
+# A verb before the relation that is no posture: "i stopped next to the bookcase".
+_VERB = re.compile(
+    r"^(?:\w+ed|was|got|went|came|remain|remains|stay|stays|am|is|sits|stands|lies)"
+    r"(?: (?:up|over|back|down|here|there))? (?=(?:" + "|".join(RELATIONS) + r") )"
+)
 # A participle after the anchor starts another clause ("at the window looking outside").
 _DOING = (
     r"(?:looking|watching|holding|reading|waiting|thinking|smiling|talking|listening|"
@@ -191,6 +208,7 @@ _PATTERNS: list[tuple[str, re.Pattern[str]]] = [
             + _JUST
             + r"(?:to|on|at|by) (?:my|the) "
             + _SIDE
+            + _PLACE_TAIL
             + r"$"
         ),
     ),
@@ -331,16 +349,20 @@ def _clauses(text: str) -> list[str]:
     t = " " + " ".join(text.lower().replace("’", "'").replace("`", "'").split()) + " "
     t = re.sub(r"\bi'm\b", "i am", t)
     t = re.sub(r"\bo ?clock\b|\bo' clock\b", "o'clock", t)
+    t = asides.hands_to_sides(t)
+    t = asides.ACROSS.sub("in front of me", t)
     # "between the X and the Y" keeps its "and" (marked) through the clause split.
     t = re.sub(r"\bbetween ((?:the |a |an )?[\w -]+?) and ", r"between \1 & ", t)
     parts = re.split(
         r"[.;!?]+\s*|,\s*(?:and |while |with |but |so |whereas )?|"
-        r"\s+(?:and|while|whilst|but|whereas)\s+(?=(?:i|i am|my|the|a|an|there|to|on|in|at|"
+        r"\s+(?:and|while|whilst|but|whereas|as|because|since|when)\s+"
+        r"(?=(?:i|i am|my|the|a|an|there|to|on|in|at|"
         r"behind|facing|looking|standing|sitting|seated|lying|leaning|crouching|kneeling)\b)"
         # "with" starts a clause only before an egocentric one ("with the lamp on my left"),
         # not inside a description ("the floor lamp with a green shade").
         r"|\s+with\s+(?=my\b|(?:the|a|an)\s(?:(?!\b(?:and|is|are)\b)[\w\s-])+?\s"
-        r"(?:on|to|at|in front of|behind)\s(?:my|me)\b)",
+        r"(?:on|to|at|in front of|behind)\s(?:my|me)\b"
+        r"|(?:the|a|an)\s[\w\s-]+?\son (?:either|both|each) sides? of me\b)",
         t,
     )
     return [p.strip() for p in parts if p and p.strip()]
@@ -349,6 +371,7 @@ def _clauses(text: str) -> list[str]:
 def _position(clause: str, out: dict[str, Any]) -> None:
     """Fill posture / activity / relation / anchor from a position clause."""
     rest = _LEAD.sub("", clause).strip()
+    rest = _VERB.sub("", rest)
     words = rest.split()
     if words and (words[0] in POSTURES or words[0] in BASE_POSTURES):
         w = BASE_POSTURES.get(words[0], words[0])
@@ -362,7 +385,8 @@ def _position(clause: str, out: dict[str, Any]) -> None:
         if m and m.start() > 0:
             head = rest[: m.start() - 1].strip() if m.start() > 0 else ""
             tail = rest[m.start() :].strip()
-            if m.group(1) not in ("with", "to", "from", "into", "over") or not head.split()[1:]:
+            # "getting a glass of water from the sink": the place after "from" / "out of"
+            if m.group(1) not in ("with", "to", "into", "over") or not head.split()[1:]:
                 out.setdefault("activity", head or words[0])
                 loc = tail
         if loc is None:
@@ -383,7 +407,11 @@ def _position(clause: str, out: dict[str, Any]) -> None:
         a, b = (object_words(x) for x in obj.split("&", 1))
         out.setdefault("near", []).append(b)
         obj = a
+    obj, ego = asides.split_relative(obj)
     obj = object_words(re.sub(r"\s+" + _DOING + r"\b.*$", "", obj))
+    obj = _ACTIVITY_TAIL.sub("", obj)  # "the counter chopping onions"
+    if ego is not None and obj:
+        out.setdefault("ego", []).append((obj, ego))
     # "in the kitchen next to the fridge": the object, not the room, is the anchor.
     sub = re.match(r"^(.+?)\s+(next to|beside|near|by|at|in front of|close to|on)\s+(.+)$", obj)
     if sub and object_words(sub.group(1)) in ROOMS:
@@ -413,14 +441,22 @@ def read_situation(text: str) -> SituationReading:
     out: dict[str, Any] = {}
     cons: list[Constraint] = []
     fronts: list[str] = []
-    for clause in _clauses(text):
+    clauses = _clauses(text)
+    for i, clause in enumerate(clauses):
+        if asides.negated(clause) or asides.leading_adverbial(clause, i, len(clauses)):
+            continue  # "i cannot see the tv", "after entering the room": no place
         clause = re.sub(r"^(?:and|while|with|but|so|also|then)\s+", "", clause)
+        both = asides.either_side(clause)
+        if both is not None:  # "a nightstand on either side of me"
+            obj = object_words(both)
+            cons += [Constraint(obj, side="left"), Constraint(obj, side="right")]
+            continue
         hit = False
         for kind, pat in _PATTERNS:
             m = pat.match(clause)
             if not m:
                 continue
-            obj = object_words(m.group("x"))
+            obj = object_words(asides.split_relative(m.group("x"))[0])
             if not obj or obj in ("i", "me", "it") or re.match(r"(?:i|we)\b", obj):
                 continue  # "I am on the couch facing the tv in front of me": not an object
             if kind == "behind":
@@ -445,7 +481,7 @@ def read_situation(text: str) -> SituationReading:
             m = re.search(r"(?:^|\s)" + _FACE_VERB + r"\s+(?P<x>.+)$", clause)
         if m:
             before = clause[: m.start()].strip()
-            target = m.group("x")
+            target = asides.split_relative(m.group("x"))[0]
             verb = clause[m.start() : m.start("x")].strip()
             if not _LEAD.sub("", before).strip():
                 # "Watching tv on the couch": the place after what is watched ("facing the
@@ -461,6 +497,15 @@ def read_situation(text: str) -> SituationReading:
                 _position(before, out)
             continue
         _position(clause, out)
+    for obj, (kind, value) in out.get("ego", []):  # "the door that is on my right"
+        if kind == "side":
+            cons.append(Constraint(obj, side=value))  # type: ignore[arg-type]
+        elif kind == "clock":
+            cons.append(Constraint(obj, clock=_hour(value)))
+        elif kind == "behind":
+            cons.append(Constraint(obj, side="behind"))
+        else:
+            fronts.append(obj)
     facing = fronts[0] if fronts else None
     cons += [Constraint(f, side="front") for f in fronts[1:]]
     return SituationReading(

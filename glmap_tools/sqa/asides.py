@@ -1,0 +1,114 @@
+"""What people write around a situation's parts, taken apart before the clauses are read.
+
+- relative clauses inside an object phrase: "the door that is on my right" is the door
+  plus a constraint (door, right); "the shelf where the books are kept", "the chair that
+  is closest to the door" are the shelf and the chair (the clause is dropped);
+- egocentric tails: "within arm's reach" says nothing about a side and goes; "by my left
+  foot", "by my right hand" are the left and the right side;
+- negation: "I cannot see the tv", "I don't see the sink" say where I am not looking and
+  give no position, facing or constraint;
+- leading adverbial clauses: "After entering the room, ...", "While waiting for the
+  kettle, ..." set the scene; the place comes after them;
+- "on either side of me": one object on my left and one on my right;
+- "on the other side of the room": across the room from me, in front.
+
+Pure string functions over lower-cased text; `glmap_tools.sqa.reading` applies them.
+"""
+
+from __future__ import annotations
+
+import re
+
+_EGO_SIDE = r"(?:to|on|at|by) (?:my|the) (?P<s>left|right)(?:[- ]hand)?(?: side)?(?: of me)?"
+_EGO_HOUR = (
+    r"(?:at|in|on|to) (?:my |the )?(?P<h>\d{1,2}|one|two|three|four|five|six|seven|eight|"
+    r"nine|ten|eleven|twelve)\s*o'clock(?: (?:direction|position))?"
+)
+_EGO_BEHIND = r"(?P<b>behind me|at my back)"
+_EGO_FRONT = r"(?P<f>in front of me|ahead of me|straight ahead)"
+EGO = r"(?:" + _EGO_SIDE + "|" + _EGO_HOUR + "|" + _EGO_BEHIND + "|" + _EGO_FRONT + ")"
+
+# "that is on my right", "which stands behind me", "that i have to my left"
+_REL_EGO = re.compile(
+    r"^(?P<head>.+?)\s+(?:that|which|who)\s+(?:(?:is|are|stands|sits|lies|hangs|i have)\s+)?"
+    r"(?:located\s+|placed\s+|right\s+|directly\s+|just\s+)?" + EGO + r"(?P<rest>.*)$"
+)
+# Any other relative clause ends the object's words: "the shelf where the books are kept".
+_REL_ANY = re.compile(
+    r"\s+(?:that|which|who|where|whose)\s+(?!is (?:next to|near|beside|by|on|in)\b).*$"
+)
+# "that is next to the fridge": a relation the locator uses ("cabinet next to the fridge").
+_REL_KEEP = re.compile(r"\s+(?:that|which) is (next to|near|beside|by|on|in)\s+")
+# Words that add nothing about where the object is.
+_REACH = re.compile(
+    r"(?:\s+with\s+(?:(?!\bwith\b)[\w' -])+?)?"  # "with the remote within arm's reach"
+    r"\s+(?:(?:within|in) (?:arm'?s'? |my )?reach|within arm'?s'? length|close at hand)\b"
+)
+_LIMB = re.compile(r"\bby my (?P<s>left|right) (?:foot|feet|hand|arm|elbow|shoulder|leg|knee)\b")
+NEGATION = re.compile(
+    r"\b(?:not|n't|cannot|never|no longer|nowhere)\b|\b(?:can|do|does|is|am|are)not\b"
+)
+_LEADING = re.compile(
+    r"^(?:after|before|while|whilst|when|once|upon|having|as soon as|since|just after)\b"
+)
+EITHER = re.compile(r"\bon (?:either|both|each) side(?:s)? of me\b")
+ACROSS = re.compile(r"\b(?:on|at|to) the (?:other|opposite|far) (?:side|end) of the room\b")
+
+
+def hands_to_sides(text: str) -> str:
+    """'by my left foot' -> 'on my left'; 'within arm's reach' dropped."""
+    text = _LIMB.sub(lambda m: f"on my {m.group('s')}", text)
+    return _REACH.sub("", text)
+
+
+def negated(clause: str) -> bool:
+    """Does the clause deny something ("i cannot see the tv", "the door is not open")?"""
+    return bool(NEGATION.search(clause.replace("can't", "can not").replace("n't", " not")))
+
+
+def leading_adverbial(clause: str, index: int, count: int) -> bool:
+    """A leading "after ...", "while ..." clause that only sets the scene: the first clause
+    of several, without "i" in it ("while waiting for the kettle", "after entering")."""
+    if index != 0 or count < 2 or not _LEADING.match(clause):
+        return False
+    return not re.search(r"\b(?:i|i am|my)\b", clause)
+
+
+def split_relative(phrase: str) -> tuple[str, tuple[str, str] | None]:
+    """(object words, an egocentric part or None) of an object phrase with a relative clause.
+
+    The egocentric part is ("side", "left"/"right"), ("clock", hour word), ("behind", "")
+    or ("front", "").
+
+    >>> split_relative("the door that is on my right")
+    ('the door', ('side', 'right'))
+    >>> split_relative("the shelf where the books are kept")
+    ('the shelf', None)
+    """
+    m = _REL_EGO.match(phrase)
+    if m:
+        if m.group("s"):
+            ego: tuple[str, str] = ("side", m.group("s"))
+        elif m.group("h"):
+            ego = ("clock", m.group("h"))
+        elif m.group("b"):
+            ego = ("behind", "")
+        else:
+            ego = ("front", "")
+        return m.group("head").strip(), ego
+    phrase = _REL_KEEP.sub(lambda k: f" {k.group(1)} ", phrase)
+    return _REL_ANY.sub("", phrase).strip(), None
+
+
+def either_side(clause: str) -> str | None:
+    """The object of "X on either side of me" / "on either side of me is X", else None."""
+    if not EITHER.search(clause):
+        return None
+    rest = EITHER.sub(" ", clause)
+    rest = re.sub(
+        r"^\s*(?:with |there (?:is|are) |there's |i have |i see )?|\s+(?:is|are|stands)\s*$",
+        "",
+        rest.strip(),
+    )
+    rest = re.sub(r"^(?:is|are|there (?:is|are))\s+", "", rest.strip())
+    return rest.strip() or None
