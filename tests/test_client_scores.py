@@ -200,3 +200,21 @@ async def test_the_client_scores_go_on_in_the_next_server_of_a_kept_episode(tmp_
         (text,) = conn.execute("SELECT value FROM meta WHERE key = 'extra.sim_episode'").fetchone()
     assert json.loads(text)["client_scores"] == {"units": [], "priors": [["kitchen", 0.9]]}
     assert again["client"] == said["client"]
+
+
+async def test_looking_at_the_value_map_leaves_the_policy_s_path_as_it_was(tmp_path):
+    """value_map decides on a copy of the episode's policy memory: a client that looks at
+    the value map between nav_step calls walks the same path as one that never looks."""
+    paths = []
+    for look in (False, True):
+        server = build_server(config(tmp_path / str(look), sim_size=(160, 120)))
+        async with Client(server) as client:
+            ok(await client.call_tool("sim_reset", {"episode": EPISODE, "seed": 3}))
+            path = []
+            for _ in range(18):
+                if look:
+                    ok(await client.call_tool("value_map", {}))
+                step = ok(await client.call_tool("nav_step", {"actions": 1}))
+                path.append((step["steps"], step["position"], step["heading_deg"]))
+        paths.append(path)
+    assert paths[0] == paths[1]

@@ -75,8 +75,14 @@ def _agent(session: Session) -> tuple[float, float, float]:
     return agent
 
 
-def _decide(session: Session, goal: str, policy: str) -> tuple[Any, tuple[float, float, float]]:
-    """Run the policy on the session's map (the episode's NavState, or a fresh one)."""
+def _decide(
+    session: Session, goal: str, policy: str, *, act: bool = True
+) -> tuple[Any, tuple[float, float, float]]:
+    """Run the policy on the session's map (the episode's NavState, or a fresh one).
+    act=False decides on a copy of the episode's NavState: a tool that only shows the
+    decision (value_map) leaves the policy's memory as it was."""
+    from dataclasses import replace
+
     from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState, decide
 
     agent = _agent(session)
@@ -88,6 +94,14 @@ def _decide(session: Session, goal: str, policy: str) -> tuple[Any, tuple[float,
             # Count every step taken since sim_reset (look_around, navigate_to, sim_step
             # included), so a full turn already taken counts as the policy's initial spin.
             state.steps = max(state.steps, len(nav.path) - 1)
+            if not act:
+                state = replace(
+                    state,
+                    avoid=list(state.avoid),
+                    rejected_units=set(state.rejected_units),
+                    blocked=set(state.blocked),
+                    missed=dict(state.missed),
+                )
         else:
             state, scorer, config = NavState(), EmbeddingScorer(glmap.embedder), NavConfig()
         decision = decide(
@@ -100,7 +114,7 @@ def _decide(session: Session, goal: str, policy: str) -> tuple[Any, tuple[float,
             state=state,
             config=config,
         )
-    if nav is not None:
+    if nav is not None and act:
         nav.decision = decision
     return decision, agent
 
@@ -189,7 +203,7 @@ async def value_map(
                     "leave goal out to give them."
                 )
             client = set_client_scores(target, scores, priors, clear)
-        decision, agent = _decide(target, wanted, POLICY_OF_UNITS[units])
+        decision, agent = _decide(target, wanted, POLICY_OF_UNITS[units], act=False)
         top = decision.value.top_cells(5) if decision.value is not None else []
         info = {
             "goal": wanted,
