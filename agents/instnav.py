@@ -9,6 +9,8 @@ of `agents.objectnav`.
 
 from __future__ import annotations
 
+from typing import Any
+
 from agents.objectnav import NavAgent
 
 
@@ -18,7 +20,7 @@ class InstNavAgent(NavAgent):
     task = "instnav"
 
 
-def agent_for(task: str, policy: str, seed: int, **options: int) -> NavAgent:
+def agent_for(task: str, policy: str, seed: int, **options: Any) -> NavAgent:
     """The agent class of `task` ('objectnav' or 'instnav') with `policy`."""
     cls = InstNavAgent if task == "instnav" else NavAgent
     return cls(policy, seed, **options)

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from agents.fs import RegionScorer, region_views
 from agents.trace import TracedClient
 
 MAP_POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
@@ -71,7 +72,12 @@ class NavAgent:
     task = "objectnav"
 
     def __init__(
-        self, policy: str, seed: int = 0, actions_per_call: int = 1, image_every: int = 10
+        self,
+        policy: str,
+        seed: int = 0,
+        actions_per_call: int = 1,
+        image_every: int = 10,
+        fs: RegionScorer | None = None,
     ) -> None:
         if policy not in (*MAP_POLICIES, "random"):
             raise ValueError(f"unknown policy {policy!r}")
@@ -79,6 +85,27 @@ class NavAgent:
         self.rng = np.random.default_rng(seed)
         self.actions_per_call = max(1, int(actions_per_call))
         self.image_every = int(image_every)
+        self.fs = fs
+        self.sent: dict[int, tuple[str, float]] = {}  # region id -> (text, score) given
+
+    async def give_scores(self, client: TracedClient, goal: str) -> None:
+        """Score the regions that are new or changed since the last call with `self.fs`
+        and send the scores that changed with value_map (one call, only when needed)."""
+        assert self.fs is not None
+        regions = await client.resource("glmap://current/regions")
+        changed = [r for r in regions if self.sent.get(int(r["id"]), ("",))[0] != _key(r)]
+        if not changed:
+            return
+        instances = await client.resource("glmap://current/instances")
+        scores = self.fs.score(goal, region_views(changed, instances))
+        new = {uid: s for uid, s in scores.items() if self.sent.get(uid, ("", -1.0))[1] != s}
+        for r in changed:
+            uid = int(r["id"])
+            self.sent[uid] = (_key(r), scores.get(uid, self.sent.get(uid, ("", -1.0))[1]))
+        if new:
+            await client.call(
+                "value_map", {"scores": {str(k): v for k, v in new.items()}}, keep_images=False
+            )
 
     def _images_now(self, n_calls: int, status: dict[str, Any]) -> bool:
         return self.image_every > 0 and n_calls % self.image_every == 0
@@ -105,6 +132,8 @@ class NavAgent:
                     )
                 )
             else:
+                if self.fs is not None:
+                    await self.give_scores(client, start["goal"])
                 args = {
                     "policy": self.policy,
                     "actions": self.actions_per_call,
@@ -129,3 +158,8 @@ class NavAgent:
                     )
             calls += 1
         return Play(start, status, steps)
+
+
+def _key(region: dict[str, Any]) -> str:
+    """What a region's score depends on: its text and its members."""
+    return f"{region['description']}|{sorted(region.get('instance_ids', []))}"

@@ -24,6 +24,7 @@ from typing import Any
 
 from pydantic import BaseModel, Field
 
+from agents.fs import region_scorer, split_agent
 from agents.instnav import agent_for
 from agents.report import write_report
 from agents.trace import TracedClient
@@ -37,7 +38,12 @@ AGENTS = (
     "frontier",
     "random",
     "llm-tools",
+    "glmap+oracle-room",
+    "glmap+embedding",
+    "glmap+recorded",
 )
+# glmap+<source>: the glmap policy with region scores f_S the client gives value_map
+# (agents/fs.py: oracle-room is an upper bound from the scene's ground truth).
 # llm-tools: a chat model through Ollama calls the tools itself (agents/llm_agent.py); its
 # model, server and prompt folder come from these environment variables (set by
 # `glmap eval --model/--ollama-host/--prompts`). "scorer" is the f_S of the eval workers'
@@ -141,8 +147,15 @@ async def play_episode(
     try:
         reset = await client.call("sim_reset", {"seed": seed, "size": AGENT_SIZE, **reset_args})
         start = reset.data()
+        policy, source = split_agent(agent)
+        fs = region_scorer(source, str(start.get("episode", ""))) if source else None
         player = agent_for(
-            start["task"], agent, seed, actions_per_call=actions_per_call, image_every=image_every
+            start["task"],
+            policy,
+            seed,
+            actions_per_call=actions_per_call,
+            image_every=image_every,
+            fs=fs,
         )
         play = await player.play(client, start)
     finally:

@@ -71,6 +71,7 @@ class TracedClient:
         self.client = client
         self.out_dir = out_dir
         self.records: list[CallRecord] = []
+        self.resource_reads = 0
         self._trace = None
         if out_dir is not None:
             (out_dir / "images").mkdir(parents=True, exist_ok=True)
@@ -107,6 +108,13 @@ class TracedClient:
             self._trace.write(json.dumps(record.as_json()) + "\n")
             self._trace.flush()
         return record
+
+    async def resource(self, uri: str) -> Any:
+        """A JSON resource of the server (`glmap://current/regions`), parsed; resource reads
+        are not tool calls and are counted apart (`resource_reads`), not traced."""
+        result = await self.client.read_resource(uri)
+        self.resource_reads += 1
+        return json.loads(result.contents[0].text)
 
     def close(self) -> None:
         if self._trace is not None:
