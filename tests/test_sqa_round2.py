@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from glmap_tools.sqa.answer import question_type
 from glmap_tools.sqa.reading import Constraint, read_situation
 from glmap_tools.sqa.relations import relation_phrases
 
@@ -33,10 +34,21 @@ def test_each_tuned_situation_reads_to_its_anchor_facing_and_constraints(case):
     assert _summary(r) == (case["anchor"], case["facing"], case["constraints"]), r.as_dict()
 
 
+@pytest.mark.parametrize("case", TUNED["questions"], ids=lambda c: c["text"][:40])
+def test_each_tuned_question_falls_to_its_family(case):
+    assert question_type(case["text"])[0] == case["family"]
+
+
 def test_held_out_situations_read_right_at_least_nine_times_in_ten():
     right = [_read_right(c) for c in HELD_OUT["situations"]]
     wrong = [c["text"] for c, ok in zip(HELD_OUT["situations"], right, strict=True) if not ok]
     assert sum(right) / len(right) >= 0.9, wrong
+
+
+def test_held_out_questions_fall_to_their_family_at_least_nine_times_in_ten():
+    got = [question_type(q["text"])[0] == q["family"] for q in HELD_OUT["questions"]]
+    wrong = [q["text"] for q, ok in zip(HELD_OUT["questions"], got, strict=True) if not ok]
+    assert sum(got) / len(got) >= 0.9, wrong
 
 
 def test_the_two_sets_share_no_sentence():

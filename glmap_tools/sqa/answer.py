@@ -26,10 +26,11 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from glmap_tools.sqa.reading import NUMBER_WORDS
+from glmap_tools.sqa.records import MapAnswer
 from glmap_tools.sqa.surroundings import Nearby, Surroundings, surroundings
 
 if TYPE_CHECKING:
@@ -43,27 +44,6 @@ SYNONYMS = [
     {"fridge", "refrigerator"},
     {"bin", "trash can", "trashcan", "garbage can"},
     {"plant", "potted plant", "houseplant"},
-]
-COLOURS = [
-    "red",
-    "orange",
-    "yellow",
-    "green",
-    "teal",
-    "blue",
-    "navy",
-    "purple",
-    "pink",
-    "brown",
-    "beige",
-    "white",
-    "grey",
-    "gray",
-    "black",
-    "silver",
-    "gold",
-    "cream",
-    "tan",
 ]
 # What each kind of room typically holds (words of a unit's label or description). Common
 # household knowledge, not read from any scene; a unit fitting several rooms splits its vote.
@@ -157,17 +137,11 @@ def em_r1(prediction: str, answers: Sequence[str]) -> bool:
     return False
 
 
-@dataclass(frozen=True)
-class MapAnswer:
-    """An answer from the map, or why there is none."""
-
-    answer: str
-    question_type: str
-    supported: bool
-    evidence: str
-
-
-_WHAT = r"\bwhat(?: object| thing| furniture)?(?:'s| is| are| can i see| do i see| stands| lies)?"
+_WHAT = (
+    r"\b(?:what|which)(?: kind of| type of| sort of| piece of)?(?: object| thing| furniture| item"
+    r"| piece of furniture)?(?:'s| is| are| can i see| do i see| do i have| stands| lies| sits)?"
+    r"(?: the (?:object|thing|item|furniture))?"
+)
 _AT = r"(?: (?:located|placed|standing|directly|right|immediately))?"
 QUESTION_TYPES: list[tuple[str, re.Pattern[str]]] = [
     ("left", re.compile(_WHAT + _AT + r" (?:to|on|at) (?:my|the) left\b(?![- ]side of)")),
@@ -287,9 +261,11 @@ def _colour(label: str | None, obj: str | None, where: Surroundings) -> MapAnswe
         for uid, lab in where.labels.items()
         if lab == label
     ]
+    from glmap_tools.sqa.attributes import colour_phrase
+
     for n in cands:
         text = n.text or where_text(where, n.unit_id)
-        colour = next((c for c in re.findall(r"[a-z]+", text.lower()) if c in COLOURS), None)
+        colour = colour_phrase(text)  # "teal", "light brown", "black and white"
         if colour:
             return MapAnswer(colour, kind, True, f"unit {n.unit_id}: {text[:80]!r}")
     return MapAnswer("", kind, False, f"no colour in the description of the {label}")
@@ -348,12 +324,12 @@ class OfflineAnswerer:
             where: the map around the situated pose.
             exclude: unit ids not to answer with (the anchor one stands at).
         """
-        from glmap_tools.sqa.families import FAMILIES, answer_family, in_side, split_side
+        from glmap_tools.sqa.families import NAMES, answer_family, in_side, split_side
 
         kind, parts = question_type(question)
         skip = set(exclude) | set(where.walled)  # what one stands at; what a wall hides
         labels = list(where.labels.values())
-        if kind in {name for name, _ in FAMILIES}:
+        if kind in NAMES:
             return answer_family(kind, parts, where, skip, _match_label, _room)
         # "the chair on my left": the side picks which chair.
         phrase, side = split_side(parts.get("object", ""))

@@ -31,6 +31,8 @@ import re
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
+from glmap_tools.sqa.wording import EARLY, LATE, either_or
+
 if TYPE_CHECKING:
     from glmap_tools.sqa.answer import MapAnswer
     from glmap_tools.sqa.surroundings import Nearby, Surroundings
@@ -49,6 +51,7 @@ _SIDE = (
     r"|(?P<around>around me|near me|nearby|close to me|in (?:this|the) room|here|in here))"
 )
 _OBJ = r"(?:the |a |an |any |some |another |other )*(?P<object>[a-z][a-z -]*?)"
+_STATE = r"(?:open|opened|closed|shut|on|off)"
 _TURN = (
     r"^(?:if|when|after) i (?:turn|rotate|spin)(?: myself)? (?P<turn>around|back|180 degrees|"
     r"(?:to )?(?:my |the )?left|(?:to )?(?:my |the )?right|(?:90 degrees )?(?:to (?:my |the )?)?"
@@ -153,17 +156,34 @@ FAMILIES: list[tuple[str, re.Pattern[str]]] = [
     (
         "state",
         re.compile(
-            r"^(?:is|are) " + _OBJ + r" (?:open or closed|closed or open|opened or closed|"
-            r"on or off|off or on|open|closed|shut)\?*$"
+            r"^(?:is|are) " + _OBJ + r" (?:(?P<a>" + _STATE + r") or (?P<b>" + _STATE + r")"
+            r"|(?P<value>" + _STATE + r"|(?:turned|switched) (?:on|off)))\?*$"
         ),
     ),
 ]
+NAMES = (
+    {name for name, _ in FAMILIES}
+    | {name for name, _ in EARLY + LATE}
+    | {
+        "which_side",
+        "up_down",
+        "either",
+    }
+)
 
 
 def family(question: str) -> tuple[str, dict[str, str]] | None:
     """(family, named parts) when one of FAMILIES reads the question, else None."""
-    q = " ".join(question.lower().replace("’", "'").split()).strip()
-    for name, pattern in FAMILIES:
+    q = " ".join(question.lower().replace("’", "'").split()).strip(" ?.!")
+    q = re.sub(r"\bo ?clock\b|\bo' clock\b", "o'clock", q)
+    for name, pattern in EARLY + FAMILIES:
+        m = pattern.search(q)
+        if m:
+            return name, {k: v for k, v in m.groupdict().items() if v}
+    found = either_or(q)
+    if found is not None:
+        return found
+    for name, pattern in LATE:
         m = pattern.search(q)
         if m:
             return name, {k: v for k, v in m.groupdict().items() if v}
@@ -233,10 +253,14 @@ def answer_family(
     from glmap_tools.sqa.answer import MapAnswer
 
     near = [n for n in where.nearby if n.unit_id not in skip]
+    if kind in MORE:
+        return _answer_more(kind, parts, where, near, match)
     if kind == "in_room":
         return _in_room(parts, room(where))
     if kind == "turn":
         return _turn(parts, near)
+    if kind == "direction" and "intent" in parts:
+        return _intent(parts["intent"], where, near, match)
     obj = parts.get("object", "")
     label = match(obj, list(where.labels.values()))
     if kind in ("count", "parity", "exists"):
@@ -251,13 +275,90 @@ def answer_family(
         "see": _see,
         "touch": _touch,
         "shape": _described,
-        "state": _described,
     }
     if kind in by_label:
-        return by_label[kind](kind, label, cands)
+        found = by_label[kind](kind, label, cands)
+        if "lr" in parts and found.answer in ("forward", "backward"):  # "left or right?"
+            turn = "left" if cands[0].bearing > 0 else "right"
+            return MapAnswer(turn, kind, True, found.evidence)
+        return found
     if kind == "beside":
         return _beside(parts, label, near, cands)
     return MapAnswer("", kind, False, "no rule for this kind of question")
+
+
+MORE = {
+    "clock",
+    "compare",
+    "count_on",
+    "divisible",
+    "turn_see",
+    "turn_angle",
+    "which_side",
+    "up_down",
+    "attribute",
+    "either",
+    "state",
+}
+
+
+def _answer_more(
+    kind: str,
+    parts: dict[str, str],
+    where: Surroundings,
+    near: list[Nearby],
+    match: Callable[[str, Sequence[str]], str | None],
+) -> MapAnswer:
+    """The round-two families (`wording`): answers in `egocentric`, `compare`, `attributes`."""
+    from glmap_tools.sqa import attributes, egocentric
+    from glmap_tools.sqa.answer import MapAnswer
+    from glmap_tools.sqa.compare import compare
+
+    if kind == "clock":
+        return egocentric.clock(parts, near)
+    if kind == "compare":
+        return compare(parts, where, near, match)
+    if kind == "count_on":
+        return egocentric.count_on(parts, where, near, match)
+    obj = parts.get("object", "")
+    label = match(obj, list(where.labels.values()))
+    if kind == "divisible":
+        return egocentric.divisible(parts, near, label, obj)
+    if kind in ("attribute", "either", "state"):
+        unit = egocentric.pick(where.nearby, label, obj) if label else None  # the anchor too
+        if "value" in parts or "part" in parts:
+            return attributes.attribute(parts, unit, obj, kind)
+        return attributes.either(kind, [parts.get("a", ""), parts.get("b", "")], unit, obj)
+    if label is None:
+        if kind == "turn_see":
+            return MapAnswer("no", kind, True, f"no unit is a {obj!r}")
+        return MapAnswer("", kind, False, f"no unit is a {obj!r}")
+    cands = [n for n in near if n.label == label]
+    if kind == "turn_see":
+        return egocentric.turn_see(parts, label, cands)
+    if kind == "turn_angle":
+        return egocentric.turn_angle(label, cands)
+    if kind == "which_side":
+        return egocentric.which_side(parts, label, cands)
+    return egocentric.up_down(parts, label, cands)
+
+
+def _intent(
+    intent: str,
+    where: Surroundings,
+    near: list[Nearby],
+    match: Callable[[str, Sequence[str]], str | None],
+) -> MapAnswer:
+    """Which way to the nearest unit serving an intent ("leave the room": a door)."""
+    from glmap_tools.sqa.answer import MapAnswer
+    from glmap_tools.sqa.wording import intent_object
+
+    wanted = intent_object(intent)
+    labels = {match(w, list(where.labels.values())) for w in wanted.split("|")} - {None}
+    cands = [n for n in near if n.label in labels]
+    if not cands:
+        return MapAnswer("", "direction", False, f"no {wanted!r} to {intent!r} nearby")
+    return _direction("direction", cands[0].label, cands)
 
 
 def _in_room(parts: dict[str, str], r: MapAnswer) -> MapAnswer:
@@ -301,13 +402,15 @@ def _count(
 ) -> MapAnswer:
     """count / parity / exists: the units of the label around (on the asked side)."""
     from glmap_tools.sqa.answer import MapAnswer
+    from glmap_tools.sqa.egocentric import in_sector, sector_of
 
-    side = side_of(parts)
+    side = side_of(parts) or (f"{parts['hour']} o'clock" if "hour" in parts else None)
+    sector = sector_of(parts)
     if label is None:
         if kind == "exists":
             return MapAnswer("no", kind, True, f"no unit is a {obj!r}")
         return MapAnswer("", kind, False, f"no unit is a {obj!r}")
-    units = [n for n in near if n.label == label and n.distance <= AROUND and in_side(n, side)]
+    units = [n for n in near if n.label == label and n.distance <= AROUND and in_sector(n, sector)]
     count = len(units)
     why = f"{count} x {label} ({side or 'around'}, within {AROUND:.0f} m)"
     if kind == "count":

@@ -44,6 +44,8 @@ class Nearby:
     z_min: float
     z_max: float
     footprint: tuple[float, float, float, float]  # x0, y0, x1, y1 (m)
+    # length, width, height (m) of its Gaussians' means along their principal axes
+    size: tuple[float, float, float] | None = None
 
     def as_row(self) -> list[Any]:
         return [
@@ -80,6 +82,18 @@ class Surroundings:
         if hidden:
             out["behind_walls"] = hidden
         return out
+
+
+def gaussian_size(means: np.ndarray) -> tuple[float, float, float]:
+    """(length, width, height) in metres of a unit from its Gaussians' means [N, 3]: the
+    spread along the two principal horizontal axes (longer first) and in z."""
+    xy = means[:, :2] - means[:, :2].mean(axis=0)
+    if len(xy) < 2:
+        return 0.0, 0.0, 0.0
+    _, vecs = np.linalg.eigh(np.cov(xy.T))
+    proj = xy @ vecs
+    ext = np.sort(proj.max(axis=0) - proj.min(axis=0))[::-1]
+    return float(ext[0]), float(ext[1]), float(np.ptp(means[:, 2]))
 
 
 def _all_units(glmap: GLMap, x: float, y: float) -> list[tuple[int, float]]:
@@ -133,6 +147,7 @@ def surroundings(
                 float(means[:, 2].min()),
                 float(means[:, 2].max()),
                 (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])),
+                gaussian_size(means),
             )
         )
     rows.sort(key=lambda n: (n.distance, n.unit_id))

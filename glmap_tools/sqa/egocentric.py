@@ -1,0 +1,227 @@
+"""Answers that turn on where things lie around me: clock hours, which side, turning,
+looking up or down, counts on an object and divisibility.
+
+Bearings are degrees from straight ahead (+ = left), distances metres, heights metres
+above the floor (z = 0). A unit named with a place ("the chair at my two o'clock", "the
+lamp on my left") is the nearest unit of its label in that sector.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Sequence
+
+from glmap_tools.sqa.reading import NUMBER_WORDS
+from glmap_tools.sqa.records import MapAnswer
+from glmap_tools.sqa.surroundings import Nearby, Surroundings
+from glmap_tools.sqa.wording import EGO, HOURS
+
+Match = Callable[[str, Sequence[str]], "str | None"]
+SIDE_HALF = 45.0  # deg: half a side sector (left is 45..135)
+HOUR_HALF = 20.0  # deg either side of a clock hour
+FOV = 120.0  # deg: what one sees without turning the head far
+EYE = 1.5  # m: eye height of a standing person
+AROUND = 4.0  # m: "around me", "in this room"
+ON_RISE = 0.1  # m: a unit on another starts at least this far above the other's bottom
+
+
+def wrap(deg: float) -> float:
+    """An angle in degrees wrapped to (-180, 180]."""
+    return math.degrees(math.remainder(math.radians(deg), math.tau))
+
+
+def hour_bearing(hour: str) -> float:
+    """The bearing of a clock hour (12 ahead, 3 right, 9 left): '3' -> -90."""
+    h = int(hour) if hour.isdigit() else HOURS.index(hour) + 1
+    return wrap(-30.0 * (h % 12))
+
+
+def sector_of(parts: dict[str, str]) -> tuple[float, float] | None:
+    """(centre, half-width) in degrees of the place a question names, None for around."""
+    if "hour" in parts:
+        return hour_bearing(parts["hour"]), HOUR_HALF
+    if "side" in parts:
+        return (90.0 if parts["side"] == "left" else -90.0), SIDE_HALF
+    if "behind" in parts:
+        return 180.0, SIDE_HALF
+    if "front" in parts:
+        return 0.0, SIDE_HALF
+    return None
+
+
+def in_sector(n: Nearby, sector: tuple[float, float] | None) -> bool:
+    if sector is None:
+        return n.distance <= AROUND
+    return abs(wrap(n.bearing - sector[0])) <= sector[1]
+
+
+def split_ego(phrase: str) -> tuple[str, tuple[float, float] | None]:
+    """('chair', (-60, 20)) from 'chair at my two o'clock'; (phrase, None) without a place."""
+    m = re.search(r"\s+" + EGO + r"\s*$", phrase)
+    if not m:
+        return phrase, None
+    parts = {k: v for k, v in m.groupdict().items() if v}
+    return phrase[: m.start()], sector_of(parts)
+
+
+def pick(near: Sequence[Nearby], label: str | None, phrase: str) -> Nearby | None:
+    """The nearest unit of the label in the phrase's place, the one whose description
+    shares most of the phrase's other words first ("the blue chair on my left")."""
+    words, sector = split_ego(phrase)
+    cands = [n for n in near if n.label == label and (sector is None or in_sector(n, sector))]
+    if not cands:
+        return None
+    extra = set(re.findall(r"[a-z]+", words.lower())) - set((label or "").split())
+
+    def shared(n: Nearby) -> int:
+        return len(extra & set(re.findall(r"[a-z]+", n.text.lower())))
+
+    best = max(shared(n) for n in cands)
+    return next(n for n in cands if shared(n) == best)
+
+
+def _number(word: str) -> int | None:
+    if word.isdigit():
+        return int(word)
+    return NUMBER_WORDS.index(word) if word in NUMBER_WORDS else None
+
+
+def clock(parts: dict[str, str], near: Sequence[Nearby]) -> MapAnswer:
+    """The nearest unit within HOUR_HALF degrees of the hour asked."""
+    centre = hour_bearing(parts["hour"])
+    hits = [n for n in near if abs(wrap(n.bearing - centre)) <= HOUR_HALF]
+    if not hits:
+        return MapAnswer(
+            "nothing", "clock", True, f"nothing within {HOUR_HALF:.0f} deg of {centre:.0f} deg"
+        )
+    n = hits[0]
+    return MapAnswer(
+        n.label, "clock", True, f"unit {n.unit_id} at {n.bearing:.0f} deg, {n.distance:.1f} m"
+    )
+
+
+def turn_see(parts: dict[str, str], label: str, cands: Sequence[Nearby]) -> MapAnswer:
+    """Whether a unit of the label lies within FOV/2 of ahead after the turn."""
+    turn = parts.get("turn", "around")
+    t = 90.0 if "left" in turn else -90.0 if "right" in turn else 180.0
+    seen = [n for n in cands if abs(wrap(n.bearing - t)) <= FOV / 2]
+    why = f"after a {t:.0f} deg turn, {len(seen)} {label} within {FOV / 2:.0f} deg of ahead"
+    return MapAnswer("yes" if seen else "no", "turn_see", True, why)
+
+
+def turn_angle(label: str, cands: Sequence[Nearby]) -> MapAnswer:
+    """How far to turn to face the nearest unit of the label, to the nearest 90 degrees."""
+    if not cands:
+        return MapAnswer("", "turn_angle", False, f"no {label} within {AROUND:.0f} m")
+    n = cands[0]
+    deg = int(round(abs(n.bearing) / 90.0)) * 90
+    way = "left" if n.bearing > 0 else "right"
+    return MapAnswer(
+        f"{deg} degrees", "turn_angle", True, f"unit {n.unit_id} at {n.bearing:.0f} deg ({way})"
+    )
+
+
+_CANON = {"ahead": "front", "back": "behind"}
+
+
+def _direction_class(option: str) -> str | None:
+    for w in ("left", "right", "front", "ahead", "behind", "back"):
+        if re.search(rf"\b{w}\b", option):
+            return _CANON.get(w, w)
+    return None
+
+
+def which_side(parts: dict[str, str], label: str, cands: Sequence[Nearby]) -> MapAnswer:
+    """Which of the offered directions (left/right by default) the nearest unit lies in,
+    in the words offered ("front", "behind", "back", "left", "right")."""
+    if not cands:
+        return MapAnswer("", "which_side", False, f"no {label} within {AROUND:.0f} m")
+    n = cands[0]
+    offered = [parts.get("a", "left"), parts.get("b", "right")]
+    classes = [_direction_class(o) for o in offered]
+    centre = {"left": 90.0, "right": -90.0, "front": 0.0, "behind": 180.0}
+    scored = [
+        (abs(wrap(n.bearing - centre[c])), o, c)
+        for o, c in zip(offered, classes, strict=True)
+        if c is not None
+    ]
+    if not scored:
+        return MapAnswer("", "which_side", False, "no direction among the options")
+    _, option, cls = min(scored)
+    word = "back" if re.search(r"\bback\b", option) else cls
+    return MapAnswer(word, "which_side", True, f"unit {n.unit_id} at {n.bearing:.0f} deg")
+
+
+def up_down(parts: dict[str, str], label: str, cands: Sequence[Nearby]) -> MapAnswer:
+    """Up or down (above or below) from eye height to the nearest unit's middle."""
+    if not cands:
+        return MapAnswer("", "up_down", False, f"no {label} within {AROUND:.0f} m")
+    n = cands[0]
+    mid = (n.z_min + n.z_max) / 2.0
+    offered = f"{parts.get('a', '')} {parts.get('b', '')}"
+    up = mid >= EYE
+    if re.search(r"\b(?:above|below|under|over)\b", offered):
+        word = "above" if up else "below"
+    elif re.search(r"\b(?:higher|lower)\b", offered):
+        word = "higher" if up else "lower"
+    else:
+        word = "up" if up else "down"
+    if "a" in parts and "b" not in parts and parts["a"] in ("up", "down"):  # "should I look up?"
+        word = "yes" if (parts["a"] == "up") == up else "no"
+    why = f"unit {n.unit_id} middle at {mid:.2f} m, eyes at {EYE:.1f} m"
+    return MapAnswer(word, "up_down", True, why)
+
+
+def count_on(
+    parts: dict[str, str], where: Surroundings, near: Sequence[Nearby], match: Match
+) -> MapAnswer:
+    """How many units of the label rest on the base named (its place picks which base)."""
+    labels = list(where.labels.values())
+    obj, base_phrase = parts.get("object", ""), parts.get("base", "")
+    sector = sector_of(parts)
+    base_label = match(base_phrase, labels)
+    bases = [
+        n
+        for n in where.nearby  # the base may be what I stand at
+        if n.label == base_label and (sector is None or in_sector(n, sector))
+    ]
+    if not bases:
+        return MapAnswer("", "count_on", False, f"no {base_phrase!r} nearby")
+    base = pick(bases, base_label, base_phrase)
+    assert base is not None
+    label = match(obj, labels)
+    if label is None:
+        return MapAnswer("", "count_on", False, f"no unit is a {obj!r}")
+    x0, y0, x1, y1 = base.footprint
+    on = [
+        n
+        for n in where.nearby
+        if n.label == label
+        and n.unit_id != base.unit_id
+        and n.z_min >= base.z_min + ON_RISE
+        and x0 - 0.05 <= (n.footprint[0] + n.footprint[2]) / 2 <= x1 + 0.05
+        and y0 - 0.05 <= (n.footprint[1] + n.footprint[3]) / 2 <= y1 + 0.05
+    ]
+    return MapAnswer(
+        str(len(on)), "count_on", True, f"{len(on)} x {label} on unit {base.unit_id} ({base.label})"
+    )
+
+
+def divisible(
+    parts: dict[str, str], near: Sequence[Nearby], label: str | None, obj: str
+) -> MapAnswer:
+    """Whether the count of the label (in the place asked, else around) divides by k."""
+    k = _number(parts.get("k", ""))
+    if not k:
+        return MapAnswer("", "divisible", False, f"{parts.get('k')!r} is no divisor")
+    if label is None:
+        return MapAnswer("", "divisible", False, f"no unit is a {obj!r}")
+    sector = sector_of(parts)
+    count = sum(n.label == label and n.distance <= AROUND and in_sector(n, sector) for n in near)
+    return MapAnswer(
+        "yes" if count % k == 0 else "no",
+        "divisible",
+        True,
+        f"{count} x {label}; {count} mod {k} = {count % k}",
+    )
