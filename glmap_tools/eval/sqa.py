@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import itertools
 import json
 import math
 import os
@@ -60,6 +61,8 @@ class SqaSpec:
         data.pop("scenes_dir")  # where the folder lies is not a setting (the name is)
         if not self.phrasings:
             data.pop("phrasings")  # keys of the runs before phrasings existed
+        else:
+            data["forms"] = 2  # with sqa.more_phrasings: not mixed with first-set-only runs
         return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:12]
 
 
@@ -126,6 +129,11 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
     glmap = scene_map(spec, layout, Path(out) / "maps" / f"{scene}.glmap", embedder)
     build_s = time.perf_counter() - t0
     qa = generate_qa(layout, situations=spec.situations, seed=spec.seed, phrasings=spec.phrasings)
+    if spec.phrasings:  # the second set of forms, at the same stand points
+        from glmap_tools.sim.qa import situation_phrase
+        from glmap_tools.sqa.more_phrasings import more_questions
+
+        qa["questions"] += more_questions(layout, qa, spec.seed, situation_phrase)
     rng = np.random.default_rng([spec.seed, int(hashlib.sha1(scene.encode()).hexdigest()[:8], 16)])
     free = _free_cells(glmap)
     prior = Counter(u.label for u in glmap.instances.values()).most_common(1)
@@ -187,6 +195,7 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
                     "situation_form": q["situation_form"],
                     "question_form": q["question_form"],
                     "held_out": q["held_out"],
+                    "round": q.get("round", 1),
                     "read": qtype,
                 }
                 if agent == "glmap":
@@ -258,9 +267,12 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
         return f"{np.mean(read):.2f}", f"{np.mean(ok):.2f}", len(sit)
 
     from glmap_tools.sim.qa_phrasings import HELD_OUT
+    from glmap_tools.sqa.more_phrasings import HELD_OUT as HELD_OUT_2
 
     held_s = {v for v in HELD_OUT.values() if isinstance(v, str)}
+    held_s |= {f"r2:{v}" for v in HELD_OUT_2.values() if isinstance(v, str)}
     held_q = {f"{k}/{v}" for k, v in HELD_OUT.items() if isinstance(v, int)}
+    held_q |= {f"r2:{k}/{v}" for k, v in HELD_OUT_2.items() if isinstance(v, int)}
     lines = ["", "| situation form | held out | situations | reading | localised | EM-1 glmap |"]
     lines.append("|---|---|---|---|---|---|")
     groups: dict[str, list[dict[str, Any]]] = {}
@@ -289,9 +301,18 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
             f"| {em(rs, 'text-only')} | {sup:.2f} |"
         )
     lines.append("")
-    for label, pick in (("held-out", True), ("tuned", False)):
-        sit = [r for r in rows if (r["situation_form"] in held_s) == pick]
-        qs = [r for r in rows if (r["question_form"] in held_q) == pick]
+    sets = [("", rows)]
+    if any(r.get("round", 1) == 2 for r in rows):
+        sets = [
+            (f"{name}, ", [r for r in rows if r.get("round", 1) == n])
+            for n, name in ((1, "first set"), (2, "second set"))
+        ]
+    for (prefix, part), (held, pick) in itertools.product(
+        sets, (("held-out", True), ("tuned", False))
+    ):
+        label = prefix + held
+        sit = [r for r in part if (r["situation_form"] in held_s) == pick]
+        qs = [r for r in part if (r["question_form"] in held_q) == pick]
         if sit:
             rd, loc, n = located(sit)
             lines.append(
@@ -443,6 +464,10 @@ def run_sqa_eval(
     bar.close()
     records = [r for data in sorted(results, key=lambda d: d["scene"]) for r in data["records"]]
     table = summarize(records, spec.agents) + summarize_forms(records)
+    for n, name in ((1, "first set (sim.qa_phrasings)"), (2, "second set (sqa.more_phrasings)")):
+        part = [r for r in records if r.get("round") == n]
+        if part and len(part) < len(records):  # each set on its own, with its intervals
+            table += f"\n## The {name} alone\n\n" + summarize(part, spec.agents)
     head = (
         f"# SQA on {spec.split}: {len(scenes)} scenes, {spec.situations} situations each, "
         f"seed {spec.seed}, embedder {spec.embedder}\n\n"
