@@ -341,3 +341,19 @@ async def test_control_characters_in_annotations_are_refused_naming_the_field(
         text = res.content[0].text
         assert f"objects.0.{where}" in text and "control characters" in text, text
         assert await counts(client) == (0, 0, 0)
+
+
+async def test_a_search_of_an_empty_map_says_why_and_how_per_call_clients_keep_one(tmp_path):
+    """A per-call client (a new server process per tool call) meets an empty map each time:
+    the result says so and names both fixes."""
+    async with Client(build_server(config(tmp_path))) as client:
+        empty = [
+            await client.call_tool(t, {"query": "a bed"}) for t in ("find_instance", "find_region")
+        ]
+        await client.call_tool("observe_frame", frame_args())
+        seen = await client.call_tool("find_region", {"query": "a rocket launch pad"})
+    for result in empty:
+        text = result.content[0].text
+        assert "hits: none" in text and "--map NAME" in text and "client.session" in text
+        assert result.structured_content["note"] in text
+    assert "note:" not in seen.content[0].text and seen.structured_content["note"] == ""

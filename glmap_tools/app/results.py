@@ -49,6 +49,7 @@ class Hits(BaseModel):
         "nothing in the map fits the query well), centroid, bounds; regions list their "
         "member instance_ids"
     )
+    note: str = Field(default="", description="why there are no hits, when the map is empty")
 
 
 class UnitsAt(BaseModel):

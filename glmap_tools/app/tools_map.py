@@ -3,7 +3,7 @@
 No `from __future__ import annotations` here: the MCP face reads these signatures at runtime.
 """
 
-from typing import Annotated
+from typing import Annotated, TypeVar
 
 from pydantic import BaseModel, Field
 
@@ -159,6 +159,26 @@ async def _observe(
     return result
 
 
+# A search of a map that has seen nothing: most often a client that starts a server process
+# per tool call (LangChain's get_tools()), so each call meets a new, empty map.
+EMPTY_MAP = (
+    "the map is empty: nothing observed yet (observe_frame, or sim_reset and nav_step). A "
+    "client that starts a server per tool call gets a new, empty map on each call: launch "
+    "glmap-mcp with --map NAME, or keep one session open (e.g. LangChain's client.session(...))."
+)
+
+
+H = TypeVar("H", bound=Hits)
+
+
+def with_empty_note(found: H, empty: bool, session: Session) -> H:
+    """`found`, its text saying why there are no hits when the map has seen nothing and no
+    episode runs."""
+    if empty and not found.hits and session.sim is None:
+        found.note = EMPTY_MAP
+    return found
+
+
 async def find_instance(
     query: Query, call: Call, top_k: TopK = 5, session: SessionArg = ""
 ) -> AgentHits:
@@ -169,11 +189,13 @@ async def find_instance(
     def run() -> AgentHits:
         with locked(target) as glmap:
             hits = glmap.find_instances(query, top_k)
-        return AgentHits(
+            empty = not glmap.trajectory
+        found = AgentHits(
             query=query,
             hits=hits,
             from_agent=[FromAgent(**d) for d in from_agent(target, hits)],
         )
+        return with_empty_note(found, empty, target)
 
     return await in_thread(run)
 
@@ -184,7 +206,9 @@ async def find_region(query: Query, call: Call, top_k: TopK = 5, session: Sessio
 
     def run() -> Hits:
         with locked(target) as glmap:
-            return Hits(query=query, hits=glmap.find_regions(query, top_k))
+            found = Hits(query=query, hits=glmap.find_regions(query, top_k))
+            empty = not glmap.trajectory
+        return with_empty_note(found, empty, target)
 
     return await in_thread(run)
 
