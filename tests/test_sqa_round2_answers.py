@@ -152,3 +152,10 @@ def test_a_units_size_is_the_spread_of_its_gaussians_along_their_principal_axes(
 
 def test_degrees_and_two_word_answers_score_as_exact_matches():
     assert em1("180 degrees", ["180 degrees"]) and em1("light brown", ["Light brown"])
+
+
+def test_a_three_letter_plural_still_names_its_label():
+    from glmap_tools.sqa.answer import _match_label
+
+    assert _match_label("tvs", ["tv", "tv stand"]) == "tv"
+    assert _match_label("tvs on the stand", ["tv stand", "bus"]) is None

@@ -187,7 +187,7 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
                     where = surroundings(glmap, pose[0], pose[1], pose[2])
                 a = answerer.answer(q["question"], where)
                 pred, supported, qtype = a.answer, a.supported, a.question_type
-                if agent == "text-only" and qtype in ("left", "right", "front", "behind"):
+                if agent == "text-only" and qtype in ("left", "right", "front", "behind", "clock"):
                     pred = prior_label  # no pose: the map's most common label
             forms = {}
             if "question_form" in q:

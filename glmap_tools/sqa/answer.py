@@ -202,12 +202,13 @@ def question_type(question: str) -> tuple[str, dict[str, str]]:
 def _match_label(phrase: str, labels: Sequence[str]) -> str | None:
     """The longest label that occurs in `phrase` as whole words (plurals folded)."""
     words = " ".join(_singular(w) for w in phrase.lower().split())
+    short = " ".join(re.sub(r"^(\w\w)s$", r"\1", w) for w in words.split())  # "tvs", "pcs"
     best = None
     for label in set(labels):
         lab = " ".join(_singular(w) for w in label.lower().split())
         if (
             lab
-            and re.search(rf"(?<!\w){re.escape(lab)}(?!\w)", words)
+            and any(re.search(rf"(?<!\w){re.escape(lab)}(?!\w)", t) for t in (words, short))
             and (best is None or len(lab) > len(best))
         ):
             best = label

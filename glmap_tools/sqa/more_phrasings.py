@@ -126,13 +126,17 @@ def _landmarks(layout: Layout) -> list[SceneObject]:
     ]
 
 
+def _bearing(position: np.ndarray, heading: float, o: SceneObject) -> float:
+    d = o.position[:2] - position
+    return math.degrees(math.remainder(math.atan2(d[1], d[0]) - heading, math.tau))
+
+
 def _rows(layout: Layout, position: np.ndarray, heading: float, room: int) -> list[Row]:
     out = []
     for o in _landmarks(layout):
         if o.room != room:
             continue
-        d = o.position[:2] - position
-        b = math.degrees(math.remainder(math.atan2(d[1], d[0]) - heading, math.tau))
+        b = _bearing(position, heading, o)
         dist = float(o.distance_to(position[None])[0])
         if dist <= AROUND:
             out.append((dist, b, o))
@@ -170,8 +174,7 @@ def _situation(
     f_text = named(layout, facing, anchor.room)
     if not a_text or not f_text:
         return None
-    d = anchor.position[:2] - position
-    a_side = _side(math.degrees(math.remainder(math.atan2(d[1], d[0]) - heading, math.tau)))
+    a_side = _side(_bearing(position, heading, anchor))
     others = [(dist, b, o) for dist, b, o in rows if o.id not in (anchor.id, facing.id)]
     sided = {s: [o for _, b, o in others if _side(b) == s and named(layout, o, o.room)]
              for s in SIDES}  # fmt: skip
@@ -208,7 +211,12 @@ def _form(kind: str, rng: np.random.Generator, only: tuple[int, ...] | None = No
 
 
 def _questions(
-    layout: Layout, rows: list[Row], anchor: SceneObject, rng: np.random.Generator
+    layout: Layout,
+    rows: list[Row],
+    anchor: SceneObject,
+    position: np.ndarray,
+    heading: float,
+    rng: np.random.Generator,
 ) -> list[tuple[str, str, list[str], int]]:
     """(kind, question, answers, form) of the round-two families at the stand point."""
     out: list[tuple[str, str, list[str], int]] = []
@@ -241,13 +249,19 @@ def _questions(
         o = shaped[0]
         v, w = SHAPES if rng.random() < 0.5 else SHAPES[::-1]
         ask("either", _form("either", rng), [o.attributes["shape"]], o=o.category, v=v, w=w)
-    # Clock hours: the nearest object within 10 deg of an hour, clear of the others.
+    # Clock hours: the nearest object within 10 deg of an hour, clear of every other object
+    # in the room (pictures and what stands on furniture too: the map holds them).
+    everything = [
+        (float(p.distance_to(position[None])[0]), _bearing(position, heading, p), p)
+        for p in layout.objects
+        if p.room == anchor.room and p.id != anchor.id and p.category != "rug"
+    ]
     for dist, b, o in near:
         h = round(-b / 30.0) % 12
         if h in (0, 6) or abs(-b / 30.0 - round(-b / 30.0)) * 30.0 > 10.0:
             continue
         centre = -30.0 * h
-        rivals = [x for x in near if x[2].id != o.id
+        rivals = [x for x in everything if x[2].id != o.id
                   and abs(math.remainder(math.radians(x[1] - centre), math.tau)) <= math.radians(30)
                   and x[0] - dist < 0.5 and x[2].category != o.category]  # fmt: skip
         if not rivals:
@@ -342,7 +356,7 @@ def more_questions(
         if drawn is None:
             continue
         text, kind, form, reading = drawn
-        for qkind, question, answers, k in _questions(layout, rows, anchor, rng):
+        for qkind, question, answers, k in _questions(layout, rows, anchor, position, heading, rng):
             out.append(
                 q
                 | {
