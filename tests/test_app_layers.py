@@ -126,6 +126,7 @@ def _type_names() -> dict[str, Any]:
     from glmap_tools.language.embed import Embedder
     from glmap_tools.map import GLMap
     from glmap_tools.nav import NavConfig, NavDecision, NavState, Scorer
+    from glmap_tools.nav.perceive import TextVectors
     from glmap_tools.nav.scorers import ClientScores
     from glmap_tools.perception.pending import PendingFrames
     from glmap_tools.perception.semantics import FrameSemantics
@@ -141,6 +142,7 @@ def _type_names() -> dict[str, Any]:
         "NavState": NavState,
         "Scorer": Scorer,
         "ClientScores": ClientScores,
+        "TextVectors": TextVectors,
         "PendingFrames": PendingFrames,
         "RGBDFrame": RGBDFrame,
         "FrameSemantics": FrameSemantics,

@@ -23,6 +23,7 @@ from glmap_tools.nav import (
     decide,
     value_map,
 )
+from glmap_tools.nav.episode import remember
 from glmap_tools.nav.grid import structure_walls
 from glmap_tools.nav.policy import approach
 from glmap_tools.nav.value import unit_cell_array
@@ -133,16 +134,9 @@ def test_every_policy_returns_an_action_and_only_value_policies_a_value_map(
 ) -> None:
     boxes = scenes.floor(6.0) + walls()
     frame, _ = scenes.view(boxes, (0.0, 0.0, 0.88), (1.0, 0.0, 0.88), 96, 72)
-    d = decide(
-        built,
-        (0.0, 0.0),
-        0.0,
-        "a bathtub",
-        policy=policy,
-        state=NavState(),
-        config=CONFIG,
-        frame=frame,
-    )
+    state = NavState()
+    remember(state, built, frame, 0.5)  # the episode step's memory of the frame
+    d = decide(built, (0.0, 0.0), 0.0, "a bathtub", policy=policy, state=state, config=CONFIG)
     assert d.action in ACTIONS
     assert (d.value is None) == (policy == "frontier")
 

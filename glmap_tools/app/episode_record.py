@@ -116,6 +116,7 @@ def restore_episode(session: Session, text: str, config: ServerConfig, embedder:
         StoreError: the record cannot be read or replayed.
     """
     from glmap_tools.app import navsession, simulator
+    from glmap_tools.nav.config import ACTIONS
 
     try:
         rec = json.loads(text)
@@ -124,7 +125,7 @@ def restore_episode(session: Session, text: str, config: ServerConfig, embedder:
         task, scene, episode_id = rec["task"], int(rec["scene"]), rec["episode"]
         size = (int(rec["size"][0]), int(rec["size"][1]))
         max_steps, seed, goal = int(rec["max_steps"]), int(rec["seed"]), rec["goal"]
-        actions = [simulator.ACTIONS[int(c)] for c in rec["actions"]]
+        actions = [ACTIONS[int(c)] for c in rec["actions"]]
     except (ValueError, KeyError, TypeError, IndexError, AttributeError) as exc:
         raise StoreError(
             f"the simulator episode kept in map {config.map_name!r} cannot be read "
@@ -153,11 +154,10 @@ def restore_episode(session: Session, text: str, config: ServerConfig, embedder:
         scorer = make_scorer(config.llm, embedder)
     nav = navsession.start(session, sim, embedder, scorer)
     glmap = session.live.glmap
-    cell, reach = glmap.grid.cell_size, glmap.config.max_range
-    navsession.follow(nav, sim, cell, reach)
+    navsession.follow(nav, sim, glmap)
     for action in actions:
         simulator.step(sim, action)
-        navsession.follow(nav, sim, cell, reach)
+        navsession.follow(nav, sim, glmap)
     if rec.get("nav"):
         apply_memory(nav.state, rec["nav"])
     client = rec.get("client_scores")

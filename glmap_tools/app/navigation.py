@@ -5,13 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 if TYPE_CHECKING:
-    from glmap_tools.language.embed import Embedder
     from glmap_tools.nav import NavConfig, NavDecision, NavState, Scorer
+    from glmap_tools.nav.perceive import TextVectors
     from glmap_tools.nav.scorers import ClientScores
-    from glmap_tools.perception.semantics import FrameSemantics
 
 
 @dataclass
@@ -23,7 +20,8 @@ class NavSession:
         state: egocentric accumulator, stuck memory, last waypoint.
         config: the navigation settings of the episode's task.
         scorer: f_S (`glmap_tools.nav.EmbeddingScorer` on the server's embedder, or an LLM's).
-        embedder: the text embedder (frame scores of the egocentric baseline).
+        texts: embeddings of the texts frames showed (the egocentric baseline's frame
+            scores; the same objects are seen frame after frame).
         path: [(x, y)] agent positions, one per integrated frame.
         decision: the latest `NavDecision` (drawn by value_map), or None.
         client: the client's f_S for the goal (set_goal_scores), or None; sim_reset starts
@@ -34,11 +32,10 @@ class NavSession:
     state: NavState
     config: NavConfig
     scorer: Scorer
-    embedder: Embedder
+    texts: TextVectors
     path: list[tuple[float, float]] = field(default_factory=list)
     decision: NavDecision | None = None
     client: ClientScores | None = None
-    _text_vecs: dict[str, np.ndarray] = field(default_factory=dict)
 
     def goal_scorer(self, fused_into: dict[int, int] | None = None) -> Scorer:
         """f_S for the episode: the client's scores over the configured scorer, or the
@@ -51,22 +48,3 @@ class NavSession:
         if fused_into:
             self.client.follow(fused_into)
         return ClientScorer(self.scorer, self.client, self.config.stop_threshold)
-
-    def frame_score(self, semantics: FrameSemantics) -> float:
-        """What the frame shows scored against the goal (f_S of its best object or group).
-
-        The egocentric (VLFM-like) baseline's per-frame score; text embeddings are cached,
-        since the same objects are seen frame after frame.
-        """
-        from glmap_tools.nav import UnitText
-
-        texts = [o.description or o.label for o in semantics.objects]
-        texts = [t for t in texts + [g.description for g in semantics.groups] if t.strip()]
-        if not texts:
-            return 0.0
-        todo = [t for t in dict.fromkeys(texts) if t not in self._text_vecs]
-        if todo:
-            for t, v in zip(todo, np.asarray(self.embedder.embed(todo)), strict=True):
-                self._text_vecs[t] = v
-        units = [UnitText(-1, "instance", t, self._text_vecs[t]) for t in texts]
-        return float(np.max(self.scorer.score(self.goal, units)))

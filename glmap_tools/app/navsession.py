@@ -24,7 +24,6 @@ from glmap_tools.geometry import Pose
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
     from glmap_tools.map import GLMap
-    from glmap_tools.perception.semantics import FrameSemantics
 
 # Per-call clients (a server process per tool call, e.g. LangChain's get_tools()) lose the
 # episode between calls; the message names both ways to keep it (docs/frameworks/langchain.md).
@@ -51,6 +50,7 @@ def start(
     `scorer`: f_S for the value map; default embedding cosine on `embedder`.
     """
     from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState
+    from glmap_tools.nav.perceive import TextVectors
 
     config = NavConfig.for_task(
         sim.task,
@@ -63,7 +63,9 @@ def start(
         from glmap_tools.nav.scorers import RelationScorer
 
         scorer = RelationScorer(scorer, lambda: session.live.glmap)
-    nav = NavSession(str(sim.obs["goal"]), NavState(scorer=scorer), config, scorer, embedder)
+    nav = NavSession(
+        str(sim.obs["goal"]), NavState(scorer=scorer), config, scorer, TextVectors(embedder)
+    )
     session.nav = nav
     return nav
 
@@ -93,47 +95,38 @@ def running(session: Session) -> tuple[simulator.SimEpisode, NavSession]:
 
 
 def integrate(session: Session, sim: simulator.SimEpisode) -> str:
-    """Add the latest frame to the map and to the navigation state; return the map update line.
+    """The episode step's `observe` of the latest frame, under the session's lock: into the
+    map and the navigation state; return the map update line.
 
     With `glmap-mcp --map` the episode record goes into the frame's transaction.
     """
+    from glmap_tools.nav.episode import observe  # nav loads scipy: not at start
+
     frame, semantics = simulator.frame(sim)
     nav = of(session)
     recorder = session.recorder
     with locked(session) as glmap:
         staged = recorder.stage(session) if recorder is not None else None
-        summary = glmap.integrate(frame, semantics).summary()
+        if nav is None:
+            report = glmap.integrate(frame, semantics)
+        else:
+            report = observe(glmap, frame, semantics, nav.state, nav.goal, nav.scorer, nav.texts)
+            nav.path.append(simulator.agent_pose(sim)[:2])
         if recorder is not None:
             recorder.committed(staged)
-        if nav is not None:
-            _follow(nav, sim, frame, semantics, glmap.grid.cell_size, glmap.config.max_range)
-            from glmap_tools.nav.verify import note_missed  # nav loads scipy: not at start
-
-            note_missed(nav.state.missed, glmap, frame)  # the looks that did not see a unit
-    return summary
+    return report.summary()
 
 
-def follow(nav: NavSession, sim: simulator.SimEpisode, cell: float, reach: float) -> None:
-    """Add the latest frame to the navigation state only (replaying a kept episode)."""
+def follow(nav: NavSession, sim: simulator.SimEpisode, glmap: GLMap) -> None:
+    """Add the latest frame to the navigation state only (replaying a kept episode, whose
+    map already holds it): the path and the egocentric accumulator."""
+    from glmap_tools.nav.episode import feed_egocentric
+    from glmap_tools.nav.perceive import frame_score
+
     frame, semantics = simulator.frame(sim)
-    _follow(nav, sim, frame, semantics, cell, reach)
-
-
-def _follow(
-    nav: NavSession,
-    sim: simulator.SimEpisode,
-    frame: Any,
-    semantics: FrameSemantics,
-    cell: float,
-    reach: float,
-) -> None:
-    x, y, _ = simulator.agent_pose(sim)
-    nav.path.append((x, y))
-    if nav.state.egocentric is None:
-        from glmap_tools.nav import EgocentricValueMap
-
-        nav.state.egocentric = EgocentricValueMap(cell, reach)
-    nav.state.egocentric.add_frame(frame, nav.frame_score(semantics))
+    nav.path.append(simulator.agent_pose(sim)[:2])
+    score = frame_score(glmap, nav.goal, nav.scorer, semantics, nav.texts)
+    feed_egocentric(nav.state, frame, score, glmap.grid.cell_size, glmap.config.max_range)
 
 
 def agent_pose(session: Session, glmap: GLMap) -> tuple[float, float, float] | None:

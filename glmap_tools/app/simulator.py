@@ -18,16 +18,13 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError, did_you_mean
-from glmap_tools.geometry import Pose
-from glmap_tools.geometry.frame import RGBDFrame
-from glmap_tools.perception.annotated import semantics_from_annotation
-from glmap_tools.perception.semantics import FrameSemantics
 
 if TYPE_CHECKING:
+    from glmap_tools.geometry.frame import RGBDFrame
+    from glmap_tools.perception.semantics import FrameSemantics
     from glmap_tools.sim.env import NavEnv
 
 T = TypeVar("T")
-ACTIONS = ("stop", "move_forward", "turn_left", "turn_right")  # the env's action numbers
 TASKS = ("objectnav", "instnav")
 MAX_GOALS_LISTED = 25
 EPISODE_RESET = (
@@ -189,11 +186,6 @@ def _goals(sim: SimEpisode) -> list[tuple[str, tuple[int, ...], np.ndarray]]:
     return sim.pool
 
 
-def goal_names(sim: SimEpisode) -> list[str]:
-    """The goals this scene offers for the task."""
-    return [text for text, _, _ in sim.run(_goals, sim)]
-
-
 def reset(sim: SimEpisode, seed: int, goal: str | None) -> None:
     """Start an episode: the benchmark one, a random one from `seed`, or one for `goal`.
 
@@ -239,7 +231,7 @@ def step(sim: SimEpisode, action: str, resets: int | None = None) -> None:
 
     Args:
         sim: the episode.
-        action: one of ACTIONS.
+        action: one of `nav.ACTIONS` (the env's action id is its index).
         resets: `sim.resets` when the caller looked at the episode; the action is refused if
             the episode was reset since (None: not checked).
 
@@ -247,6 +239,8 @@ def step(sim: SimEpisode, action: str, resets: int | None = None) -> None:
         InvalidInputError: an unknown action, the episode is over, or it was reset or
             replaced by another call since the caller looked (nothing is done then).
     """
+    from glmap_tools.nav.config import ACTIONS
+
     if action not in ACTIONS:
         raise InvalidInputError(
             f"action {action!r} is not one of {list(ACTIONS)}.{did_you_mean(action, ACTIONS)}"
@@ -268,21 +262,17 @@ def step(sim: SimEpisode, action: str, resets: int | None = None) -> None:
 
 def agent_pose(sim: SimEpisode) -> tuple[float, float, float]:
     """(x, y, heading) of the agent: metres, radians CCW from +x."""
-    x, y = (float(v) for v in sim.info["position"])
-    return x, y, float(sim.info["heading"])
+    from glmap_tools.nav.episode import agent_of
+
+    return agent_of(sim.info)
 
 
 def frame(sim: SimEpisode) -> tuple[RGBDFrame, FrameSemantics]:
-    """The latest observation as a posed RGB-D frame with the simulator's annotations."""
-    obs, info = sim.obs, sim.info
-    m = np.asarray(obs["pose"], dtype=np.float64)
-    # The observation carries the pose as float32; re-orthonormalise the rotation exactly.
-    u, _, vt = np.linalg.svd(m[:3, :3])
-    m[:3, :3] = u @ vt
-    m[3] = (0.0, 0.0, 0.0, 1.0)
-    rgbd = RGBDFrame(obs["rgb"], obs["depth"], sim.env.camera.intrinsics, Pose(m))
-    semantics = semantics_from_annotation(info["instance_mask"], info["annotation"])
-    return rgbd, semantics
+    """The latest observation as a posed RGB-D frame with the simulator's annotations
+    (`nav.episode.observation_frame`)."""
+    from glmap_tools.nav.episode import observation_frame
+
+    return observation_frame(sim.obs, sim.info, sim.env.camera.intrinsics)
 
 
 def status(sim: SimEpisode) -> dict[str, Any]:

@@ -33,10 +33,12 @@ def _integrate(session: Session, sim: simulator.SimEpisode) -> str:
 
 
 def _reply(session: Session, sim: simulator.SimEpisode, updates: list[str]) -> ImageResult:
+    from glmap_tools.nav.config import ACTIONS
+
     info = simulator.status(sim)
     info["session"] = session.handle
     info["map_updates"] = updates
-    info["actions"] = list(simulator.ACTIONS)
+    info["actions"] = list(ACTIONS)
     llm = usage_report()  # the client's model through MCP sampling: calls, tokens, fallbacks
     if llm:
         info["llm"] = llm

@@ -7,7 +7,6 @@ figures and is never tuned on.
 from __future__ import annotations
 
 import os
-import time
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
@@ -16,15 +15,12 @@ import numpy as np
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
-from glmap_tools.geometry import Pose  # noqa: E402
-from glmap_tools.geometry.frame import RGBDFrame  # noqa: E402
 from glmap_tools.map import GLMap, MapConfig  # noqa: E402
-from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState, decide, map_units  # noqa: E402
-from glmap_tools.perception.annotated import semantics_from_annotation  # noqa: E402
+from glmap_tools.nav import EmbeddingScorer, NavConfig, map_units  # noqa: E402
+from glmap_tools.nav.episode import play  # noqa: E402
 from glmap_tools.sim.benchmark import BenchEpisode, bench_layout, load_split, make_env  # noqa: E402
 from glmap_tools.sim.render import CameraSpec  # noqa: E402
 
-ACTION_IDS = {"stop": 0, "move_forward": 1, "turn_left": 2, "turn_right": 3}
 _EMBEDDER: Any = None
 
 
@@ -46,53 +42,30 @@ def run_episode(
     camera: CameraSpec | None = None,
     overrides: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Run `policy` on one episode; returns success, spl, steps, distance and timings.
+    """Run `policy` on one episode (`nav.episode.play`); returns success, spl, steps,
+    distance and timings.
 
     Timings (ms per step): process CPU time of render (env.step: move, render, annotate),
-    integrate and decide, and the wall time of the whole step.
+    integrate (with the navigation memory's update) and decide, and the wall time of the
+    whole step.
     """
     env = make_env(be, camera=camera or CameraSpec(320, 240), max_steps=max_steps)
-    t_render: list[float] = []
-    t_integrate: list[float] = []
-    t_decide: list[float] = []
-    t_wall: list[float] = []
+    times: dict[str, list[float]] = {"render": [], "integrate": [], "decide": [], "wall": []}
     goal_ids = set(be.episode.goal_object_ids)
     first_seen: int | None = None
     collisions = 0
     motion = {"forward_moved": 0, "turns": 0, "longest_spin": 0}
     spin = 0
+    glmap = GLMap(MapConfig(), embedder=embedder())
+    config = replace(NavConfig.for_task(be.task), **(overrides or {}))
     try:
-        obs, info = env.reset(seed=0, options={"episode": be.episode})
-        glmap = GLMap(MapConfig(), embedder=embedder())
-        state, config = NavState(), replace(NavConfig.for_task(be.task), **(overrides or {}))
-        intr = env.camera.intrinsics
-        while True:
-            frame = RGBDFrame(obs["rgb"], obs["depth"], intr, Pose(obs["pose"].astype(np.float64)))
-            sem = semantics_from_annotation(info["instance_mask"], info["annotation"])
-            if first_seen is None and goal_ids & {o["id"] for o in info["annotation"]["objects"]}:
-                first_seen = int(info["steps"])
-            w0 = time.perf_counter()
-            t0 = time.process_time()
-            glmap.integrate(frame, sem)
-            t1 = time.process_time()
-            d = decide(
-                glmap,
-                (float(info["position"][0]), float(info["position"][1])),
-                float(info["heading"]),
-                obs["goal"],
-                policy=policy,
-                state=state,
-                config=config,
-                frame=frame,
-                semantics=sem,
-            )
-            t2 = time.process_time()
-            obs, _, term, trunc, info = env.step(ACTION_IDS[d.action])
-            t3 = time.process_time()
-            t_wall.append((time.perf_counter() - w0) * 1000)
-            t_integrate.append((t1 - t0) * 1000)
-            t_decide.append((t2 - t1) * 1000)
-            t_render.append((t3 - t2) * 1000)
+        for step in play(env, glmap, policy, config, {"episode": be.episode}):
+            seen, info, d = step.seen, step.info, step.decision
+            if first_seen is None and goal_ids & {o["id"] for o in seen["annotation"]["objects"]}:
+                first_seen = int(seen["steps"])
+            for key, part in (("render", "act"), ("integrate", "integrate"), ("decide", "decide")):
+                times[key].append(step.seconds[part] * 1000)
+            times["wall"].append(step.seconds["wall"] * 1000)
             collisions += bool(info["collided"])
             if d.action == "move_forward" and not info["collided"]:
                 motion["forward_moved"] += 1
@@ -102,8 +75,6 @@ def run_episode(
                 motion["longest_spin"] = max(motion["longest_spin"], spin)
             else:
                 spin = 0
-            if term or trunc:
-                break
     finally:
         env.close()
     out: dict[str, Any] = {
@@ -125,12 +96,7 @@ def run_episode(
     }
     out["outcome"] = outcome(out, max_steps)
     if timings:
-        out["timings"] = {
-            "render": t_render,
-            "integrate": t_integrate,
-            "decide": t_decide,
-            "wall": t_wall,
-        }
+        out["timings"] = times
     return out
 
 

@@ -32,7 +32,6 @@ import hashlib
 import json
 import os
 import sys
-from dataclasses import replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -130,57 +129,37 @@ def _report(report: Any) -> list[Any]:
 
 
 def play(task: str, index: int, policy: str, max_steps: int) -> dict[str, Any]:
-    """Play one tune episode; every step's decision and the final map's fingerprint."""
-    from glmap_tools.bench._nav_loop import ACTION_IDS, embedder
-    from glmap_tools.geometry import Pose
-    from glmap_tools.geometry.frame import RGBDFrame
+    """Play one tune episode (`nav.episode.play`); every step's decision and the final
+    map's fingerprint."""
+    from glmap_tools.bench._nav_loop import embedder
     from glmap_tools.map import GLMap, MapConfig
-    from glmap_tools.nav import NavConfig, NavState, decide
-    from glmap_tools.perception.annotated import semantics_from_annotation
+    from glmap_tools.nav import NavConfig
+    from glmap_tools.nav.episode import play as play_steps
     from glmap_tools.sim.benchmark import load_split, make_env
     from glmap_tools.sim.render import CameraSpec
 
     be = load_split("tune", task)[index]
     env = make_env(be, camera=CameraSpec(320, 240), max_steps=max_steps)
     steps: list[dict[str, Any]] = []
+    glmap = GLMap(MapConfig(), embedder=embedder())
+    config = NavConfig.for_task(be.task)
     try:
-        obs, info = env.reset(seed=0, options={"episode": be.episode})
-        glmap = GLMap(MapConfig(), embedder=embedder())
-        state, config = NavState(), replace(NavConfig.for_task(be.task))
-        while True:
-            frame = RGBDFrame(
-                obs["rgb"], obs["depth"], env.camera.intrinsics, Pose(obs["pose"].astype(float))
-            )
-            sem = semantics_from_annotation(info["instance_mask"], info["annotation"])
-            report = glmap.integrate(frame, sem)
-            xy = (float(info["position"][0]), float(info["position"][1]))
-            d = decide(
-                glmap,
-                xy,
-                float(info["heading"]),
-                obs["goal"],
-                policy=policy,
-                state=state,
-                config=config,
-                frame=frame,
-                semantics=sem,
-            )
+        for step in play_steps(env, glmap, policy, config, {"episode": be.episode}):
+            d, (x, y, heading) = step.decision, step.agent
             wp = d.waypoint
             steps.append(
                 {
-                    "pose": [repr(xy[0]), repr(xy[1]), repr(float(info["heading"]))],
+                    "pose": [repr(x), repr(y), repr(heading)],
                     "action": d.action,
                     "waypoint": [wp.kind, repr(wp.xy), wp.unit_id, repr(wp.score), wp.reason],
                     "plan": [repr(d.plan.length), d.plan.reachable, len(d.plan.path)],
                     "matched": d.matched_unit,
                     "frontiers": len(d.frontiers),
                     "scores": _digest(np.array(sorted(d.scores.items()), dtype=float)),
-                    "report": _report(report),
+                    "report": _report(step.report),
                 }
             )
-            obs, _, term, trunc, info = env.step(ACTION_IDS[d.action])
-            if term or trunc:
-                break
+            info = step.info
     finally:
         env.close()
     return {
@@ -295,26 +274,26 @@ class _TwoTrees:
         self.new, self.old = (GLMap(MapConfig(), embedder=embedder()) for _ in range(2))
 
     def integrate(self, frame: Any, sem: Any, where: str) -> list[str]:
-        from glmap_tools.map.bounds import check_frame_bounds
-
         new = self.new.integrate(frame, sem)
-        check_frame_bounds(frame, self.old.config, self.old.trajectory)
-        plan = self.fusion.plan_frame(self.old, frame, sem, len(self.old.trajectory))
-        self.old._apply(plan)
+        old = self.old.integrate(frame, sem, planner=self.fusion.plan_frame)
         a = [_report(new), new.model_dump(), map_fingerprint(self.new)]
-        b = [_report(plan.report), plan.report.model_dump(), map_fingerprint(self.old)]
+        b = [_report(old), old.model_dump(), map_fingerprint(self.old)]
         return differences(json.loads(json.dumps(a)), json.loads(json.dumps(b)), where)
 
 
 def play_against(
     tree: Path, task: str, index: int, policy: str, max_steps: int
 ) -> tuple[int, list[str]]:
-    """Play one tune episode with this tree; (steps, differences from `tree` at any step)."""
-    from glmap_tools.bench._nav_loop import ACTION_IDS
-    from glmap_tools.geometry import Pose
-    from glmap_tools.geometry.frame import RGBDFrame
-    from glmap_tools.nav import NavConfig, NavState, decide
-    from glmap_tools.perception.annotated import semantics_from_annotation
+    """Play one tune episode with this tree; (steps, differences from `tree` at any step).
+
+    Each frame goes into both maps and both policies' memories, then to both `decide`s (an
+    older `decide` that takes the frame remembers it itself)."""
+    import inspect
+
+    from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState, decide
+    from glmap_tools.nav.config import ACTIONS
+    from glmap_tools.nav.episode import agent_of, observation_frame, remember
+    from glmap_tools.nav.perceive import frame_score
     from glmap_tools.sim.benchmark import load_split, make_env
     from glmap_tools.sim.render import CameraSpec
 
@@ -323,34 +302,32 @@ def play_against(
     env = make_env(be, camera=CameraSpec(320, 240), max_steps=max_steps)
     config = NavConfig.for_task(be.task)
     state, old_state = NavState(), two.policy.NavState()
+    old_takes_frame = "frame" in inspect.signature(two.policy.decide).parameters
     steps = 0
     try:
         obs, info = env.reset(seed=0, options={"episode": be.episode})
+        goal = obs["goal"]
+        for st, glmap in ((state, two.new), (old_state, two.old)):
+            st.scorer = EmbeddingScorer(glmap.embedder)
         while True:
             where = f"{task}/{index}/{policy} step {steps}"
-            frame = RGBDFrame(
-                obs["rgb"], obs["depth"], env.camera.intrinsics, Pose(obs["pose"].astype(float))
-            )
-            sem = semantics_from_annotation(info["instance_mask"], info["annotation"])
+            frame, sem = observation_frame(obs, info, env.camera.intrinsics)
             diff = two.integrate(frame, sem, where)
-            xy = (float(info["position"][0]), float(info["position"][1]))
-            heading, goal = float(info["heading"]), obs["goal"]
-            d, old = (
-                run(
-                    glmap,
-                    xy,
-                    heading,
-                    goal,
-                    policy=policy,
-                    state=st,
-                    config=config,
-                    frame=frame,
-                    semantics=sem,
-                )
-                for run, glmap, st in (
-                    (decide, two.new, state),
-                    (two.policy.decide, two.old, old_state),
-                )
+            memories = [(state, two.new)] + ([] if old_takes_frame else [(old_state, two.old)])
+            for st, glmap in memories:
+                remember(st, glmap, frame, frame_score(glmap, goal, st.scorer, sem))
+            x, y, heading = agent_of(info)
+            seen = {"frame": frame, "semantics": sem} if old_takes_frame else {}
+            d = decide(two.new, (x, y), heading, goal, policy=policy, state=state, config=config)
+            old = two.policy.decide(
+                two.old,
+                (x, y),
+                heading,
+                goal,
+                policy=policy,
+                state=old_state,
+                config=config,
+                **seen,
             )
             diff += differences(
                 json.loads(json.dumps(_decision(d, state))),
@@ -360,7 +337,7 @@ def play_against(
             steps += 1
             if diff:
                 return steps, diff
-            obs, _, term, trunc, info = env.step(ACTION_IDS[d.action])
+            obs, _, term, trunc, info = env.step(ACTIONS.index(d.action))
             if term or trunc:
                 return steps, []
     finally:

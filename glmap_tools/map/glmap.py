@@ -23,6 +23,8 @@ from glmap_tools.map.units import InstanceUnit, RegionUnit
 from glmap_tools.perception.semantics import FrameSemantics
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from glmap_tools.language.embed import Embedder
     from glmap_tools.language.text_merger import TextMerger
     from glmap_tools.map.store import MapStore
@@ -122,12 +124,20 @@ class GLMap:
 
     # ----------------------------------------------------------------- update
     def integrate(
-        self, frame: RGBDFrame, semantics: FrameSemantics, frame_index: int | None = None
+        self,
+        frame: RGBDFrame,
+        semantics: FrameSemantics,
+        frame_index: int | None = None,
+        planner: Callable[[GLMap, RGBDFrame, FrameSemantics, int], FramePlan] = plan_frame,
     ) -> UpdateReport:
         """Fuse one posed RGB-D frame and its semantics into the map (paper §3.1).
 
         Validation and all computation happen first; the store commits in one transaction;
         only then does the map in memory change. On any error nothing changes.
+
+        Args:
+            planner: computes the frame's changes (`map.fusion.plan_frame`; the replay check
+                passes an older checkout's to compare the two).
 
         Returns:
             The update report: units added and merged, the local -> global id mapping.
@@ -136,7 +146,7 @@ class GLMap:
             raise InvalidInputError(f"frame must be an RGBDFrame, got {type(frame).__name__}.")
         check_frame_bounds(frame, self.config, self.trajectory)  # world_limit, max_span
         index = len(self.trajectory) if frame_index is None else int(frame_index)
-        plan = plan_frame(self, frame, semantics, index)
+        plan = planner(self, frame, semantics, index)
         if self.store is not None:
             self.store.commit_frame(plan, self)
         self._apply(plan)

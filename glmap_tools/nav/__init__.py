@@ -19,8 +19,9 @@ from glmap_tools.nav.planner import (
     plan,
     reference_geodesic,
 )
-from glmap_tools.nav.policy import NavDecision, NavState, decide
+from glmap_tools.nav.policy import NavDecision, decide
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, map_units
+from glmap_tools.nav.state import NavState
 from glmap_tools.nav.value import (
     ValueMap,
     value_map,

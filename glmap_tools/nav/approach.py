@@ -25,7 +25,7 @@ from glmap_tools.nav.waypoint import GoalMatch, choose_waypoint
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
-    from glmap_tools.nav.policy import NavState
+    from glmap_tools.nav.state import NavState
 
 
 @dataclass(frozen=True)

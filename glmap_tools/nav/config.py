@@ -26,7 +26,8 @@ GOAL_MAX_BOTTOM = 1.8
 # Scores this close are a tie (identical texts: four "lamp" units at 0.923).
 SCORE_TIE = 1e-6
 POLICIES = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier")
-ACTIONS = ("move_forward", "turn_left", "turn_right", "stop")
+# The agent's discrete actions; a name's index is the simulator's action id (Habitat's order).
+ACTIONS = ("stop", "move_forward", "turn_left", "turn_right")
 UNIT_MASSES = ("unit", "cells")
 
 

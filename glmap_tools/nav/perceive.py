@@ -22,6 +22,7 @@ from glmap_tools.nav.value import unit_cell_array
 from glmap_tools.nav.waypoint import GoalMatch, distances_to_cells
 
 if TYPE_CHECKING:
+    from glmap_tools.language.embed import Embedder
     from glmap_tools.map.glmap import GLMap
     from glmap_tools.perception.semantics import FrameSemantics
 
@@ -288,12 +289,49 @@ def relation_match(
     return GoalMatch(u.unit_id, score[u.unit_id], u.observations, cells)
 
 
-def frame_score(glmap: GLMap, goal: str, scorer: Scorer, semantics: FrameSemantics | None) -> float:
-    """What the current frame shows, scored against the goal: the best of its objects/groups."""
+class TextVectors:
+    """Text embeddings kept over an episode: the same objects are seen frame after frame.
+
+    Args:
+        embedder: the map's text embedder phi.
+    """
+
+    def __init__(self, embedder: Embedder) -> None:
+        self.embedder = embedder
+        self.vectors: dict[str, np.ndarray] = {}
+
+    def units(self, texts: list[str]) -> list[UnitText]:
+        """`texts` as instance `UnitText`s with their embeddings (new ones embedded at once)."""
+        todo = [t for t in dict.fromkeys(texts) if t not in self.vectors]
+        if todo:
+            for t, v in zip(todo, np.asarray(self.embedder.embed(todo)), strict=True):
+                self.vectors[t] = v
+        return [UnitText(-1, "instance", t, self.vectors[t]) for t in texts]
+
+
+def frame_score(
+    glmap: GLMap,
+    goal: str,
+    scorer: Scorer,
+    semantics: FrameSemantics | None,
+    texts: TextVectors | None = None,
+) -> float:
+    """What the current frame shows, scored against the goal: the best of its objects/groups
+    (the egocentric baseline's per-frame score).
+
+    Args:
+        semantics: the frame's semantics; None: the instances the map's latest frame observed.
+        texts: embeddings kept over the episode (None: the scorer embeds the texts).
+    """
     if semantics is not None:
-        texts = [o.description or o.label for o in semantics.objects]
-        texts += [g.description for g in semantics.groups]
-        units = [UnitText(-1, "instance", t) for t in texts if t.strip()]
+        words = [o.description or o.label for o in semantics.objects]
+        words += [g.description for g in semantics.groups]
+        words = [t for t in words if t.strip()]
+        units = (
+            texts.units(words)
+            if texts is not None
+            else [UnitText(-1, "instance", t) for t in words]
+        )
     else:
         last = len(glmap.trajectory) - 1
         units = [

@@ -13,7 +13,7 @@ then write what the step learnt into the episode's `NavState`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -33,21 +33,19 @@ from glmap_tools.nav.perceive import (
     Surroundings,
     bump_marks,
     find_goal_match,
-    frame_score,
     surroundings_of,
     unfit_goals,
     walls_of,
 )
 from glmap_tools.nav.planner import Plan
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
+from glmap_tools.nav.state import NavState
 from glmap_tools.nav.value import ValueMap, evidence_scores, value_map_from_scores
-from glmap_tools.nav.verify import note_missed, outvoted, seen_share
+from glmap_tools.nav.verify import outvoted, seen_share
 from glmap_tools.nav.waypoint import GoalMatch, Waypoint
 
 if TYPE_CHECKING:
-    from glmap_tools.geometry.frame import RGBDFrame
     from glmap_tools.map.glmap import GLMap
-    from glmap_tools.perception.semantics import FrameSemantics
 
 __all__ = [
     "PROGRESS",
@@ -65,39 +63,6 @@ __all__ = [
 
 POLICY_UNITS = {"glmap": "both", "glmap-instance": "instances", "glmap-region": "regions"}
 UNIT_KINDS = {"both": ("instance", "region"), "instances": ("instance",), "regions": ("region",)}
-
-
-@dataclass
-class NavState:
-    """Per-episode memory of a policy: the egocentric map, given-up waypoints, bump marks.
-
-    Attributes:
-        egocentric: the VLFM-like accumulator (policy 'egocentric' only).
-        avoid: (x, y) of waypoints given up (stuck, or reached without clearing them).
-        rejected_units: matched instances given up (no way to reach them).
-        blocked: (i, j) cells where a forward move was stopped (obstacles the map missed);
-            they stay obstacles for the episode (`nav.motion.bump_cells`).
-        last_waypoint: the previous step's waypoint.
-        turns_in_place: turns in a row without moving, after the initial look around.
-        steps: decisions taken.
-        missed: instance id -> frames that looked at it without seeing it (glmap policies,
-            `verify.missed_in_view`).
-    """
-
-    egocentric: EgocentricValueMap | None = None
-    avoid: list[tuple[float, float]] = field(default_factory=list)
-    rejected_units: set[int] = field(default_factory=set)
-    blocked: set[tuple[int, int]] = field(default_factory=set)
-    last_waypoint: Waypoint | None = None
-    last_action: str | None = None
-    last_xy: tuple[float, float] | None = None
-    last_heading: float = 0.0
-    best_distance: float = math.inf
-    since_progress: int = 0
-    turns_in_place: int = 0
-    steps: int = 0
-    scorer: Scorer | None = None
-    missed: dict[int, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -281,13 +246,12 @@ def decide(
     scorer: Scorer | None = None,
     state: NavState | None = None,
     config: NavConfig | None = None,
-    frame: RGBDFrame | None = None,
-    semantics: FrameSemantics | None = None,
 ) -> NavDecision:
     """One step of `policy`: the next discrete action for the agent at `agent_xy`, `heading`.
 
     Args:
-        glmap: the map built so far (this step's frame already integrated).
+        glmap: the map built so far (this step's frame already integrated, and remembered
+            in `state`: `nav.episode.observe`).
         agent_xy: (x, y) metres.
         heading: radians, counter-clockwise from +x.
         goal: goal description T_g.
@@ -295,11 +259,6 @@ def decide(
         scorer: f_S; default `EmbeddingScorer(glmap.embedder)` (kept in `state`).
         state: per-episode state; pass the same object every step (a fresh one if None).
         config: navigation settings.
-        frame: this step's frame (policy 'egocentric' projects it into its view cone; the
-            glmap policies count the units it looked at without seeing, `state.missed`;
-            a caller that passes no frame counts them itself, `verify.note_missed`).
-        semantics: this frame's semantics, scored for the egocentric frame score (default:
-            the instances the latest frame observed).
 
     Raises:
         InvalidInputError: empty goal, unknown policy, non-finite pose.
@@ -319,9 +278,7 @@ def decide(
     sur, blocked = _perceive_surroundings(glmap, xy, state.blocked | bumped, config)
     last = state.last_waypoint
     prefer = last.unit_id if last is not None and last.kind == "goal" else None
-    missed = dict(state.missed)
-    if frame is not None and policy in POLICY_UNITS:
-        note_missed(missed, glmap, frame)
+    missed = state.missed  # `nav.episode.remember` counts the looks
     scored = _score_units(glmap, goal, policy, scorer, state.rejected_units, config, prefer, missed)
     match = scored.match
 
@@ -332,8 +289,6 @@ def decide(
     elif policy == "egocentric":
         if state.egocentric is None:
             state.egocentric = EgocentricValueMap(glmap.grid.cell_size, glmap.config.max_range)
-        if frame is not None:
-            state.egocentric.add_frame(frame, frame_score(glmap, goal, scorer, semantics))
         value = state.egocentric.as_value_map(sur.occ)
 
     # Choose a waypoint and plan to it.
@@ -360,7 +315,6 @@ def decide(
 
     # Act, and remember.
     _remember(state, choice, blocked, xy, heading, config)
-    state.missed = missed
     goal_unit = match.unit_id if match is not None and choice.waypoint.kind == "goal" else None
     return NavDecision(
         choice.plan.action,

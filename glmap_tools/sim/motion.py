@@ -9,18 +9,19 @@ from enum import IntEnum
 import numpy as np
 
 from glmap_tools.geometry import Pose
+from glmap_tools.nav.config import ACTIONS
 from glmap_tools.sim.navigation import NavGrid
 
 COLLISION_STEP = 0.025  # metres between collision checks along a forward move
 
 
 class Action(IntEnum):
-    """Discrete actions (Habitat's order)."""
+    """The env's action ids: each name's index in `nav.ACTIONS` (Habitat's order)."""
 
-    STOP = 0
-    MOVE_FORWARD = 1
-    TURN_LEFT = 2
-    TURN_RIGHT = 3
+    STOP = ACTIONS.index("stop")
+    MOVE_FORWARD = ACTIONS.index("move_forward")
+    TURN_LEFT = ACTIONS.index("turn_left")
+    TURN_RIGHT = ACTIONS.index("turn_right")
 
 
 @dataclass(frozen=True)
