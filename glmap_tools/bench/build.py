@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from glmap_tools.bench.report import Report
-from glmap_tools.cli import HelpWithDefaults
+from glmap_tools.cli_format import HelpWithDefaults
 
 TARGET_FPS = 15.0
 TARGET_RSS_MB = 1024.0

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from glmap_tools.bench.report import Report
-from glmap_tools.cli import HelpWithDefaults
+from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.gaussians.estimator import EstimatorConfig, GaussianEstimator
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Intrinsics, Pose, backproject, depth_from_uint16

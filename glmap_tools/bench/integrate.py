@@ -9,7 +9,7 @@ import numpy as np
 
 from glmap_tools import synthetic
 from glmap_tools.bench.report import Report
-from glmap_tools.cli import HelpWithDefaults
+from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.language.embed import Embedder, HashingEmbedder
 
 TARGET_MS = 150.0

@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from glmap_tools.bench.report import Report
-from glmap_tools.cli import HelpWithDefaults
+from glmap_tools.cli_format import HelpWithDefaults
 
 TARGET_MS = 150.0
 TARGET_PR = 0.7

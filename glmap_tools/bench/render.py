@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from glmap_tools.bench.report import Report
-from glmap_tools.cli import HelpWithDefaults
+from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.gaussians.render import render, warm_up
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Intrinsics, Pose

@@ -24,7 +24,7 @@ import numpy as np
 
 from glmap_tools import synthetic as scenes
 from glmap_tools.bench.report import Report
-from glmap_tools.cli import HelpWithDefaults
+from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.gaussians.estimator import EstimatorConfig
 from glmap_tools.gaussians.render import warm_up
 from glmap_tools.ingest.cli import bundled_folder

@@ -15,7 +15,7 @@ from glmap_tools.gaussians._estimator_union import union_additive
 from glmap_tools.gaussians.types import GaussianSet
 
 if TYPE_CHECKING:
-    from glmap_tools.gaussians.estimator import EstimatorConfig
+    from glmap_tools.gaussians.config import EstimatorConfig
 
 CHUNKS_PER_THREAD = 4
 PARALLEL_MIN_VOXELS = 10_000  # smaller clouds run on one thread (see design.md)

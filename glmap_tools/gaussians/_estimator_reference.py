@@ -16,7 +16,7 @@ from glmap_tools.gaussians.merge import curvature, merge_threshold, pair_distanc
 from glmap_tools.gaussians.types import GaussianSet
 
 if TYPE_CHECKING:
-    from glmap_tools.gaussians.estimator import EstimatorConfig
+    from glmap_tools.gaussians.config import EstimatorConfig
 
 Key = tuple[int, int, int]
 NEIGHBOUR_OFFSETS: list[Key] = [(a, b, c) for a, b, c in itertools.product((-1, 0, 1), repeat=3)]

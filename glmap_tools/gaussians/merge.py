@@ -18,7 +18,7 @@ from glmap_tools.errors import InvalidInputError
 from glmap_tools.gaussians.types import COVARIANCE_EPSILON, GaussianSet
 
 if TYPE_CHECKING:
-    from glmap_tools.gaussians.estimator import EstimatorConfig
+    from glmap_tools.gaussians.config import EstimatorConfig
 
 ANY_MERGEABLE_CHUNK = 4096  # Gaussians per early-exit step of `any_mergeable`
 MAX_GRID_SPAN = 1 << 22  # candidate radii across a set that the numba grid search can key

@@ -140,7 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
         "or the split's own (auto: detector on the houses split)",
     )
     g.add_argument("--segmenter", type=Path, help="SAM model folder (--perception mllm)")
-    from glmap_tools.cli import show_defaults
+    from glmap_tools.cli_format import show_defaults
 
     return show_defaults(p)
 
