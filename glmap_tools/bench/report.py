@@ -114,10 +114,6 @@ class Report:
         """Print a figure or note that has no target."""
         self._print(text)
 
-    @property
-    def all_met(self) -> bool:
-        return all(c.met for c in self.checks)
-
     def finish(self) -> int:
         """Print the load average and the MET/MISSED counts; return 0 (the exit status).
 

@@ -95,9 +95,3 @@ class Transcript:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def read_transcript(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
-    """The events of a transcript file."""
-    with Path(path).open(encoding="utf-8") as f:
-        return [json.loads(line) for line in f if line.strip()]

@@ -77,9 +77,6 @@ class IndexGrid:
     def cell_of(self, x: float, y: float) -> Cell:
         return (math.floor(x / self.cell_size), math.floor(y / self.cell_size))
 
-    def cell_center(self, cell: Cell) -> tuple[float, float]:
-        return ((cell[0] + 0.5) * self.cell_size, (cell[1] + 0.5) * self.cell_size)
-
     def set_unit(self, unit_id: int, cells: Iterable[Cell]) -> None:
         """Replace the cells of `unit_id`."""
         self.remove_unit(unit_id)

@@ -101,15 +101,13 @@ class EgocentricValueMap:
         keep = conf > 1e-6
         return cells[keep], conf[keep]
 
-    def add_frame(self, frame: RGBDFrame, frame_score: float, floor_z: float | None = None) -> int:
+    def add_frame(self, frame: RGBDFrame, frame_score: float) -> int:
         """Fuse one frame's goal score into the cells of its view cone; returns the cell count.
 
         Args:
             frame: the posed RGB-D frame.
             frame_score: in [0, 1], how well the frame's content matches the goal.
-            floor_z: unused by the cone (kept for callers that filter floor points later).
         """
-        del floor_z
         if not (math.isfinite(frame_score) and 0.0 <= frame_score <= 1.0):
             raise InvalidInputError(f"frame_score={frame_score!r} must be in [0, 1].")
         cells, conf = self.view_cone(frame)

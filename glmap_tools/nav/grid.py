@@ -38,13 +38,6 @@ class Window:
     def shape(self) -> tuple[int, int]:
         return (self.height, self.width)
 
-    def rc_of(self, x: float, y: float, cell_size: float) -> tuple[int, int]:
-        """(row, col) of world (x, y); may fall outside the window."""
-        return (math.floor(y / cell_size) - self.j0, math.floor(x / cell_size) - self.i0)
-
-    def contains_rc(self, rc: tuple[int, int]) -> bool:
-        return 0 <= rc[0] < self.height and 0 <= rc[1] < self.width
-
     def xy_of(self, rc: np.ndarray, cell_size: float) -> np.ndarray:
         """[K, 2] world (x, y) of the cell centres of [K, 2] (row, col)."""
         rc = np.asarray(rc, dtype=np.float64).reshape(-1, 2)
@@ -171,18 +164,6 @@ def clear_footprint(ok: np.ndarray, rc: tuple[int, int], radius_cells: float) ->
     keep = (offs[:, 0] >= 0) & (offs[:, 0] < h) & (offs[:, 1] >= 0) & (offs[:, 1] < w)
     out[offs[keep, 0], offs[keep, 1]] = True
     return out
-
-
-def nav_masks(
-    occ: DenseOccupancy, rc: tuple[int, int], agent_radius: float, optimistic: bool = True
-) -> tuple[np.ndarray, np.ndarray]:
-    """(traversable, plannable) [H, W] bool with one inflation, the agent's footprint clear."""
-    radius_cells = agent_radius / occ.cell_size
-    open_ = ~blocked(occ, agent_radius)
-    free = occ.state == FREE
-    ok = (free | (occ.state == UNKNOWN)) if optimistic else free
-    trav = clear_footprint(free & open_, rc, radius_cells)
-    return trav, clear_footprint(ok & open_, rc, radius_cells)
 
 
 def structure_walls(

@@ -152,20 +152,6 @@ class DistanceField:
     origin: tuple[int, int]
     cell_size: float
 
-    def block_of(self, rc: tuple[int, int]) -> tuple[int, int]:
-        return (rc[0] // self.stride, rc[1] // self.stride)
-
-    def block_xy(self, blocks: np.ndarray) -> np.ndarray:
-        """[K, 2] world (x, y) of the centres of [K, 2] (row, col) planning blocks."""
-        half = self.stride / 2.0
-        return np.stack(
-            [
-                (blocks[:, 1] * self.stride + half + self.origin[0]) * self.cell_size,
-                (blocks[:, 0] * self.stride + half + self.origin[1]) * self.cell_size,
-            ],
-            axis=1,
-        )
-
 
 def pool_any(mask: np.ndarray, stride: int) -> np.ndarray:
     """[ceil(H/s), ceil(W/s)] bool: blocks with at least one True cell."""

@@ -151,9 +151,6 @@ class Layout:
         pts = np.concatenate([r.polygon for r in self.rooms])
         return pts.min(axis=0), pts.max(axis=0)
 
-    def regions_of(self, object_id: int) -> list[Region]:
-        return [g for g in self.regions if object_id in g.members]
-
 
 def yaw_matrix(angle: float) -> np.ndarray:  # [3, 3]
     """Rotation about +z by `angle` radians."""
