@@ -29,8 +29,8 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-from glmap_tools.sqa.reading import NUMBER_WORDS
 from glmap_tools.sqa.records import MapAnswer
+from glmap_tools.sqa.situation_words import NUMBER_WORDS
 from glmap_tools.sqa.surroundings import Nearby, Surroundings, surroundings
 
 if TYPE_CHECKING:

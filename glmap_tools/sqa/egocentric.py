@@ -12,8 +12,8 @@ import math
 import re
 from collections.abc import Callable, Sequence
 
-from glmap_tools.sqa.reading import NUMBER_WORDS
 from glmap_tools.sqa.records import MapAnswer
+from glmap_tools.sqa.situation_words import NUMBER_WORDS
 from glmap_tools.sqa.surroundings import Nearby, Surroundings
 from glmap_tools.sqa.wording import EGO, HOURS
 
@@ -224,4 +224,25 @@ def divisible(
         "divisible",
         True,
         f"{count} x {label}; {count} mod {k} = {count % k}",
+    )
+
+
+def direction_word(bearing: float) -> str:
+    """forward / left / right / backward for a bearing in degrees (+ = left)."""
+    if abs(bearing) <= 45.0:
+        return "forward"
+    if 45.0 < bearing <= 135.0:
+        return "left"
+    if -135.0 <= bearing < -45.0:
+        return "right"
+    return "backward"
+
+
+def direction(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:
+    """Which way the nearest unit of the label lies."""
+    if not cands:
+        return MapAnswer("", kind, False, f"no {label} within {AROUND:.0f} m in this room")
+    n = cands[0]
+    return MapAnswer(
+        direction_word(n.bearing), kind, True, f"unit {n.unit_id} at {n.bearing:.0f} deg"
     )

@@ -21,7 +21,9 @@ Each family is a pattern over the lower-cased question and an answer from `Surro
   unit's description says it, else supported=False: the map cannot tell.
 
 A side filter ("the chair on my left") also narrows which unit the colour and 'on'
-questions are about (`side_of`, `pick_at`).
+questions are about (`side_of`, `pick_at`). The newer families (attributes, either/or,
+clock hours, comparisons, counts on an object, divisibility, intents, turning angles) are
+worded in `sqa.wording` and answered through `sqa.more_answers`.
 """
 
 from __future__ import annotations
@@ -222,17 +224,6 @@ def split_side(phrase: str) -> tuple[str, str | None]:
     return phrase[: m.start()], side_of({k: v for k, v in m.groupdict().items() if v})
 
 
-def direction_word(bearing: float) -> str:
-    """forward / left / right / backward for a bearing in degrees (+ = left)."""
-    if abs(bearing) <= 45.0:
-        return "forward"
-    if 45.0 < bearing <= 135.0:
-        return "left"
-    if -135.0 <= bearing < -45.0:
-        return "right"
-    return "backward"
-
-
 def answer_family(
     kind: str,
     parts: dict[str, str],
@@ -251,16 +242,18 @@ def answer_family(
         room: the room reader (`answer._room`).
     """
     from glmap_tools.sqa.answer import MapAnswer
+    from glmap_tools.sqa.egocentric import direction
+    from glmap_tools.sqa.more_answers import MORE, answer_more, intent
 
     near = [n for n in where.nearby if n.unit_id not in skip]
     if kind in MORE:
-        return _answer_more(kind, parts, where, near, match)
+        return answer_more(kind, parts, where, near, match)
     if kind == "in_room":
         return _in_room(parts, room(where))
     if kind == "turn":
         return _turn(parts, near)
     if kind == "direction" and "intent" in parts:
-        return _intent(parts["intent"], where, near, match)
+        return intent(parts["intent"], where, near, match)
     obj = parts.get("object", "")
     label = match(obj, list(where.labels.values()))
     if kind in ("count", "parity", "exists"):
@@ -271,7 +264,7 @@ def answer_family(
         return MapAnswer("", kind, False, f"no unit is a {obj!r}")
     cands = [n for n in near if n.label == label]
     by_label = {
-        "direction": _direction,
+        "direction": direction,
         "see": _see,
         "touch": _touch,
         "shape": _described,
@@ -285,80 +278,6 @@ def answer_family(
     if kind == "beside":
         return _beside(parts, label, near, cands)
     return MapAnswer("", kind, False, "no rule for this kind of question")
-
-
-MORE = {
-    "clock",
-    "compare",
-    "count_on",
-    "divisible",
-    "turn_see",
-    "turn_angle",
-    "which_side",
-    "up_down",
-    "attribute",
-    "either",
-    "state",
-}
-
-
-def _answer_more(
-    kind: str,
-    parts: dict[str, str],
-    where: Surroundings,
-    near: list[Nearby],
-    match: Callable[[str, Sequence[str]], str | None],
-) -> MapAnswer:
-    """The round-two families (`wording`): answers in `egocentric`, `compare`, `attributes`."""
-    from glmap_tools.sqa import attributes, egocentric
-    from glmap_tools.sqa.answer import MapAnswer
-    from glmap_tools.sqa.compare import compare
-
-    if kind == "clock":
-        return egocentric.clock(parts, near)
-    if kind == "compare":
-        return compare(parts, where, near, match)
-    if kind == "count_on":
-        return egocentric.count_on(parts, where, near, match)
-    obj = parts.get("object", "")
-    label = match(obj, list(where.labels.values()))
-    if kind == "divisible":
-        return egocentric.divisible(parts, near, label, obj)
-    if kind in ("attribute", "either", "state"):
-        unit = egocentric.pick(where.nearby, label, obj) if label else None  # the anchor too
-        if "value" in parts or "part" in parts:
-            return attributes.attribute(parts, unit, obj, kind)
-        return attributes.either(kind, [parts.get("a", ""), parts.get("b", "")], unit, obj)
-    if label is None:
-        if kind == "turn_see":
-            return MapAnswer("no", kind, True, f"no unit is a {obj!r}")
-        return MapAnswer("", kind, False, f"no unit is a {obj!r}")
-    cands = [n for n in near if n.label == label]
-    if kind == "turn_see":
-        return egocentric.turn_see(parts, label, cands)
-    if kind == "turn_angle":
-        return egocentric.turn_angle(label, cands)
-    if kind == "which_side":
-        return egocentric.which_side(parts, label, cands)
-    return egocentric.up_down(parts, label, cands)
-
-
-def _intent(
-    intent: str,
-    where: Surroundings,
-    near: list[Nearby],
-    match: Callable[[str, Sequence[str]], str | None],
-) -> MapAnswer:
-    """Which way to the nearest unit serving an intent ("leave the room": a door)."""
-    from glmap_tools.sqa.answer import MapAnswer
-    from glmap_tools.sqa.wording import intent_object
-
-    wanted = intent_object(intent)
-    labels = {match(w, list(where.labels.values())) for w in wanted.split("|")} - {None}
-    cands = [n for n in near if n.label in labels]
-    if not cands:
-        return MapAnswer("", "direction", False, f"no {wanted!r} to {intent!r} nearby")
-    return _direction("direction", cands[0].label, cands)
 
 
 def _in_room(parts: dict[str, str], r: MapAnswer) -> MapAnswer:
@@ -418,18 +337,6 @@ def _count(
     if kind == "parity":
         return MapAnswer("even" if count % 2 == 0 else "odd", kind, True, why)
     return MapAnswer("yes" if count else "no", kind, True, why)
-
-
-def _direction(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:
-    """Which way the nearest unit of the label lies."""
-    from glmap_tools.sqa.answer import MapAnswer
-
-    if not cands:
-        return MapAnswer("", kind, False, f"no {label} within {AROUND:.0f} m in this room")
-    n = cands[0]
-    return MapAnswer(
-        direction_word(n.bearing), kind, True, f"unit {n.unit_id} at {n.bearing:.0f} deg"
-    )
 
 
 def _see(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:

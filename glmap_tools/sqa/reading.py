@@ -26,118 +26,11 @@ from typing import Any, Literal
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.sqa import asides
+from glmap_tools.sqa.situation_words import BASE_POSTURES, HOUR_WORDS, POSTURES, RELATIONS, ROOMS
 
 Side = Literal["left", "right", "behind", "front"]
 SIDES: tuple[str, ...] = ("left", "right", "behind", "front")
 SIDE_BEARING = {"front": 0.0, "left": 90.0, "right": -90.0, "behind": 180.0}  # deg, + = left
-NUMBER_WORDS = [
-    "zero",
-    "one",
-    "two",
-    "three",
-    "four",
-    "five",
-    "six",
-    "seven",
-    "eight",
-    "nine",
-    "ten",
-    "eleven",
-    "twelve",
-    "thirteen",
-    "fourteen",
-    "fifteen",
-    "sixteen",
-    "seventeen",
-    "eighteen",
-    "nineteen",
-    "twenty",
-]
-HOUR_WORDS = ("twelve", *NUMBER_WORDS[1:13])  # index = hour (0 and 12 both "twelve")
-POSTURES = (
-    "standing",
-    "sitting",
-    "seated",
-    "sat",
-    "lying",
-    "laying",
-    "crouching",
-    "kneeling",
-    "squatting",
-    "leaning",
-    "resting",
-    "waiting",
-    "perched",
-    "stood",
-    "hovering",
-)
-BASE_POSTURES = {
-    "sit": "sitting",
-    "stand": "standing",
-    "lie": "lying",
-    "kneel": "kneeling",
-    "crouch": "crouching",
-    "lean": "leaning",
-    "squat": "squatting",
-    "wait": "waiting",
-    "rest": "resting",
-}
-# Longest first: "in front of" before "in", "on top of" before "on".
-RELATIONS = (
-    "in front of",
-    "on top of",
-    "at the side of",
-    "by the side of",
-    "on the edge of",
-    "at the edge of",
-    "at the foot of",
-    "at the end of",
-    "at the corner of",
-    "across from",
-    "opposite to",
-    "opposite",
-    "next to",
-    "close to",
-    "right next to",
-    "beside",
-    "besides",
-    "near",
-    "by",
-    "at",
-    "on",
-    "in",
-    "inside",
-    "into",
-    "under",
-    "underneath",
-    "below",
-    "beneath",
-    "behind",
-    "between",
-    "against",
-    "along",
-    "out of",
-    "over",
-    "from",
-    "with",
-    "to",
-)
-ROOMS = (
-    "kitchen",
-    "bedroom",
-    "bathroom",
-    "living room",
-    "lounge",
-    "hallway",
-    "hall",
-    "corridor",
-    "office",
-    "study",
-    "dining room",
-    "room",
-    "toilet room",
-    "laundry room",
-)
 _DET = re.compile(r"^(?:the|a|an|some|my|this|that|one|two|three|several|few|of)\s+")
 _LEAD = re.compile(
     r"^(?:(?:i am|i'm|im|i|am|we are|currently|right now|now|just|here|also|there)\b\s*)+"

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import re
 
-from glmap_tools.sqa.reading import HOUR_WORDS
+from glmap_tools.sqa.situation_words import HOUR_WORDS
 
 HOURS = HOUR_WORDS[1:]  # one .. twelve
 _HOUR = r"(?P<hour>\d{1,2}|" + "|".join(HOURS) + r")"
