@@ -58,6 +58,9 @@ NEARBY = tuple(
                 9, "pillow", 2.5, -62.0, "a grey pillow", (0.5, 0.3, 0.15), (0.5, None), (1.4, -2.3)
             ),
             _unit(10, "clock", 2.0, 30.0, "a round wall clock", (0.3, 0.05, 0.3), (2.0, None)),
+            _unit(
+                11, "box", 2.1, -90.0, "a cardboard box", (0.4, 0.4, 0.3), (0.0, None), (0, -2.3)
+            ),
         ],
         key=lambda n: n.distance,
     )
@@ -107,6 +110,18 @@ WHERE = Surroundings(0.0, 0.0, 0.0, NEARBY, (), {n.unit_id: n.label for n in NEA
         ("To reach the bed, should I turn left or right?", "direction", "right"),
         ("Where do I turn to get to the sofa?", "direction", "forward"),
         ("Which object is to my right?", "right", "table"),
+        ("What is next to the bed?", "next_to", "table"),
+        ("What is under the table?", "under", "box"),
+        ("What is under the clock?", "under", "nothing"),
+        ("What is the table made of?", "material", "wood"),
+        ("What material is the sofa?", "material", "fabric"),
+        ("How many chairs can I see?", "count", "0"),
+        ("How many pillows are there?", "count", "2"),
+        ("Where is the lamp?", "which_side", "left"),
+        ("Where is the chair?", "which_side", "behind"),
+        ("What is the closest object to me?", "nearest", "chair"),
+        ("Is there anything on the bed?", "on_exists", "yes"),
+        ("Is there anything on the sofa?", "on_exists", "no"),
     ],
 )
 def test_each_round_two_family_is_read_and_answered_from_the_map(question, kind, answer):

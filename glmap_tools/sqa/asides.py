@@ -28,10 +28,11 @@ _EGO_BEHIND = r"(?P<b>behind me|at my back)"
 _EGO_FRONT = r"(?P<f>in front of me|ahead of me|straight ahead)"
 EGO = r"(?:" + _EGO_SIDE + "|" + _EGO_HOUR + "|" + _EGO_BEHIND + "|" + _EGO_FRONT + ")"
 
-# "that is on my right", "which stands behind me", "that i have to my left"
+# "that is on my right", "which stands behind me", "that i have to my left", or the place
+# alone ("the window to my left"), but not "to the left of the fridge"
 _REL_EGO = re.compile(
-    r"^(?P<head>.+?)\s+(?:that|which|who)\s+(?:(?:is|are|stands|sits|lies|hangs|i have)\s+)?"
-    r"(?:located\s+|placed\s+|right\s+|directly\s+|just\s+)?" + EGO + r"(?P<rest>.*)$"
+    r"^(?P<head>.+?)\s+(?:(?:that|which|who)\s+(?:(?:is|are|stands|sits|lies|hangs|i have)\s+)?)?"
+    r"(?:located\s+|placed\s+|right\s+|directly\s+|just\s+)?" + EGO + r"(?! of\b)(?P<rest>.*)$"
 )
 # Any other relative clause ends the object's words: "the shelf where the books are kept".
 _REL_ANY = re.compile(

@@ -154,3 +154,22 @@ def either(kind: str, options: Sequence[str], unit: Nearby | None, asked: str) -
         f"cannot tell from the map: unit {unit.unit_id}'s "
         f"description ({unit.text[:60]!r}) says neither",
     )
+
+
+MATERIAL_NOUNS = {"wooden": "wood"}  # the noun a material is named by
+
+
+def material(unit: Nearby | None, asked: str) -> MapAnswer:
+    """What the unit is made of, when its description says: "wood", "metal", "leather"."""
+    if unit is None:
+        return MapAnswer("", "material", False, f"no {asked!r} nearby")
+    said = [w for w in VOCABULARY["material"] if w in described(f"{unit.label} {unit.text}")]
+    if not said:
+        return MapAnswer(
+            "",
+            "material",
+            False,
+            f"cannot tell from the map: unit {unit.unit_id}'s description names no material",
+        )
+    word = MATERIAL_NOUNS.get(said[0], said[0])
+    return MapAnswer(word, "material", True, f"unit {unit.unit_id}: {unit.text[:60]!r}")

@@ -24,6 +24,7 @@ FOV = 120.0  # deg: what one sees without turning the head far
 EYE = 1.5  # m: eye height of a standing person
 AROUND = 4.0  # m: "around me", "in this room"
 ON_RISE = 0.1  # m: a unit on another starts at least this far above the other's bottom
+BESIDE = 1.5  # m between centres: "what is next to the bed?"
 
 
 def wrap(deg: float) -> float:
@@ -39,6 +40,8 @@ def hour_bearing(hour: str) -> float:
 
 def sector_of(parts: dict[str, str]) -> tuple[float, float] | None:
     """(centre, half-width) in degrees of the place a question names, None for around."""
+    if "view" in parts:  # "how many chairs can I see?"
+        return 0.0, FOV / 2
     if "hour" in parts:
         return hour_bearing(parts["hour"]), HOUR_HALF
     if "side" in parts:
@@ -133,12 +136,14 @@ def _direction_class(option: str) -> str | None:
 
 
 def which_side(parts: dict[str, str], label: str, cands: Sequence[Nearby]) -> MapAnswer:
-    """Which of the offered directions (left/right by default) the nearest unit lies in,
-    in the words offered ("front", "behind", "back", "left", "right")."""
+    """Which of the offered directions (left/right by default; all four for "where is X?")
+    the nearest unit lies in, in the words offered ("front", "behind", "back", "left")."""
     if not cands:
         return MapAnswer("", "which_side", False, f"no {label} within {AROUND:.0f} m")
     n = cands[0]
     offered = [parts.get("a", "left"), parts.get("b", "right")]
+    if "where" in parts:
+        offered = ["front", "left", "right", "behind"]
     classes = [_direction_class(o) for o in offered]
     centre = {"left": 90.0, "right": -90.0, "front": 0.0, "behind": 180.0}
     scored = [
@@ -173,6 +178,78 @@ def up_down(parts: dict[str, str], label: str, cands: Sequence[Nearby]) -> MapAn
     return MapAnswer(word, "up_down", True, why)
 
 
+def on_top(base: Nearby, units: Sequence[Nearby]) -> list[Nearby]:
+    """The units resting on `base`: centre over its footprint, bottom ON_RISE above its own."""
+    x0, y0, x1, y1 = base.footprint
+    return [
+        n
+        for n in units
+        if n.unit_id != base.unit_id
+        and n.z_min >= base.z_min + ON_RISE
+        and x0 - 0.05 <= (n.footprint[0] + n.footprint[2]) / 2 <= x1 + 0.05
+        and y0 - 0.05 <= (n.footprint[1] + n.footprint[3]) / 2 <= y1 + 0.05
+    ]
+
+
+def _base(
+    parts: dict[str, str], where: Surroundings, match: Match, key: str = "base"
+) -> Nearby | None:
+    """The unit a question names as its base ("the table at my two o'clock"); it may be
+    the one I stand at."""
+    phrase = parts.get(key, "")
+    label = match(phrase, list(where.labels.values()))
+    sector = sector_of(parts) if key == "base" else None
+    units = [n for n in where.nearby if n.label == label and in_sector(n, sector)]
+    return pick(units, label, phrase) if units else None
+
+
+def on_exists(parts: dict[str, str], where: Surroundings, match: Match) -> MapAnswer:
+    """Whether anything rests on the base."""
+    base = _base(parts, where, match)
+    if base is None:
+        return MapAnswer("", "on_exists", False, f"no {parts.get('base')!r} nearby")
+    on = on_top(base, where.nearby)
+    why = f"{len(on)} unit(s) on unit {base.unit_id} ({base.label})"
+    return MapAnswer("yes" if on else "no", "on_exists", True, why)
+
+
+def nearest(near: Sequence[Nearby]) -> MapAnswer:
+    """The nearest unit (not the one I stand at, none a wall hides)."""
+    if not near:
+        return MapAnswer("nothing", "nearest", True, f"no unit within {AROUND:.0f} m")
+    n = near[0]
+    return MapAnswer(n.label, "nearest", True, f"unit {n.unit_id} at {n.distance:.1f} m")
+
+
+def next_to(
+    kind: str, parts: dict[str, str], where: Surroundings, near: Sequence[Nearby], match: Match
+) -> MapAnswer:
+    """next_to: the unit whose centre is nearest the named unit's (within BESIDE m), not on
+    it; under: the nearest unit whose centre lies over its footprint, below its top."""
+    base = _base(parts, where, match, key="object")
+    if base is None:
+        return MapAnswer("", kind, False, f"no {parts.get('object')!r} nearby")
+    x0, y0, x1, y1 = base.footprint
+    bx, by = (x0 + x1) / 2, (y0 + y1) / 2
+    on = {n.unit_id for n in on_top(base, where.nearby)}
+    found = []
+    for n in near:
+        if n.unit_id == base.unit_id or n.unit_id in on:
+            continue
+        cx, cy = (n.footprint[0] + n.footprint[2]) / 2, (n.footprint[1] + n.footprint[3]) / 2
+        gap = math.hypot(cx - bx, cy - by)
+        if kind == "under":
+            over = x0 <= cx <= x1 and y0 <= cy <= y1
+            if over and n.z_max <= base.z_max + 0.15 and n.z_min < base.z_max - 0.2:
+                found.append((gap, n))
+        elif gap <= BESIDE:
+            found.append((gap, n))
+    if not found:
+        return MapAnswer("nothing", kind, True, f"nothing {kind} unit {base.unit_id}")
+    gap, n = min(found, key=lambda t: t[0])
+    return MapAnswer(n.label, kind, True, f"unit {n.unit_id} {gap:.1f} m from {base.unit_id}")
+
+
 def count_on(
     parts: dict[str, str], where: Surroundings, near: Sequence[Nearby], match: Match
 ) -> MapAnswer:
@@ -193,16 +270,7 @@ def count_on(
     label = match(obj, labels)
     if label is None:
         return MapAnswer("", "count_on", False, f"no unit is a {obj!r}")
-    x0, y0, x1, y1 = base.footprint
-    on = [
-        n
-        for n in where.nearby
-        if n.label == label
-        and n.unit_id != base.unit_id
-        and n.z_min >= base.z_min + ON_RISE
-        and x0 - 0.05 <= (n.footprint[0] + n.footprint[2]) / 2 <= x1 + 0.05
-        and y0 - 0.05 <= (n.footprint[1] + n.footprint[3]) / 2 <= y1 + 0.05
-    ]
+    on = [n for n in on_top(base, where.nearby) if n.label == label]
     return MapAnswer(
         str(len(on)), "count_on", True, f"{len(on)} x {label} on unit {base.unit_id} ({base.label})"
     )

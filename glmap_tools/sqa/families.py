@@ -187,8 +187,8 @@ def family(question: str) -> tuple[str, dict[str, str]] | None:
         return found
     for name, pattern in LATE:
         m = pattern.search(q)
-        if m:
-            return name, {k: v for k, v in m.groupdict().items() if v}
+        if m:  # a pattern's second alternative names its parts "object2"
+            return name, {k.rstrip("2"): v for k, v in m.groupdict().items() if v}
     return None
 
 

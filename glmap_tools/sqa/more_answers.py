@@ -24,6 +24,11 @@ MORE = {
     "attribute",
     "either",
     "state",
+    "on_exists",
+    "nearest",
+    "next_to",
+    "under",
+    "material",
 }
 
 
@@ -41,10 +46,19 @@ def answer_more(
         return compare(parts, where, near, match)
     if kind == "count_on":
         return egocentric.count_on(parts, where, near, match)
+    if kind == "on_exists":
+        return egocentric.on_exists(parts, where, match)
+    if kind == "nearest":
+        return egocentric.nearest(near)
+    if kind in ("next_to", "under"):
+        return egocentric.next_to(kind, parts, where, near, match)
     obj = parts.get("object", "")
     label = match(obj, list(where.labels.values()))
     if kind == "divisible":
         return egocentric.divisible(parts, near, label, obj)
+    if kind == "material":
+        unit = egocentric.pick(where.nearby, label, obj) if label else None
+        return attributes.material(unit, obj)
     if kind in ("attribute", "either", "state"):
         unit = egocentric.pick(where.nearby, label, obj) if label else None  # the anchor too
         if "value" in parts or "part" in parts:

@@ -58,7 +58,25 @@ _REL = (
 )
 _COUNT = r"(?:how many|what is the number of|the number of|number of|count(?: the)?)"
 
+_THING = r"(?: object| thing| item| piece of furniture| furniture)?"
 EARLY: list[tuple[str, re.Pattern[str]]] = [
+    (
+        "on_exists",
+        re.compile(
+            r"^(?:is|are) there (?:anything|something|any objects?|an object|things) (?:on top of"
+            r"|on|upon) (?:the |a |an )?(?P<base>[a-z][a-z -]*?)(?: " + EGO + r")?$"
+        ),
+    ),
+    (
+        "nearest",
+        re.compile(
+            r"^(?:what|which)"
+            + _THING
+            + r"(?: is|'s) (?:the )?(?:closest|nearest)"
+            + _THING
+            + r"(?: to me| from me)?$"
+        ),
+    ),
     (
         "turn_see",
         re.compile(r"^" + _SEE + r" " + _obj() + r" (?:if|when|after|once) " + _TURN + r"\?*$"),
@@ -201,6 +219,37 @@ _INTENT_ASK = (
     r"|head|move)(?: to)?"
 )
 LATE: list[tuple[str, re.Pattern[str]]] = [
+    (
+        "next_to",
+        re.compile(
+            r"^(?:what|which)" + _THING + r"(?: is|'s| stands| sits)? (?:right |just )?(?:next to"
+            r"|beside|by|near|close to|adjacent to) " + _obj() + r"$"
+        ),
+    ),
+    (
+        "under",
+        re.compile(
+            r"^(?:what|which)" + _THING + r"(?: is|'s| lies| sits| stands)? (?:under|underneath|"
+            r"beneath|below) " + _obj() + r"$"
+        ),
+    ),
+    (
+        "material",
+        re.compile(
+            r"^(?:what|which) (?:material )?(?:is|are) " + _obj() + r" made (?:of|from|out of)$"
+            r"|^(?:what|which) material (?:is|are|does) "
+            + _obj("object2")
+            + r"(?: made of| have)?$"
+        ),
+    ),
+    (
+        "count",
+        re.compile(
+            r"^how many " + _obj() + r" (?:(?P<view>can i see|do i see|are visible|are in view)"
+            r"(?: from here| right now)?|(?P<around>are there|is there|are here))$"
+        ),
+    ),
+    ("which_side", re.compile(r"^(?P<where>where) (?:is|are) " + _obj() + r"$")),
     ("shape", re.compile(r"^what is the (?:shape|form) of " + _obj() + r"\?*$")),
     (
         "direction",
