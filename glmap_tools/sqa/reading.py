@@ -58,6 +58,7 @@ _ING_NOUNS = (
 )
 _ACTIVITY_TAIL = re.compile(r"(?<=\w)\s+(?!(?:" + _ING_NOUNS + r")\b)[a-z]{3,}ing\b.*$")
 _PLACE_TAIL = r"(?: (?:on|by|near|next to|against|under|in) (?:the|a|an) [\w -]+)?"
+_REL_START = r"^(?:" + "|".join(RELATIONS) + r") "
 # A verb before the relation that is no posture: "i stopped next to the bookcase".
 _VERB = re.compile(
     r"^(?:\w+ed|was|got|went|came|remain|remains|stay|stays|am|is|sits|stands|lies)"
@@ -77,7 +78,7 @@ _PATTERNS: list[tuple[str, re.Pattern[str]]] = [
     ),
     ("behind", re.compile(r"^(?:i am )?facing away from (?P<x>.+)$")),
     ("behind", re.compile(r"^" + _JUST + r"behind me" + _THERE + r"(?P<x>.+)$")),
-    ("behind", re.compile(r"^(?P<x>.+?) " + _IS + _JUST + r"behind me$")),
+    ("behind", re.compile(r"^(?P<x>.+?) " + _IS + _JUST + r"behind (?:me|my back|my head)$")),
     ("behind", re.compile(r"^(?:i have )?(?P<x>.+?) at my back$")),
     (
         "clock",
@@ -265,12 +266,25 @@ def _position(clause: str, out: dict[str, Any]) -> None:
     """Fill posture / activity / relation / anchor from a position clause."""
     rest = _LEAD.sub("", clause).strip()
     rest = _VERB.sub("", rest)
+    room_first = re.match(
+        r"^(?:in|inside) (?:the |my )?(?P<room>"
+        + "|".join(ROOMS)
+        + r") (?P<pose>(?:"
+        + "|".join(POSTURES)
+        + r") .+)$",
+        rest,
+    )
+    if room_first:  # "in the living room sitting on the sofa": the sofa, in the living room
+        rest = f"{room_first.group('pose')} in the {room_first.group('room')}"
     words = rest.split()
     if words and (words[0] in POSTURES or words[0] in BASE_POSTURES):
         w = BASE_POSTURES.get(words[0], words[0])
         out.setdefault("posture", "sitting" if w in ("seated", "sat") else w)
         rest = " ".join(words[1:])
         rest = re.sub(r"^(?:up|down|here|there)\s+", "", rest)
+        # an adverb between the posture and the place: "sitting cross-legged on the rug"
+        if not re.match(_REL_START, rest):
+            rest = re.sub(r"^(?!(?:the|a|an|my)\b)[\w-]+\s+(?=" + _REL_START[1:] + ")", "", rest)
     elif words and words[0].endswith("ing") and words[0] not in ("facing", "looking"):
         # An activity: "rinsing a cup at the kitchen sink", "closing the curtains".
         m = re.search(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s", " " + rest + " ")
@@ -285,14 +299,15 @@ def _position(clause: str, out: dict[str, Any]) -> None:
         if loc is None:
             out.setdefault("activity", rest)
             obj = object_words(" ".join(words[1:]))
-            if obj and not out.get("anchor"):
+            if obj and not out.get("anchor") and words[1:2] != ["my"]:  # "washing my hands"
                 out["anchor"], out["relation"] = obj, "at"
             return
         rest = loc
     m = re.match(r"^(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s+(.+)$", rest)
     if not m:
         obj = object_words(rest)
-        if obj and not out.get("anchor") and len(obj.split()) <= 6:
+        mine = re.match(r"^\w+ my\b", rest)  # "(i) brush my teeth": no place
+        if obj and not out.get("anchor") and len(obj.split()) <= 6 and not mine:
             out["anchor"], out["relation"] = obj, out.get("relation") or "at"
         return
     rel, obj = m.group(1), m.group(2)
