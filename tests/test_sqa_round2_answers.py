@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from glmap_tools.sqa.answer import OfflineAnswerer, em1
+from glmap_tools.sqa.answer import OfflineAnswerer, em1, em_r1
 from glmap_tools.sqa.attributes import colour_phrase
 from glmap_tools.sqa.surroundings import Nearby, Surroundings, direction_of, gaussian_size
 
@@ -167,6 +167,11 @@ def test_a_units_size_is_the_spread_of_its_gaussians_along_their_principal_axes(
 
 def test_degrees_and_two_word_answers_score_as_exact_matches():
     assert em1("180 degrees", ["180 degrees"]) and em1("light brown", ["Light brown"])
+
+
+def test_relaxed_match_takes_front_for_forward_and_behind_for_backward_but_not_left():
+    assert em_r1("forward", ["front"]) and em_r1("backward", ["behind"])
+    assert not em1("forward", ["front"]) and not em_r1("forward", ["left"])
 
 
 def test_a_three_letter_plural_still_names_its_label():

@@ -18,7 +18,8 @@ Exact match (EM) after normalisation — the rules, applied to prediction and an
 5. a trailing plural "s"/"es" is dropped (chairs -> chair) for words longer than three letters.
 EM-1 scores the first answer against every reference answer. EM-R1 (relaxed) also accepts
 a prediction whose words contain a reference answer as a whole phrase, or that equals a
-listed synonym (sofa/couch, tv/television, fridge/refrigerator, bin/trash can).
+listed synonym (sofa/couch, tv/television, fridge/refrigerator, bin/trash can,
+forward/front/ahead, backward/back/behind).
 """
 
 from __future__ import annotations
@@ -44,6 +45,8 @@ SYNONYMS = [
     {"fridge", "refrigerator"},
     {"bin", "trash can", "trashcan", "garbage can"},
     {"plant", "potted plant", "houseplant"},
+    {"forward", "front", "ahead", "straight ahead", "straight"},
+    {"backward", "back", "behind", "backwards"},
 ]
 # What each kind of room typically holds (words of a unit's label or description). Common
 # household knowledge, not read from any scene; a unit fitting several rooms splits its vote.
