@@ -22,7 +22,11 @@ Families (named parts in brackets):
   [object, value, part];
 - direction (intents): "if I want to leave the room, which way should I go?" [intent or
   object];
-- count (more forms): "how many chairs behind me?", "number of lamps on my left?".
+- count (more forms): "how many chairs behind me?", "number of lamps on my left?", "how
+  many chairs can I see?" [view], "how many lamps are there?" [around];
+- on_exists: "is there anything on the table?" [base]; nearest: "what is the closest
+  object to me?"; next_to / under: "what is next to / under the X?" [object]; material:
+  "what is the X made of?" [object]; which_side: "where is the X?" [where, object].
 """
 
 from __future__ import annotations
