@@ -75,26 +75,17 @@ UPWARD: dict[tuple[str, str], str] = {
 # Circles of modules that name each other's types; each to be broken by moving the shared
 # types to where they belong.
 CIRCLES: dict[frozenset[str], str] = {
-    frozenset(
-        {
-            "glmap_tools.map.glmap",
-            "glmap_tools.map.fusion",
-            "glmap_tools.map.queries",
-            "glmap_tools.map.store",
-        }
-    ): (
-        "fusion, the queries and the store name the GLMap they serve (type-only); the map's "
-        "state is to move to a base class beneath them"
-    ),
     frozenset({"agents.llm_agent", "agents.runner"}): (
         "the runner starts the LLM agent, which takes the runner's open_session and "
         "AGENT_SIZE (in-function imports both ways)"
     ),
     frozenset({"glmap_tools.sqa.situate", "glmap_tools.sqa.constrain"}): (
-        "situate's result type and the constraints share a module pair"
+        "constrain takes situate's TIE (in-function) while situate calls constrain; sqa is "
+        "another engineer's this session"
     ),
     frozenset({"glmap_tools.sqa.answer", "glmap_tools.sqa.families"}): (
-        "the question families and the answerer share their record types"
+        "the families build answer.MapAnswer (in-function) while answer dispatches to the "
+        "families: MapAnswer belongs in sqa/records.py"
     ),
 }
 

@@ -41,7 +41,7 @@ from glmap_tools.perception.semantics import FrameSemantics
 
 if TYPE_CHECKING:
     from glmap_tools.map.config import MapConfig
-    from glmap_tools.map.glmap import GLMap
+    from glmap_tools.map.state import MapState
 
 
 @dataclass
@@ -79,7 +79,7 @@ def checked_points(frame: RGBDFrame, semantics: FrameSemantics, config: MapConfi
 
 
 def plan_frame(
-    glmap: GLMap, frame: RGBDFrame, semantics: FrameSemantics, frame_index: int
+    glmap: MapState, frame: RGBDFrame, semantics: FrameSemantics, frame_index: int
 ) -> FramePlan:
     """Compute the changes one frame makes to `glmap` (which is not modified).
 

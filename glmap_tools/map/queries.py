@@ -47,7 +47,7 @@ from glmap_tools.map.report import UnitInfo
 from glmap_tools.map.units import InstanceUnit, RegionUnit
 
 if TYPE_CHECKING:
-    from glmap_tools.map.glmap import GLMap
+    from glmap_tools.map.state import MapState
 
 MAX_K = 1000
 LABEL_WEIGHT = 0.5  # share of the label cosine in an instance's score (tuned on the tuning half)
@@ -65,12 +65,12 @@ _ASKS_FOR_A_THING = re.compile(
 )
 
 
-def region_gaussians(glmap: GLMap, region: RegionUnit) -> GaussianSet:
+def region_gaussians(glmap: MapState, region: RegionUnit) -> GaussianSet:
     """The union of a region's instance Gaussians."""
     return GaussianSet.concat([glmap.instances[i].gaussians for i in region.instance_ids])
 
 
-def details(glmap: GLMap, unit: InstanceUnit | RegionUnit) -> UnitInfo:
+def details(glmap: MapState, unit: InstanceUnit | RegionUnit) -> UnitInfo:
     """Describe one unit."""
     if isinstance(unit, InstanceUnit):
         g = unit.gaussians
@@ -117,7 +117,7 @@ def phrasings(text: str) -> list[str]:
     return [text, found.group("activity")] if found else [text]
 
 
-def label_matrix(glmap: GLMap) -> tuple[np.ndarray, np.ndarray]:
+def label_matrix(glmap: MapState) -> tuple[np.ndarray, np.ndarray]:
     """(embeddings [L, D] of the distinct labels, [N] row of each instance's label or -1).
 
     Instances in `instance_matrix` order; -1 marks an instance without a (meaningful) label.
@@ -143,7 +143,7 @@ def label_matrix(glmap: GLMap) -> tuple[np.ndarray, np.ndarray]:
     return cached
 
 
-def text_scores(glmap: GLMap, kind: str, text: str) -> tuple[np.ndarray, np.ndarray]:
+def text_scores(glmap: MapState, kind: str, text: str) -> tuple[np.ndarray, np.ndarray]:
     """(unit ids [N], scores [N]) of every unit of `kind` for the query `text`."""
     ids, matrix = glmap.instance_matrix() if kind == "instance" else glmap.region_matrix()
     if len(ids) == 0:
@@ -160,7 +160,7 @@ def text_scores(glmap: GLMap, kind: str, text: str) -> tuple[np.ndarray, np.ndar
     return ids, scores
 
 
-def reference_text_scores(glmap: GLMap, kind: str, text: str) -> tuple[np.ndarray, np.ndarray]:
+def reference_text_scores(glmap: MapState, kind: str, text: str) -> tuple[np.ndarray, np.ndarray]:
     """Slow reference of `text_scores`: every phrasing against every unit's fields, one by one."""
     units = glmap.instances if kind == "instance" else glmap.regions
     ids = np.array(sorted(units), dtype=np.int64)
@@ -196,7 +196,7 @@ def query_kind(kind: str, text: str) -> str:
     return "use" if len(phrasings(text)) > 1 else "name"
 
 
-def match_threshold(glmap: GLMap, kind: str = "instance", text: str = "") -> float | None:
+def match_threshold(glmap: MapState, kind: str = "instance", text: str = "") -> float | None:
     """The embedder's calibrated match threshold for a query (None: it declares none).
 
     Args:
@@ -210,7 +210,7 @@ def match_threshold(glmap: GLMap, kind: str = "instance", text: str = "") -> flo
     return float(rules[query_kind(kind, text)]) if rules else float(tau)
 
 
-def find(glmap: GLMap, kind: str, text: str, k: int) -> list[UnitInfo]:
+def find(glmap: MapState, kind: str, text: str, k: int) -> list[UnitInfo]:
     """Top-k units of `kind` for the query `text`, best first (scoring: module docstring).
 
     Raises:
@@ -278,7 +278,7 @@ def parse_relation(text: str) -> Relation | None:
     return Relation(found.group("target"), anchor, int(unit.group("id")) if unit else None)
 
 
-def _boxes(glmap: GLMap, ids: np.ndarray) -> np.ndarray:
+def _boxes(glmap: MapState, ids: np.ndarray) -> np.ndarray:
     """[N, 4] (i0, j0, i1, j1) cell box of each unit (NaN for a unit without cells)."""
     out = np.full((len(ids), 4), np.nan)
     for k, uid in enumerate(ids.tolist()):
@@ -290,7 +290,7 @@ def _boxes(glmap: GLMap, ids: np.ndarray) -> np.ndarray:
 
 
 def relation_evidence(
-    glmap: GLMap, ids: np.ndarray, relation: Relation, radius: float = NEAR_M
+    glmap: MapState, ids: np.ndarray, relation: Relation, radius: float = NEAR_M
 ) -> np.ndarray:
     """[N] how well each instance of `ids` stands next to the relation's anchor, in [0, 1].
 
@@ -316,7 +316,7 @@ def relation_evidence(
     return np.where(near, anchor[None, :], 0.0).max(axis=1)
 
 
-def with_relation(glmap: GLMap, ids: np.ndarray, scores: np.ndarray, text: str) -> np.ndarray:
+def with_relation(glmap: MapState, ids: np.ndarray, scores: np.ndarray, text: str) -> np.ndarray:
     """[N] instance scores with the query's "next to" relation deciding RELATION_WEIGHT of
     each: s * (1 - w + w * evidence). Two instances that read alike ("a navy kitchen
     cabinet") are told apart by what stands next to them; a score never rises, so a
@@ -330,7 +330,7 @@ def with_relation(glmap: GLMap, ids: np.ndarray, scores: np.ndarray, text: str) 
     return scores * (1.0 - RELATION_WEIGHT + RELATION_WEIGHT * evidence)
 
 
-def units_at(glmap: GLMap, x: float, y: float, radius: float) -> list[UnitInfo]:
+def units_at(glmap: MapState, x: float, y: float, radius: float) -> list[UnitInfo]:
     """Units whose grid cells lie within `radius` of (x, y), nearest first."""
     if not all(np.isfinite([x, y, radius])):
         raise InvalidInputError(f"position ({x!r}, {y!r}) and radius {radius!r} must be finite.")

@@ -40,7 +40,7 @@ from glmap_tools.map.units import InstanceUnit, RegionUnit
 
 if TYPE_CHECKING:
     from glmap_tools.map.fusion import FramePlan
-    from glmap_tools.map.glmap import GLMap
+    from glmap_tools.map.state import MapState
 
 FORMAT = "glmap-tools map"
 SCHEMA_VERSION = 2
@@ -141,7 +141,7 @@ class MapStore:
         return cls(path, conn, config, version, state)
 
     @classmethod
-    def _create(cls, path: Path, config: MapConfig, glmap: GLMap | None = None) -> MapStore:
+    def _create(cls, path: Path, config: MapConfig, glmap: MapState | None = None) -> MapStore:
         if not path.parent.is_dir():
             raise StoreError(
                 f"folder {str(path.parent)!r} does not exist; create it or choose another path."
@@ -190,7 +190,7 @@ class MapStore:
         return cls(path, _connect(path), config, SCHEMA_VERSION)
 
     @classmethod
-    def create_from(cls, path: Path, glmap: GLMap, overwrite: bool = False) -> MapStore:
+    def create_from(cls, path: Path, glmap: MapState, overwrite: bool = False) -> MapStore:
         """Write all of `glmap` to a new file at `path` (atomically)."""
         path = Path(path)
         if path.exists() and not overwrite:
@@ -339,7 +339,7 @@ class MapStore:
             ],
         )
 
-    def _migrate(self, glmap: GLMap) -> None:
+    def _migrate(self, glmap: MapState) -> None:
         """Upgrade a version-1 file to this schema, inside the caller's transaction."""
         if self.version == SCHEMA_VERSION:
             return
@@ -351,12 +351,12 @@ class MapStore:
             }
         )
 
-    def _write_embedder(self, glmap: GLMap) -> None:
+    def _write_embedder(self, glmap: MapState) -> None:
         self._write_meta(
             {"embedder": glmap.embedder.name, "embedding_dim": str(glmap.embedder.dim)}
         )
 
-    def _write_everything(self, glmap: GLMap) -> None:
+    def _write_everything(self, glmap: MapState) -> None:
         for u in glmap.instances.values():
             self._write_instance(u)
         for r in glmap.regions.values():
@@ -370,7 +370,7 @@ class MapStore:
         self._write_embedder(glmap)
         self._write_meta({"next_id": str(glmap.next_id), "floor_z": json.dumps(glmap.floor_z)})
 
-    def commit_frame(self, plan: FramePlan, glmap: GLMap) -> None:
+    def commit_frame(self, plan: FramePlan, glmap: MapState) -> None:
         """Write one frame's changes in a single transaction (all or nothing).
 
         Raises:
@@ -416,7 +416,7 @@ class MapStore:
             ) from exc
 
     # ------------------------------------------------------------- reads
-    def load_into(self, glmap: GLMap) -> None:
+    def load_into(self, glmap: MapState) -> None:
         """Install the checked contents of the file into a freshly constructed GLMap.
 
         Raises:
