@@ -61,6 +61,9 @@ NEARBY = tuple(
             _unit(
                 11, "box", 2.1, -90.0, "a cardboard box", (0.4, 0.4, 0.3), (0.0, None), (0, -2.3)
             ),
+            _unit(
+                12, "plant", 1.0, -35.0, "a potted plant", (0.3, 0.3, 0.8), (0, None), (1.0, -0.7)
+            ),
         ],
         key=lambda n: n.distance,
     )
@@ -122,6 +125,13 @@ WHERE = Surroundings(0.0, 0.0, 0.0, NEARBY, (), {n.unit_id: n.label for n in NEA
         ("What is the closest object to me?", "nearest", "chair"),
         ("Is there anything on the bed?", "on_exists", "yes"),
         ("Is there anything on the sofa?", "on_exists", "no"),
+        ("Is the chair within arm's reach?", "touch", "yes"),
+        ("Can I open the door without getting up?", "touch", "no"),
+        ("What is the table next to?", "next_to", "box"),
+        ("What is between the table and the chair?", "between", "nothing"),
+        ("What is between the sofa and the table?", "between", "plant"),
+        ("Which one is on my left, the lamp or the table?", "which_of", "lamp"),
+        ("Which is behind me, the chair or the sofa?", "which_of", "chair"),
     ],
 )
 def test_each_round_two_family_is_read_and_answered_from_the_map(question, kind, answer):

@@ -250,6 +250,58 @@ def next_to(
     return MapAnswer(n.label, kind, True, f"unit {n.unit_id} {gap:.1f} m from {base.unit_id}")
 
 
+def between(
+    parts: dict[str, str], near: Sequence[Nearby], match: Match, labels: Sequence[str]
+) -> MapAnswer:
+    """The unit nearest the line between the two named units' centres (within 0.6 m of it,
+    in its middle 70%)."""
+    ends = []
+    for key in ("a", "b"):
+        label = match(parts[key], labels)
+        unit = pick(near, label, parts[key]) if label else None
+        if unit is None:
+            return MapAnswer("", "between", False, f"no {parts[key]!r} nearby")
+        ends.append(unit)
+    (ax, ay), (bx, by) = (_centre(n) for n in ends)
+    dx, dy = bx - ax, by - ay
+    length2 = dx * dx + dy * dy or 1e-9
+    found = []
+    for n in near:
+        if n.unit_id in (ends[0].unit_id, ends[1].unit_id):
+            continue
+        cx, cy = _centre(n)
+        t = ((cx - ax) * dx + (cy - ay) * dy) / length2
+        off = abs((cx - ax) * dy - (cy - ay) * dx) / math.sqrt(length2)
+        if 0.15 <= t <= 0.85 and off <= 0.6:
+            found.append((off, n))
+    if not found:
+        return MapAnswer("nothing", "between", True, "nothing near the line between them")
+    off, n = min(found, key=lambda x: x[0])
+    return MapAnswer(n.label, "between", True, f"unit {n.unit_id} {off:.2f} m off the line")
+
+
+def which_of(
+    parts: dict[str, str], near: Sequence[Nearby], match: Match, labels: Sequence[str]
+) -> MapAnswer:
+    """Which of the two named objects lies in the place asked, in the question's words."""
+    sector = sector_of(parts)
+    if sector is None:
+        return MapAnswer("", "which_of", False, "no side, hour or direction to choose by")
+    scored = []
+    for key in ("a", "b"):
+        label = match(parts[key], labels)
+        unit = pick(near, label, parts[key]) if label else None
+        if unit is None:
+            return MapAnswer("", "which_of", False, f"no {parts[key]!r} nearby")
+        scored.append((abs(wrap(unit.bearing - sector[0])), parts[key], unit))
+    off, words, unit = min(scored, key=lambda x: x[0])
+    return MapAnswer(words, "which_of", True, f"unit {unit.unit_id} {off:.0f} deg off the place")
+
+
+def _centre(n: Nearby) -> tuple[float, float]:
+    return (n.footprint[0] + n.footprint[2]) / 2, (n.footprint[1] + n.footprint[3]) / 2
+
+
 def count_on(
     parts: dict[str, str], where: Surroundings, near: Sequence[Nearby], match: Match
 ) -> MapAnswer:

@@ -140,11 +140,14 @@ FAMILIES: list[tuple[str, re.Pattern[str]]] = [
     (
         "touch",
         re.compile(
-            r"^can i (?:touch|reach|grab|get|pick up|put my hand on) "
+            r"^can i (?:touch|reach|grab|get|pick up|put my hand on|open|close|use|switch on|"
+            r"turn on|switch off|turn off) "
             + _OBJ
             + r" (?:without (?:getting up|standing up|moving|walking|taking a step|stepping)"
             r"|from (?:here|where i (?:am|sit|stand))|with my hands?|by (?:just )?stretching"
             r"(?: out)?(?: my arms?)?)\?*$"
+            r"|^(?:is|are) " + _OBJ.replace("object", "object2") + r" (?:within (?:arm'?s'? )?reach"
+            r"|within arm'?s'? length|close enough to (?:touch|reach))(?: from here)?\?*$"
         ),
     ),
     (
@@ -180,8 +183,8 @@ def family(question: str) -> tuple[str, dict[str, str]] | None:
     q = re.sub(r"\bo ?clock\b|\bo' clock\b", "o'clock", q)
     for name, pattern in EARLY + FAMILIES:
         m = pattern.search(q)
-        if m:
-            return name, {k: v for k, v in m.groupdict().items() if v}
+        if m:  # a pattern's second alternative names its parts "object2"
+            return name, {k.rstrip("2"): v for k, v in m.groupdict().items() if v}
     found = either_or(q)
     if found is not None:
         return found

@@ -29,6 +29,8 @@ MORE = {
     "next_to",
     "under",
     "material",
+    "between",
+    "which_of",
 }
 
 
@@ -50,6 +52,10 @@ def answer_more(
         return egocentric.on_exists(parts, where, match)
     if kind == "nearest":
         return egocentric.nearest(near)
+    if kind == "between":
+        return egocentric.between(parts, near, match, list(where.labels.values()))
+    if kind == "which_of":
+        return egocentric.which_of(parts, near, match, list(where.labels.values()))
     if kind in ("next_to", "under"):
         return egocentric.next_to(kind, parts, where, near, match)
     obj = parts.get("object", "")

@@ -228,6 +228,31 @@ LATE: list[tuple[str, re.Pattern[str]]] = [
         re.compile(
             r"^(?:what|which)" + _THING + r"(?: is|'s| stands| sits)? (?:right |just )?(?:next to"
             r"|beside|by|near|close to|adjacent to) " + _obj() + r"$"
+            r"|^what (?:is|are) " + _obj("object2") + r" (?:next to|beside|near|close to)$"
+        ),
+    ),
+    (
+        "between",
+        re.compile(
+            r"^(?:what|which)"
+            + _THING
+            + r"(?: is|'s| stands| lies)? (?:right )?between "
+            + _obj("a")
+            + r" and "
+            + _obj("b")
+            + r"$"
+        ),
+    ),
+    (
+        "which_of",
+        re.compile(
+            r"^which(?: one| object| of (?:them|the two))? (?:is|lies|stands) "
+            + EGO
+            + r"[,:]? "
+            + _obj("a")
+            + r" or "
+            + _obj("b")
+            + r"$"
         ),
     ),
     (
