@@ -142,7 +142,8 @@ def em_r1(prediction: str, answers: Sequence[str]) -> bool:
 
 _WHAT = (
     r"\b(?:what|which)(?: kind of| type of| sort of| piece of)?(?: object| thing| furniture| item"
-    r"| piece of furniture)?(?:'s| is| are| can i see| do i see| do i have| stands| lies| sits)?"
+    r"| piece of furniture)?(?:'s| is| are| is there| are there| can i see| do i see| do i have"
+    r"| (?:can|do|will|would|could) i (?:find|see|spot)| stands| lies| sits)?"
     r"(?: the (?:object|thing|item|furniture))?"
 )
 _AT = r"(?: (?:located|placed|standing|directly|right|immediately))?"
@@ -189,16 +190,19 @@ QUESTION_TYPES: list[tuple[str, re.Pattern[str]]] = [
 def question_type(question: str) -> tuple[str, dict[str, str]]:
     """(type, named parts) of a question; ("unknown", {}) when no rule reads it."""
     from glmap_tools.sqa.families import family
+    from glmap_tools.sqa.wording import variants
 
-    found = family(question)
-    if found is not None:
-        return found
     q = " ".join(question.lower().replace("’", "'").split())
-    for name, pattern in QUESTION_TYPES:
-        m = pattern.search(q)
-        if m:
-            parts = {k.rstrip("2"): v for k, v in m.groupdict().items() if v}
-            return name, parts
+    q = re.sub(r" (?:in total|altogether|in all)(?=[?.!]*$)", "", q)  # "how many ... in total"
+    for text in (q, *variants(q)):  # as written first, then other wordings of it
+        found = family(text)
+        if found is not None:
+            return found
+        for name, pattern in QUESTION_TYPES:
+            m = pattern.search(text)
+            if m:
+                parts = {k.rstrip("2"): v for k, v in m.groupdict().items() if v}
+                return name, parts
     return "unknown", {}
 
 

@@ -62,6 +62,19 @@ def hands_to_sides(text: str) -> str:
     return _REACH.sub("", text)
 
 
+def side_words(text: str) -> str:
+    """One wording per side: 'towards my left' and 'to the left of me' -> 'to my left';
+    'beside me on my right' -> 'on my right'."""
+    text = re.sub(r"\btowards? (?:my|the) (left|right)\b", r"to my \1", text)
+    text = re.sub(r"\b(on|to) the (left|right)(?:[- ]hand side| side)? of me\b", r"\1 my \2", text)
+    return re.sub(
+        r"\b(?:right |just )?(?:next to|beside|by|near|close to) me,? "
+        r"((?:on|to|at) my (?:left|right))\b",
+        r"\1",
+        text,
+    )
+
+
 def negated(clause: str) -> bool:
     """Does the clause deny something ("i cannot see the tv", "the door is not open")?"""
     return bool(NEGATION.search(clause.replace("can't", "can not").replace("n't", " not")))

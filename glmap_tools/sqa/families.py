@@ -127,14 +127,16 @@ FAMILIES: list[tuple[str, re.Pattern[str]]] = [
         "see",
         re.compile(
             r"^(?:can|could|do) i (?:see|spot|view|notice) " + _OBJ + r"(?: (?:from (?:here|where"
-            r" i am)|without turning(?: around)?|right now|now))?\?*$"
+            r" i(?: am)?(?: standing| sitting| seated| lying| stand| sit| lie)?)|without turning"
+            r"(?: around)?|right now|now))?\?*$"
         ),
     ),
     (
         "see",
         re.compile(
             r"^is " + _OBJ + r" (?:visible|in (?:my )?(?:view|sight|field of view))"
-            r"(?: (?:from (?:here|where i am)|to me))?\?*$"
+            r"(?: (?:from (?:here|where i(?: am)?(?: standing| sitting| seated| lying| stand| sit"
+            r"| lie)?)|to me))?\?*$"
         ),
     ),
     (

@@ -37,7 +37,8 @@ _LEAD = re.compile(
 )
 _FACE_VERB = (
     r"(?:facing away from|facing towards?|facing|face|looking (?:at|towards?|into|out of|out)|"
-    r"look(?:ing)? towards?|watching|turned (?:to|towards?)|staring at|gazing at|"
+    r"look(?:ing)? towards?|watching|turned (?:to|towards?)|"
+    r"(?:oriented|orientated|pointed|pointing) (?:to|towards?|at)|staring at|gazing at|"
     r"with my (?:face|eyes) (?:to|towards?)|my face is towards?|i see|i can see)"
 )
 _NUM = r"(?P<h>\d{1,2}|" + "|".join(HOUR_WORDS[1:12]) + r"|twelve)"
@@ -242,8 +243,10 @@ def _hour(h: str) -> int:
 def _clauses(text: str) -> list[str]:
     t = " " + " ".join(text.lower().replace("’", "'").replace("`", "'").split()) + " "
     t = re.sub(r"\bi'm\b", "i am", t)
+    t = re.sub(r"\bi(?:'ve| have) got\b|\bi've\b", "i have", t)
     t = re.sub(r"\bo ?clock\b|\bo' clock\b", "o'clock", t)
     t = asides.hands_to_sides(t)
+    t = asides.side_words(t)
     t = asides.ACROSS.sub("in front of me", t)
     # "between the X and the Y" keeps its "and" (marked) through the clause split.
     t = re.sub(r"\bbetween ((?:the |a |an )?[\w -]+?) and ", r"between \1 & ", t)
@@ -266,6 +269,13 @@ def _position(clause: str, out: dict[str, Any]) -> None:
     """Fill posture / activity / relation / anchor from a position clause."""
     rest = _LEAD.sub("", clause).strip()
     rest = _VERB.sub("", rest)
+    # "i relax in the armchair": after "i", a word before the place is a verb
+    verb = re.match(
+        r"^(?:i|we)\s+(?!(?:am|are|was|were|have|had)\b)([a-z]+)\s+" + _REL_START[1:], clause
+    )
+    if verb and verb.group(1) not in POSTURES and verb.group(1) not in BASE_POSTURES:
+        out.setdefault("activity", verb.group(1))
+        rest = re.sub(r"^" + verb.group(1) + r"\s+", "", rest)
     room_first = re.match(
         r"^(?:in|inside) (?:the |my )?(?P<room>"
         + "|".join(ROOMS)
