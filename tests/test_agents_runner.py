@@ -91,6 +91,9 @@ async def test_unknown_agents_and_episodes_are_refused_with_the_closest_name(tmp
         "frontier",
         "random",
         "llm-tools",
+        "glmap+oracle-room",
+        "glmap+embedding",
+        "glmap+recorded",
     )
 
 
