@@ -130,9 +130,7 @@ def as_window(window: Window | DenseOccupancy) -> Window:
     return Window.of(window) if isinstance(window, DenseOccupancy) else window
 
 
-def score_image(
-    scores: Mapping[int, float], grid: IndexGrid, window: Window, unit_mass: str = "cells"
-) -> np.ndarray:
+def score_image(scores: Mapping[int, float], grid: IndexGrid, window: Window) -> np.ndarray:
     """[H, W] sum_u s_u delta(v - p_u): each unit's mass added on each of its cells."""
     ids = [int(uid) for uid, s in scores.items() if s > 0]
     img = np.zeros(window.shape, dtype=np.float64)
@@ -176,7 +174,7 @@ def value_map_from_scores(
     """
     check_scores(scores)
     win = as_window(window)
-    img = score_image(spread_scores(scores, grid, unit_mass), grid, win, unit_mass)
+    img = score_image(spread_scores(scores, grid, unit_mass), grid, win)
     g = gaussian_kernel_1d(sigma / grid.cell_size)
     # K_sigma is separable: filter along columns (only those holding a score), then rows.
     h = np.zeros_like(img)
