@@ -377,5 +377,5 @@ def test_an_in_process_toolset_asks_the_sampler_its_user_gives(tmp_path):
     settings = LLMSettings(scorer="sampling")
     with Toolset(config(tmp_path, llm=settings), sampler=sampler) as tools:
         reset = tools.call("sim_reset", {"scene": 0, "seed": 0, "goal": NAV_GOAL})
-    assert asked and reset.data["llm"]["sampling_calls"] == len(asked)
-    assert reset.data["llm"]["fallbacks"] == 0
+    assert asked and reset.data.llm.sampling_calls == len(asked)
+    assert reset.data.llm.fallbacks == 0

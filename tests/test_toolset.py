@@ -119,9 +119,9 @@ async def test_a_call_answers_the_same_text_through_both_faces(tmp_path, toolset
     assert isinstance(shown, ImageResult) and len(shown.images) == 1
     assert shown.images[0].to_pil().size[0] > 0
     served_texts = [c.text for c in summary.content if c.type == "text"]
-    assert [json.loads(served_texts[0])["summary"]["instances"]] == [
-        shown.data["summary"]["instances"]
-    ]
+    assert shown.data is not None
+    assert [json.loads(served_texts[0])["summary"]["instances"]] == [shown.data.summary.instances]
+    assert as_text(shown) == "\n".join(served_texts)  # the same text blocks in process
     assert len([c for c in summary.content if c.type == "image"]) == 1
 
 

@@ -18,6 +18,7 @@ import numpy as np
 from glmap_tools.app import simulator
 from glmap_tools.app.navigation import NavSession
 from glmap_tools.app.session import Session, locked
+from glmap_tools.app.sim_results import Walk
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
 
@@ -239,7 +240,7 @@ def walk_to(
     max_steps: int,
     config: Any,
     on_step: Callable[[int, int], None] | None = None,
-) -> dict[str, Any]:
+) -> Walk:
     """Walk to `target` until arrived, blocked or `max_steps`; return what happened.
 
     Each step is `glmap_tools.nav.policy.approach` on the session's map (the policy's own
@@ -249,10 +250,10 @@ def walk_to(
     `stop_distance` of it in clear sight of it, the simulator's success rule with a margin.
 
     Returns:
-        {"outcome": 'reached' | 'reached the nearest reachable point' | 'blocked' |
-        'step budget' | 'episode over', "walk_steps", "walked_m", "walk_collisions",
-        "planned_m", "aim_xy", "remaining_m", "reason"}; for a unit also "unit_id",
-        "unit_distance_m", "in_sight", "would_succeed"; when not reached, "blocked_by".
+        What happened (`Walk`): the outcome ('reached' | 'reached the nearest reachable
+        point' | 'blocked' | 'step budget' | 'episode over'), steps, metres walked and
+        planned, collisions, the point aimed at; for a unit also its distance, whether it
+        is in sight and a stop would count; when not reached, what blocked the walk.
 
     `on_step(steps, max_steps)` is called before each step (progress notifications).
 
@@ -312,23 +313,23 @@ def walk_to(
             best, since = step.plan.length, 0
         else:
             since += 1
-    out: dict[str, Any] = {
-        "outcome": outcome,
-        "walk_steps": steps,
-        "walked_m": round(walked, 2),
-        "walk_collisions": bumps,
-        "planned_m": _metres(planned),
-        "aim_xy": [round(float(v), 2) for v in step.aim] if step.aim else None,
-        "remaining_m": 0.0 if step.arrived else _metres(step.plan.length),
-        "reason": step.reason,
-    }
+    out = Walk(
+        outcome=outcome,
+        walk_steps=steps,
+        walked_m=round(walked, 2),
+        walk_collisions=bumps,
+        planned_m=_metres(planned),
+        aim_xy=(round(float(step.aim[0]), 2), round(float(step.aim[1]), 2)) if step.aim else None,
+        remaining_m=0.0 if step.arrived else _metres(step.plan.length),
+        reason=step.reason,
+    )
     if unit:
-        out["unit_id"] = target.unit_id
-        out["unit_distance_m"] = _metres(step.unit_distance)
-        out["in_sight"] = step.in_sight
-        out["would_succeed"] = stop_would_count(step.unit_distance, step.in_sight, config)
+        out.unit_id = target.unit_id
+        out.unit_distance_m = _metres(step.unit_distance)
+        out.in_sight = step.in_sight
+        out.would_succeed = stop_would_count(step.unit_distance, step.in_sight, config)
     if outcome not in ("reached", "step budget", "episode over"):
-        out["blocked_by"] = _blocked_by(step, outcome, bumps, steps, agent, target, config)
+        out.blocked_by = _blocked_by(step, outcome, bumps, steps, agent, target, config)
     return out
 
 

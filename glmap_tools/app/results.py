@@ -8,9 +8,9 @@ import io
 import json
 import re
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Generic, Literal, TypeVar
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from glmap_tools.map.report import MapSummary, UnitInfo, UpdateReport
 
@@ -121,18 +121,38 @@ class Picture(BaseModel):
         return Image.open(io.BytesIO(self.data)).convert("RGB")
 
 
-class ImageResult(BaseModel):
+class Reply(BaseModel):
+    """A tool result whose text block is its JSON (the simulator, navigation and situated-QA
+    tools): an optional field not given is left out of the text, not sent as null."""
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+    def given(self) -> dict[str, Any]:
+        """The fields given, nested ones alike, as the JSON text carries them."""
+        return self.model_dump(exclude_unset=True)
+
+
+D = TypeVar("D", bound=BaseModel)
+
+
+class ImageResult(BaseModel, Generic[D]):
     """A result shown as text blocks and images: `data` as compact JSON, then `notes`,
     then `images` (render_view, map_summary, the simulator and navigation tools)."""
 
-    data: dict[str, Any] | None = None
+    data: D | None = None
     notes: list[str] = Field(default_factory=list)
     images: list[Picture] = Field(default_factory=list)
 
     def texts(self) -> list[str]:
         """The text blocks, in order."""
-        head = [compact_json(self.data)] if self.data is not None else []
+        head = [compact_json(data_json(self.data))] if self.data is not None else []
         return head + self.notes
+
+
+def data_json(data: BaseModel) -> dict[str, Any]:
+    """An ImageResult's data as its JSON text block holds it: a `Reply`'s given fields, any
+    other model's every field."""
+    return data.given() if isinstance(data, Reply) else data.model_dump(mode="json")
 
     def __str__(self) -> str:
         return as_text(self)

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
+from glmap_tools.app.sim_results import SimStatus
 from glmap_tools.errors import InvalidInputError, did_you_mean
 
 if TYPE_CHECKING:
@@ -275,23 +276,27 @@ def frame(sim: SimEpisode) -> tuple[RGBDFrame, FrameSemantics]:
     return observation_frame(sim.obs, sim.info, sim.env.camera.intrinsics)
 
 
-def status(sim: SimEpisode) -> dict[str, Any]:
-    """What the agent may know: goal, pose, steps, collisions; metrics once the episode ends."""
+def status(sim: SimEpisode, camera_pose: bool = True) -> SimStatus:
+    """What the agent may know: goal, pose, steps, collisions; metrics once the episode ends.
+
+    Args:
+        sim: the episode.
+        camera_pose: give the 4x4 camera pose too (sim_reset and sim_step do).
+    """
     info = sim.info
     x, y = (float(v) for v in info["position"])
-    out: dict[str, Any] = {
+    out: dict[str, object] = {
         "task": sim.task,
         "scene": sim.bench.scene if sim.bench is not None else sim.scene,
         "goal": sim.obs["goal"],
         "steps": int(info["steps"]),
         "max_steps": sim.env.max_steps,
-        "position": [round(x, 3), round(y, 3)],
+        "position": (round(x, 3), round(y, 3)),
         "heading_deg": round(math.degrees(float(info["heading"])), 1),
-        "camera_pose": np.round(np.asarray(sim.obs["pose"], np.float64), 4).tolist(),
-        "collided": bool(info["collided"]),
-        "collisions": sim.collisions,
-        "status": "running",
     }
+    if camera_pose:
+        out["camera_pose"] = np.round(np.asarray(sim.obs["pose"], np.float64), 4).tolist()
+    out.update(collided=bool(info["collided"]), collisions=sim.collisions, status="running")
     if sim.bench is not None:
         out["episode"] = sim.bench.episode_id
     if sim.over:
@@ -312,4 +317,4 @@ def status(sim: SimEpisode) -> dict[str, Any]:
             bool(info.get("goal_seen", True)),
             bool(info.get("goal_recognised", True)),
         )
-    return out
+    return SimStatus.model_validate(out)

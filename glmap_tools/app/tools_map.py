@@ -130,8 +130,8 @@ async def _observe(
     )
     if semantics is None:
         if state.perception is None:  # geometry now, segments pending for label_segments
-            pending = await tools_perception.observe_unannotated(state, target, frame)
-            return pending  # type: ignore[return-value]  # the SDK checks it as ObserveResult
+            # A PendingObserveResult: an ObserveResult with the segments that wait for names.
+            return await tools_perception.observe_unannotated(state, target, frame)
         perceive = state.perception
         try:
             semantics = await in_thread(lambda: perceive(frame))
@@ -141,8 +141,7 @@ async def _observe(
             note_fallback(
                 fallback_message("naming the segments", exc, "pending segments for label_segments")
             )
-            pending = await tools_perception.observe_unannotated(state, target, frame)
-            return pending  # type: ignore[return-value]  # the SDK checks it as ObserveResult
+            return await tools_perception.observe_unannotated(state, target, frame)
     await call.report_progress(1, 3, f"fusing {len(semantics.objects)} objects")
     await in_thread(lambda: embed_ahead(state.embedder, semantics))  # outside the lock
 
@@ -254,7 +253,7 @@ async def map_summary(
     call: Call,
     include_image: bool = True,
     session: SessionArg = "",
-) -> ImageResult:
+) -> ImageResult[MapInfo]:
     """Counts, extent and a labelled top-down image of the map."""
     target = session_of(call, session)
 
@@ -271,7 +270,7 @@ async def map_summary(
 
     info, image, png = await in_thread(run)
     return ImageResult(
-        data=info.model_dump(mode="json"),
+        data=info,
         notes=[describe_topdown(image)] if include_image else [],
         images=[Picture(format="png", data=png)] if png is not None else [],
     )

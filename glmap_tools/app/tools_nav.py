@@ -8,7 +8,7 @@ No `from __future__ import annotations` here: the MCP face reads these signature
 
 import math
 from collections.abc import Callable
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Literal, TypeVar
 
 import anyio.from_thread
 import numpy as np
@@ -20,7 +20,28 @@ from glmap_tools.app.navdraw import contact_sheet, jpeg, nav_image
 from glmap_tools.app.results import ImageResult, Picture
 from glmap_tools.app.runtime import ADDS, READ_ONLY, REPLACES, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import Session, locked
+from glmap_tools.app.sim_results import (
+    ClientScoreCounts,
+    Decision,
+    Frontier,
+    FrontiersResult,
+    GoalUnit,
+    HeldScores,
+    LookAroundResult,
+    MapCounts,
+    NavigateResult,
+    NavStepResult,
+    StepTaken,
+    UnitScore,
+    ValueMapResult,
+    Waypoint,
+)
 from glmap_tools.errors import InvalidInputError
+
+if TYPE_CHECKING:
+    from glmap_tools.map import GLMap
+    from glmap_tools.nav import NavConfig, NavDecision
+    from glmap_tools.nav.scorers import ClientScores
 
 Units = Literal["both", "instances", "regions"]
 Policy = Literal["glmap", "glmap-instance", "glmap-region", "egocentric", "frontier"]
@@ -28,7 +49,10 @@ POLICY_OF_UNITS = {"both": "glmap", "instances": "glmap-instance", "regions": "g
 Goal = Annotated[str, Field(max_length=256, description="omit: the episode's")]
 
 
-def in_episode(session: Session, fn: Callable[[], ImageResult]) -> ImageResult:
+T = TypeVar("T")
+
+
+def in_episode(session: Session, fn: Callable[[], T]) -> T:
     """Run a tool that acts in the simulator holding the session's episode lock, so a
     sim_reset from another call waits for it (and it never acts on a replaced episode)."""
     with session.sim_lock:
@@ -45,7 +69,7 @@ def progress_from_thread(call: Call) -> Callable[[float, float | None, str], Non
     return report
 
 
-def _config(session: Session) -> Any:
+def _config(session: Session) -> "NavConfig":
     """The episode's NavConfig, or the defaults without an episode."""
     from glmap_tools.nav import NavConfig
 
@@ -77,7 +101,7 @@ def _agent(session: Session) -> tuple[float, float, float]:
 
 def _decide(
     session: Session, goal: str, policy: str, *, act: bool = True
-) -> tuple[Any, tuple[float, float, float]]:
+) -> "tuple[NavDecision, tuple[float, float, float]]":
     """Run the policy on the session's map (the episode's NavState, or a fresh one).
     act=False decides on a copy of the episode's NavState: a tool that only shows the
     decision (value_map) leaves the policy's memory as it was."""
@@ -119,21 +143,21 @@ def _decide(
     return decision, agent
 
 
-def _waypoint(decision: Any, agent: tuple[float, float, float]) -> dict[str, Any]:
+def _waypoint(decision: "NavDecision", agent: tuple[float, float, float]) -> Waypoint:
     w = decision.waypoint
-    out: dict[str, Any] = {"kind": w.kind}
+    out = Waypoint(kind=w.kind, score=round(float(w.score), 3), reason=w.reason)
+    # Optional fields are set only when they apply: one not set is left out of the text.
     if w.xy is not None:
-        out["xy"] = [round(float(v), 2) for v in w.xy]
+        x, y = float(w.xy[0]), float(w.xy[1])
+        out.xy = (round(x, 2), round(y, 2))
+        where = navsession.relative(agent, (x, y))
+        out.distance_m, out.bearing_deg = where["distance_m"], where["bearing_deg"]
     if w.unit_id is not None:
-        out["unit_id"] = int(w.unit_id)
-    out["score"] = round(float(w.score), 3)
-    if w.xy is not None:
-        out.update(navsession.relative(agent, (float(w.xy[0]), float(w.xy[1]))))
-    out["reason"] = w.reason
+        out.unit_id = int(w.unit_id)
     return out
 
 
-def _evidence(session: Session, units: str, scores: dict[int, float], config: Any) -> str:
+def _evidence(session: Session, units: str, scores: dict[int, float], config: "NavConfig") -> str:
     """What the value map stands on: 'units' (past the evidence gate), 'region hint'
     (regions whose text suggests the goal) or 'none' (the nearest frontier decides)."""
     from glmap_tools.nav.scorers import UNIT_KINDS, map_units
@@ -145,7 +169,9 @@ def _evidence(session: Session, units: str, scores: dict[int, float], config: An
     return evidence_scores(seen, scores, UNIT_KINDS[units], least, config.region_hint)[1]
 
 
-def _top_units(session: Session, goal: str, scores: dict[int, float], k: int = 5) -> list[Any]:
+def _top_units(
+    session: Session, goal: str, scores: dict[int, float], k: int = 5
+) -> list[tuple[int, str, float, str]]:
     """The k best-scored units: [id, kind, s_u, by] (by: 'client', 'prior' or 'scorer')."""
     from glmap_tools.nav.scorers import ClientScorer, map_units
 
@@ -159,18 +185,19 @@ def _top_units(session: Session, goal: str, scores: dict[int, float], k: int = 5
         scorer.sources(goal, units) if isinstance(scorer, ClientScorer) else ["scorer"] * len(units)
     )
     return [
-        [u.unit_id, u.kind, round(scores[u.unit_id], 3), b] for u, b in zip(units, by, strict=True)
+        (u.unit_id, u.kind, round(scores[u.unit_id], 3), b) for u, b in zip(units, by, strict=True)
     ]
 
 
-def _nav_png(session: Session, decision: Any, agent: tuple[float, float, float]) -> bytes:
+def _nav_png(session: Session, decision: "NavDecision", agent: tuple[float, float, float]) -> bytes:
+    xy = decision.waypoint.xy
     with locked(session) as glmap:
         image = nav_image(
             glmap,
             agent,
             decision.value,
             decision.frontiers,
-            tuple(decision.waypoint.xy) if decision.waypoint.xy is not None else None,
+            (xy[0], xy[1]) if xy is not None else None,
             decision.plan.path if decision.plan is not None else None,
         )
     return image.to_png()
@@ -184,13 +211,13 @@ async def value_map(
     priors: dict[str, float] | None = None,
     clear: bool = False,
     session: SessionArg = "",
-) -> ImageResult:
+) -> ImageResult[ValueMapResult]:
     """Eq. 7: where the goal likely is, frontiers, waypoint, path; top_units: [id, kind,
     s_u, by]. scores (unit id), priors (region kind, 'kitchen'): your f_S 0..1 of the
     episode's goal, until clear or sim_reset."""
     target = session_of(call, session)
 
-    def run() -> ImageResult:
+    def run() -> ImageResult[ValueMapResult]:
         wanted = _goal(target, goal)
         from glmap_tools.nav.scorers import same_goal
 
@@ -205,23 +232,23 @@ async def value_map(
             client = set_client_scores(target, scores, priors, clear)
         decision, agent = _decide(target, wanted, POLICY_OF_UNITS[units], act=False)
         top = decision.value.top_cells(5) if decision.value is not None else []
-        info = {
-            "goal": wanted,
-            "units": units,
-            "agent": [round(agent[0], 2), round(agent[1], 2), round(math.degrees(agent[2]))],
-            "waypoint": _waypoint(decision, agent),
-            "matched_unit": decision.matched_unit,
-            "top_cells": [[round(x, 2), round(y, 2), round(v, 3)] for x, y, v in top],
-            "top_units": _top_units(target, wanted, decision.scores),
-            "evidence": _evidence(target, units, decision.scores, _config(target)),
-            "frontiers": len(decision.frontiers),
-        }
+        info = ValueMapResult(
+            goal=wanted,
+            units=units,
+            agent=(round(agent[0], 2), round(agent[1], 2), round(math.degrees(agent[2]))),
+            waypoint=_waypoint(decision, agent),
+            matched_unit=decision.matched_unit,
+            top_cells=[(round(x, 2), round(y, 2), round(v, 3)) for x, y, v in top],
+            top_units=_top_units(target, wanted, decision.scores),
+            evidence=_evidence(target, units, decision.scores, _config(target)),
+            frontiers=len(decision.frontiers),
+        )
         nav = navsession.of(target)
         if client is None and nav is not None and nav.client is not None:
             with locked(target) as glmap:
                 client = held_scores(glmap, nav.client)
-        if client is not None and (client["scores"] or client["priors"]):
-            info["client"] = client
+        if client is not None and (client.scores or client.priors):
+            info.client = client
         png = _nav_png(target, decision, agent)
         return ImageResult(data=info, images=[Picture(format="png", data=png)])
 
@@ -232,28 +259,32 @@ async def frontiers(
     call: Call,
     top_k: Annotated[int, Field(ge=1, le=50)] = 8,
     session: SessionArg = "",
-) -> ImageResult:
+) -> ImageResult[FrontiersResult]:
     """Reachable frontiers, nearest first; bearing_deg: from the heading, + = left."""
     from glmap_tools.nav import NavConfig, NavState
     from glmap_tools.nav.policy import surroundings
 
     target = session_of(call, session)
 
-    def run() -> ImageResult:
+    def run() -> ImageResult[FrontiersResult]:
         agent = _agent(target)
         nav = navsession.of(target)
         config = nav.config if nav is not None else NavConfig()
         state = nav.state if nav is not None else NavState()
         with locked(target) as glmap:
             found = surroundings(glmap, agent[:2], state, config).fronts
-        rows = []
-        for f in found[:top_k]:
-            row = {"xy": [round(float(v), 2) for v in f.target], "cells": int(f.size)}
-            row["path_m"] = round(float(f.distance), 2) if math.isfinite(f.distance) else None
-            row.update(navsession.relative(agent, f.target))
-            rows.append(row)
-        info = {"agent": [round(agent[0], 2), round(agent[1], 2)], "frontiers": rows}
-        info["total"] = len(found)
+        rows = [
+            Frontier(
+                xy=(round(float(f.target[0]), 2), round(float(f.target[1]), 2)),
+                cells=int(f.size),
+                path_m=round(float(f.distance), 2) if math.isfinite(f.distance) else None,
+                **navsession.relative(agent, f.target),
+            )
+            for f in found[:top_k]
+        ]
+        info = FrontiersResult(
+            agent=(round(agent[0], 2), round(agent[1], 2)), frontiers=rows, total=len(found)
+        )
         return ImageResult(data=info)
 
     return await in_thread(run)
@@ -266,7 +297,7 @@ async def navigate_to(
     unit_id: Annotated[int | None, Field(ge=1, le=2**62)] = None,
     max_steps: Annotated[int, Field(ge=1, le=500)] = 100,
     session: SessionArg = "",
-) -> ImageResult:
+) -> ImageResult[NavigateResult]:
     """Walk (simulator) to (x, y), or within 0.75 m of unit_id in clear sight
     (would_succeed: a stop would count)."""
     target = session_of(call, session)
@@ -274,7 +305,7 @@ async def navigate_to(
     if (unit_id is None) == (x is None or y is None) or (x is None) != (y is None):
         raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
 
-    def run() -> ImageResult:
+    def run() -> ImageResult[NavigateResult]:
         sim, nav = navsession.running(target)
         if unit_id is not None:
             with locked(target) as glmap:
@@ -298,22 +329,22 @@ async def navigate_to(
                 nav.config,
                 lambda k, n: report(k, n, f"navigate_to step {k + 1}"),
             )
-            if unit_id is not None:
-                walk.update(_unit_score(target, nav, int(unit_id)))
-        report(max_steps, max_steps, walk["outcome"])
-        info = {**walk, **simulator.status(sim)}
-        info.pop("camera_pose", None)
+            scored = _unit_score(target, nav, int(unit_id)) if unit_id is not None else UnitScore()
+        report(max_steps, max_steps, walk.outcome)
+        info = NavigateResult(
+            **walk.given(), **scored.given(), **simulator.status(sim, camera_pose=False).given()
+        )
         return ImageResult(data=info, images=[Picture(format="jpeg", data=jpeg(sim.obs["rgb"]))])
 
     return await in_thread(lambda: in_episode(target, run))
 
 
-async def look_around(call: Call, session: SessionArg = "") -> ImageResult:
+async def look_around(call: Call, session: SessionArg = "") -> ImageResult[LookAroundResult]:
     """Turn a full circle (simulator), every frame into the map."""
     target = session_of(call, session)
     report = progress_from_thread(call)
 
-    def run() -> ImageResult:
+    def run() -> ImageResult[LookAroundResult]:
         sim, _ = navsession.running(target)
         turns = round(2 * math.pi / sim.env.motion.turn_angle)
         frames, labels = [], []
@@ -328,19 +359,20 @@ async def look_around(call: Call, session: SessionArg = "") -> ImageResult:
                 if sim.over:
                     break
         report(turns, turns, "done")
-        info = simulator.status(sim)
-        info.pop("camera_pose", None)
         with locked(target) as glmap:
-            info["map"] = glmap.summary().model_dump(include={"instances", "regions"})
+            summary = glmap.summary()
+        info = LookAroundResult(
+            **simulator.status(sim, camera_pose=False).given(),
+            map=MapCounts(instances=summary.instances, regions=summary.regions),
+        )
         sheet = contact_sheet(frames, labels, cols=4)
         return ImageResult(data=info, images=[Picture(format="jpeg", data=jpeg(sheet))])
 
     return await in_thread(lambda: in_episode(target, run))
 
 
-def _unit_score(session: Session, nav: Any, unit_id: int) -> dict[str, Any]:
-    """{goal_score, score_by} of one unit for the episode's goal (by 'client', 'prior' or
-    'scorer')."""
+def _unit_score(session: Session, nav: navsession.NavSession, unit_id: int) -> UnitScore:
+    """The score of one unit for the episode's goal (by 'client', 'prior' or 'scorer')."""
     from glmap_tools.nav.scorers import ClientScorer, UnitText, map_units
 
     with locked(session) as glmap:
@@ -353,12 +385,15 @@ def _unit_score(session: Session, nav: Any, unit_id: int) -> dict[str, Any]:
         if isinstance(scorer, ClientScorer) and units
         else "scorer"
     )
-    return {"goal_score": round(score, 3), "score_by": by}
+    return UnitScore(goal_score=round(score, 3), score_by=by)
 
 
 def _goal_unit(
-    session: Session, decision: Any, agent: tuple[float, float, float], config: Any
-) -> dict[str, Any] | None:
+    session: Session,
+    decision: "NavDecision",
+    agent: tuple[float, float, float],
+    config: "NavConfig",
+) -> GoalUnit | None:
     """The matched goal unit of `decision` and whether stopping at `agent` would count."""
     from glmap_tools.nav import GoalMatch
     from glmap_tools.nav.policy import stop_would_count, unit_reach, walls_of
@@ -373,13 +408,13 @@ def _goal_unit(
         here, sight = unit_reach(
             occ, GoalMatch(unit_id, 1.0, 0, cells), agent[:2], walls_of(glmap, occ)
         )
-    return {
-        "id": int(unit_id),
-        "score": round(float(decision.waypoint.score), 3),
-        "unit_distance_m": round(here, 2),
-        "in_sight": sight,
-        "would_succeed": stop_would_count(here, sight, config),
-    }
+    return GoalUnit(
+        id=int(unit_id),
+        score=round(float(decision.waypoint.score), 3),
+        unit_distance_m=round(here, 2),
+        in_sight=sight,
+        would_succeed=stop_would_count(here, sight, config),
+    )
 
 
 async def nav_step(
@@ -390,19 +425,19 @@ async def nav_step(
     details: bool = False,
     images: bool = False,
     session: SessionArg = "",
-) -> ImageResult:
+) -> ImageResult[NavStepResult]:
     """Up to `actions` policy steps (simulator), short of its stop (goal_unit) unless
     execute_stop."""
     target = session_of(call, session)
     report = progress_from_thread(call)
 
-    def run() -> ImageResult:
+    def run() -> ImageResult[NavStepResult]:
         sim, nav = navsession.running(target)
-        decisions = []
-        decision: Any = None
+        decisions: list[Decision] = []
+        decision: NavDecision | None = None
         agent = simulator.agent_pose(sim)
         collisions = sim.collisions
-        outcome = "actions done"
+        outcome: Literal["actions done", "policy would stop here", "episode over"] = "actions done"
         walked = 0.0
         with locked(target):
             for k in range(actions):
@@ -416,46 +451,47 @@ async def nav_step(
                 after = simulator.agent_pose(sim)
                 walked += math.dist(agent[:2], after[:2])
                 decisions.append(
-                    {
-                        "step": int(sim.info["steps"]),
-                        "action": decision.action,
-                        "position": [round(after[0], 2), round(after[1], 2)],
-                        "heading_deg": round(math.degrees(after[2])),
-                        "waypoint": _waypoint(decision, agent),
-                    }
+                    Decision(
+                        step=int(sim.info["steps"]),
+                        action=decision.action,
+                        position=(round(after[0], 2), round(after[1], 2)),
+                        heading_deg=round(math.degrees(after[2])),
+                        waypoint=_waypoint(decision, agent),
+                    )
                 )
                 if sim.over:
                     outcome = "episode over"
                     break
         counts: dict[str, int] = {}
         for d in decisions:
-            counts[d["action"]] = counts.get(d["action"], 0) + 1
+            counts[d.action] = counts.get(d.action, 0) + 1
         end = simulator.agent_pose(sim)
-        info: dict[str, Any] = {
-            "outcome": outcome,
-            "actions": counts,
-            "walked_m": round(walked, 2),  # path length, as navigate_to's
-            "new_collisions": sim.collisions - collisions,
-            "waypoint": _waypoint(decision, agent) if decision is not None else None,
-        }
+        info = NavStepResult(
+            outcome=outcome,
+            actions=counts,
+            walked_m=round(walked, 2),  # path length, as navigate_to's
+            new_collisions=sim.collisions - collisions,
+            waypoint=_waypoint(decision, agent) if decision is not None else None,
+            **simulator.status(sim, camera_pose=False).given(),
+        )
+        # Optional fields are set only when they apply: one not set is left out of the text.
         if nav.client is not None and not nav.client.empty:
-            info["client_scores"] = {
-                "units": len(nav.client.units),
-                "priors": len(nav.client.priors),
-            }
+            info.client_scores = ClientScoreCounts(
+                units=len(nav.client.units), priors=len(nav.client.priors)
+            )
         report(actions, actions, outcome)
         goal_unit = _goal_unit(target, decision, end, nav.config) if decision is not None else None
         if goal_unit is not None and not sim.over:
-            info["goal_unit"] = goal_unit
+            info.goal_unit = goal_unit
         if details:
-            info["decisions"] = decisions
+            info.decisions = decisions
         else:
-            info["last"] = [
-                {k: d[k] for k in ("step", "action", "position", "heading_deg")}
+            info.last = [
+                StepTaken(
+                    step=d.step, action=d.action, position=d.position, heading_deg=d.heading_deg
+                )
                 for d in decisions[-3:]
             ]
-        info.update(simulator.status(sim))
-        info.pop("camera_pose", None)
         pictures = (
             [
                 Picture(format="jpeg", data=jpeg(sim.obs["rgb"])),
@@ -470,7 +506,7 @@ async def nav_step(
 
 
 def _checked_client_scores(
-    glmap: Any, scores: dict[int, float], priors: dict[str, float]
+    glmap: "GLMap", scores: dict[int, float], priors: dict[str, float]
 ) -> tuple[dict[int, float], dict[str, float], dict[int, int]]:
     """(scores by live id, priors, {fused id: live id}) or raise before anything changes."""
     from glmap_tools.nav.scorers import check_unit_score, kind_pattern
@@ -498,10 +534,10 @@ def set_client_scores(
     scores: dict[int, float] | None,
     priors: dict[str, float] | None,
     clear: bool,
-) -> dict[str, Any]:
-    """Check and keep the client's f_S of the episode's goal; return what is held now:
-    {"scores": [[id, kind, s]], "priors": [[kind, s, [region ids naming it]]], "followed":
-    ["12->7": a fused id's score moved to the unit it became]}. Nothing changes on an error."""
+) -> HeldScores:
+    """Check and keep the client's f_S of the episode's goal; return what is held now
+    (scores by unit, priors by region kind, and the fused ids whose scores moved to the
+    unit they became). Nothing changes on an error."""
     from glmap_tools.nav.scorers import ClientScores
 
     _, nav = navsession.running(session)
@@ -515,20 +551,22 @@ def set_client_scores(
         return held_scores(glmap, nav.client, followed)
 
 
-def held_scores(glmap: Any, client: Any, followed: dict[int, int] | None = None) -> dict[str, Any]:
+def held_scores(
+    glmap: "GLMap", client: "ClientScores", followed: dict[int, int] | None = None
+) -> HeldScores:
     """The client's scores as value_map shows them (see `set_client_scores`)."""
     from glmap_tools.nav.scorers import kind_pattern
 
     regions = sorted((r.id, r.text.lower()) for r in glmap.regions.values())
-    out: dict[str, Any] = {
-        "scores": [[u, glmap.unit(u).kind, s] for u, s in sorted(client.units.items())],
-        "priors": [
-            [k, s, [r for r, t in regions if kind_pattern(k).search(t)]]
+    out = HeldScores(
+        scores=[(u, glmap.unit(u).kind, s) for u, s in sorted(client.units.items())],
+        priors=[
+            (k, s, [r for r, t in regions if kind_pattern(k).search(t)])
             for k, s in sorted(client.priors.items())
         ],
-    }
+    )
     if followed:
-        out["followed"] = [f"{a}->{b}" for a, b in sorted(followed.items())]
+        out.followed = [f"{a}->{b}" for a, b in sorted(followed.items())]
     return out
 
 

@@ -3,9 +3,10 @@
 No `from __future__ import annotations` here: the MCP face reads these signatures at runtime.
 """
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import cv2
+import numpy as np
 from pydantic import Field
 
 from glmap_tools.app import navsession, simulator
@@ -13,14 +14,14 @@ from glmap_tools.app.inputs import SessionArg
 from glmap_tools.app.results import ImageResult, Picture
 from glmap_tools.app.runtime import ADDS, DROPS, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import Session, locked
+from glmap_tools.app.sim_results import SimResult, sampling_report
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.language.sampling import usage_report
 
 Action = Literal["move_forward", "turn_left", "turn_right", "stop"]
 Size = Literal["160x120", "320x240", "640x480"]
 
 
-def _jpeg(rgb: Any) -> bytes:
+def _jpeg(rgb: np.ndarray) -> bytes:
     ok, buf = cv2.imencode(
         ".jpg", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 85]
     )
@@ -32,16 +33,20 @@ def _integrate(session: Session, sim: simulator.SimEpisode) -> str:
     return navsession.integrate(session, sim)
 
 
-def _reply(session: Session, sim: simulator.SimEpisode, updates: list[str]) -> ImageResult:
+def _reply(
+    session: Session, sim: simulator.SimEpisode, updates: list[str]
+) -> ImageResult[SimResult]:
     from glmap_tools.nav.config import ACTIONS
 
-    info = simulator.status(sim)
-    info["session"] = session.handle
-    info["map_updates"] = updates
-    info["actions"] = list(ACTIONS)
-    llm = usage_report()  # the client's model through MCP sampling: calls, tokens, fallbacks
-    if llm:
-        info["llm"] = llm
+    info = SimResult(
+        **simulator.status(sim).given(),
+        session=session.handle,
+        map_updates=updates,
+        actions=list(ACTIONS),
+    )
+    llm = sampling_report()  # the client's model through MCP sampling: calls, tokens, fallbacks
+    if llm is not None:
+        info.llm = llm
     return ImageResult(data=info, images=[Picture(format="jpeg", data=_jpeg(sim.obs["rgb"]))])
 
 
@@ -56,7 +61,7 @@ async def sim_reset(
     max_steps: Annotated[int | None, Field(ge=1, le=5000)] = None,
     keep_map: bool = False,
     session: SessionArg = "",
-) -> ImageResult:
+) -> ImageResult[SimResult]:
     """Start a simulator episode (`scene` and `seed`, or a benchmark `episode` id): reach
     any object of the goal's category (objectnav) or the described one (instnav)."""
     state = call.state
@@ -68,11 +73,11 @@ async def sim_reset(
     if bench is not None and goal:
         raise InvalidInputError("give episode or goal, not both: an episode has its goal.")
 
-    def run() -> ImageResult:
+    def run() -> ImageResult[SimResult]:
         with target.sim_lock:  # a sim_step in flight finishes first
             return reset()
 
-    def reset() -> ImageResult:
+    def reset() -> ImageResult[SimResult]:
         sim = target.sim
         if bench is not None:
             key: tuple[object, ...] = ("bench", str(bench.layout_path), bench.task, wh, steps)
@@ -107,7 +112,7 @@ async def sim_step(
     call: Call,
     repeat: Annotated[int, Field(ge=1, le=20)] = 1,
     session: SessionArg = "",
-) -> ImageResult:
+) -> ImageResult[SimResult]:
     """Act `repeat` times: move 0.25 m, turn 30 deg, or stop (success: within 1 m of a goal's
     footprint, no wall between). At the end: success, SPL, distance_to_goal."""
     target = session_of(call, session)

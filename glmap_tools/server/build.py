@@ -248,7 +248,9 @@ def mcp_tool(spec: ToolSpec) -> Callable[..., Awaitable[Any]]:
         p.replace(name="ctx", annotation=Context) if p.name == CALL_PARAMETER else p
         for p in signature.parameters.values()
     ]
-    returns = CallToolResult if signature.return_annotation is ImageResult else None
+    returned = signature.return_annotation
+    images = isinstance(returned, type) and issubclass(returned, ImageResult)
+    returns = CallToolResult if images else None
 
     async def tool(ctx: Context[Any, Any], **kwargs: Any) -> Any:
         call = call_of(ctx)
