@@ -6,7 +6,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -15,6 +15,7 @@ from glmap_tools.views.topdown import HeatMap, TopDownImage, draw_topdown
 
 if TYPE_CHECKING:
     from glmap_tools.map import GLMap
+    from glmap_tools.nav import Frontier, ValueMap
 
 NAV_SIDE = 512  # pixels: longer side of the value-map image
 FRONTIER_RGB, WAYPOINT_RGB, PLAN_RGB = (0, 200, 200), (230, 0, 230), (0, 170, 0)
@@ -35,8 +36,8 @@ def jpeg(rgb: np.ndarray, quality: int = 85) -> bytes:  # rgb: [H, W, 3] uint8
 def nav_image(
     glmap: GLMap,
     agent: tuple[float, float, float] | None,
-    value: Any = None,
-    frontiers: Sequence[Any] = (),
+    value: ValueMap | None = None,
+    frontiers: Sequence[Frontier] = (),
     waypoint: tuple[float, float] | None = None,
     plan_path: np.ndarray | None = None,
     max_side: int = NAV_SIDE,
@@ -59,7 +60,8 @@ def nav_image(
         finite = values[np.isfinite(values)]
         if finite.size:
             span = (float(finite.min()), float(finite.max()))
-            heat = HeatMap(values, tuple(value.origin), value.cell_size, *span)
+            i0, j0 = value.origin
+            heat = HeatMap(values, (i0, j0), value.cell_size, *span)
     draw = functools.partial(
         draw_topdown, glmap, agent=agent, heatmap=heat, regions=False, ticks=False
     )

@@ -11,12 +11,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from glmap_tools.app import simulator
 from glmap_tools.app.navigation import NavSession
+from glmap_tools.app.results import FromAgent
 from glmap_tools.app.session import Session, locked
 from glmap_tools.app.sim_results import Walk
 from glmap_tools.errors import InvalidInputError
@@ -25,6 +26,10 @@ from glmap_tools.geometry import Pose
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
     from glmap_tools.map import GLMap
+    from glmap_tools.map.occupancy import DenseOccupancy
+    from glmap_tools.map.report import UnitInfo
+    from glmap_tools.nav import GoalMatch, NavConfig, Scorer
+    from glmap_tools.nav.approach import Approach
 
 # Per-call clients (a server process per tool call, e.g. LangChain's get_tools()) lose the
 # episode between calls; the message names both ways to keep it (docs/frameworks/langchain.md).
@@ -44,7 +49,7 @@ REGION_HINT = 0.0
 
 
 def start(
-    session: Session, sim: simulator.SimEpisode, embedder: Embedder, scorer: Any = None
+    session: Session, sim: simulator.SimEpisode, embedder: Embedder, scorer: Scorer | None = None
 ) -> NavSession:
     """A fresh NavSession for the episode `sim` just reset to (kept as `session.nav`).
 
@@ -173,7 +178,9 @@ class Target:
     unit_cells: np.ndarray | None = None
 
 
-def window(glmap: GLMap, config: Any, blocked: set[tuple[int, int]] | None = None) -> Any:
+def window(
+    glmap: GLMap, config: NavConfig, blocked: set[tuple[int, int]] | None = None
+) -> DenseOccupancy:
     """The map's occupancy as one dense window with `config.window_margin` unknown around it.
 
     Args:
@@ -195,7 +202,7 @@ def window(glmap: GLMap, config: Any, blocked: set[tuple[int, int]] | None = Non
     return occ
 
 
-def check_inside(occ: Any, xy: tuple[float, float], what: str) -> None:
+def check_inside(occ: DenseOccupancy, xy: tuple[float, float], what: str) -> None:
     """Raise OutsideMapError naming the map's extent when `xy` lies outside the window."""
     from glmap_tools.nav.errors import OutsideMapError
 
@@ -211,7 +218,7 @@ def check_inside(occ: Any, xy: tuple[float, float], what: str) -> None:
 
 
 def check_point(
-    session: Session, agent: tuple[float, float, float], xy: tuple[float, float], config: Any
+    session: Session, agent: tuple[float, float, float], xy: tuple[float, float], config: NavConfig
 ) -> None:
     """Raise before any step when the point `xy` is outside the map or cannot be reached.
 
@@ -228,7 +235,7 @@ def check_point(
     plan(occ, agent[:2], agent[2], xy, config, strict=True)
 
 
-def no_progress_steps(config: Any) -> int:
+def no_progress_steps(config: NavConfig) -> int:
     """Steps without `PROGRESS` m of progress after which a walk ends as blocked."""
     return 2 * int(config.stuck_steps)
 
@@ -238,7 +245,7 @@ def walk_to(
     sim: simulator.SimEpisode,
     target: Target,
     max_steps: int,
-    config: Any,
+    config: NavConfig,
     on_step: Callable[[int, int], None] | None = None,
 ) -> Walk:
     """Walk to `target` until arrived, blocked or `max_steps`; return what happened.
@@ -267,13 +274,13 @@ def walk_to(
     assert nav is not None
     agent = simulator.agent_pose(sim)
     unit = target.unit_cells is not None
-    goal: Any = target.xy
+    goal: tuple[float, float] | GoalMatch = target.xy
     if target.unit_cells is not None:
         goal = GoalMatch(int(target.unit_id or 0), 1.0, 0, target.unit_cells)
     else:
         check_point(session, agent, target.xy, config)
 
-    def next_step(agent: tuple[float, float, float]) -> Any:
+    def next_step(agent: tuple[float, float, float]) -> Approach:
         with locked(session) as glmap:
             return approach(glmap, agent[:2], agent[2], goal, nav.state, config)
 
@@ -338,13 +345,13 @@ def _metres(value: float) -> float | None:
 
 
 def _blocked_by(
-    step: Any,
+    step: Approach,
     outcome: str,
     bumps: int,
     steps: int,
     agent: tuple[float, float, float],
     target: Target,
-    config: Any,
+    config: NavConfig,
 ) -> str:
     """One sentence: what stopped the walk short of the target, and what to try."""
     what = f"unit {target.unit_id}" if target.unit_id is not None else "the point"
@@ -370,8 +377,8 @@ def _blocked_by(
     )
 
 
-def from_agent(session: Session, units: list[Any]) -> list[dict[str, Any]]:
-    """[{id, distance_m, bearing_deg}] of `units` (UnitInfo) from the simulator agent.
+def from_agent(session: Session, units: list[UnitInfo]) -> list[FromAgent]:
+    """Where each of `units` lies from the simulator agent.
 
     Empty unless the session has a running simulator episode.
     """
@@ -380,5 +387,6 @@ def from_agent(session: Session, units: list[Any]) -> list[dict[str, Any]]:
         return []
     agent = simulator.agent_pose(sim)
     return [
-        {"id": u.id, **relative(agent, (float(u.centroid[0]), float(u.centroid[1])))} for u in units
+        FromAgent(id=u.id, **relative(agent, (float(u.centroid[0]), float(u.centroid[1]))))
+        for u in units
     ]

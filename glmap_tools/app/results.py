@@ -62,6 +62,14 @@ class UnitsAt(BaseModel):
     units: list[UnitInfo] = Field(description="`distance` is metres from (x, y) to the unit")
 
 
+class FromAgent(BaseModel):
+    """Where a unit lies from the simulator agent."""
+
+    id: int
+    distance_m: float = Field(description="straight-line metres from the agent to the centroid")
+    bearing_deg: float = Field(description="degrees from the agent's heading, + = to its left")
+
+
 class MapInfo(SessionInfo):
     """Counts and extent of the session's map."""
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import os
 import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -24,6 +25,7 @@ if TYPE_CHECKING:
     from glmap_tools.geometry.frame import RGBDFrame
     from glmap_tools.perception.semantics import FrameSemantics
     from glmap_tools.sim.env import NavEnv
+    from glmap_tools.sim.scene_dirs import BenchEpisode, SceneDirs
 
 T = TypeVar("T")
 TASKS = ("objectnav", "instnav")
@@ -37,7 +39,7 @@ _thread_lock = threading.Lock()
 _thread: ThreadPoolExecutor | None = None
 
 
-def on_sim_thread(fn: Any, *args: Any) -> Any:
+def on_sim_thread(fn: Callable[..., T], *args: object) -> T:
     """Run fn(*args) on the process-wide simulator thread; return its result or raise."""
     global _thread
     with _thread_lock:
@@ -45,7 +47,7 @@ def on_sim_thread(fn: Any, *args: Any) -> Any:
             _thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="glmap-sim")
         executor = _thread
 
-    def call() -> Any:
+    def call() -> T:
         try:
             return fn(*args)
         finally:
@@ -85,8 +87,8 @@ class SimEpisode:
     task: str
     scene: int
     env: NavEnv
-    key: tuple[Any, ...] = ()
-    bench: Any = None  # the BenchEpisode this env plays, if any
+    key: tuple[Any, ...] = ()  # (task or "bench", scene, size, max_steps): reopen when it changes
+    bench: BenchEpisode | None = None  # the benchmark episode this env plays, if any
     obs: dict[str, Any] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
     over: bool = False
@@ -98,7 +100,7 @@ class SimEpisode:
     resets: int = 0
     closed: bool = False
 
-    def run(self, fn: Any, *args: Any) -> Any:
+    def run(self, fn: Callable[..., T], *args: object) -> T:
         """Run fn(*args) on the simulator thread and return its result."""
         return on_sim_thread(fn, *args)
 
@@ -111,7 +113,7 @@ class SimEpisode:
         self.run(shut)
 
 
-def perception_of(perception: str, bench: Any = None) -> str:
+def perception_of(perception: str, bench: BenchEpisode | None = None) -> str:
     """'gt' or 'detector': `perception`, or for 'auto' the split's own ('gt' off a split)."""
     if perception != "auto":
         return perception
@@ -145,7 +147,7 @@ def open_episode(
     return SimEpisode(task, scene, on_sim_thread(make), key=(task, scene, size, max_steps))
 
 
-def bench_episode(episode_id: str, scene_dirs: Any = None) -> Any:
+def bench_episode(episode_id: str, scene_dirs: SceneDirs | None = None) -> BenchEpisode:
     """The benchmark episode `episode_id` (e.g. 'bench/objectnav/s03-017'), or one of the
     scene folders `scene_dirs` (`ServerConfig.scene_dirs`) by name ('mine/objectnav/k-003').
 
@@ -158,7 +160,7 @@ def bench_episode(episode_id: str, scene_dirs: Any = None) -> Any:
 
 
 def open_bench(
-    bench: Any, size: tuple[int, int], max_steps: int, perception: str = "auto"
+    bench: BenchEpisode, size: tuple[int, int], max_steps: int, perception: str = "auto"
 ) -> SimEpisode:
     """Create the env of a benchmark episode's scene on the simulator thread."""
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")

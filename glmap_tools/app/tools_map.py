@@ -5,7 +5,7 @@ No `from __future__ import annotations` here: the MCP face reads these signature
 
 from typing import Annotated, TypeVar
 
-from pydantic import BaseModel, Field
+from pydantic import Field
 
 from glmap_tools.app import tools_perception
 from glmap_tools.app.inputs import (
@@ -22,6 +22,7 @@ from glmap_tools.app.inputs import (
 from glmap_tools.app.memory import frame_work, frame_work_bytes
 from glmap_tools.app.navsession import from_agent
 from glmap_tools.app.results import (
+    FromAgent,
     Hits,
     ImageResult,
     MapInfo,
@@ -53,14 +54,6 @@ TopK = Annotated[int, Field(ge=1, le=50, description="hits to return")]
 UnitId = Annotated[int, Field(ge=1, le=2**62, description="instance or region id")]
 Metres = Annotated[float, Field(ge=-1e4, le=1e4)]
 OCCUPANCY_NAMES = {FREE: "free", OBSTACLE: "obstacle"}
-
-
-class FromAgent(BaseModel):
-    """Where a unit lies from the simulator agent."""
-
-    id: int
-    distance_m: float = Field(description="straight-line metres from the agent to the centroid")
-    bearing_deg: float = Field(description="degrees from the agent's heading, + = to its left")
 
 
 class AgentHits(Hits):
@@ -192,7 +185,7 @@ async def find_instance(
         found = AgentHits(
             query=query,
             hits=hits,
-            from_agent=[FromAgent(**d) for d in from_agent(target, hits)],
+            from_agent=from_agent(target, hits),
         )
         return with_empty_note(found, empty, target)
 
@@ -232,7 +225,7 @@ async def what_is_at(
             radius=radius,
             occupancy=occ,
             units=units,
-            from_agent=[FromAgent(**d) for d in from_agent(target, units)],
+            from_agent=from_agent(target, units),
         )
 
     return await in_thread(run)
