@@ -5,12 +5,11 @@ No `from __future__ import annotations` here: the MCP face reads these signature
 
 from typing import Annotated, Literal
 
-import cv2
-import numpy as np
 from pydantic import Field
 
 from glmap_tools.app import navsession, simulator
 from glmap_tools.app.inputs import SessionArg
+from glmap_tools.app.navdraw import jpeg
 from glmap_tools.app.results import ImageResult, Picture
 from glmap_tools.app.runtime import ADDS, DROPS, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import Session, locked
@@ -19,14 +18,6 @@ from glmap_tools.errors import InvalidInputError
 
 Action = Literal["move_forward", "turn_left", "turn_right", "stop"]
 Size = Literal["160x120", "320x240", "640x480"]
-
-
-def _jpeg(rgb: np.ndarray) -> bytes:
-    ok, buf = cv2.imencode(
-        ".jpg", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 85]
-    )
-    assert ok
-    return buf.tobytes()
 
 
 def _integrate(session: Session, sim: simulator.SimEpisode) -> str:
@@ -47,7 +38,7 @@ def _reply(
     llm = sampling_report()  # the client's model through MCP sampling: calls, tokens, fallbacks
     if llm is not None:
         info.llm = llm
-    return ImageResult(data=info, images=[Picture(format="jpeg", data=_jpeg(sim.obs["rgb"]))])
+    return ImageResult(data=info, images=[Picture(format="jpeg", data=jpeg(sim.obs["rgb"]))])
 
 
 async def sim_reset(
