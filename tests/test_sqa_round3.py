@@ -10,26 +10,13 @@ import pytest
 
 from glmap_tools.sqa.answer import question_type
 from glmap_tools.sqa.reading import read_situation
-from glmap_tools.sqa.relations import relation_phrases
 from glmap_tools.sqa.wording import variants
+from tests.test_sqa_round2 import _read_right, _summary
 
 HELD_OUT_FLOOR = {"situations": 0.83, "questions": 0.98}  # measured: 35 / 42, 71 / 72
 DATA = Path(__file__).parent / "data"
 TUNED = json.loads((DATA / "sqa_round3_tuned.json").read_text())
 HELD_OUT = json.loads((DATA / "sqa_round3_heldout.json").read_text())
-
-
-def _summary(r):
-    cons = [[c.object, c.side or c.clock] for c in r.constraints]
-    return relation_phrases(r.anchor)[0], r.facing, cons
-
-
-def _read_right(case):
-    return _summary(read_situation(case["text"])) == (
-        case["anchor"],
-        case["facing"],
-        case["constraints"],
-    )
 
 
 @pytest.mark.parametrize("case", TUNED["situations"], ids=lambda c: c["text"][:40])
