@@ -82,6 +82,7 @@ class OracleRoom:
 
     @classmethod
     def for_episode(cls, episode_id: str) -> OracleRoom:
+        # glmap_tools.sim loads gymnasium: only the oracle needs it, not the runner's start.
         from glmap_tools.sim.benchmark import bench_episode, bench_layout
 
         be = bench_episode(episode_id)
@@ -118,9 +119,9 @@ class ClientEmbedding:
         from glmap_tools.nav.scorers import EmbeddingScorer, UnitText
 
         if not _EMBEDDING:
-            from glmap_tools.language.calibration import make_embedder
+            from glmap_tools.language.embed import default_embedder
 
-            _EMBEDDING.append(EmbeddingScorer(make_embedder("minilm")))
+            _EMBEDDING.append(EmbeddingScorer(default_embedder()))
         units = [UnitText(r.region_id, "region", r.text) for r in regions]
         if not units:
             return {}

@@ -86,23 +86,23 @@ class NavAgent:
         self.actions_per_call = max(1, int(actions_per_call))
         self.image_every = int(image_every)
         self.fs = fs
-        self.sent: dict[int, tuple[str, float]] = {}  # region id -> (text, score) given
+        self.scored: dict[int, str] = {}  # region id -> what its score was computed from
+        self.given: dict[int, float] = {}  # region id -> the score sent
 
     async def give_scores(self, client: TracedClient, goal: str) -> None:
         """Score the regions that are new or changed since the last call with `self.fs`
         and send the scores that changed with value_map (one call, only when needed)."""
         assert self.fs is not None
         regions = await client.resource("glmap://current/regions")
-        changed = [r for r in regions if self.sent.get(int(r["id"]), ("",))[0] != _key(r)]
+        changed = [r for r in regions if self.scored.get(int(r["id"])) != _key(r)]
         if not changed:
             return
+        self.scored.update({int(r["id"]): _key(r) for r in changed})
         instances = await client.resource("glmap://current/instances")
         scores = self.fs.score(goal, region_views(changed, instances))
-        new = {uid: s for uid, s in scores.items() if self.sent.get(uid, ("", -1.0))[1] != s}
-        for r in changed:
-            uid = int(r["id"])
-            self.sent[uid] = (_key(r), scores.get(uid, self.sent.get(uid, ("", -1.0))[1]))
+        new = {uid: s for uid, s in scores.items() if self.given.get(uid) != s}
         if new:
+            self.given.update(new)
             await client.call(
                 "value_map", {"scores": {str(k): v for k, v in new.items()}}, keep_images=False
             )
