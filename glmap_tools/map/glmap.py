@@ -37,20 +37,10 @@ class GLMap(MapState):
     Gaussians for every observed surface no object mask covers (walls, floor): rendered
     and occluding in views, never a unit (see map/structure.py).
 
-    Args:
-        config: map settings (saved with the map).
-        embedder: text embedder phi; default: the bundled all-MiniLM-L6-v2, loaded lazily.
-        text_merger: rewrites text buffers past `config.max_text_words`; default extractive.
+    Args: as `MapState` (config, embedder, text_merger).
     """
 
-    def __init__(
-        self,
-        config: MapConfig | None = None,
-        embedder: Embedder | None = None,
-        text_merger: TextMerger | None = None,
-    ) -> None:
-        super().__init__(config, embedder, text_merger)
-        self.store: MapStore | None = None
+    store: MapStore | None = None  # the SQLite file frames are committed to, if any
 
     # ----------------------------------------------------------------- persistence
     @classmethod
