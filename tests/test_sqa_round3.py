@@ -1,7 +1,11 @@
 """Situations and questions as people write them, round three (issue 43): grammar-level
 variants (fronted clauses, polite wrappers, options before the question, other verbs and
-side words). The tuned phrasings read right one by one; the held-out ones (written and
-committed before the rules changed, never tuned on) are held as a share."""
+side words). The tuned phrasings read right one by one.
+
+The "held-out" set was written and committed before round three's rules changed and read
+35 / 42 situations and 71 / 72 questions right then. Round four tuned on its misreads, so
+it is a tuned set from here on (round four's held-out set is tests/test_sqa_round4.py):
+now 42 / 42 and 72 / 72, held whole."""
 
 import json
 from pathlib import Path
@@ -13,7 +17,7 @@ from glmap_tools.sqa.reading import read_situation
 from glmap_tools.sqa.wording import variants
 from tests.test_sqa_round2 import _read_right, _summary
 
-HELD_OUT_FLOOR = {"situations": 0.83, "questions": 0.98}  # measured: 35 / 42, 71 / 72
+HELD_OUT_FLOOR = {"situations": 1.0, "questions": 1.0}  # tuned on since round four
 DATA = Path(__file__).parent / "data"
 TUNED = json.loads((DATA / "sqa_round3_tuned.json").read_text())
 HELD_OUT = json.loads((DATA / "sqa_round3_heldout.json").read_text())
@@ -31,13 +35,15 @@ def test_each_tuned_question_falls_to_its_family(case):
 
 
 def test_held_out_situations_read_right_as_measured():
-    right = sum(_read_right(c) for c in HELD_OUT["situations"])
-    assert right / len(HELD_OUT["situations"]) >= HELD_OUT_FLOOR["situations"]
+    right = [_read_right(c) for c in HELD_OUT["situations"]]
+    wrong = [c["text"] for c, ok in zip(HELD_OUT["situations"], right, strict=True) if not ok]
+    assert sum(right) / len(right) >= HELD_OUT_FLOOR["situations"], wrong
 
 
 def test_held_out_questions_fall_to_their_family_as_measured():
-    right = sum(question_type(q["text"])[0] == q["family"] for q in HELD_OUT["questions"])
-    assert right / len(HELD_OUT["questions"]) >= HELD_OUT_FLOOR["questions"]
+    got = [question_type(q["text"])[0] == q["family"] for q in HELD_OUT["questions"]]
+    wrong = [q["text"] for q, ok in zip(HELD_OUT["questions"], got, strict=True) if not ok]
+    assert sum(got) / len(got) >= HELD_OUT_FLOOR["questions"], wrong
 
 
 def test_round_three_shares_no_sentence_with_the_earlier_sets():
@@ -76,3 +82,30 @@ def test_a_fronted_place_is_the_place_asked():
 def test_towards_my_left_is_my_left():
     r = read_situation("Towards my left I see the shower, while I am drying my hair at the mirror.")
     assert (r.facing, [(c.object, c.side) for c in r.constraints]) == (None, [("shower", "left")])
+
+
+def test_the_anchors_own_relation_stays_in_words_the_locator_reads():
+    r = read_situation("I'm perched on a stool at the kitchen island, facing the oven.")
+    assert (r.anchor, r.facing) == ("stool next to the kitchen island", "oven")
+    r = read_situation("I am sitting on the rug between the sofa and the fireplace.")
+    assert r.anchor == "rug near the sofa near the fireplace"
+
+
+def test_a_comma_set_which_clause_gives_the_object_before_it_its_side():
+    r = read_situation("I am drying dishes by the dishwasher, which is to my left.")
+    assert (r.anchor, [(c.object, c.side) for c in r.constraints]) == (
+        "dishwasher",
+        [("dishwasher", "left")],
+    )
+
+
+def test_an_object_worked_on_in_place_is_the_anchor_not_what_it_is_near():
+    assert read_situation("I am watering the plant near the window.").anchor == (
+        "plant near the window"
+    )
+    assert read_situation("I am feeding the cat next to the fridge.").anchor == "fridge"
+
+
+def test_a_simple_present_verb_with_its_object_leaves_the_place_as_anchor():
+    r = read_situation("I wash dishes at the sink.")
+    assert (r.anchor, r.activity) == ("sink", "wash dishes")

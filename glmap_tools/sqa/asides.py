@@ -3,14 +3,22 @@
 - relative clauses inside an object phrase: "the door that is on my right" is the door
   plus a constraint (door, right); "the shelf where the books are kept", "the chair that
   is closest to the door" are the shelf and the chair (the clause is dropped);
-- egocentric tails: "within arm's reach" says nothing about a side and goes; "by my left
+- egocentric tails: "within arm's reach" (and a duration, "for an hour") says nothing
+  about a side and goes; "by my left
   foot", "by my right hand" are the left and the right side;
 - negation: "I cannot see the tv", "I don't see the sink" say where I am not looking and
   give no position, facing or constraint;
 - leading adverbial clauses: "After entering the room, ...", "While waiting for the
   kettle, ..." set the scene; the place comes after them;
 - "on either side of me": one object on my left and one on my right;
-- "on the other side of the room": across the room from me, in front.
+- "on the other side of the room": across the room from me, in front;
+- a comma-set relative clause on the last object, ", which is to my left": the object's
+  side, as if written "the dishwasher to my left"; any other one gives no place;
+- the anchor's own relations ("a stool at the kitchen island", "the chair closest to the
+  fireplace", "the rug between the sofa and the fireplace"): said in the words the
+  locator reads ("next to", "near"), so the anchor's name stays the object's;
+- an activity on an object in place ("watering the plant near the window"): the object
+  worked on is where I am, not the thing it is near.
 
 Pure string functions over lower-cased text; `glmap_tools.sqa.reading` applies them.
 """
@@ -45,6 +53,12 @@ _REACH = re.compile(
     r"(?:\s+with\s+(?:(?!\bwith\b)[\w' -])+?)?"  # "with the remote within arm's reach"
     r"\s+(?:(?:within|in) (?:arm'?s'? |my )?reach|within arm'?s'? length|close at hand)\b"
 )
+# How long or how often: "for an hour", "for a while", "all evening" say nothing of where.
+_DURATION = re.compile(
+    r"\s+(?:for (?:a|an|the|some|about|almost|over|nearly|several|a few|\d+|one|two|three|"
+    r"five|ten|twenty)(?: \w+)?? (?:while|moment|minute|minutes|hour|hours|time|bit|second|"
+    r"seconds|day|days|now)|all (?:day|evening|morning|night|afternoon)(?: long)?)\b"
+)
 _LIMB = re.compile(r"\bby my (?P<s>left|right) (?:foot|feet|hand|arm|elbow|shoulder|leg|knee)\b")
 NEGATION = re.compile(
     r"\b(?:not|n't|cannot|never|no longer|nowhere)\b|\b(?:can|do|does|is|am|are)not\b"
@@ -53,13 +67,24 @@ _LEADING = re.compile(
     r"^(?:after|before|while|whilst|when|once|upon|having|as soon as|since|just after)\b"
 )
 EITHER = re.compile(r"\bon (?:either|both|each) side(?:s)? of me\b")
+# Verbs that act on a thing where it stands: I am at what I water, wipe or open.
+IN_PLACE = (
+    "watering|wiping|cleaning|dusting|polishing|fixing|repairing|opening|closing|adjusting|"
+    "inspecting|examining|unlocking|locking|scrubbing|mopping|vacuuming|tidying|checking"
+)
+NEAR_WORDS = ("near", "next to", "right next to", "beside", "besides", "by", "close to")
+_RELATIVE_EGO = re.compile(
+    r"^(?:which|that|who)\s+(?:(?:is|are|stands|sits|lies|hangs)\s+)?"
+    r"(?:located\s+|placed\s+|right\s+|directly\s+|just\s+)?(?P<ego>" + EGO + r")$"
+)
+RELATIVE = re.compile(r"^(?:which|that|who|where|whose)\b")
 ACROSS = re.compile(r"\b(?:on|at|to) the (?:other|opposite|far) (?:side|end) of the room\b")
 
 
 def hands_to_sides(text: str) -> str:
-    """'by my left foot' -> 'on my left'; 'within arm's reach' dropped."""
+    """'by my left foot' -> 'on my left'; 'within arm's reach' and 'for an hour' dropped."""
     text = _LIMB.sub(lambda m: f"on my {m.group('s')}", text)
-    return _REACH.sub("", text)
+    return _DURATION.sub("", _REACH.sub("", text))
 
 
 def side_words(text: str) -> str:
@@ -126,3 +151,34 @@ def either_side(clause: str) -> str | None:
     )
     rest = re.sub(r"^(?:is|are|there (?:is|are))\s+", "", rest.strip())
     return rest.strip() or None
+
+
+def relative_ego(clause: str) -> str | None:
+    """The egocentric place of a comma-set relative clause (", which is to my left" ->
+    "to my left"), else None."""
+    m = _RELATIVE_EGO.match(clause.strip())
+    return m.group("ego") if m else None
+
+
+def qualifiers(obj: str) -> str:
+    """An anchor's own relations in the words the locator reads.
+
+    >>> qualifiers("stool at the kitchen island")
+    'stool next to the kitchen island'
+    >>> qualifiers("rug between the sofa & the fireplace")
+    'rug near the sofa near the fireplace'
+    >>> qualifiers("chair closest to the fireplace")
+    'chair near the fireplace'
+    """
+    obj = re.sub(
+        r"(?<=\w) between (?:the |a |an )?([\w -]+?) & (?:the |a |an )?([\w -]+)$",
+        r" near the \1 near the \2",
+        obj,
+    )
+    obj = re.sub(
+        r"(?<=\w) (?:(?:that|which) is )?(?:closest|nearest|closer|nearer|close) to (?:the|a|an) ",
+        " near the ",
+        obj,
+    )
+    obj = re.sub(r"(?<=\w) (?:nearest|closest) (?:the|a|an) ", " near the ", obj)
+    return re.sub(r"(?<=\w) (?:at|by) (?:the|a|an) ", " next to the ", obj)

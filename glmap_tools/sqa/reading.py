@@ -37,7 +37,7 @@ _LEAD = re.compile(
 )
 _FACE_VERB = (
     r"(?:facing away from|facing towards?|facing|face|looking (?:at|towards?|into|out of|out)|"
-    r"look(?:ing)? towards?|watching|turned (?:to|towards?)|"
+    r"look(?:s|ing)? (?:at|towards?|into|out of)|watching|turned (?:to|towards?)|"
     r"(?:oriented|orientated|pointed|pointing) (?:to|towards?|at)|staring at|gazing at|"
     r"with my (?:face|eyes) (?:to|towards?)|my face is towards?|i see|i can see)"
 )
@@ -78,6 +78,7 @@ _PATTERNS: list[tuple[str, re.Pattern[str]]] = [
         ),
     ),
     ("behind", re.compile(r"^(?:i am )?facing away from (?P<x>.+)$")),
+    ("behind", re.compile(r"^(?:at|behind) my back" + _THERE + r"(?P<x>.+)$")),
     ("behind", re.compile(r"^" + _JUST + r"behind me" + _THERE + r"(?P<x>.+)$")),
     ("behind", re.compile(r"^(?P<x>.+?) " + _IS + _JUST + r"behind (?:me|my back|my head)$")),
     ("behind", re.compile(r"^(?:i have )?(?P<x>.+?) at my back$")),
@@ -262,13 +263,33 @@ def _clauses(text: str) -> list[str]:
         r"|(?:the|a|an)\s[\w\s-]+?\son (?:either|both|each) sides? of me\b)",
         t,
     )
-    return [p.strip() for p in parts if p and p.strip()]
+    out: list[str] = []
+    for p in (p.strip() for p in parts if p and p.strip()):
+        ego = asides.relative_ego(p)
+        if ego and out:  # "by the dishwasher, which is to my left": the dishwasher's side
+            out[-1] = f"{out[-1]} {ego}"
+        elif not asides.RELATIVE.match(p):  # any other ", which ..." names no place
+            out.append(p)
+    return out
 
 
 def _position(clause: str, out: dict[str, Any]) -> None:
     """Fill posture / activity / relation / anchor from a position clause."""
     rest = _LEAD.sub("", clause).strip()
+    # "i have just sat down on the couch": the perfect's auxiliary goes
+    rest = re.sub(
+        r"^(?:have|has|had)\s+(?:(?:just|already|finally|now|recently)\s+)*(?:been\s+)?"
+        r"(?=(?:\w+ed|sat|stood|knelt|lain|\w+ing)\b)",
+        "",
+        rest,
+    )
     rest = _VERB.sub("", rest)
+    # "i wash dishes at the sink": a verb with its object before the place
+    present = re.match(
+        r"^(?:i|we)\s+(?!(?:am|are|was|were|have|has|had|can|could|will|would|do|did|may|"
+        r"might|must|should|see|look|face)\b)([a-z]+)\s+(?!" + _REL_START[1:] + r")",
+        clause,
+    )
     # "i relax in the armchair": after "i", a word before the place is a verb
     verb = re.match(
         r"^(?:i|we)\s+(?!(?:am|are|was|were|have|had)\b)([a-z]+)\s+" + _REL_START[1:], clause
@@ -295,7 +316,12 @@ def _position(clause: str, out: dict[str, Any]) -> None:
         # an adverb between the posture and the place: "sitting cross-legged on the rug"
         if not re.match(_REL_START, rest):
             rest = re.sub(r"^(?!(?:the|a|an|my)\b)[\w-]+\s+(?=" + _REL_START[1:] + ")", "", rest)
-    elif words and words[0].endswith("ing") and words[0] not in ("facing", "looking"):
+    elif words and (
+        words[0].endswith("ing")
+        and words[0] not in ("facing", "looking")
+        or present is not None
+        and words[0] == present.group(1)
+    ):
         # An activity: "rinsing a cup at the kitchen sink", "closing the curtains".
         m = re.search(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s", " " + rest + " ")
         loc = None
@@ -306,6 +332,11 @@ def _position(clause: str, out: dict[str, Any]) -> None:
             if m.group(1) not in ("with", "to", "into", "over") or not head.split()[1:]:
                 out.setdefault("activity", head or words[0])
                 loc = tail
+            worked = object_words(" ".join(head.split()[1:]))
+            if re.match(r"(?:" + asides.IN_PLACE + r")$", words[0]) and m.group(1) in (
+                asides.NEAR_WORDS
+            ):  # "watering the plant near the window": I am at the plant
+                loc = f"at the {worked} {tail}" if worked else loc
         if loc is None:
             out.setdefault("activity", rest)
             obj = object_words(" ".join(words[1:]))
@@ -335,6 +366,7 @@ def _position(clause: str, out: dict[str, Any]) -> None:
     if sub and object_words(sub.group(1)) in ROOMS:
         room, rel, obj = object_words(sub.group(1)), sub.group(2), object_words(sub.group(3))
         obj = f"{obj} in the {room}"
+    obj = asides.qualifiers(obj)  # "a stool at the kitchen island": stool next to the island
     if obj and (not out.get("anchor") or out.get("relation") == "in" and obj not in ROOMS):
         if out.get("anchor") and out.get("relation") == "in":
             obj = f"{obj} in the {out['anchor']}"

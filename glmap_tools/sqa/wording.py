@@ -373,6 +373,10 @@ _WRAPPER = re.compile(
 _QWORD = r"(?:what|which|where|how|is|are|can|could|do|does|should|would|will|am|shall|must)\b"
 _BE = r"(?:is|are)"
 _SYNONYMS = (
+    # "can you count the pillows around me", "please count how many chairs there are"
+    (r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?)?count (?=how many\b)", ""),
+    (r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?)?(?=count\b)", ""),
+    (r"^(how many [a-z][a-z -]*?) there (is|are)$", r"\1 \2 there"),
     (
         r"\b(?:am i able to|is it possible (?:for me )?to|would i be able to|will i be able to"
         r"|could i be able to)\b",
