@@ -6,7 +6,14 @@ object, activity leftovers, side/behind/clock words, texts not opening with "I",
 direction intents, counts, comparisons, shape, divisibility, "if I turn around".
 
 Measured on the code as it stood when the set was written:
-before: 43 / 48 situations read right, 63 / 64 questions to their family."""
+before: 43 / 48 situations read right, 63 / 64 questions to their family.
+After round four's rules (tuned on round three's misreads and its own tuned sentences, never
+on this set): 46 / 48 situations, 63 / 64 questions. The three situations gained share
+their pattern with misreads of the earlier sets ("At my back is X", ", which is on my
+right", "watering the X near the Y"). Still misread: a leading "Just before going out,"
+(read as the anchor), "I cannot see the fridge from where I stand at the counter" (the
+negation drops the whole clause, place included), and "If I turn around, will the door be
+visible?" (no family)."""
 
 import json
 from pathlib import Path
@@ -14,7 +21,7 @@ from pathlib import Path
 from glmap_tools.sqa.answer import question_type
 from tests.test_sqa_round2 import _read_right
 
-HELD_OUT_FLOOR = {"situations": 0.89, "questions": 0.98}  # measured: 43 / 48, 63 / 64
+HELD_OUT_FLOOR = {"situations": 0.95, "questions": 0.98}  # measured: 46 / 48, 63 / 64
 DATA = Path(__file__).parent / "data"
 HELD_OUT = json.loads((DATA / "sqa_round4_heldout.json").read_text())
 
