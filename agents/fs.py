@@ -83,7 +83,7 @@ class OracleRoom:
     @classmethod
     def for_episode(cls, episode_id: str) -> OracleRoom:
         # glmap_tools.sim loads gymnasium: only the oracle needs it, not the runner's start.
-        from glmap_tools.sim.benchmark import bench_episode, bench_layout
+        from glmap_tools.worlds.splits import bench_episode, bench_layout
 
         be = bench_episode(episode_id)
         layout = bench_layout(be.layout_path)

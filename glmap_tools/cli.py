@@ -12,7 +12,7 @@ from glmap_tools.errors import GLMapError
 # Each module provides `register(subparsers)`, adding its subcommand(s) with a `func`.
 COMMAND_MODULES = [
     "glmap_tools.ingest.cli",
-    "glmap_tools.sim.cli",
+    "glmap_tools.worlds.cli",
     "glmap_tools.server.demo",
     "glmap_tools.language.cli",
     "glmap_tools.eval.cli",

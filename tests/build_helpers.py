@@ -16,7 +16,7 @@ def write_small_tour(scene: str, folder: Path, frames: int = 8) -> Path:
     """`frames` frames (160x120, annotated) of a tour of bench scene `scene` into `folder`."""
     from glmap_tools.sim.layout_io import load_layout
     from glmap_tools.sim.render import CameraSpec
-    from glmap_tools.sim.tour import write_tour
+    from glmap_tools.worlds.tour import write_tour
 
     layout = load_layout(BENCH / scene / "layout.json")
     write_tour(layout, folder, CameraSpec(160, 120), step=0.5, spin=4, max_frames=frames)

@@ -12,7 +12,7 @@ import pytest
 from agents.fs import OracleRoom, Recorded, RegionView, region_scorer, region_views, split_agent
 from agents.runner import open_session, run_episode
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.sim.benchmark import bench_episode, bench_layout, load_split
+from glmap_tools.worlds.splits import bench_episode, bench_layout, load_split
 from tests.test_server_fixtures import config
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")

@@ -11,7 +11,7 @@ import pytest
 from agents.runner import AGENTS, EpisodeResult, main, open_session, run_episode
 from agents.trace import ToolCallError
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.sim.benchmark import load_split
+from glmap_tools.worlds.splits import load_split
 from tests.test_server_fixtures import config
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")

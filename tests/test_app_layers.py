@@ -107,11 +107,11 @@ def test_the_app_imports_neither_face_nor_the_mcp_sdk():
 
 
 def test_a_session_and_the_app_state_are_typed_field_by_field():
-    from glmap_tools.app import navigation, runtime, session, state  # noqa: F401
+    from glmap_tools.app import nav_session, runtime, session, state  # noqa: F401
 
-    namespace = {**vars(session), **vars(navigation), **vars(runtime)}
+    namespace = {**vars(session), **vars(nav_session), **vars(runtime)}
     namespace.update(_type_names())
-    for cls in (session.Session, session.LiveMap, navigation.NavSession, runtime.AppState):
+    for cls in (session.Session, session.LiveMap, nav_session.NavSession, runtime.AppState):
         hints = typing.get_type_hints(cls, localns=namespace)
         for f in dataclasses.fields(cls):
             assert Any not in _leaves(hints[f.name]), f"{cls.__name__}.{f.name} is Any"

@@ -11,7 +11,7 @@ from glmap_tools.bench.report import Report
 from glmap_tools.bench.rooms import RoomScores, episode_room_scores, main, room_table
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.nav.scorers import UnitText
-from glmap_tools.sim.benchmark import bench_layout, load_split
+from glmap_tools.worlds.splits import bench_layout, load_split
 
 
 class WordScorer:

@@ -13,7 +13,7 @@ from mcp import Client
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.nav.scorers import ClientScorer, ClientScores, UnitText
 from glmap_tools.server import build_server
-from glmap_tools.sim.benchmark import load_split
+from glmap_tools.worlds.splits import load_split
 from tests.test_server_fixtures import config
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")

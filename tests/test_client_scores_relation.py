@@ -7,12 +7,12 @@ import functools
 
 import numpy as np
 
-from glmap_tools.language import search_eval as se
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map.queries import parse_relation
 from glmap_tools.nav import EmbeddingScorer, map_units
 from glmap_tools.nav.scorers import RelationScorer
-from glmap_tools.sim.generator import generate_apartment
+from glmap_tools.worlds import search_eval as se
+from glmap_tools.worlds.generator import generate_apartment
 
 # Scene 1's kitchen, along x = 9.98: refrigerator (y 0.44), navy kitchen cabinet 9 (1.09),
 # sink (1.79), navy kitchen cabinet 11 (2.50), grey stove (3.10). Both cabinets read

@@ -67,6 +67,8 @@ SLOW = {
     "glmap eval": "plays benchmark episodes",
     "python -m glmap_tools.bench": "benchmarks take minutes",
     "python -m glmap_tools.language": "embeds hundreds of texts with MiniLM",
+    "python -m glmap_tools.worlds": "builds maps of generated apartments, embeds with MiniLM",
+    "python -m glmap_tools.regression": "replays seeded episodes and tours (minutes)",
 }
 
 

@@ -188,7 +188,7 @@ def test_a_malformed_ray_address_says_what_forms_work() -> None:
 
 
 def test_the_selection_is_the_first_scenes_and_their_first_episodes() -> None:
-    from glmap_tools.sim.benchmark import load_split
+    from glmap_tools.worlds.splits import load_split
 
     every = load_split("tune", "instnav")
     scenes = sorted({be.scene for be in every})[:2]

@@ -20,9 +20,9 @@ from glmap_tools.errors import InvalidInputError, UnknownIdError
 from glmap_tools.eval import EvalSpec
 from glmap_tools.eval.by_difficulty import episode_difficulties
 from glmap_tools.server import ServerConfig
-from glmap_tools.sim.benchmark import bench_episode, load_split
 from glmap_tools.sim.episodes import load_episodes
 from glmap_tools.sim.layout_io import load_layout
+from glmap_tools.worlds.splits import bench_episode, load_split
 
 
 def rotated_scan(yaw_deg: float, name: str) -> dict:
@@ -92,7 +92,7 @@ def test_a_turned_two_room_scan_of_bounding_boxes_becomes_rooms_with_furniture_s
     tmp_path: Path,
 ) -> None:
     from glmap_tools.sim.layout import LayoutWarning
-    from glmap_tools.sim.scan import layout_from_scan
+    from glmap_tools.worlds.scan import layout_from_scan
 
     with pytest.warns(LayoutWarning) as reported:
         layout = layout_from_scan(two_room_scan(27.0), use_meshes=False)

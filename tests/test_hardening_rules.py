@@ -61,8 +61,8 @@ def test_spl_is_success_times_shortest_over_the_longer_of_path_and_shortest():
     from glmap_tools.sim.agents import OracleAgent, run_episodes
     from glmap_tools.sim.env import ObjectNavEnv
     from glmap_tools.sim.episodes import generate_episodes
-    from glmap_tools.sim.generator import generate_apartment
     from glmap_tools.sim.render import CameraSpec
+    from glmap_tools.worlds.generator import generate_apartment
 
     layout = generate_apartment(5, n_rooms=3)
     episodes = generate_episodes(layout, "objectnav", 1, seed=1)

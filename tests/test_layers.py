@@ -28,15 +28,17 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("map",),
     ("nav",),
     ("views",),
+    ("ingest",),  # RGB-D folders on disk; a simulator tour is written as one
     ("sim",),
+    ("worlds",),  # generated scenes and the data sets drawn from them; a split builds its env
     ("sqa",),
-    ("ingest",),
     ("app",),
     ("server", "toolset"),
     ("agents",),
     ("eval",),
-    ("cli",),  # `glmap`: loads its subcommands (ingest, sim, demo, language, eval) by name
+    ("cli",),  # `glmap`: loads its subcommands (ingest, worlds: sim, demo, language, eval) by name
     ("bench",),  # benchmarks may run `glmap` itself
+    ("regression",),  # the replay check prints through bench's Report
 )
 
 # (importer, imported): why the arrow still runs upwards.
@@ -44,19 +46,10 @@ UPWARD: dict[tuple[str, str], str] = {
     ("glmap_tools.language.backends", "glmap_tools.nav"): (
         "make_scorer builds nav's f_S scorers from the LLM settings; it belongs beside them"
     ),
-    ("glmap_tools.language.search_eval", "glmap_tools.map"): (
-        "search-quality evaluation builds maps of generated apartments: an evaluation, "
-        "kept in language/ until the folders are sorted"
-    ),
-    ("glmap_tools.language.search_eval", "glmap_tools.map.units"): "as above",
-    ("glmap_tools.language.search_eval", "glmap_tools.sim.generator"): "as above",
-    ("glmap_tools.language.search_eval", "glmap_tools.sim.layout"): "as above",
-    ("glmap_tools.language.search_queries", "glmap_tools.sim.generator"): (
-        "the search queries are drawn from generated apartments: dataset generation"
-    ),
-    ("glmap_tools.language.search_queries", "glmap_tools.sim.layout"): "as above",
-    ("glmap_tools.sim.tour", "glmap_tools.ingest.images"): (
-        "a tour saved as an RGB-D dataset folder writes it with ingest's image I/O"
+    ("glmap_tools.sim.env", "glmap_tools.worlds.generator"): (
+        "an env made without a layout (`gymnasium.make`, `scene_seed`) generates its "
+        "apartment; the generator needs the navigable grid below the env, so it cannot sit "
+        "under sim"
     ),
     ("glmap_tools.sqa.diagnose", "glmap_tools.eval.sqa"): (
         "the SQA diagnosis reuses the evaluation's scene answering: a report that belongs in eval"

@@ -16,7 +16,7 @@ from scipy import ndimage
 from glmap_tools.map.occupancy import FREE, OBSTACLE, DenseOccupancy
 from glmap_tools.nav import NavConfig, bump_cells, plan
 from glmap_tools.sim.motion import Action, AgentState, MotionConfig, apply_action
-from glmap_tools.sim.navigation import NavGrid
+from glmap_tools.sim.navgrid import NavGrid
 
 CELL = 0.05
 CONFIG = NavConfig()
@@ -26,7 +26,7 @@ ACTION["turn_right"] = Action.TURN_RIGHT
 
 def grid_of(free: np.ndarray) -> NavGrid:
     """The simulator's rule: a centre is navigable when the nearest blocked cell's edge is
-    at least the agent radius away (sim.navigation.build_nav_grid)."""
+    at least the agent radius away (sim.navgrid.build_nav_grid)."""
     clearance = ndimage.distance_transform_edt(free) * CELL
     navigable = clearance - CELL / 2 >= CONFIG.agent_radius - 1e-9
     return NavGrid(np.zeros(2), CELL, free, navigable, CONFIG.agent_radius)
@@ -95,7 +95,7 @@ def starts(free: np.ndarray, n: int, seed: int, x_max: float) -> list[AgentState
 def test_the_narrowest_doorway_of_the_benchmark_is_crossed_without_a_collision() -> None:
     """A 0.56 m doorway: the body (0.36 m) plus the simulator's half cell each side is
     0.41 m, so 3 cells of centre positions are left, the narrowest passage a benchmark
-    episode may need (sim.navigation.MIN_PASSAGE_CELLS). From 20 starts in the left room,
+    episode may need (sim.navgrid.MIN_PASSAGE_CELLS). From 20 starts in the left room,
     with headings off the walls' axes, the agent reaches the right room without one
     collision and never turns more than half a circle in place."""
     free = flat(door=0.56)

@@ -11,8 +11,8 @@ from glmap_tools.errors import InvalidInputError
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap
 from glmap_tools.sim.layout_io import load_layout
-from glmap_tools.sim.map_eval import build_map_from_tour, evaluate_instances
 from glmap_tools.sim.render import CameraSpec
+from glmap_tools.worlds.map_eval import build_map_from_tour, evaluate_instances
 
 LAYOUT = Path(glmap_tools.__file__).parent / "data" / "benchmark" / "tune" / "s01" / "layout.json"
 

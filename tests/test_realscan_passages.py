@@ -8,7 +8,7 @@ import warnings
 import pytest
 
 from glmap_tools.sim.layout import LayoutWarning
-from glmap_tools.sim.scan import layout_from_scan, narrow_passages
+from glmap_tools.worlds.scan import layout_from_scan, narrow_passages
 
 
 def study(gap: float) -> dict:

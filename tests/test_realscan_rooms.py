@@ -12,7 +12,7 @@ import pytest
 
 from glmap_tools import cli
 from glmap_tools.sim.layout import LayoutWarning
-from glmap_tools.sim.scan import layout_from_scan, narrow_passages
+from glmap_tools.worlds.scan import layout_from_scan, narrow_passages
 from tests.realscan_rooms import scans, write_scans
 
 

@@ -16,7 +16,7 @@ import pytest
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.sim.layout import LayoutWarning
-from glmap_tools.sim.scan import box_in_room_frame, layout_from_scan
+from glmap_tools.worlds.scan import box_in_room_frame, layout_from_scan
 
 # (category, x, y in the room's frame, width, depth, height, bottom z, extra turn in deg)
 BEDROOM = [

@@ -1,6 +1,6 @@
 """Seeded episodes replay as recorded: actions, poses, goal matches and the map's instances.
 
-The golden file comes from `python -m glmap_tools.bench replay-check --golden`; rewrite it
+The golden file comes from `python -m glmap_tools.regression.replay --golden`; rewrite it
 only for a change meant to change how the agent moves or what the map holds, and say so.
 """
 
@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from glmap_tools.bench.replay_check import GOLDEN, GOLDEN_EPISODES, golden_record
+from glmap_tools.regression.replay import GOLDEN, GOLDEN_EPISODES, golden_record
 
 pytestmark = pytest.mark.slow
 

@@ -15,12 +15,12 @@ import pytest
 from mcp import Client
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.language import search_eval as se
 from glmap_tools.language.embed import HashingEmbedder, default_embedder
-from glmap_tools.language.search_queries import build, default_queries_path
 from glmap_tools.map import queries
 from glmap_tools.server import build_server
-from glmap_tools.sim.generator import generate_apartment
+from glmap_tools.worlds import search_eval as se
+from glmap_tools.worlds.generator import generate_apartment
+from glmap_tools.worlds.search_queries import build, default_queries_path
 from tests.test_server_fixtures import config, frame_args
 
 

@@ -14,7 +14,7 @@ from mcp import Client
 
 from glmap_tools.bench.calls import play
 from glmap_tools.server import ServerConfig, build_server
-from glmap_tools.sim.benchmark import load_split
+from glmap_tools.worlds.splits import load_split
 from tests.test_server_fixtures import config, counts, frame_args
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")

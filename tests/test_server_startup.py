@@ -162,7 +162,7 @@ HEAVY = (
     "sentence_transformers",
     "gymnasium",
     "glmap_tools.sim.episodes",
-    "glmap_tools.sim.scene_dirs",
+    "glmap_tools.worlds.scene_dirs",
     "glmap_tools.gaussians",
     "glmap_tools.language.embed",
 )

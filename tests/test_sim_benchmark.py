@@ -11,7 +11,13 @@ import numpy as np
 import pytest
 
 from glmap_tools.errors import InvalidInputError, UnknownIdError
-from glmap_tools.sim.benchmark import (
+from glmap_tools.sim.episodes import TASKS, episodes_to_dict, goal_cells
+from glmap_tools.sim.layout_io import layout_to_dict
+from glmap_tools.sim.navgrid import NavGrid, build_nav_grid
+from glmap_tools.sim.render import CameraSpec
+from glmap_tools.sim.sight import SightChecker
+from glmap_tools.worlds.generator import generate_apartment
+from glmap_tools.worlds.splits import (
     SPLIT_SPECS,
     SPLITS,
     bench_episode,
@@ -24,12 +30,6 @@ from glmap_tools.sim.benchmark import (
     scene_episodes,
     split_dir,
 )
-from glmap_tools.sim.episodes import TASKS, episodes_to_dict, goal_cells
-from glmap_tools.sim.generator import generate_apartment
-from glmap_tools.sim.layout_io import layout_to_dict
-from glmap_tools.sim.navigation import NavGrid, build_nav_grid
-from glmap_tools.sim.render import CameraSpec
-from glmap_tools.sim.sight import SightChecker
 
 
 def test_regenerating_a_scene_reproduces_its_checked_in_layout_and_episodes() -> None:

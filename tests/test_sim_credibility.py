@@ -17,10 +17,10 @@ from glmap_tools.errors import InvalidInputError
 from glmap_tools.sim.catalog import CATEGORY_ALIASES, CATEGORY_MESH, resolve_category
 from glmap_tools.sim.layout import LayoutWarning
 from glmap_tools.sim.layout_io import layout_from_dict, load_layout, save_layout
-from glmap_tools.sim.navigation import build_nav_grid, is_flat
-from glmap_tools.sim.scan import layout_from_scan
-from glmap_tools.sim.tour import plan_tour
+from glmap_tools.sim.navgrid import build_nav_grid, is_flat
 from glmap_tools.sim.wallfit import clears_walls
+from glmap_tools.worlds.scan import layout_from_scan
+from glmap_tools.worlds.tour import plan_tour
 
 ROOM = {"id": 1, "type": "living room", "polygon": [[0, 0], [6, 0], [6, 4], [0, 4]]}
 

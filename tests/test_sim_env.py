@@ -18,9 +18,9 @@ from glmap_tools.perception.annotated import semantics_from_annotation
 from glmap_tools.sim.agents import OracleAgent, RandomAgent, run_episodes, summarize
 from glmap_tools.sim.env import InstNavEnv, ObjectNavEnv
 from glmap_tools.sim.episodes import generate_episodes
-from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.motion import Action
 from glmap_tools.sim.render import CameraSpec
+from glmap_tools.worlds.generator import generate_apartment
 
 SMALL = CameraSpec(160, 120)
 

@@ -15,10 +15,10 @@ from glmap_tools.sim.episodes import (
     load_episodes,
     save_episodes,
 )
-from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.instnav import describe_instance, instance_goals
 from glmap_tools.sim.layout_io import layout_from_dict
-from glmap_tools.sim.navigation import build_nav_grid
+from glmap_tools.sim.navgrid import build_nav_grid
+from glmap_tools.worlds.generator import generate_apartment
 
 
 @pytest.fixture(scope="module")
@@ -161,7 +161,7 @@ def test_episodes_leave_out_goals_too_small_or_too_high_for_the_camera(tmp_path,
 
     from glmap_tools import cli
     from glmap_tools.sim.layout_io import save_layout
-    from glmap_tools.sim.scan import layout_from_scan
+    from glmap_tools.worlds.scan import layout_from_scan
 
     def box(i: int, category: str, xyz: list[float], size: list[float]) -> dict:
         return {"id": i, "category": category, "center": xyz, "size": size, "yaw": 0.0}

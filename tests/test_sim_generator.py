@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.layout_io import layout_from_dict, layout_to_dict
-from glmap_tools.sim.navigation import build_nav_grid
+from glmap_tools.sim.navgrid import build_nav_grid
+from glmap_tools.worlds.generator import generate_apartment
 
 SEEDS = [0, 3, 7, 12, 21]
 

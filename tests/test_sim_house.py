@@ -8,18 +8,18 @@ import numpy as np
 import pytest
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.sim.clutter import (
+from glmap_tools.sim.layout import Layout
+from glmap_tools.sim.layout_io import layout_from_dict, layout_to_dict
+from glmap_tools.sim.navgrid import build_nav_grid
+from glmap_tools.worlds.clutter import (
     GOAL_CATEGORIES,
     SMALL_ON_SURFACES,
     UNLIKELY,
     UNLIKELY_RATE,
     unlikely_categories,
 )
-from glmap_tools.sim.generator import generate_apartment, generate_house
-from glmap_tools.sim.layout import Layout
-from glmap_tools.sim.layout_io import layout_from_dict, layout_to_dict
-from glmap_tools.sim.navigation import build_nav_grid
-from glmap_tools.sim.specs import KINDS
+from glmap_tools.worlds.generator import generate_apartment, generate_house
+from glmap_tools.worlds.specs import KINDS
 
 # 18 houses of about ten rooms each: ~180 rooms for the unlikely-object rate.
 SEEDS = range(500, 518)

@@ -13,7 +13,11 @@ import numpy as np
 import pytest
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.sim.benchmark import (
+from glmap_tools.sim.episodes import TASKS, episodes_to_dict, goal_distance_field, goal_pool
+from glmap_tools.sim.layout_io import layout_to_dict
+from glmap_tools.worlds.clutter import GOAL_CATEGORIES, unlikely_categories
+from glmap_tools.worlds.scene_dirs import read_scene_episodes
+from glmap_tools.worlds.splits import (
     SPLIT_SPECS,
     bench_episode,
     bench_grid,
@@ -25,10 +29,6 @@ from glmap_tools.sim.benchmark import (
     split_dir,
     split_perception,
 )
-from glmap_tools.sim.clutter import GOAL_CATEGORIES, unlikely_categories
-from glmap_tools.sim.episodes import TASKS, episodes_to_dict, goal_distance_field, goal_pool
-from glmap_tools.sim.layout_io import layout_to_dict
-from glmap_tools.sim.scene_dirs import read_scene_episodes
 
 HOUSE_SPLITS = ("house-tune", "house-bench")
 

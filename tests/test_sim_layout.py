@@ -12,7 +12,7 @@ import pytest
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.sim.layout import LayoutWarning
 from glmap_tools.sim.layout_io import layout_from_dict, layout_to_dict, load_layout, save_layout
-from glmap_tools.sim.scan import layout_from_scan
+from glmap_tools.worlds.scan import layout_from_scan
 
 HAND_WRITTEN = {
     "name": "two rooms",

@@ -8,9 +8,9 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 import pytest
 
-from glmap_tools.sim.generator import generate_apartment
-from glmap_tools.sim.map_eval import build_map_from_tour, evaluate_instances
 from glmap_tools.sim.render import CameraSpec
+from glmap_tools.worlds.generator import generate_apartment
+from glmap_tools.worlds.map_eval import build_map_from_tour, evaluate_instances
 
 map_module = pytest.importorskip("glmap_tools.map")
 embed = pytest.importorskip("glmap_tools.language.embed")
@@ -37,7 +37,7 @@ def test_an_empty_map_has_zero_precision_and_recall() -> None:
 def test_map_eval_reports_duplicate_instances_and_duplicate_regions() -> None:
     import dataclasses
 
-    from glmap_tools.sim.map_eval import duplicate_regions
+    from glmap_tools.worlds.map_eval import duplicate_regions
 
     layout = generate_apartment(5, n_rooms=3)
     glmap = map_module.GLMap(embedder=embed.HashingEmbedder())

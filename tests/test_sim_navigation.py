@@ -9,7 +9,7 @@ import pytest
 
 from glmap_tools.sim.geodesic import geodesic_distance, geodesic_distance_reference
 from glmap_tools.sim.layout_io import layout_from_dict
-from glmap_tools.sim.navigation import AGENT_RADIUS, build_nav_grid
+from glmap_tools.sim.navgrid import AGENT_RADIUS, build_nav_grid
 
 
 def _two_rooms(door_width: float, objects: list | None = None):

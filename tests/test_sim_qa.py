@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.layout_io import layout_from_dict
-from glmap_tools.sim.navigation import build_nav_grid
-from glmap_tools.sim.qa import bearing, generate_qa, heading_from_rotation
+from glmap_tools.sim.navgrid import build_nav_grid
+from glmap_tools.worlds.generator import generate_apartment
+from glmap_tools.worlds.qa import bearing, generate_qa, heading_from_rotation
 
 
 @pytest.fixture(scope="module")
@@ -208,7 +208,7 @@ def phrased(layout):
 
 
 def test_phrasings_keep_the_poses_and_plain_answers_and_vary_the_words(qa, phrased) -> None:
-    from glmap_tools.sim.qa_phrasings import QUESTION_FORMS, SITUATION_FORMS
+    from glmap_tools.worlds.qa_phrasings import QUESTION_FORMS, SITUATION_FORMS
 
     plain = {(q["position"]["_x"], q["position"]["_y"], q["heading"]) for q in qa["questions"]}
     poses = {(q["position"]["_x"], q["position"]["_y"], q["heading"]) for q in phrased["questions"]}

@@ -15,10 +15,10 @@ from glmap_tools.cli import main as glmap_main
 from glmap_tools.geometry import Pose
 from glmap_tools.ingest.datasets import open_sequence
 from glmap_tools.ingest.images import read_annotation
-from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.layout_io import load_layout, save_layout
 from glmap_tools.sim.render import CameraSpec, SceneRenderer
-from glmap_tools.sim.tour import plan_tour, write_tour
+from glmap_tools.worlds.generator import generate_apartment
+from glmap_tools.worlds.tour import plan_tour, write_tour
 
 SMALL = CameraSpec(160, 120)
 
@@ -29,7 +29,7 @@ def layout():
 
 
 def test_the_tour_visits_every_room_and_stays_on_navigable_floor(layout) -> None:
-    from glmap_tools.sim.navigation import build_nav_grid
+    from glmap_tools.sim.navgrid import build_nav_grid
 
     stops = plan_tour(layout, step=0.4, spin=4)
     grid = build_nav_grid(layout)

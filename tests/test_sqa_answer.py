@@ -5,8 +5,6 @@ import math
 
 import pytest
 
-from glmap_tools.sim.generator import generate_apartment
-from glmap_tools.sim.qa import generate_qa
 from glmap_tools.sqa import situate
 from glmap_tools.sqa.answer import (
     OfflineAnswerer,
@@ -17,6 +15,8 @@ from glmap_tools.sqa.answer import (
     question_type,
 )
 from glmap_tools.sqa.surroundings import direction_of, surroundings
+from glmap_tools.worlds.generator import generate_apartment
+from glmap_tools.worlds.qa import generate_qa
 from tests.test_sqa_situate import (
     glmap,  # noqa: F401  (the hand-built scene fixture)
     two_rooms_map,  # noqa: F401  (a wall between two rooms)

@@ -6,9 +6,9 @@ import copy
 import pytest
 
 from glmap_tools.eval.sqa import reading_ok
-from glmap_tools.sim.benchmark import bench_layout, split_dir
-from glmap_tools.sim.qa import generate_qa, situation_phrase
 from glmap_tools.sqa.more_phrasings import HELD_OUT, QUESTION_FORMS, more_questions
+from glmap_tools.worlds.qa import generate_qa, situation_phrase
+from glmap_tools.worlds.splits import bench_layout, split_dir
 
 
 @pytest.fixture(scope="module")

@@ -38,9 +38,9 @@ def calibrate(rows: list[dict[str, Any]]) -> float:
 
 
 def main() -> None:
-    from glmap_tools.language import search_eval as se
     from glmap_tools.language.calibration import make_embedder
     from glmap_tools.map.queries import MATCH_RULES, phrasings
+    from glmap_tools.worlds import search_eval as se
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--embedder", choices=("minilm", "hashing"), default="minilm")

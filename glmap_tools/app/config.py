@@ -69,7 +69,7 @@ class ServerConfig:
         map_wait_s: how long a tool call waits for the map of `map_name` while another
             process holds it, before failing.
         scene_dirs: scene folders of one's own by name (`glmap-mcp --scenes-dir NAME=DIR`,
-            `glmap_tools.sim.scene_dirs`): sim_reset plays their episodes by id,
+            `glmap_tools.worlds.scene_dirs`): sim_reset plays their episodes by id,
             '<name>/<task>/<scene>-<index>', like those of the built-in splits.
     """
 
@@ -149,7 +149,7 @@ class ServerConfig:
                 f"map_wait_s={self.map_wait_s!r} must be a number of seconds within 0..3600."
             )
         if self.scene_dirs:
-            from glmap_tools.sim.scene_dirs import check_scene_dirs
+            from glmap_tools.worlds.scene_dirs import check_scene_dirs
 
             object.__setattr__(self, "scene_dirs", check_scene_dirs(self.scene_dirs))
         if self.file_roots is not None:

@@ -115,7 +115,7 @@ def restore_episode(session: Session, text: str, config: ServerConfig, embedder:
     Raises:
         StoreError: the record cannot be read or replayed.
     """
-    from glmap_tools.app import navsession, simulator
+    from glmap_tools.app import nav_steps, simulator
     from glmap_tools.nav.config import ACTIONS
 
     try:
@@ -152,12 +152,12 @@ def restore_episode(session: Session, text: str, config: ServerConfig, embedder:
         from glmap_tools.language.backends import make_scorer
 
         scorer = make_scorer(config.llm, embedder)
-    nav = navsession.start(session, sim, embedder, scorer)
+    nav = nav_steps.start(session, sim, embedder, scorer)
     glmap = session.live.glmap
-    navsession.follow(nav, sim, glmap)
+    nav_steps.follow(nav, sim, glmap)
     for action in actions:
         simulator.step(sim, action)
-        navsession.follow(nav, sim, glmap)
+        nav_steps.follow(nav, sim, glmap)
     if rec.get("nav"):
         apply_memory(nav.state, rec["nav"])
     client = rec.get("client_scores")

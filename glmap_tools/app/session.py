@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Protocol
 from glmap_tools.errors import InvalidInputError
 
 if TYPE_CHECKING:
-    from glmap_tools.app.navigation import NavSession
+    from glmap_tools.app.nav_session import NavSession
     from glmap_tools.app.simulator import SimEpisode
     from glmap_tools.map import GLMap
 

@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from glmap_tools.geometry.frame import RGBDFrame
     from glmap_tools.perception.semantics import FrameSemantics
     from glmap_tools.sim.env import NavEnv
-    from glmap_tools.sim.scene_dirs import BenchEpisode, SceneDirs
+    from glmap_tools.worlds.scene_dirs import BenchEpisode, SceneDirs
 
 T = TypeVar("T")
 TASKS = ("objectnav", "instnav")
@@ -72,7 +72,7 @@ class SimEpisode:
         scene: seed of the generated apartment (-1 for a benchmark scene).
         env: the gymnasium env (used on the simulator thread only).
         key: what the env was built for; a reset with the same key reuses it.
-        bench: the `glmap_tools.sim.benchmark.BenchEpisode` being played, or None.
+        bench: the `glmap_tools.worlds.splits.BenchEpisode` being played, or None.
         obs, info: the latest observation and info.
         over: whether the episode ended (stop or step limit).
         truncated: whether it ended by the step limit.
@@ -154,7 +154,7 @@ def bench_episode(episode_id: str, scene_dirs: SceneDirs | None = None) -> Bench
     Raises:
         UnknownIdError: no such episode (the message suggests the closest id).
     """
-    from glmap_tools.sim.benchmark import bench_episode as lookup
+    from glmap_tools.worlds.splits import bench_episode as lookup
 
     return lookup(episode_id, scene_dirs)
 
@@ -166,8 +166,8 @@ def open_bench(
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
     def make() -> NavEnv:
-        from glmap_tools.sim.benchmark import make_env
         from glmap_tools.sim.render import CameraSpec
+        from glmap_tools.worlds.splits import make_env
 
         camera = CameraSpec(width=size[0], height=size[1])
         env = make_env(bench, camera, max_steps=max_steps)

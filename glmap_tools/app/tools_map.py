@@ -20,7 +20,7 @@ from glmap_tools.app.inputs import (
     read_frame_files,
 )
 from glmap_tools.app.memory import frame_work, frame_work_bytes
-from glmap_tools.app.navsession import from_agent
+from glmap_tools.app.nav_steps import from_agent
 from glmap_tools.app.results import (
     FromAgent,
     Hits,

@@ -14,7 +14,7 @@ import anyio.from_thread
 import numpy as np
 from pydantic import Field
 
-from glmap_tools.app import navsession, simulator
+from glmap_tools.app import nav_steps, simulator
 from glmap_tools.app.inputs import SessionArg
 from glmap_tools.app.navdraw import contact_sheet, jpeg, nav_image
 from glmap_tools.app.results import ImageResult, Picture
@@ -73,14 +73,14 @@ def _config(session: Session) -> "NavConfig":
     """The episode's NavConfig, or the defaults without an episode."""
     from glmap_tools.nav import NavConfig
 
-    nav = navsession.of(session)
+    nav = nav_steps.of(session)
     return nav.config if nav is not None else NavConfig()
 
 
 def _goal(session: Session, goal: str) -> str:
     if goal.strip():
         return goal.strip()
-    nav = navsession.of(session)
+    nav = nav_steps.of(session)
     if nav is None:
         raise InvalidInputError(
             "no goal: pass goal='a sofa' (or start a simulator episode with sim_reset, whose "
@@ -91,7 +91,7 @@ def _goal(session: Session, goal: str) -> str:
 
 def _agent(session: Session) -> tuple[float, float, float]:
     with locked(session) as glmap:
-        agent = navsession.agent_pose(session, glmap)
+        agent = nav_steps.agent_pose(session, glmap)
     if agent is None:
         raise InvalidInputError(
             "the map is empty: observe a frame (observe_frame) or start sim_reset first."
@@ -110,7 +110,7 @@ def _decide(
     from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState, decide
 
     agent = _agent(session)
-    nav = navsession.of(session)
+    nav = nav_steps.of(session)
     with locked(session) as glmap:
         if nav is not None:
             state, config = nav.state, nav.config
@@ -150,7 +150,7 @@ def _waypoint(decision: "NavDecision", agent: tuple[float, float, float]) -> Way
     if w.xy is not None:
         x, y = float(w.xy[0]), float(w.xy[1])
         out.xy = (round(x, 2), round(y, 2))
-        where = navsession.relative(agent, (x, y))
+        where = nav_steps.relative(agent, (x, y))
         out.distance_m, out.bearing_deg = where["distance_m"], where["bearing_deg"]
     if w.unit_id is not None:
         out.unit_id = int(w.unit_id)
@@ -175,7 +175,7 @@ def _top_units(
     """The k best-scored units: [id, kind, s_u, by] (by: 'client', 'prior' or 'scorer')."""
     from glmap_tools.nav.scorers import ClientScorer, map_units
 
-    nav = navsession.of(session)
+    nav = nav_steps.of(session)
     with locked(session) as glmap:
         units = [u for u in map_units(glmap) if scores.get(u.unit_id, 0.0) > 0]
         scorer = nav.goal_scorer() if nav is not None else None
@@ -223,7 +223,7 @@ async def value_map(
 
         client = None
         if scores or priors or clear:
-            nav = navsession.of(target)
+            nav = nav_steps.of(target)
             if nav is not None and goal.strip() and not same_goal(goal, nav.goal):
                 raise InvalidInputError(
                     f"scores and priors are for the episode's goal {nav.goal!r}, not {goal!r}; "
@@ -243,7 +243,7 @@ async def value_map(
             evidence=_evidence(target, units, decision.scores, _config(target)),
             frontiers=len(decision.frontiers),
         )
-        nav = navsession.of(target)
+        nav = nav_steps.of(target)
         if client is None and nav is not None and nav.client is not None:
             with locked(target) as glmap:
                 client = held_scores(glmap, nav.client)
@@ -268,7 +268,7 @@ async def frontiers(
 
     def run() -> ImageResult[FrontiersResult]:
         agent = _agent(target)
-        nav = navsession.of(target)
+        nav = nav_steps.of(target)
         config = nav.config if nav is not None else NavConfig()
         state = nav.state if nav is not None else NavState()
         with locked(target) as glmap:
@@ -278,7 +278,7 @@ async def frontiers(
                 xy=(round(float(f.target[0]), 2), round(float(f.target[1]), 2)),
                 cells=int(f.size),
                 path_m=round(float(f.distance), 2) if math.isfinite(f.distance) else None,
-                **navsession.relative(agent, f.target),
+                **nav_steps.relative(agent, f.target),
             )
             for f in found[:top_k]
         ]
@@ -306,22 +306,22 @@ async def navigate_to(
         raise InvalidInputError("give either x and y, or unit_id (not both, not neither).")
 
     def run() -> ImageResult[NavigateResult]:
-        sim, nav = navsession.running(target)
+        sim, nav = nav_steps.running(target)
         if unit_id is not None:
             with locked(target) as glmap:
                 unit = glmap.unit(unit_id)  # raises UnknownIdError with a suggestion
                 ids = list(getattr(unit, "instance_ids", None) or [unit_id])
                 cells = sorted(set().union(*(glmap.grid.cells_of_unit(i) for i in ids)))
                 centroid = glmap.unit_details(unit_id).centroid
-            goal = navsession.Target(
+            goal = nav_steps.Target(
                 (float(centroid[0]), float(centroid[1])),
                 int(unit_id),
                 np.array(cells, np.int64).reshape(-1, 2),
             )
         else:
-            goal = navsession.Target((float(x), float(y)))  # type: ignore[arg-type]
+            goal = nav_steps.Target((float(x), float(y)))  # type: ignore[arg-type]
         with locked(target):
-            walk = navsession.walk_to(
+            walk = nav_steps.walk_to(
                 target,
                 sim,
                 goal,
@@ -345,14 +345,14 @@ async def look_around(call: Call, session: SessionArg = "") -> ImageResult[LookA
     report = progress_from_thread(call)
 
     def run() -> ImageResult[LookAroundResult]:
-        sim, _ = navsession.running(target)
+        sim, _ = nav_steps.running(target)
         turns = round(2 * math.pi / sim.env.motion.turn_angle)
         frames, labels = [], []
         with locked(target):
             for k in range(turns):
                 report(k, turns, f"turn {k + 1}/{turns}")
                 simulator.step(sim, "turn_left")
-                navsession.integrate(target, sim)
+                nav_steps.integrate(target, sim)
                 frames.append(sim.obs["rgb"])
                 heading = math.degrees(simulator.agent_pose(sim)[2])
                 labels.append(f"step {sim.info['steps']}  {heading:.0f} deg")
@@ -371,7 +371,7 @@ async def look_around(call: Call, session: SessionArg = "") -> ImageResult[LookA
     return await in_thread(lambda: in_episode(target, run))
 
 
-def _unit_score(session: Session, nav: navsession.NavSession, unit_id: int) -> UnitScore:
+def _unit_score(session: Session, nav: nav_steps.NavSession, unit_id: int) -> UnitScore:
     """The score of one unit for the episode's goal (by 'client', 'prior' or 'scorer')."""
     from glmap_tools.nav.scorers import ClientScorer, UnitText, map_units
 
@@ -432,7 +432,7 @@ async def nav_step(
     report = progress_from_thread(call)
 
     def run() -> ImageResult[NavStepResult]:
-        sim, nav = navsession.running(target)
+        sim, nav = nav_steps.running(target)
         decisions: list[Decision] = []
         decision: NavDecision | None = None
         agent = simulator.agent_pose(sim)
@@ -447,7 +447,7 @@ async def nav_step(
                     outcome = "policy would stop here"
                     break
                 simulator.step(sim, decision.action)
-                navsession.integrate(target, sim)
+                nav_steps.integrate(target, sim)
                 after = simulator.agent_pose(sim)
                 walked += math.dist(agent[:2], after[:2])
                 decisions.append(
@@ -540,7 +540,7 @@ def set_client_scores(
     unit they became). Nothing changes on an error."""
     from glmap_tools.nav.scorers import ClientScores
 
-    _, nav = navsession.running(session)
+    _, nav = nav_steps.running(session)
     with locked(session) as glmap:
         units, kinds, followed = _checked_client_scores(glmap, scores or {}, priors or {})
         if clear or nav.client is None:

@@ -7,7 +7,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
-from glmap_tools.app import navsession, simulator
+from glmap_tools.app import nav_steps, simulator
 from glmap_tools.app.inputs import SessionArg
 from glmap_tools.app.navdraw import jpeg
 from glmap_tools.app.results import ImageResult, Picture
@@ -21,7 +21,7 @@ Size = Literal["160x120", "320x240", "640x480"]
 
 
 def _integrate(session: Session, sim: simulator.SimEpisode) -> str:
-    return navsession.integrate(session, sim)
+    return nav_steps.integrate(session, sim)
 
 
 def _reply(
@@ -91,7 +91,7 @@ async def sim_reset(
             from glmap_tools.language.backends import make_scorer
 
             scorer = make_scorer(state.config.llm, state.embedder)
-        navsession.start(target, sim, state.embedder, scorer)
+        nav_steps.start(target, sim, state.embedder, scorer)
         return _reply(target, sim, [_integrate(target, sim)])
 
     await call.report_progress(0, 1, "building the apartment")
@@ -109,7 +109,7 @@ async def sim_step(
     target = session_of(call, session)
     sim: simulator.SimEpisode | None = target.sim
     if sim is None:
-        raise InvalidInputError(navsession.NO_EPISODE)
+        raise InvalidInputError(nav_steps.NO_EPISODE)
     episode = sim
     resets = sim.resets  # the episode this call acts in; a sim_reset meanwhile refuses it
     updates: list[str] = []

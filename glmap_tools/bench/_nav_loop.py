@@ -18,8 +18,8 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 from glmap_tools.map import GLMap, MapConfig  # noqa: E402
 from glmap_tools.nav import EmbeddingScorer, NavConfig, map_units  # noqa: E402
 from glmap_tools.nav.episode import play  # noqa: E402
-from glmap_tools.sim.benchmark import BenchEpisode, bench_layout, load_split, make_env  # noqa: E402
 from glmap_tools.sim.render import CameraSpec  # noqa: E402
+from glmap_tools.worlds.splits import BenchEpisode, bench_layout, load_split, make_env  # noqa: E402
 
 _EMBEDDER: Any = None
 
@@ -187,11 +187,11 @@ def closed_loop(
 def calibration_pairs() -> list[tuple[str, float, bool, int, float]]:
     """(task, cosine, is a goal object, observations, category margin) per tune goal x instance.
 
-    One map per tune scene from `sim.tour` at 320x240; map instances are matched to layout
-    objects by `sim.map_eval.evaluate_instances`; instances matched to no object are left
+    One map per tune scene from `worlds.tour` at 320x240; map instances are matched to layout
+    objects by `worlds.map_eval.evaluate_instances`; instances matched to no object are left
     out (they are duplicates or fragments, neither clearly right nor wrong).
     """
-    from glmap_tools.sim.map_eval import build_map_from_tour, evaluate_instances
+    from glmap_tools.worlds.map_eval import build_map_from_tour, evaluate_instances
 
     scorer = EmbeddingScorer(embedder(), floor=0.0)
     pairs: list[tuple[str, float, bool, int, float]] = []

@@ -57,7 +57,7 @@ async def play(client: Any, episode: str, budget: int = BUDGET) -> tuple[dict, l
 
 def first_per_scene(split: str, task: str, scenes: int) -> list[str]:
     """The first episode id of each of the first `scenes` scenes of the split."""
-    from glmap_tools.sim.benchmark import load_split
+    from glmap_tools.worlds.splits import load_split
 
     chosen: dict[str, str] = {}
     for be in load_split(split, task):

@@ -67,7 +67,7 @@ async def _step_times(session: Any, episode_ids: list[str], steps: int) -> list[
 def _straight_target(be: Any, metres: float) -> tuple[float, float] | None:
     """A navigable point `metres` from the start along a free straight line, if any."""
     from glmap_tools.sim.layout_io import load_layout
-    from glmap_tools.sim.navigation import build_nav_grid
+    from glmap_tools.sim.navgrid import build_nav_grid
 
     grid = build_nav_grid(load_layout(be.layout_path))
     start = np.asarray(be.episode.start_position, np.float64)
@@ -87,7 +87,7 @@ async def _navigate_times(session: Any, split: str, metres: float, tries: int) -
     import json
     import time
 
-    from glmap_tools.sim.benchmark import load_split
+    from glmap_tools.worlds.splits import load_split
 
     out: list[dict] = []
     for be in load_split(split, "objectnav"):

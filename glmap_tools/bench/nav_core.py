@@ -165,7 +165,7 @@ def agent_step(report: Report, steps: int) -> None:
     """
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     from glmap_tools.bench._nav_loop import run_episode
-    from glmap_tools.sim.benchmark import load_split
+    from glmap_tools.worlds.splits import load_split
 
     be = load_split("tune", "objectnav")[0]
     result = run_episode(be, "glmap", max_steps=steps, timings=True)

@@ -4,7 +4,7 @@ Figures (issue 11):
 
 - ms per 640x480 frame (simulator tour frames), target <= 150 ms on 2 cores;
 - instance precision and recall of maps built from simulator tours whose segments are named
-  by ground truth (largest overlap; `sim.map_eval`), targets >= 0.7 each;
+  by ground truth (largest overlap; `worlds.map_eval`), targets >= 0.7 each;
 - mask IoU on the hand-annotated bundled Redwood objects (floor and wall left out),
   target >= 0.5.
 """
@@ -57,7 +57,7 @@ def tour_quality(scene: str, max_frames: int, report: Report) -> tuple[float, fl
     from glmap_tools.perception.geometric import segment_frame
     from glmap_tools.perception.labelling import oracle_semantics
     from glmap_tools.sim.layout_io import load_layout
-    from glmap_tools.sim.map_eval import evaluate_instances, tour_frames
+    from glmap_tools.worlds.map_eval import evaluate_instances, tour_frames
 
     path = os.path.join(os.path.dirname(__file__), "..", "data", "benchmark", scene, "layout.json")
     layout = load_layout(path)

@@ -69,7 +69,7 @@ def episode_room_scores(
     if not rooms:
         raise InvalidInputError(
             f"goal objects {sorted(goal_ids)} are not in layout {layout.name!r}; "
-            "regenerate the split (python -m glmap_tools.sim.benchmark)."
+            "regenerate the split (python -m glmap_tools.worlds.splits)."
         )
     out: dict[str, RoomScores] = {}
     kinds = {
@@ -120,7 +120,7 @@ def room_table(rows: Sequence[dict[str, RoomScores]], report: Report) -> dict[st
 
 def main(argv: list[str] | None = None) -> int:
     from glmap_tools.language.backends import add_llm_arguments, make_scorer, settings_from_args
-    from glmap_tools.sim.benchmark import bench_layout, load_split
+    from glmap_tools.worlds.splits import bench_layout, load_split
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench rooms")
     parser.add_argument("--split", default="tune", choices=("tune", "bench"))

@@ -1,7 +1,7 @@
 """`python -m glmap_tools.bench search`: top-1, MRR and match precision/recall of text search.
 
 Runs the labelled query set (glmap_tools/data/search_queries.jsonl) over maps built from the
-simulator scenes' ground truth (see `glmap_tools.language.search_eval`), once with the plain
+simulator scenes' ground truth (see `glmap_tools.worlds.search_eval`), once with the plain
 cosine ranking (before) and once through `GLMap.find_instances`/`find_regions` (after), and
 prints both halves: the tuning half the ranking and the match threshold were chosen on, and
 the held-out half (other scenes, other wordings).
@@ -16,8 +16,8 @@ from glmap_tools.bench.report import Report
 
 
 def main(argv: list[str] | None = None) -> int:
-    from glmap_tools.language import search_eval as se
     from glmap_tools.language.calibration import make_embedder
+    from glmap_tools.worlds import search_eval as se
 
     parser = argparse.ArgumentParser(
         prog="python -m glmap_tools.bench search",

@@ -1,6 +1,6 @@
 """Simulator speed: env steps per second at 640x480 (target >= 5 on 2 CPU cores).
 
-Measured by default on a large benchmark apartment (`--episode`, see sim/benchmark.py), with
+Measured by default on a large benchmark apartment (`--episode`, see worlds/splits.py), with
 the reset time over that scene's benchmark episodes (goal field + first frame).
 
 Usage: python -m glmap_tools.bench sim [--steps N] [--episode ID | --seed S] [--width W --height H]
@@ -34,9 +34,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     from glmap_tools.bench.report import Report
-    from glmap_tools.sim.benchmark import bench_episode, load_split, make_env
     from glmap_tools.sim.env import ObjectNavEnv
     from glmap_tools.sim.render import CameraSpec
+    from glmap_tools.worlds.splits import bench_episode, load_split, make_env
 
     report = Report("bench sim")
     camera = CameraSpec(args.width, args.height)

@@ -29,11 +29,11 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
 
     from glmap_tools.eval.sqa import SqaSpec, _embedder, scene_map
-    from glmap_tools.sim.benchmark import bench_layout, split_dir
-    from glmap_tools.sim.qa import generate_qa
     from glmap_tools.sqa import situate
     from glmap_tools.sqa.answer import OfflineAnswerer, answer_at
     from glmap_tools.sqa.views import labelled_views
+    from glmap_tools.worlds.qa import generate_qa
+    from glmap_tools.worlds.splits import bench_layout, split_dir
 
     report = Report("bench sqa")
     spec = SqaSpec(split=args.split, situations=args.situations, embedder=args.embedder)

@@ -1,6 +1,6 @@
 """Navigation evaluation: `glmap eval`, SR/SPL tables with bootstrap intervals, resumable runs.
 
-Episodes of the benchmark split (`glmap_tools.sim.benchmark`) are played by the agents of
+Episodes of the benchmark split (`glmap_tools.worlds.splits`) are played by the agents of
 `agents.runner` through in-memory MCP sessions, on local worker processes or a Ray cluster.
 See docs/evaluation.md.
 """

@@ -1,4 +1,4 @@
-"""The evaluation table split by episode difficulty (`glmap_tools.sim.difficulty`).
+"""The evaluation table split by episode difficulty (`glmap_tools.worlds.difficulty`).
 
 Each episode's difficulty comes from its episode file, or is measured on load when the file
 has none (older files, the built-in splits). One row per bin of `DIFFICULTY_BINS`: how many
@@ -19,8 +19,8 @@ from glmap_tools.sim.episodes import Difficulty
 
 def episode_difficulties(selected: Sequence[Any]) -> dict[str, Difficulty]:
     """episode id -> difficulty of each BenchEpisode (measured when its file has none)."""
-    from glmap_tools.sim.benchmark import bench_grid, bench_layout
-    from glmap_tools.sim.difficulty import DifficultyMeter
+    from glmap_tools.worlds.difficulty import DifficultyMeter
+    from glmap_tools.worlds.splits import bench_grid, bench_layout
 
     meters: dict[Any, DifficultyMeter] = {}
     out: dict[str, Difficulty] = {}
@@ -43,7 +43,7 @@ def difficulty_rows(
 ) -> list[dict[str, Any]]:
     """One row per (dimension, bin): episodes in it, and per agent SR (%) with its interval,
     mean SPL (%) and the episodes it finished there."""
-    from glmap_tools.sim.difficulty import DIFFICULTY_BINS
+    from glmap_tools.worlds.difficulty import DIFFICULTY_BINS
 
     rows = []
     for dimension, bin_of, bins in DIFFICULTY_BINS:

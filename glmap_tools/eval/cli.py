@@ -136,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
     agents = parse_agents(args.agents)
     split, scenes_dir = args.split, None
     if args.scenes_dir:
-        from glmap_tools.sim.scene_dirs import parse_scene_dir
+        from glmap_tools.worlds.scene_dirs import parse_scene_dir
 
         split, scenes_dir = parse_scene_dir(args.scenes_dir)
     llm_model, prompts = _llm_settings(args, agents)

@@ -16,7 +16,7 @@ from glmap_tools.errors import InvalidInputError, did_you_mean
 from glmap_tools.language.backends import SCORERS
 
 TASKS = ("objectnav", "instnav")
-SPLITS = ("tune", "bench", "house-tune", "house-bench")  # = sim.scene_dirs.BUILT_IN_SPLITS
+SPLITS = ("tune", "bench", "house-tune", "house-bench")  # = worlds.scene_dirs.BUILT_IN_SPLITS
 EMBEDDERS = ("minilm", "hashing")
 # Settings that change what one episode's result is; a results folder holds one set of them.
 RESULT_KEYS = (
@@ -108,7 +108,7 @@ class EvalSpec:
         llm_model: the Ollama model of the llm-tools agent or the llm scorer ('' when
             neither plays).
         prompts: the prompt set they used, as a digest of every prompt's name@hash.
-        scenes_dir: a folder of one's own scenes (`glmap_tools.sim.scene_dirs`) played as
+        scenes_dir: a folder of one's own scenes (`glmap_tools.worlds.scene_dirs`) played as
             the split named `split`; None: a built-in split. Not a result setting: a moved
             folder resumes (each record's `episode_key` notices changed files).
     """
@@ -132,7 +132,7 @@ class EvalSpec:
         if self.scenes_dir is None:
             check_choice("split", self.split, SPLITS)
         else:
-            from glmap_tools.sim.scene_dirs import check_scene_dir, check_split_name
+            from glmap_tools.worlds.scene_dirs import check_scene_dir, check_split_name
 
             check_split_name(self.split)
             object.__setattr__(self, "scenes_dir", check_scene_dir(Path(self.scenes_dir)))
@@ -186,7 +186,7 @@ def select_episodes(
     Raises:
         InvalidInputError: the split has fewer scenes, or a chosen scene fewer episodes.
     """
-    from glmap_tools.sim.benchmark import load_split
+    from glmap_tools.worlds.splits import load_split
 
     by_scene: dict[str, list[Any]] = {}
     for be in load_split(split, task, scene_dirs):

@@ -2,7 +2,7 @@
 
 Per scene (resumable: one JSON per scene in --out): build a GLMap from a tour with the
 simulator's annotations (cached as `maps/<scene>.glmap`), generate the scene's situated QA
-(`glmap_tools.sim.qa`, seeded), and answer every question with each agent:
+(`glmap_tools.worlds.qa`, seeded), and answer every question with each agent:
 
 - glmap:       situate the text on the map (paper §3.2), answer at that pose;
 - gt-pose:     answer at the ground-truth pose (the upper bound of the answerer);
@@ -52,7 +52,7 @@ class SqaSpec:
     image: tuple[int, int] = (320, 240)
     tour_step: float = 0.5
     tour_spin: int = 8
-    phrasings: bool = False  # many situation/question phrasings (glmap_tools.sim.qa_phrasings)
+    phrasings: bool = False  # many situation/question phrasings (glmap_tools.worlds.qa_phrasings)
     scenes_dir: Path | None = None  # a folder of one's own scenes played as `split`
 
     def key(self) -> str:
@@ -85,8 +85,8 @@ def _embedder(name: str) -> Any:
 def scene_map(spec: SqaSpec, layout: Any, path: Path, embedder: Any) -> Any:
     """The scene's GLMap, built from a tour once and reopened from `path` afterwards."""
     from glmap_tools.map import GLMap, MapConfig
-    from glmap_tools.sim.map_eval import build_map_from_tour
     from glmap_tools.sim.render import CameraSpec
+    from glmap_tools.worlds.map_eval import build_map_from_tour
 
     if path.exists():
         return GLMap.open(path, embedder=embedder)
@@ -117,11 +117,11 @@ def _free_cells(glmap: Any) -> np.ndarray:
 
 def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[str, Any]:
     """Build (or reopen) the scene's map and answer its questions with every agent."""
-    from glmap_tools.sim.benchmark import bench_layout
-    from glmap_tools.sim.qa import generate_qa
     from glmap_tools.sqa import situate
     from glmap_tools.sqa.answer import OfflineAnswerer, answer_at, em1, em_r1
     from glmap_tools.sqa.surroundings import surroundings
+    from glmap_tools.worlds.qa import generate_qa
+    from glmap_tools.worlds.splits import bench_layout
 
     t0 = time.perf_counter()
     layout = bench_layout(Path(layout_path))
@@ -130,8 +130,8 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
     build_s = time.perf_counter() - t0
     qa = generate_qa(layout, situations=spec.situations, seed=spec.seed, phrasings=spec.phrasings)
     if spec.phrasings:  # the second set of forms, at the same stand points
-        from glmap_tools.sim.qa import situation_phrase
         from glmap_tools.sqa.more_phrasings import more_questions
+        from glmap_tools.worlds.qa import situation_phrase
 
         qa["questions"] += more_questions(layout, qa, spec.seed, situation_phrase)
     rng = np.random.default_rng([spec.seed, int(hashlib.sha1(scene.encode()).hexdigest()[:8], 16)])
@@ -266,8 +266,8 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
         read = [bool(r.get("reading_ok")) for r in sit.values()]
         return f"{np.mean(read):.2f}", f"{np.mean(ok):.2f}", len(sit)
 
-    from glmap_tools.sim.qa_phrasings import HELD_OUT
     from glmap_tools.sqa.more_phrasings import HELD_OUT as HELD_OUT_2
+    from glmap_tools.worlds.qa_phrasings import HELD_OUT
 
     held_s = {v for v in HELD_OUT.values() if isinstance(v, str)}
     held_s |= {f"r2:{v}" for v in HELD_OUT_2.values() if isinstance(v, str)}
@@ -416,11 +416,11 @@ def run_sqa_eval(
     """Run (or resume) the evaluation; write `scenes/*.json` and `summary.md`."""
     from tqdm import tqdm
 
-    from glmap_tools.sim.benchmark import split_dir
+    from glmap_tools.worlds.splits import split_dir
 
     check_agents(spec.agents)
     if spec.scenes_dir is not None:
-        from glmap_tools.sim.scene_dirs import check_scene_dir, scene_names
+        from glmap_tools.worlds.scene_dirs import check_scene_dir, scene_names
 
         folder = check_scene_dir(spec.scenes_dir)
         scenes = list(scene_names(folder))[: spec.scenes or None]
@@ -501,7 +501,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> int:
     split, folder = args.split, None
     if args.scenes_dir:
-        from glmap_tools.sim.scene_dirs import parse_scene_dir
+        from glmap_tools.worlds.scene_dirs import parse_scene_dir
 
         split, folder = parse_scene_dir(args.scenes_dir)
     spec = SqaSpec(

@@ -11,7 +11,7 @@ Each declares `default_tau_s`, its text-similarity threshold calibrated on
 `glmap_tools/data/tau_s_pairs.jsonl` by `python -m glmap_tools.language.calibration`
 (see docs/tau_s_calibration.md), and `default_tau_match`, the score from which a search hit
 counts as a match, calibrated on `glmap_tools/data/search_queries.jsonl` by
-`python -m glmap_tools.language.search_eval --calibrate` (see docs/search_quality.md).
+`python -m glmap_tools.worlds.search_eval --calibrate` (see docs/search_quality.md).
 Other embedders may leave `default_tau_match` out; their hits then carry no match flag.
 """
 
@@ -124,7 +124,7 @@ class HashingEmbedder:
     dim: int
     # Calibrated by `python -m glmap_tools.language.calibration --embedder hashing`.
     default_tau_s: float = 0.44
-    # Calibrated by `python -m glmap_tools.language.search_eval --calibrate --embedder hashing`.
+    # Calibrated by `python -m glmap_tools.worlds.search_eval --calibrate --embedder hashing`.
     default_tau_match: float = 0.55
 
     def __init__(self, dim: int = 512) -> None:
@@ -346,7 +346,7 @@ class MiniLMEmbedder:
     dim: int = 384
     # Calibrated by `python -m glmap_tools.language.calibration` (docs/tau_s_calibration.md).
     default_tau_s: float = 0.56
-    # Calibrated by `python -m glmap_tools.language.search_eval --calibrate`
+    # Calibrated by `python -m glmap_tools.worlds.search_eval --calibrate`
     # (docs/search_quality.md).
     default_tau_match: float = 0.49
 

@@ -170,12 +170,12 @@ def config_from_args(args: argparse.Namespace) -> ServerConfig:
 def _scene_dirs(texts: list[str]) -> dict[str, Path]:
     """--scenes-dir values by name; a name given twice is refused.
 
-    Without --scenes-dir nothing is imported: glmap_tools.sim.scene_dirs pulls in trimesh and
+    Without --scenes-dir nothing is imported: glmap_tools.worlds.scene_dirs pulls in trimesh and
     the episode generator (~0.8 s), which the handshake must not wait for.
     """
     if not texts:
         return {}
-    from glmap_tools.sim.scene_dirs import parse_scene_dir
+    from glmap_tools.worlds.scene_dirs import parse_scene_dir
 
     dirs: dict[str, Path] = {}
     for text in texts:

@@ -43,13 +43,13 @@ from glmap_tools.sim.episodes import (
     sample_episode,
     validate_episodes,
 )
-from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.layout import Layout
 from glmap_tools.sim.layout_io import load_layout
 from glmap_tools.sim.motion import Action, AgentState, MotionConfig, apply_action
-from glmap_tools.sim.navigation import NavGrid, build_nav_grid
+from glmap_tools.sim.navgrid import NavGrid, build_nav_grid
 from glmap_tools.sim.reach import reaches
 from glmap_tools.sim.render import Z_FAR, CameraSpec, RenderedView, SceneRenderer
+from glmap_tools.worlds.generator import generate_apartment
 
 GOAL_CHARSET = string.ascii_letters + string.digits + " -',."
 GOAL_MAX_LENGTH = 256

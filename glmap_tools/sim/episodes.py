@@ -23,7 +23,7 @@ from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
 from glmap_tools.sim.instnav import instance_goals
 from glmap_tools.sim.jsonfile import read_json
 from glmap_tools.sim.layout import Layout, SceneObject
-from glmap_tools.sim.navigation import NavGrid, build_nav_grid
+from glmap_tools.sim.navgrid import NavGrid, build_nav_grid
 from glmap_tools.sim.reach import clear_of_walls_reference, nearest_footprint_points, reaches
 
 FORMAT = "glmap-sim-episodes"
@@ -35,7 +35,7 @@ MIN_START_DISTANCE = 1.5  # metres of geodesic distance from start to goal
 
 @dataclass(frozen=True)
 class Difficulty:
-    """How hard an episode is (`glmap_tools.sim.difficulty.DifficultyMeter` measures it).
+    """How hard an episode is (`glmap_tools.worlds.difficulty.DifficultyMeter` measures it).
 
     Attributes:
         geodesic_m: shortest navigable path from the start to a goal cell, metres.
@@ -238,7 +238,7 @@ def generate_episodes(
     Args:
         min_passage_cells: starts are drawn only where the goal is reached through
             passages at least this many navigable cells wide (the bench split's check,
-            `navigation.MIN_PASSAGE_CELLS`; `glmap sim episodes` applies it); 0: no check.
+            `navgrid.MIN_PASSAGE_CELLS`; `glmap sim episodes` applies it); 0: no check.
         seeable_only: goals only among objects the camera can be expected to recognise
             (`unseeable`; `glmap sim episodes` applies it).
 

@@ -10,8 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from glmap_tools.sim.describe import object_phrase
-from glmap_tools.sim.layout import Layout, SceneObject
-from glmap_tools.sim.placement import rects_overlap
+from glmap_tools.sim.layout import Layout, SceneObject, rects_overlap
 
 NEAR = 1.0  # metres between footprints for "next to"
 ANCHOR_KEYS = ("shape", "color", "style", "material", "size")

@@ -10,7 +10,7 @@ import numpy as np
 
 from glmap_tools.geometry import Pose
 from glmap_tools.nav.config import ACTIONS
-from glmap_tools.sim.navigation import NavGrid
+from glmap_tools.sim.navgrid import NavGrid
 
 COLLISION_STEP = 0.025  # metres between collision checks along a forward move
 

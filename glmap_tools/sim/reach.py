@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from glmap_tools.sim.layout import SceneObject
-from glmap_tools.sim.navigation import NavGrid
+from glmap_tools.sim.navgrid import NavGrid
 
 
 def nearest_footprint_points(obj: SceneObject, points: np.ndarray) -> np.ndarray:

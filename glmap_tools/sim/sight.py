@@ -20,7 +20,7 @@ import numpy as np
 
 from glmap_tools.sim.architecture import wall_pieces
 from glmap_tools.sim.layout import Layout, SceneObject
-from glmap_tools.sim.navigation import NavGrid, _ccw, _fill_rect
+from glmap_tools.sim.navgrid import NavGrid, _ccw, _fill_rect
 
 CAMERA_HEIGHT = 0.88  # metres, the default camera of the environments
 TALL_OBJECT = 1.2  # metres: objects whose top is at least this high block sight

@@ -7,7 +7,7 @@ import numpy as np
 
 from glmap_tools.sim.architecture import wall_pieces
 from glmap_tools.sim.layout import Layout
-from glmap_tools.sim.navigation import NavGrid
+from glmap_tools.sim.navgrid import NavGrid
 from glmap_tools.sim.palette import COLORS
 
 MARGIN = 0.5  # metres around the apartment

@@ -102,7 +102,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--phrasings",
         action="store_true",
-        help="situations in many phrasings (glmap_tools.sim.qa_phrasings); causes per form",
+        help="situations in many phrasings (glmap_tools.worlds.qa_phrasings); causes per form",
     )
     p.add_argument("--show", default="", help="print the rows with these causes (comma list)")
     return p
@@ -112,9 +112,9 @@ def diagnose_rows(args: argparse.Namespace) -> list[dict[str, Any]]:
     """One classified row per situation of the split's first scenes (`classify`)."""
 
     from glmap_tools.eval.sqa import SqaSpec, _embedder, scene_map
-    from glmap_tools.sim.benchmark import bench_layout, split_dir
-    from glmap_tools.sim.qa import generate_qa
     from glmap_tools.sqa import situate
+    from glmap_tools.worlds.qa import generate_qa
+    from glmap_tools.worlds.splits import bench_layout, split_dir
 
     spec = SqaSpec(split=args.split, situations=args.situations, seed=args.seed)
     manifest = json.loads((split_dir(args.split) / "split.json").read_text(encoding="utf-8"))

@@ -1,5 +1,5 @@
 """The phrased bench's second set of forms: situations and questions as people write them
-beyond `glmap_tools.sim.qa_phrasings`, with the answers read from the layout at the true
+beyond `glmap_tools.worlds.qa_phrasings`, with the answers read from the layout at the true
 pose.
 
 `more_questions(layout, qa, seed)` takes a set from `generate_qa(..., phrasings=True)` and
@@ -340,7 +340,7 @@ def more_questions(
         layout: the scene.
         qa: its QA set; records are read, not changed.
         seed: the choices' seed (their own stream: the first set is not touched).
-        named: words that single an object out in a room (`sim.qa.situation_phrase`).
+        named: words that single an object out in a room (`worlds.qa.situation_phrase`).
     """
     rng = np.random.default_rng([int(seed), 43])
     stands: dict[tuple[float, float, float], dict[str, Any]] = {}

@@ -11,8 +11,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from glmap_tools.sim.placement import SIDES, ObjectSpec, Placed, RoomPlanner
-from glmap_tools.sim.specs import SpecMaker
+from glmap_tools.worlds.placement import SIDES, ObjectSpec, Placed, RoomPlanner
+from glmap_tools.worlds.specs import SpecMaker
 
 RegionPlan = tuple[str, str, list[Placed]]
 Recipe = Callable[[RoomPlanner, SpecMaker], list[RegionPlan]]

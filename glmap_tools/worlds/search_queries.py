@@ -1,6 +1,6 @@
 """Build the labelled search query set `glmap_tools/data/search_queries.jsonl`.
 
-Run: ``python -m glmap_tools.language.search_queries [--out PATH]`` (deterministic).
+Run: ``python -m glmap_tools.worlds.search_queries [--out PATH]`` (deterministic).
 
 Each line is one query over one generated apartment (`generate_apartment(scene)`) with its
 known answers, the layout ids of the objects (kind 'instance') or regions (kind 'region')
@@ -22,8 +22,8 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.layout import Layout
+from glmap_tools.worlds.generator import generate_apartment
 
 TUNE_SCENES = (0, 1, 2, 3, 4, 5)
 HELD_OUT_SCENES = (6, 7, 8, 9, 10, 11)
@@ -232,7 +232,7 @@ def _row(split: str, scene: int, kind: str, query: str, phrasing: str, answers: 
 def main(argv: Sequence[str] | None = None) -> int:
     """Write the query set as JSON lines."""
     parser = argparse.ArgumentParser(
-        prog="python -m glmap_tools.language.search_queries",
+        prog="python -m glmap_tools.worlds.search_queries",
         description=__doc__.split("\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )

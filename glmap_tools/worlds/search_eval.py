@@ -1,10 +1,10 @@
 """Search quality of `find_instances`/`find_regions` on simulator scenes with known answers.
 
 Run: ``python -m glmap_tools.bench search`` (prints figures against targets) or
-``python -m glmap_tools.language.search_eval --calibrate`` (sweeps the match threshold).
+``python -m glmap_tools.worlds.search_eval --calibrate`` (sweeps the match threshold).
 
 The labelled queries (`glmap_tools/data/search_queries.jsonl`, built by
-`glmap_tools.language.search_queries`) name a generated apartment and the layout ids of the
+`glmap_tools.worlds.search_queries`) name a generated apartment and the layout ids of the
 objects or regions that answer them. `scene_map` builds that apartment's GLMap from the
 layout's ground truth: one instance unit per object (its category as label, its description
 as text, Gaussians filling its box) and one region unit per region, exactly the units a
@@ -107,7 +107,7 @@ def load_queries(path: str | Path | None = None) -> list[Query]:
     Raises:
         InvalidInputError: a line that is not a query object with the fields above.
     """
-    from glmap_tools.language.search_queries import default_queries_path
+    from glmap_tools.worlds.search_queries import default_queries_path
 
     p = Path(path) if path is not None else default_queries_path()
     out = []
@@ -184,7 +184,7 @@ def run_queries(
             embedding instead (the ranking before phrasings and labels; no match flags).
         maps: scene maps by scene seed, filled as needed (pass one dict to reuse them).
     """
-    from glmap_tools.sim.generator import generate_apartment
+    from glmap_tools.worlds.generator import generate_apartment
 
     maps = {} if maps is None else maps
     out = []
@@ -287,7 +287,7 @@ def calibrate(outcomes: Sequence[Outcome]) -> tuple[float, Metrics]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Print per-split quality; with --calibrate, sweep the match threshold on the tuning half."""
     parser = argparse.ArgumentParser(
-        prog="python -m glmap_tools.language.search_eval",
+        prog="python -m glmap_tools.worlds.search_eval",
         description=__doc__.split("\n")[0],
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )

@@ -27,7 +27,7 @@ from glmap_tools.sim.episodes import (
     goal_distance_field,
 )
 from glmap_tools.sim.layout import Layout
-from glmap_tools.sim.navigation import AGENT_RADIUS, NavGrid, build_nav_grid
+from glmap_tools.sim.navgrid import AGENT_RADIUS, NavGrid, build_nav_grid
 from glmap_tools.sim.sight import SightChecker
 
 MAX_PASSAGE_CELLS = 24  # 1.2 m of free centre positions at 5 cm cells

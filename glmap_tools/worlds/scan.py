@@ -49,7 +49,7 @@ from glmap_tools.sim.catalog import (
 )
 from glmap_tools.sim.layout import Layout, LayoutWarning, yaw_matrix
 from glmap_tools.sim.layout_io import layout_from_dict
-from glmap_tools.sim.navigation import AGENT_RADIUS, MIN_PASSAGE_CELLS, build_nav_grid
+from glmap_tools.sim.navgrid import AGENT_RADIUS, MIN_PASSAGE_CELLS, build_nav_grid
 
 UPRIGHT_TOLERANCE = 0.05  # |cos| of the box's z axis against world up must exceed 1 - this
 

@@ -3,7 +3,7 @@
 `SPLIT_SPECS` names every built-in split; `make_layout` builds a split's scene and
 `goal_weights` gives the chance of each goal of a scene to be an episode's goal (uniform for
 the regression splits tune/bench, weighted towards HM3D's categories and same-category
-instances for the house splits). `benchmark.py` draws the episodes and writes the files.
+instances for the house splits). `splits.py` draws the episodes and writes the files.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from glmap_tools.sim.clutter import GOAL_CATEGORIES
-from glmap_tools.sim.generator import generate_apartment
 from glmap_tools.sim.layout import Layout
+from glmap_tools.worlds.clutter import GOAL_CATEGORIES
+from glmap_tools.worlds.generator import generate_apartment
 
 
 @dataclass(frozen=True)

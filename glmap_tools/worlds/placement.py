@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from glmap_tools.sim.architecture import WALL_THICKNESS
-from glmap_tools.sim.layout import Opening, Room, yaw_matrix
+from glmap_tools.sim.layout import Opening, Room, rects_overlap, yaw_matrix
 
 DOOR_CLEARANCE = 0.9  # metres kept free in front of a door, on both sides
 WALL_GAP = 0.02  # metres between a wall and the back of furniture against it
@@ -65,18 +65,6 @@ class Placed:
         w, d = self.spec.size[0] / 2 + margin, self.spec.size[1] / 2 + margin
         local = np.array([[-w, -d], [w, -d], [w, d], [-w, d]])
         return local @ yaw_matrix(self.heading + math.pi / 2)[:2, :2].T + self.position[:2]
-
-
-def rects_overlap(a: np.ndarray, b: np.ndarray) -> bool:
-    """Separating-axis test of two convex quadrilaterals [4, 2] (touching is not overlap)."""
-    for poly in (a, b):
-        for i in range(4):
-            edge = poly[(i + 1) % 4] - poly[i]
-            axis = np.array([-edge[1], edge[0]])
-            pa, pb = a @ axis, b @ axis
-            if pa.max() <= pb.min() + 1e-9 or pb.max() <= pa.min() + 1e-9:
-                return False
-    return True
 
 
 def side_heading(side: str) -> float:

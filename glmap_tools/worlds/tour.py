@@ -31,7 +31,7 @@ from glmap_tools.ingest.images import write_annotation
 from glmap_tools.sim.annotate import annotate_view
 from glmap_tools.sim.detector import PERCEPTIONS, detect_view, load_rates
 from glmap_tools.sim.layout import Layout
-from glmap_tools.sim.navigation import NavGrid, build_nav_grid
+from glmap_tools.sim.navgrid import NavGrid, build_nav_grid
 from glmap_tools.sim.render import CameraSpec, SceneRenderer
 from glmap_tools.sim.topdown import draw_topdown
 

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from glmap_tools.app import simulator
-from glmap_tools.app.navigation import NavSession
+from glmap_tools.app.nav_session import NavSession
 from glmap_tools.app.results import FromAgent
 from glmap_tools.app.session import Session, locked
 from glmap_tools.app.sim_results import Walk

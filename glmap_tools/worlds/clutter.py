@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from glmap_tools.sim.placement import Placed, RoomPlanner
-from glmap_tools.sim.specs import KINDS, SpecMaker
+from glmap_tools.worlds.placement import Placed, RoomPlanner
+from glmap_tools.worlds.specs import KINDS, SpecMaker
 
 GOAL_CATEGORIES = ("chair", "bed", "plant", "toilet", "tv", "sofa")  # HM3D ObjectNav goals
 UNLIKELY_RATE = 0.15  # per room: one goal-category object where the recipes never put one

@@ -148,8 +148,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run_new(args: argparse.Namespace) -> int:
-    from glmap_tools.sim.generator import generate_apartment
     from glmap_tools.sim.layout_io import save_layout
+    from glmap_tools.worlds.generator import generate_apartment
 
     _check_out(args.out, args.overwrite)
     layout = generate_apartment(args.seed, n_rooms=args.rooms, house=args.house)
@@ -163,7 +163,7 @@ def run_new(args: argparse.Namespace) -> int:
     if args.topdown:
         import cv2
 
-        from glmap_tools.sim.navigation import build_nav_grid
+        from glmap_tools.sim.navgrid import build_nav_grid
         from glmap_tools.sim.topdown import draw_topdown
 
         img = draw_topdown(layout, build_nav_grid(layout))
@@ -179,7 +179,7 @@ def run_from_scan(args: argparse.Namespace) -> int:
     from glmap_tools.sim.jsonfile import read_json
     from glmap_tools.sim.layout import LayoutWarning
     from glmap_tools.sim.layout_io import save_layout
-    from glmap_tools.sim.scan import category_shapes, layout_from_scan
+    from glmap_tools.worlds.scan import category_shapes, layout_from_scan
 
     _check_out(args.out, args.overwrite)
     data = read_json(args.scan, "scan file", "a category + oriented-box list (see design.md)")
@@ -211,7 +211,7 @@ def run_from_scan(args: argparse.Namespace) -> int:
 def run_tour(args: argparse.Namespace) -> int:
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     from glmap_tools.sim.layout_io import load_layout
-    from glmap_tools.sim.tour import write_tour
+    from glmap_tools.worlds.tour import write_tour
 
     layout = load_layout(args.layout)
     n = write_tour(
@@ -231,10 +231,10 @@ def run_tour(args: argparse.Namespace) -> int:
 
 
 def run_episodes(args: argparse.Namespace) -> int:
-    from glmap_tools.sim.difficulty import with_difficulty
     from glmap_tools.sim.episodes import generate_episodes, save_episodes, unseeable
     from glmap_tools.sim.layout_io import load_layout
-    from glmap_tools.sim.navigation import build_nav_grid
+    from glmap_tools.sim.navgrid import build_nav_grid
+    from glmap_tools.worlds.difficulty import with_difficulty
 
     _check_out(args.out, args.overwrite)
     if args.min_passage_cells < 0:
@@ -301,7 +301,7 @@ def run_map_eval(args: argparse.Namespace) -> int:
     from glmap_tools.language import embed
     from glmap_tools.map import GLMap
     from glmap_tools.sim.layout_io import load_layout
-    from glmap_tools.sim.map_eval import build_map_from_tour, evaluate_instances
+    from glmap_tools.worlds.map_eval import build_map_from_tour, evaluate_instances
 
     if args.min_pixels is not None and args.min_pixels < 1:
         raise InvalidInputError(f"--min-pixels {args.min_pixels} must be at least 1 pixel.")
@@ -354,7 +354,7 @@ def run_map_eval(args: argparse.Namespace) -> int:
 
 def run_qa(args: argparse.Namespace) -> int:
     from glmap_tools.sim.layout_io import load_layout
-    from glmap_tools.sim.qa import generate_qa
+    from glmap_tools.worlds.qa import generate_qa
 
     _check_out(args.out, args.overwrite)
     layout = load_layout(args.layout)

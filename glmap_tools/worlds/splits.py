@@ -26,7 +26,7 @@ the command), and per scene `sNN/layout.json` (through `layout_io`, so later gen
 changes cannot move the benchmark) with `sNN/objectnav.json` and `sNN/instnav.json`
 (`episodes.py` episode sets). Regenerate (deterministic)::
 
-    python -m glmap_tools.sim.benchmark --out glmap_tools/data/benchmark
+    python -m glmap_tools.worlds.splits --out glmap_tools/data/benchmark
 """
 
 from __future__ import annotations
@@ -42,7 +42,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
-from glmap_tools.sim.clutter import GOAL_CATEGORIES, UNLIKELY_RATE
 from glmap_tools.sim.episodes import (
     SUCCESS_DISTANCE,
     TASKS,
@@ -53,8 +52,10 @@ from glmap_tools.sim.episodes import (
 )
 from glmap_tools.sim.layout import Layout
 from glmap_tools.sim.layout_io import layout_to_dict, load_layout
-from glmap_tools.sim.navigation import MIN_PASSAGE_CELLS, NavGrid, build_nav_grid
-from glmap_tools.sim.scene_dirs import (
+from glmap_tools.sim.navgrid import MIN_PASSAGE_CELLS, NavGrid, build_nav_grid
+from glmap_tools.sim.sight import SightChecker
+from glmap_tools.worlds.clutter import GOAL_CATEGORIES, UNLIKELY_RATE
+from glmap_tools.worlds.scene_dirs import (
     BUILT_IN_SPLITS,
     BenchEpisode,
     SceneDirs,
@@ -63,8 +64,7 @@ from glmap_tools.sim.scene_dirs import (
     scene_dir_episodes,
     split_perception_of,
 )
-from glmap_tools.sim.sight import SightChecker
-from glmap_tools.sim.split_specs import SPLIT_SPECS, SplitSpec, goal_weights, make_layout
+from glmap_tools.worlds.split_specs import SPLIT_SPECS, SplitSpec, goal_weights, make_layout
 
 if TYPE_CHECKING:  # importing env pulls in the renderer
     from glmap_tools.sim.env import NavEnv
@@ -75,7 +75,7 @@ DATA_ROOT = Path(__file__).resolve().parent.parent / "data" / "benchmark"
 MAX_STEPS = 500
 MIN_GEODESIC = 2.0  # metres from start to the nearest goal cell
 START_TRIES = 400  # starts drawn per episode before its goal is given up
-COMMAND = "python -m glmap_tools.sim.benchmark --out glmap_tools/data/benchmark"
+COMMAND = "python -m glmap_tools.worlds.splits --out glmap_tools/data/benchmark"
 
 
 def _check_split(split: str) -> None:
@@ -366,7 +366,7 @@ def make_env(
 # ---------------------------------------------------------------------- command line
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m glmap_tools.sim.benchmark",
+        prog="python -m glmap_tools.worlds.splits",
         description="Regenerate the benchmark split files (deterministic) and print statistics.",
     )
     parser.add_argument("--out", type=Path, required=True, help="folder that gets <split>/")

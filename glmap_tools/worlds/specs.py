@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from glmap_tools.sim.placement import ObjectSpec
+from glmap_tools.worlds.placement import ObjectSpec
 
 WOODS = ["wood", "oak", "walnut"]
 FABRIC_COLORS = ["grey", "blue", "beige", "green", "red", "brown", "navy", "teal", "purple"]

@@ -42,7 +42,7 @@ from glmap_tools.sim.describe import number_word, plural
 from glmap_tools.sim.instnav import anchor_phrase, describe_instance
 from glmap_tools.sim.layout import Layout, SceneObject
 from glmap_tools.sim.motion import wrap_angle
-from glmap_tools.sim.navigation import NavGrid, build_nav_grid
+from glmap_tools.sim.navgrid import NavGrid, build_nav_grid
 
 FORMAT = "glmap-sim-sqa"
 VERSION = 3
@@ -229,7 +229,7 @@ def generate_qa(
     """A situated QA set with up to `situations` situations and several questions each.
 
     With `phrasings`, situations and questions come in many phrasings and more question
-    families (`glmap_tools.sim.qa_phrasings`); each record then also has
+    families (`glmap_tools.worlds.qa_phrasings`); each record then also has
     `situation_form`, `question_form`, `held_out` and `reading` (the correct reading of
     its situation). The poses and the plain questions' answers are the same either way.
 
@@ -269,7 +269,7 @@ def generate_qa(
         items = [(*q, 0) for q in _questions(layout, grid, position, heading, anchor, facing, rng)]
         extra: dict[str, Any] = {}
         if phrasings:
-            from glmap_tools.sim import qa_phrasings as ph
+            from glmap_tools.worlds import qa_phrasings as ph
 
             situation, s_kind, s_form, reading = ph.rewrite_situation(
                 layout,
@@ -295,7 +295,7 @@ def generate_qa(
             extra = {"situation_kind": s_kind, "situation_form": s_form, "reading": reading}
         for kind, question, answers, ids, form in items:
             if phrasings:
-                from glmap_tools.sim.qa_phrasings import HELD_OUT
+                from glmap_tools.worlds.qa_phrasings import HELD_OUT
 
                 extra |= {
                     "question_form": f"{kind}/{form}",

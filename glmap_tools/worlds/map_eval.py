@@ -28,7 +28,7 @@ from glmap_tools.perception.semantics import FrameSemantics
 from glmap_tools.sim.annotate import annotate_view
 from glmap_tools.sim.layout import Layout, SceneObject
 from glmap_tools.sim.render import CameraSpec, SceneRenderer
-from glmap_tools.sim.tour import plan_tour
+from glmap_tools.worlds.tour import plan_tour
 
 if TYPE_CHECKING:
     from glmap_tools.map import GLMap

@@ -15,15 +15,15 @@ from typing import Any
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.sim.clutter import UNLIKELY_RATE, furnish_house_extras
 from glmap_tools.sim.describe import object_description, region_description
-from glmap_tools.sim.floorplan import generate_floorplan
 from glmap_tools.sim.layout import Layout, Opening, Room
 from glmap_tools.sim.layout_io import layout_from_dict, layout_to_dict
-from glmap_tools.sim.navigation import build_nav_grid
-from glmap_tools.sim.placement import Placed, RoomPlanner
-from glmap_tools.sim.recipes import RECIPES, RegionPlan, add_decor
-from glmap_tools.sim.specs import SpecMaker
+from glmap_tools.sim.navgrid import build_nav_grid
+from glmap_tools.worlds.clutter import UNLIKELY_RATE, furnish_house_extras
+from glmap_tools.worlds.floorplan import generate_floorplan
+from glmap_tools.worlds.placement import Placed, RoomPlanner
+from glmap_tools.worlds.recipes import RECIPES, RegionPlan, add_decor
+from glmap_tools.worlds.specs import SpecMaker
 
 MIN_OBJECTS = 25
 MAX_OBJECTS = 80

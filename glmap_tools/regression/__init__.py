@@ -1,0 +1,1 @@
+"""Checks that a change keeps behaviour: `python -m glmap_tools.regression.replay`."""
