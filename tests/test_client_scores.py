@@ -169,7 +169,7 @@ def test_a_bad_score_names_the_value_and_the_fix():
 
 
 def test_a_score_for_a_fused_id_is_kept_on_the_unit_it_became():
-    from glmap_tools.app.tools_nav import _checked_client_scores
+    from glmap_tools.app.client_scores import check_client_scores
     from glmap_tools.errors import UnknownIdError
 
     class Map:
@@ -181,10 +181,10 @@ def test_a_score_for_a_fused_id_is_kept_on_the_unit_it_became():
             if uid not in self.instances:
                 raise UnknownIdError(f"unit id {uid} does not exist. Closest id: 7.")
 
-    live, kinds, followed = _checked_client_scores(Map(), {3: 0.6, 7: 0.2}, {"Dining  Area": 1})
+    live, kinds, followed = check_client_scores(Map(), {3: 0.6, 7: 0.2}, {"Dining  Area": 1})
     assert live == {7: 0.6} and followed == {3: 7} and kinds == {"dining area": 1.0}
     with pytest.raises(UnknownIdError, match="Closest id: 7"):
-        _checked_client_scores(Map(), {8: 0.5}, {})
+        check_client_scores(Map(), {8: 0.5}, {})
 
 
 async def test_the_client_scores_go_on_in_the_next_server_of_a_kept_episode(tmp_path):

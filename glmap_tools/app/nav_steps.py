@@ -267,18 +267,12 @@ def walk_to(
     Raises:
         OutsideMapError, UnreachableGoalError: a point target, before the first step.
     """
-    from glmap_tools.nav import GoalMatch
-    from glmap_tools.nav.policy import PROGRESS, approach, stop_would_count
+    from glmap_tools.nav.policy import PROGRESS, approach
 
     nav = of(session)
     assert nav is not None
     agent = simulator.agent_pose(sim)
-    unit = target.unit_cells is not None
-    goal: tuple[float, float] | GoalMatch = target.xy
-    if target.unit_cells is not None:
-        goal = GoalMatch(int(target.unit_id or 0), 1.0, 0, target.unit_cells)
-    else:
-        check_point(session, agent, target.xy, config)
+    goal = _walk_goal(session, agent, target, config)
 
     def next_step(agent: tuple[float, float, float]) -> Approach:
         with locked(session) as glmap:
@@ -286,57 +280,108 @@ def walk_to(
 
     step = next_step(agent)
     planned = step.plan.length
-    steps = bumps = since = 0
-    best, walked = step.plan.length, 0.0
-    outcome = "step budget"
-    while True:
-        if step.arrived:
-            outcome = "reached"
-            break
-        if step.action == "stop":
-            outcome = "reached the nearest reachable point" if step.aim else "blocked"
-            break
-        if sim.over:
-            outcome = "episode over"
-            break
-        if steps >= max_steps:
-            break
-        if since >= no_progress_steps(config):
-            outcome = "blocked"
-            break
+    tally = _Tally(best=step.plan.length)
+    while (outcome := _walk_ends(step, sim, tally, max_steps, config)) is None:
         if on_step is not None:
-            on_step(steps, max_steps)
-        simulator.step(sim, step.action)
-        integrate(session, sim)
-        steps += 1
-        moved = simulator.agent_pose(sim)
-        walked += math.hypot(moved[0] - agent[0], moved[1] - agent[1])
-        bumps += bool(sim.info["collided"])
-        agent = moved
+            on_step(tally.steps, max_steps)
+        agent = _take_step(session, sim, step.action, agent, tally)
         if sim.over:
             continue
         step = next_step(agent)
-        if step.plan.length < best - PROGRESS:
-            best, since = step.plan.length, 0
+        if step.plan.length < tally.best - PROGRESS:
+            tally.best, tally.since = step.plan.length, 0
         else:
-            since += 1
+            tally.since += 1
+    return _walk_result(step, outcome, planned, tally, agent, target, config)
+
+
+@dataclass
+class _Tally:
+    """What a walk has done so far."""
+
+    best: float  # the shortest plan length so far (m)
+    steps: int = 0
+    bumps: int = 0  # steps that collided
+    walked: float = 0.0  # metres
+    since: int = 0  # steps since the plan last got `PROGRESS` m shorter
+
+
+def _walk_goal(
+    session: Session, agent: tuple[float, float, float], target: Target, config: NavConfig
+) -> tuple[float, float] | GoalMatch:
+    """What `approach` walks to: the unit's cells, or the point (refused first when it is
+    outside the map or cannot be reached)."""
+    from glmap_tools.nav import GoalMatch
+
+    if target.unit_cells is not None:
+        return GoalMatch(int(target.unit_id or 0), 1.0, 0, target.unit_cells)
+    check_point(session, agent, target.xy, config)
+    return target.xy
+
+
+def _walk_ends(
+    step: Approach, sim: simulator.SimEpisode, tally: _Tally, max_steps: int, config: NavConfig
+) -> str | None:
+    """The walk's outcome when it ends before taking `step`, else None."""
+    if step.arrived:
+        return "reached"
+    if step.action == "stop":
+        return "reached the nearest reachable point" if step.aim else "blocked"
+    if sim.over:
+        return "episode over"
+    if tally.steps >= max_steps:
+        return "step budget"
+    if tally.since >= no_progress_steps(config):
+        return "blocked"
+    return None
+
+
+def _take_step(
+    session: Session,
+    sim: simulator.SimEpisode,
+    action: str,
+    agent: tuple[float, float, float],
+    tally: _Tally,
+) -> tuple[float, float, float]:
+    """One simulator step, its frame into the map (`integrate`); the agent's new pose."""
+    simulator.step(sim, action)
+    integrate(session, sim)
+    moved = simulator.agent_pose(sim)
+    tally.steps += 1
+    tally.walked += math.hypot(moved[0] - agent[0], moved[1] - agent[1])
+    tally.bumps += bool(sim.info["collided"])
+    return moved
+
+
+def _walk_result(
+    step: Approach,
+    outcome: str,
+    planned: float,
+    tally: _Tally,
+    agent: tuple[float, float, float],
+    target: Target,
+    config: NavConfig,
+) -> Walk:
+    """What happened: the last step's plan, the tally, and for a unit where it stands."""
+    from glmap_tools.nav.policy import stop_would_count
+
     out = Walk(
         outcome=outcome,
-        walk_steps=steps,
-        walked_m=round(walked, 2),
-        walk_collisions=bumps,
+        walk_steps=tally.steps,
+        walked_m=round(tally.walked, 2),
+        walk_collisions=tally.bumps,
         planned_m=_metres(planned),
         aim_xy=(round(float(step.aim[0]), 2), round(float(step.aim[1]), 2)) if step.aim else None,
         remaining_m=0.0 if step.arrived else _metres(step.plan.length),
         reason=step.reason,
     )
-    if unit:
+    if target.unit_cells is not None:
         out.unit_id = target.unit_id
         out.unit_distance_m = _metres(step.unit_distance)
         out.in_sight = step.in_sight
         out.would_succeed = stop_would_count(step.unit_distance, step.in_sight, config)
     if outcome not in ("reached", "step budget", "episode over"):
-        out.blocked_by = _blocked_by(step, outcome, bumps, steps, agent, target, config)
+        out.blocked_by = _blocked_by(step, outcome, tally.bumps, tally.steps, agent, target, config)
     return out
 
 

@@ -15,8 +15,21 @@ import numpy as np
 from pydantic import Field
 
 from glmap_tools.app import nav_steps, simulator
+from glmap_tools.app.client_scores import held_scores, set_client_scores
 from glmap_tools.app.inputs import SessionArg
-from glmap_tools.app.navdraw import contact_sheet, jpeg, nav_image
+from glmap_tools.app.nav_decision import (
+    current_agent,
+    decide_on_map,
+    episode_config,
+    evidence,
+    goal_text,
+    matched_goal_unit,
+    nav_png,
+    top_units,
+    unit_score,
+    waypoint_result,
+)
+from glmap_tools.app.navdraw import contact_sheet, jpeg
 from glmap_tools.app.results import ImageResult, Picture
 from glmap_tools.app.runtime import ADDS, READ_ONLY, REPLACES, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import Session, locked
@@ -25,8 +38,6 @@ from glmap_tools.app.sim_results import (
     Decision,
     Frontier,
     FrontiersResult,
-    GoalUnit,
-    HeldScores,
     LookAroundResult,
     MapCounts,
     NavigateResult,
@@ -34,14 +45,11 @@ from glmap_tools.app.sim_results import (
     StepTaken,
     UnitScore,
     ValueMapResult,
-    Waypoint,
 )
 from glmap_tools.errors import InvalidInputError
 
 if TYPE_CHECKING:
-    from glmap_tools.map import GLMap
-    from glmap_tools.nav import NavConfig, NavDecision
-    from glmap_tools.nav.scorers import ClientScores
+    from glmap_tools.nav import NavDecision
 
 Units = Literal["both", "instances", "regions"]
 Policy = Literal["glmap", "glmap-instance", "glmap-region", "egocentric", "frontier"]
@@ -69,140 +77,6 @@ def progress_from_thread(call: Call) -> Callable[[float, float | None, str], Non
     return report
 
 
-def _config(session: Session) -> "NavConfig":
-    """The episode's NavConfig, or the defaults without an episode."""
-    from glmap_tools.nav import NavConfig
-
-    nav = nav_steps.of(session)
-    return nav.config if nav is not None else NavConfig()
-
-
-def _goal(session: Session, goal: str) -> str:
-    if goal.strip():
-        return goal.strip()
-    nav = nav_steps.of(session)
-    if nav is None:
-        raise InvalidInputError(
-            "no goal: pass goal='a sofa' (or start a simulator episode with sim_reset, whose "
-            "goal is used by default)."
-        )
-    return str(nav.goal)
-
-
-def _agent(session: Session) -> tuple[float, float, float]:
-    with locked(session) as glmap:
-        agent = nav_steps.agent_pose(session, glmap)
-    if agent is None:
-        raise InvalidInputError(
-            "the map is empty: observe a frame (observe_frame) or start sim_reset first."
-        )
-    return agent
-
-
-def _decide(
-    session: Session, goal: str, policy: str, *, act: bool = True
-) -> "tuple[NavDecision, tuple[float, float, float]]":
-    """Run the policy on the session's map (the episode's NavState, or a fresh one).
-    act=False decides on a copy of the episode's NavState: a tool that only shows the
-    decision (value_map) leaves the policy's memory as it was."""
-    from dataclasses import replace
-
-    from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState, decide
-
-    agent = _agent(session)
-    nav = nav_steps.of(session)
-    with locked(session) as glmap:
-        if nav is not None:
-            state, config = nav.state, nav.config
-            scorer = nav.goal_scorer(glmap.fused_into)
-            # Count every step taken since sim_reset (look_around, navigate_to, sim_step
-            # included), so a full turn already taken counts as the policy's initial spin.
-            state.steps = max(state.steps, len(nav.path) - 1)
-            if not act:
-                state = replace(
-                    state,
-                    avoid=list(state.avoid),
-                    rejected_units=set(state.rejected_units),
-                    blocked=set(state.blocked),
-                    missed=dict(state.missed),
-                )
-        else:
-            state, scorer, config = NavState(), EmbeddingScorer(glmap.embedder), NavConfig()
-        decision = decide(
-            glmap,
-            agent[:2],
-            agent[2],
-            goal,
-            policy=policy,
-            scorer=scorer,
-            state=state,
-            config=config,
-        )
-    if nav is not None and act:
-        nav.decision = decision
-    return decision, agent
-
-
-def _waypoint(decision: "NavDecision", agent: tuple[float, float, float]) -> Waypoint:
-    w = decision.waypoint
-    out = Waypoint(kind=w.kind, score=round(float(w.score), 3), reason=w.reason)
-    # Optional fields are set only when they apply: one not set is left out of the text.
-    if w.xy is not None:
-        x, y = float(w.xy[0]), float(w.xy[1])
-        out.xy = (round(x, 2), round(y, 2))
-        where = nav_steps.relative(agent, (x, y))
-        out.distance_m, out.bearing_deg = where["distance_m"], where["bearing_deg"]
-    if w.unit_id is not None:
-        out.unit_id = int(w.unit_id)
-    return out
-
-
-def _evidence(session: Session, units: str, scores: dict[int, float], config: "NavConfig") -> str:
-    """What the value map stands on: 'units' (past the evidence gate), 'region hint'
-    (regions whose text suggests the goal) or 'none' (the nearest frontier decides)."""
-    from glmap_tools.nav.scorers import UNIT_KINDS, map_units
-    from glmap_tools.nav.value import evidence_scores
-
-    least = {"instance": config.min_instance_score, "region": config.min_region_score}
-    with locked(session) as glmap:
-        seen = [u for u in map_units(glmap, units) if u.unit_id in scores]
-    return evidence_scores(seen, scores, UNIT_KINDS[units], least, config.region_hint)[1]
-
-
-def _top_units(
-    session: Session, goal: str, scores: dict[int, float], k: int = 5
-) -> list[tuple[int, str, float, str]]:
-    """The k best-scored units: [id, kind, s_u, by] (by: 'client', 'prior' or 'scorer')."""
-    from glmap_tools.nav.scorers import ClientScorer, map_units
-
-    nav = nav_steps.of(session)
-    with locked(session) as glmap:
-        units = [u for u in map_units(glmap) if scores.get(u.unit_id, 0.0) > 0]
-        scorer = nav.goal_scorer() if nav is not None else None
-    units.sort(key=lambda u: (-scores[u.unit_id], u.unit_id))
-    units = units[:k]
-    by = (
-        scorer.sources(goal, units) if isinstance(scorer, ClientScorer) else ["scorer"] * len(units)
-    )
-    return [
-        (u.unit_id, u.kind, round(scores[u.unit_id], 3), b) for u, b in zip(units, by, strict=True)
-    ]
-
-
-def _nav_png(session: Session, decision: "NavDecision", agent: tuple[float, float, float]) -> bytes:
-    xy = decision.waypoint.xy
-    with locked(session) as glmap:
-        image = nav_image(
-            glmap,
-            agent,
-            decision.value,
-            decision.frontiers,
-            (xy[0], xy[1]) if xy is not None else None,
-            decision.plan.path if decision.plan is not None else None,
-        )
-    return image.to_png()
-
-
 async def value_map(
     call: Call,
     goal: Goal = "",
@@ -218,7 +92,7 @@ async def value_map(
     target = session_of(call, session)
 
     def run() -> ImageResult[ValueMapResult]:
-        wanted = _goal(target, goal)
+        wanted = goal_text(target, goal)
         from glmap_tools.nav.scorers import same_goal
 
         client = None
@@ -230,17 +104,17 @@ async def value_map(
                     "leave goal out to give them."
                 )
             client = set_client_scores(target, scores, priors, clear)
-        decision, agent = _decide(target, wanted, POLICY_OF_UNITS[units], act=False)
+        decision, agent = decide_on_map(target, wanted, POLICY_OF_UNITS[units], act=False)
         top = decision.value.top_cells(5) if decision.value is not None else []
         info = ValueMapResult(
             goal=wanted,
             units=units,
             agent=(round(agent[0], 2), round(agent[1], 2), round(math.degrees(agent[2]))),
-            waypoint=_waypoint(decision, agent),
+            waypoint=waypoint_result(decision, agent),
             matched_unit=decision.matched_unit,
             top_cells=[(round(x, 2), round(y, 2), round(v, 3)) for x, y, v in top],
-            top_units=_top_units(target, wanted, decision.scores),
-            evidence=_evidence(target, units, decision.scores, _config(target)),
+            top_units=top_units(target, wanted, decision.scores),
+            evidence=evidence(target, units, decision.scores, episode_config(target)),
             frontiers=len(decision.frontiers),
         )
         nav = nav_steps.of(target)
@@ -249,7 +123,7 @@ async def value_map(
                 client = held_scores(glmap, nav.client)
         if client is not None and (client.scores or client.priors):
             info.client = client
-        png = _nav_png(target, decision, agent)
+        png = nav_png(target, decision, agent)
         return ImageResult(data=info, images=[Picture(format="png", data=png)])
 
     return await in_thread(run)
@@ -267,7 +141,7 @@ async def frontiers(
     target = session_of(call, session)
 
     def run() -> ImageResult[FrontiersResult]:
-        agent = _agent(target)
+        agent = current_agent(target)
         nav = nav_steps.of(target)
         config = nav.config if nav is not None else NavConfig()
         state = nav.state if nav is not None else NavState()
@@ -329,7 +203,7 @@ async def navigate_to(
                 nav.config,
                 lambda k, n: report(k, n, f"navigate_to step {k + 1}"),
             )
-            scored = _unit_score(target, nav, int(unit_id)) if unit_id is not None else UnitScore()
+            scored = unit_score(target, nav, int(unit_id)) if unit_id is not None else UnitScore()
         report(max_steps, max_steps, walk.outcome)
         info = NavigateResult(
             **walk.given(), **scored.given(), **simulator.status(sim, camera_pose=False).given()
@@ -371,52 +245,6 @@ async def look_around(call: Call, session: SessionArg = "") -> ImageResult[LookA
     return await in_thread(lambda: in_episode(target, run))
 
 
-def _unit_score(session: Session, nav: nav_steps.NavSession, unit_id: int) -> UnitScore:
-    """The score of one unit for the episode's goal (by 'client', 'prior' or 'scorer')."""
-    from glmap_tools.nav.scorers import ClientScorer, UnitText, map_units
-
-    with locked(session) as glmap:
-        kind = glmap.unit(unit_id).kind
-        units: list[UnitText] = [u for u in map_units(glmap, kind + "s") if u.unit_id == unit_id]
-        scorer = nav.goal_scorer(glmap.fused_into)
-        score = float(scorer.score(nav.goal, units)[0]) if units else 0.0
-    by = (
-        scorer.sources(nav.goal, units)[0]
-        if isinstance(scorer, ClientScorer) and units
-        else "scorer"
-    )
-    return UnitScore(goal_score=round(score, 3), score_by=by)
-
-
-def _goal_unit(
-    session: Session,
-    decision: "NavDecision",
-    agent: tuple[float, float, float],
-    config: "NavConfig",
-) -> GoalUnit | None:
-    """The matched goal unit of `decision` and whether stopping at `agent` would count."""
-    from glmap_tools.nav import GoalMatch
-    from glmap_tools.nav.policy import stop_would_count, unit_reach, walls_of
-    from glmap_tools.nav.value import unit_cell_array
-
-    unit_id = decision.matched_unit
-    if unit_id is None:
-        return None
-    with locked(session) as glmap:
-        cells = unit_cell_array(glmap.grid, unit_id)
-        occ = decision.occupancy
-        here, sight = unit_reach(
-            occ, GoalMatch(unit_id, 1.0, 0, cells), agent[:2], walls_of(glmap, occ)
-        )
-    return GoalUnit(
-        id=int(unit_id),
-        score=round(float(decision.waypoint.score), 3),
-        unit_distance_m=round(here, 2),
-        in_sight=sight,
-        would_succeed=stop_would_count(here, sight, config),
-    )
-
-
 async def nav_step(
     call: Call,
     policy: Policy = "glmap",
@@ -442,7 +270,7 @@ async def nav_step(
         with locked(target):
             for k in range(actions):
                 report(k, actions, f"nav_step {k + 1}/{actions}")
-                decision, agent = _decide(target, nav.goal, policy)
+                decision, agent = decide_on_map(target, nav.goal, policy)
                 if decision.action == "stop" and not execute_stop:
                     outcome = "policy would stop here"
                     break
@@ -456,7 +284,7 @@ async def nav_step(
                         action=decision.action,
                         position=(round(after[0], 2), round(after[1], 2)),
                         heading_deg=round(math.degrees(after[2])),
-                        waypoint=_waypoint(decision, agent),
+                        waypoint=waypoint_result(decision, agent),
                     )
                 )
                 if sim.over:
@@ -471,7 +299,7 @@ async def nav_step(
             actions=counts,
             walked_m=round(walked, 2),  # path length, as navigate_to's
             new_collisions=sim.collisions - collisions,
-            waypoint=_waypoint(decision, agent) if decision is not None else None,
+            waypoint=waypoint_result(decision, agent) if decision is not None else None,
             **simulator.status(sim, camera_pose=False).given(),
         )
         # Optional fields are set only when they apply: one not set is left out of the text.
@@ -480,7 +308,9 @@ async def nav_step(
                 units=len(nav.client.units), priors=len(nav.client.priors)
             )
         report(actions, actions, outcome)
-        goal_unit = _goal_unit(target, decision, end, nav.config) if decision is not None else None
+        goal_unit = (
+            matched_goal_unit(target, decision, end, nav.config) if decision is not None else None
+        )
         if goal_unit is not None and not sim.over:
             info.goal_unit = goal_unit
         if details:
@@ -495,7 +325,7 @@ async def nav_step(
         pictures = (
             [
                 Picture(format="jpeg", data=jpeg(sim.obs["rgb"])),
-                Picture(format="png", data=_nav_png(target, decision, agent)),
+                Picture(format="png", data=nav_png(target, decision, agent)),
             ]
             if images and decision is not None
             else []
@@ -503,71 +333,6 @@ async def nav_step(
         return ImageResult(data=info, images=pictures)
 
     return await in_thread(lambda: in_episode(target, run))
-
-
-def _checked_client_scores(
-    glmap: "GLMap", scores: dict[int, float], priors: dict[str, float]
-) -> tuple[dict[int, float], dict[str, float], dict[int, int]]:
-    """(scores by live id, priors, {fused id: live id}) or raise before anything changes."""
-    from glmap_tools.nav.scorers import check_unit_score, kind_pattern
-
-    live: dict[int, float] = {}
-    followed: dict[int, int] = {}
-    for uid, score in scores.items():
-        value = check_unit_score(score, f"unit {uid}")
-        unit = int(uid)
-        while unit in glmap.fused_into and not (unit in glmap.instances or unit in glmap.regions):
-            unit = glmap.fused_into[unit]
-        if unit != uid:
-            followed[int(uid)] = unit
-        glmap.unit(unit)  # an unknown id raises UnknownIdError with the closest one
-        live[unit] = max(value, live.get(unit, 0.0)) if unit in live else value
-    kinds: dict[str, float] = {}
-    for kind, score in priors.items():
-        kind_pattern(kind)  # an empty kind raises
-        kinds[" ".join(kind.lower().split())] = check_unit_score(score, f"kind {kind!r}")
-    return live, kinds, followed
-
-
-def set_client_scores(
-    session: Session,
-    scores: dict[int, float] | None,
-    priors: dict[str, float] | None,
-    clear: bool,
-) -> HeldScores:
-    """Check and keep the client's f_S of the episode's goal; return what is held now
-    (scores by unit, priors by region kind, and the fused ids whose scores moved to the
-    unit they became). Nothing changes on an error."""
-    from glmap_tools.nav.scorers import ClientScores
-
-    _, nav = nav_steps.running(session)
-    with locked(session) as glmap:
-        units, kinds, followed = _checked_client_scores(glmap, scores or {}, priors or {})
-        if clear or nav.client is None:
-            nav.client = ClientScores(nav.goal)
-        nav.client.units.update(units)
-        nav.client.priors.update(kinds)
-        followed.update(nav.client.follow(glmap.fused_into))
-        return held_scores(glmap, nav.client, followed)
-
-
-def held_scores(
-    glmap: "GLMap", client: "ClientScores", followed: dict[int, int] | None = None
-) -> HeldScores:
-    """The client's scores as value_map shows them (see `set_client_scores`)."""
-    from glmap_tools.nav.scorers import kind_pattern
-
-    regions = sorted((r.id, r.text.lower()) for r in glmap.regions.values())
-    out = HeldScores(
-        scores=[(u, glmap.unit(u).kind, s) for u, s in sorted(client.units.items())],
-        priors=[
-            (k, s, [r for r, t in regions if kind_pattern(k).search(t)])
-            for k, s in sorted(client.priors.items())
-        ],
-    )
-    if followed:
-        out.followed = [f"{a}->{b}" for a, b in sorted(followed.items())]
-    return out
 
 
 TOOLS = [
