@@ -119,7 +119,7 @@ class ClientEmbedding:
         from glmap_tools.nav.scorers import EmbeddingScorer, UnitText
 
         if not _EMBEDDING:
-            from glmap_tools.language.embed import default_embedder
+            from glmap_tools.language.minilm import default_embedder
 
             _EMBEDDING.append(EmbeddingScorer(default_embedder()))
         units = [UnitText(r.region_id, "region", r.text) for r in regions]

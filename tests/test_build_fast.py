@@ -13,7 +13,8 @@ from glmap_tools.errors import InvalidInputError
 from glmap_tools.ingest.build import FAST, REFERENCE, BuildSettings, build_map
 from glmap_tools.ingest.cli import bundled_folder
 from glmap_tools.ingest.prefetch import prefetched
-from glmap_tools.language.embed import HashingEmbedder, default_embedder
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.language.minilm import default_embedder
 from glmap_tools.map import GLMap
 from tests.build_helpers import assert_same_map, write_small_tour
 

@@ -286,7 +286,7 @@ def _help(parser, path: list[str]) -> str:  # type: ignore[no-untyped-def]
 
 def test_loading_the_bundled_embedder_prints_no_progress_bar():
     code = (
-        "from glmap_tools.language.embed import MiniLMEmbedder; "
+        "from glmap_tools.language.minilm import MiniLMEmbedder; "
         "MiniLMEmbedder(); "
         "from transformers.utils import logging as l; assert l.is_progress_bar_enabled()"
     )

@@ -14,14 +14,8 @@ import pytest
 from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.language import calibration
 from glmap_tools.language.bert import K_BLOCK, _gelu, dense, gelu, panels_agree
-from glmap_tools.language.embed import (
-    Embedder,
-    HashingEmbedder,
-    MiniLMEmbedder,
-    _bundled_model_path,
-    cosine_similarity,
-    default_embedder,
-)
+from glmap_tools.language.embed import Embedder, HashingEmbedder, cosine_similarity
+from glmap_tools.language.minilm import MiniLMEmbedder, _bundled_model_path, default_embedder
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "tau_s_calibration.md"
 
@@ -314,12 +308,12 @@ def test_the_panelled_encoder_gives_the_reference_vectors(minilm: MiniLMEmbedder
 
 @pytest.mark.slow  # imports sentence-transformers for the reference
 def test_the_numpy_minilm_gives_sentence_transformers_vectors_without_importing_torch() -> None:
-    from glmap_tools.language.embed import _load_sentence_transformer
+    from glmap_tools.language.minilm import _load_sentence_transformer
 
     texts = ["a chair", "somewhere to sleep", "a red wooden chair with a high back " * 12, "Café"]
     code = (
         "import sys\n"
-        "from glmap_tools.language.embed import default_embedder\n"
+        "from glmap_tools.language.minilm import default_embedder\n"
         f"vectors = default_embedder().embed({texts!r})\n"
         "print(vectors.tobytes().hex())\n"
         "print(' '.join(m for m in ('torch', 'transformers', 'sentence_transformers') "

@@ -7,7 +7,7 @@ from scipy.spatial import cKDTree
 from glmap_tools.cli import main as glmap_main
 from glmap_tools.ingest.cli import bundled_folder
 from glmap_tools.ingest.datasets import open_sequence
-from glmap_tools.language.embed import default_embedder
+from glmap_tools.language.minilm import default_embedder
 from glmap_tools.map import GLMap, MapConfig
 
 

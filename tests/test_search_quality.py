@@ -15,7 +15,8 @@ import pytest
 from mcp import Client
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.language.embed import HashingEmbedder, default_embedder
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.language.minilm import default_embedder
 from glmap_tools.map import queries
 from glmap_tools.server import build_server
 from glmap_tools.worlds import search_eval as se

@@ -80,7 +80,8 @@ async def test_find_instance_ranks_the_described_chair_first_with_its_geometry(t
     "embedder", ["hashing", pytest.param("minilm", marks=pytest.mark.slow)]
 )  # hashing loads in the request; minilm loads on the background task
 async def test_every_hit_carries_a_calibrated_match_flag_over_mcp(tmp_path, embedder):
-    from glmap_tools.language.embed import HashingEmbedder, MiniLMEmbedder
+    from glmap_tools.language.embed import HashingEmbedder
+    from glmap_tools.language.minilm import MiniLMEmbedder
     from glmap_tools.map.queries import MATCH_RULES
 
     model = {"hashing": HashingEmbedder, "minilm": MiniLMEmbedder}[embedder]

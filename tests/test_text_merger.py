@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.language.embed import HashingEmbedder, default_embedder
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.language.minilm import default_embedder
 from glmap_tools.language.text_merger import (
     DELIMITER,
     FOLD_WORDS,

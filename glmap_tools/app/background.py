@@ -159,11 +159,11 @@ def load_embedder(kind: str, threads: int | None) -> Embedder:
     limited to `threads`; BLAS is limited by `threads.limited_threads`."""
     import sys
 
-    from glmap_tools.language import embed
+    from glmap_tools.language import embed, minilm
 
     if kind == "hashing":
         return embed.HashingEmbedder()
-    model = embed.default_embedder()
+    model = minilm.default_embedder()
     torch = sys.modules.get("torch")  # the bundled MiniLM runs on numpy: no torch import
     if threads is not None and torch is not None:
         torch.set_num_threads(threads)

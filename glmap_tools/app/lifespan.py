@@ -69,7 +69,7 @@ def opened_state(
         if config.embedder == "hashing":
             embedder = load_embedder("hashing", None)
         else:
-            from glmap_tools.language.embed import MiniLMEmbedder
+            from glmap_tools.language.minilm import MiniLMEmbedder
 
             task = background.start(
                 EMBEDDER, lambda: load_embedder(config.embedder, config.compute_threads)

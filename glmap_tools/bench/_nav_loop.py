@@ -28,7 +28,7 @@ def embedder() -> Any:
     """The bundled MiniLM embedder, loaded once."""
     global _EMBEDDER
     if _EMBEDDER is None:
-        from glmap_tools.language.embed import default_embedder
+        from glmap_tools.language.minilm import default_embedder
 
         _EMBEDDER = default_embedder()
     return _EMBEDDER

@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     report = Report("bench integrate")
     if args.embedder == "minilm":
-        from glmap_tools.language.embed import default_embedder
+        from glmap_tools.language.minilm import default_embedder
 
         inner: Embedder = default_embedder()
     else:

@@ -185,7 +185,8 @@ async def run(args: argparse.Namespace) -> int:
     from mcp import Client
 
     from glmap_tools.bench.report import Report
-    from glmap_tools.language.embed import HashingEmbedder, default_embedder
+    from glmap_tools.language.embed import HashingEmbedder
+    from glmap_tools.language.minilm import default_embedder
     from glmap_tools.server import ServerConfig, build_server
 
     report = Report("bench mcp")
@@ -267,7 +268,8 @@ async def run_http(args: argparse.Namespace) -> int:
     from mcp.client.streamable_http import streamable_http_client
 
     from glmap_tools.bench.report import Report
-    from glmap_tools.language.embed import HashingEmbedder, default_embedder
+    from glmap_tools.language.embed import HashingEmbedder
+    from glmap_tools.language.minilm import default_embedder
 
     report = Report("bench mcp --transport http")
     embedder: Embedder = default_embedder() if args.embedder == "minilm" else HashingEmbedder()

@@ -77,9 +77,9 @@ def check_agents(names: Sequence[str]) -> tuple[str, ...]:
 
 
 def _embedder(name: str) -> Any:
-    from glmap_tools.language import embed
+    from glmap_tools.language import embed, minilm
 
-    return embed.HashingEmbedder() if name == "hashing" else embed.default_embedder()
+    return embed.HashingEmbedder() if name == "hashing" else minilm.default_embedder()
 
 
 def scene_map(spec: SqaSpec, layout: Any, path: Path, embedder: Any) -> Any:

@@ -141,9 +141,9 @@ def cpu_seconds() -> float:
 
 def make_embedder(name: str) -> Embedder:
     """The text embedder named by `--embedder`."""
-    from glmap_tools.language import embed
+    from glmap_tools.language import embed, minilm
 
-    return embed.HashingEmbedder() if name == "hashing" else embed.default_embedder()
+    return embed.HashingEmbedder() if name == "hashing" else minilm.default_embedder()
 
 
 def check_settings(settings: BuildSettings) -> None:

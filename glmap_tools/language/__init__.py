@@ -7,24 +7,16 @@ from typing import TYPE_CHECKING
 from glmap_tools.lazy import lazy_getattr
 
 if TYPE_CHECKING:
-    from glmap_tools.language.embed import (
-        Embedder,
-        HashingEmbedder,
-        MiniLMEmbedder,
-        cosine_similarity,
-        default_embedder,
-    )
+    from glmap_tools.language.embed import Embedder, HashingEmbedder, cosine_similarity
+    from glmap_tools.language.minilm import MiniLMEmbedder, default_embedder
 
 # Loaded on first use: the command lines (language.backends) need no numpy.
 _LAZY = {
-    name: "glmap_tools.language.embed"
-    for name in (
-        "Embedder",
-        "HashingEmbedder",
-        "MiniLMEmbedder",
-        "cosine_similarity",
-        "default_embedder",
-    )
+    **{
+        name: "glmap_tools.language.embed"
+        for name in ("Embedder", "HashingEmbedder", "cosine_similarity")
+    },
+    **{name: "glmap_tools.language.minilm" for name in ("MiniLMEmbedder", "default_embedder")},
 }
 __all__ = [
     "Embedder",

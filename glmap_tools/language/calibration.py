@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.language.embed import Embedder, HashingEmbedder, default_embedder
+from glmap_tools.language.embed import Embedder, HashingEmbedder
+from glmap_tools.language.minilm import default_embedder
 
 TARGET_PRECISION = 0.90
 TEXT_ONLY_NEGATIVES = frozenset({"different_category", "different_region"})

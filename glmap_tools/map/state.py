@@ -42,7 +42,7 @@ class MapState:
         self.config = config or MapConfig()
         if embedder is None:
             # Imported here so the core does not load a model library unless asked to.
-            from glmap_tools.language.embed import default_embedder
+            from glmap_tools.language.minilm import default_embedder
 
             embedder = default_embedder()
         self.embedder: Embedder = embedder

@@ -96,7 +96,7 @@ class _TwoTrees:
     """This tree's and an older tree's `plan_frame` and `decide`, fed the same frames."""
 
     def __init__(self, tree: Path) -> None:
-        from glmap_tools.language.embed import default_embedder as embedder
+        from glmap_tools.language.minilm import default_embedder as embedder
         from glmap_tools.map import GLMap, MapConfig
 
         old = _old_modules(tree)
@@ -200,7 +200,7 @@ def situate_against(tree: Path, results: Path) -> tuple[int, list[str]]:
     import shutil
     import tempfile
 
-    from glmap_tools.language.embed import default_embedder as embedder
+    from glmap_tools.language.minilm import default_embedder as embedder
     from glmap_tools.map import GLMap
     from glmap_tools.sqa.situate import situate
 

@@ -59,7 +59,7 @@ TOURS = ["s00", "s01"]
 def play(task: str, index: int, policy: str, max_steps: int) -> dict[str, Any]:
     """Play one tune episode (`nav.episode.play`); every step's decision and the final
     map's fingerprint."""
-    from glmap_tools.language.embed import default_embedder as embedder
+    from glmap_tools.language.minilm import default_embedder as embedder
     from glmap_tools.map import GLMap, MapConfig
     from glmap_tools.nav import NavConfig
     from glmap_tools.nav.episode import play as play_steps
@@ -102,7 +102,7 @@ def play(task: str, index: int, policy: str, max_steps: int) -> dict[str, Any]:
 def tour(scene: str, max_frames: int) -> dict[str, Any]:
     """Build a map from a bench scene's tour; its fingerprint."""
     import glmap_tools.data
-    from glmap_tools.language.embed import default_embedder as embedder
+    from glmap_tools.language.minilm import default_embedder as embedder
     from glmap_tools.map import GLMap, MapConfig
     from glmap_tools.sim.render import CameraSpec
     from glmap_tools.worlds.map_eval import build_map_from_tour

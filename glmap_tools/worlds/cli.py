@@ -298,7 +298,7 @@ def run_map_eval(args: argparse.Namespace) -> int:
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     import time
 
-    from glmap_tools.language import embed
+    from glmap_tools.language import embed, minilm
     from glmap_tools.map import GLMap
     from glmap_tools.sim.layout_io import load_layout
     from glmap_tools.worlds.map_eval import build_map_from_tour, evaluate_instances
@@ -306,7 +306,7 @@ def run_map_eval(args: argparse.Namespace) -> int:
     if args.min_pixels is not None and args.min_pixels < 1:
         raise InvalidInputError(f"--min-pixels {args.min_pixels} must be at least 1 pixel.")
     layout = load_layout(args.layout)
-    embedder = embed.HashingEmbedder() if args.embedder == "hashing" else embed.default_embedder()
+    embedder = embed.HashingEmbedder() if args.embedder == "hashing" else minilm.default_embedder()
     glmap = GLMap(embedder=embedder)
     start = time.perf_counter()
     seen = build_map_from_tour(
