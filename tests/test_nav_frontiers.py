@@ -18,6 +18,7 @@ from glmap_tools.nav import (
     traversable,
 )
 from glmap_tools.nav.planner import agent_field
+from glmap_tools.nav.waypoint import distances_to_cells
 
 CELL = 0.05
 RADIUS = 0.18
@@ -154,6 +155,12 @@ def test_a_matched_unit_gives_the_nearest_navigable_cell_within_the_stop_distanc
     box_centre = (40 * CELL, 40 * CELL)
     assert math.dist(wp.xy, box_centre) <= config.stop_distance + 0.1 + 0.001
     assert math.dist(wp.xy, box_centre) >= 0.4  # not further in than it must: the near edge
+    # The plan counts the agent arrived within half a step of the waypoint: from anywhere
+    # there the unit is within the stop distance, so where it arrives, it stops.
+    arc = np.linspace(0, 2 * math.pi, 16, endpoint=False)
+    r = config.forward_step / 2
+    around = np.stack([wp.xy[0] + r * np.cos(arc), wp.xy[1] + r * np.sin(arc)], axis=1)
+    assert distances_to_cells(cells, around, CELL).max() <= config.stop_distance
     # Standing within the stop distance already: the waypoint is where the agent is.
     near = (40 * CELL - 0.5, 40 * CELL)
     wp = choose_waypoint(None, [], trav, near, match, config, occ=occ, distance=field)
@@ -205,6 +212,34 @@ def test_a_stop_within_reach_but_behind_a_wall_moves_to_where_the_unit_is_in_sig
     assert wp.xy == here
     with pytest.raises(InvalidInputError, match="stop_in_sight='yes' must be true or false"):
         NavConfig(stop_in_sight="yes")  # type: ignore[arg-type]
+
+
+def test_a_unit_against_the_far_side_of_a_wall_is_not_stopped_for_from_behind_it() -> None:
+    from glmap_tools.nav.waypoint import in_clear_sight
+
+    occ = room_with_door(20)
+    occ.state[11:50, 34:36] = OBSTACLE  # a wall, 10 cm thick, splits the room
+    walls = np.zeros(occ.state.shape, dtype=bool)
+    walls[10:51, 10:51] = occ.state[10:51, 10:51] == OBSTACLE
+    cells = np.array([(i, j) for i in range(36, 40) for j in range(28, 32)])  # against it
+    match = GoalMatch(7, 0.9, 3, cells)
+    here = occ.index_to_world(30, 29)  # 0.3 m from the unit, on the wall's other side
+    trav = traversable(occ, RADIUS)
+    field = agent_field(occ, here, NavConfig()).metres
+    config = NavConfig()
+    # Every obstacle blocking, the wall lies within the tolerance the map's own drawing of
+    # the unit needs, so the old rule stops here; structure walls block from one cell on.
+    assert in_clear_sight(match, occ, np.array([[30, 29]]))[0]
+    assert not in_clear_sight(match, occ, np.array([[30, 29]]), walls)[0]
+    old = choose_waypoint(None, [], trav, here, match, config, occ=occ, distance=field)
+    assert old.kind == "goal" and old.xy == here
+    wp = choose_waypoint(None, [], trav, here, match, config, occ=occ, distance=field, walls=walls)
+    assert wp.kind != "goal"  # nothing on this side is in sight of it: no stop, no approach
+    # From the unit's side of the wall it is stopped for as before.
+    there = occ.index_to_world(30, 44)
+    field = agent_field(occ, there, config).metres
+    wp = choose_waypoint(None, [], trav, there, match, config, occ=occ, distance=field, walls=walls)
+    assert wp.kind == "goal" and wp.xy == there
 
 
 def test_no_frontier_no_match_and_no_value_means_no_waypoint() -> None:

@@ -92,3 +92,37 @@ def test_a_unit_looked_at_again_without_being_seen_loses_its_pull_and_its_match(
     assert not (d.waypoint.kind == "goal" and d.waypoint.unit_id == desk)
     base = decide(glmap, (0.0, 0.0), 0.0, "desk", policy="frontier", state=NavState(), config=once)
     assert base.waypoint.kind == "goal" and base.waypoint.unit_id == desk
+
+
+def test_the_match_the_agent_heads_for_keeps_its_place_down_to_the_lower_seen_share() -> None:
+    # A desk seen in 3 of 7 looks: too few for a new match, enough for the one the agent
+    # already heads for (else it swaps with a frontier at every look while turning).
+    from glmap_tools.nav.policy import SEEN_SHARE, SEEN_SHARE_HELD
+    from glmap_tools.nav.waypoint import Waypoint
+
+    boxes = scenes.floor(6.0) + scenes.table(1.5, 0.0, object_id=2)
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    missed: dict[int, int] = {}
+    for k, text in enumerate([DESK, DESK, DESK, None, None, None, None]):
+        a = math.radians(-8 + 3 * k)
+        frame, ids = scenes.view(boxes, (0.0, 0.0, 0.88), (math.cos(a), math.sin(a), 0.88), 96, 72)
+        glmap.integrate(frame, scenes.semantics(ids, {2: text} if text else {}))
+        note_missed(missed, glmap, frame)
+    desk = desk_unit(glmap)
+    share = seen_share(glmap.instances[desk].observations, missed[desk])
+    assert SEEN_SHARE_HELD <= share < SEEN_SHARE
+    once = NavConfig(stop_threshold=0.5, min_observations=1, initial_spin=0)
+    fresh = decide(
+        glmap,
+        (0.0, 0.0),
+        0.0,
+        "desk",
+        policy="glmap",
+        state=NavState(missed=dict(missed)),
+        config=once,
+    )
+    assert not (fresh.waypoint.kind == "goal" and fresh.waypoint.unit_id == desk)
+    held = NavState(missed=dict(missed))
+    held.last_waypoint = Waypoint((1.0, 0.0), "goal", desk, 0.9, "heading to the desk.")
+    d = decide(glmap, (0.0, 0.0), 0.0, "desk", policy="glmap", state=held, config=once)
+    assert d.waypoint.kind == "goal" and d.waypoint.unit_id == desk

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from glmap_tools.map.occupancy import DenseOccupancy
-from glmap_tools.nav.choose import plan_to
+from glmap_tools.nav.choose import plan_to, plan_to_goal_cell
 from glmap_tools.nav.config import NavConfig
 from glmap_tools.nav.grid import agent_rc
 from glmap_tools.nav.motion import forget_marks_near
@@ -137,7 +137,7 @@ def _approach(
             "stop", Plan(np.array([xy]), 0.0, "stop", True, xy), xy, True, here, in_sight, wp.reason
         )
     if wp.kind == "goal" and wp.xy is not None:
-        out = plan_to(sur, xy, heading, wp.xy, config)
+        out = plan_to_goal_cell(sur, xy, heading, wp, config)
         if out.reachable:
             return Approach(out.action, out, out.goal_xy, False, here, in_sight, wp.reason)
     # No cell near the unit can be reached yet: head for its nearest reachable point.

@@ -233,6 +233,7 @@ def plan_on_field(
     config: NavConfig,
     clear: np.ndarray | None = None,
     plannable: tuple[np.ndarray, np.ndarray] | None = None,
+    arrive: float | None = None,
 ) -> Plan:
     """Plan with a distance `field` whose source is the agent; act on the cost-to-go.
 
@@ -240,7 +241,8 @@ def plan_on_field(
     reachable cell). The cost-to-go from that end is solved on map cells with the clearance
     cost, the path descends it from the agent, and `nav.motion.drive` picks the action.
     `clear` is `nav.motion.clearance(occ)` and `plannable` the (plannable, speed) of
-    `nav.motion.masks` for the agent, when the caller has them already.
+    `nav.motion.masks` for the agent, when the caller has them already. The agent has
+    arrived (action 'stop') within `arrive` metres of the end (default half a step).
     """
     from glmap_tools.nav.motion import clearance, drive, masks
 
@@ -273,7 +275,7 @@ def plan_on_field(
     else:
         path = np.vstack([path, np.array(end_xy)[None]])
     length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
-    if math.dist(agent_xy, end_xy) <= config.forward_step / 2:
+    if math.dist(agent_xy, end_xy) <= (config.forward_step / 2 if arrive is None else arrive):
         return Plan(path, length, "stop", reachable, end_xy)
     step = drive(occ, clear, to_go, agent_xy, heading, config)
     return Plan(path, length, step.action, reachable, end_xy, boxed=not step.open)

@@ -148,18 +148,31 @@ def _score_units(
     scores = scorer.score(goal, units) if units else np.zeros(0)
     skip = set(unfit_goals(glmap)) if units else set()
     match = find_goal_match(glmap, units, scores, rejected | skip, config, scorer, goal, prefer)
-    while policy in POLICY_UNITS and match is not None and _doubted(glmap, match, missed or {}):
+    while (
+        policy in POLICY_UNITS
+        and match is not None
+        and _doubted(glmap, match, missed or {}, held=match.unit_id == prefer)
+    ):
         skip.add(match.unit_id)
         match = find_goal_match(glmap, units, scores, rejected | skip, config, scorer, goal, prefer)
     by_id = {u.unit_id: float(v) for u, v in zip(units, scores, strict=True)}
     return Scored(units, by_id, match)
 
 
-def _doubted(glmap: GLMap, match: GoalMatch, missed: dict[int, int]) -> bool:
+# The share of looks that must have seen a match; the one the agent already heads for keeps
+# its place down to the lower share, so a unit seen in every other look while the agent turns
+# does not swap with a frontier at each step (tune s02-006: 182 seen, 182 missed, the agent
+# turned left and right for 300 steps beside the sofa).
+SEEN_SHARE = 0.5
+SEEN_SHARE_HELD = 0.4
+
+
+def _doubted(glmap: GLMap, match: GoalMatch, missed: dict[int, int], held: bool = False) -> bool:
     """Whether a goal match fails the verification over fused views (`nav/verify.py`):
-    outvoted at its place, or missed by most of the looks at it."""
+    outvoted at its place, or missed by most of the looks at it (`held`: the match the
+    agent already heads for, by `SEEN_SHARE_HELD`)."""
     seen = seen_share(match.observations, missed.get(match.unit_id, 0))
-    return seen < 0.5 or outvoted(glmap, match.unit_id)
+    return seen < (SEEN_SHARE_HELD if held else SEEN_SHARE) or outvoted(glmap, match.unit_id)
 
 
 def _unit_value_map(

@@ -96,7 +96,13 @@ def goal_cells_near(
     return np.stack([rows + r0, cols + c0], axis=1)
 
 
-SIGHT_TOLERANCE_CELLS = 2  # obstacle cells this close to the unit's cells do not block sight
+# Obstacle cells this close to the unit's cells do not block sight: 2 where every obstacle
+# blocks (the map draws the unit's own object around its cells), 1 where only walls block
+# (the simulator's rule stops one cell short of the footprint). A wall the unit stands
+# against is 2 cells thick: with 2 cells of tolerance an agent behind it saw through it
+# (tune s00-004: a lamp on a nightstand, stopped 0.62 m from it in the next room).
+SIGHT_TOLERANCE_CELLS = 2
+SIGHT_TOLERANCE_WALL_CELLS = 1
 
 
 def in_clear_sight(
@@ -108,8 +114,9 @@ def in_clear_sight(
     """[K] bool: whether the straight line from each (row, col) cell centre to the nearest
     cell of the matched unit crosses no obstacle of `occ` (obstacle cells within
     `SIGHT_TOLERANCE_CELLS` of the unit's own cells, which the map draws around it, are
-    ignored). The simulator's success rule asks the same of the footprint's nearest point,
-    so a stop behind a door jamb, within reach but out of sight, fails.
+    ignored; wall cells within `SIGHT_TOLERANCE_WALL_CELLS` when `walls` is given). The
+    simulator's success rule asks the same of the footprint's nearest point, so a stop
+    behind a door jamb, within reach but out of sight, fails.
 
     `walls` ([H, W] bool over `occ`'s window, from `nav.grid.structure_walls`), when given,
     limits the blocking cells to obstacles that are structure: furniture (a chair's own
@@ -125,7 +132,8 @@ def in_clear_sight(
         return np.zeros(len(points_rc), dtype=bool)
     unit = np.zeros((h, w), dtype=bool)
     unit[rc[:, 0], rc[:, 1]] = True
-    near_unit = ndimage.binary_dilation(unit, iterations=SIGHT_TOLERANCE_CELLS)
+    tolerance = SIGHT_TOLERANCE_CELLS if walls is None else SIGHT_TOLERANCE_WALL_CELLS
+    near_unit = ndimage.binary_dilation(unit, iterations=tolerance)
     blocking = (occ.state == OBSTACLE) & ~near_unit
     if walls is not None:
         blocking &= walls
@@ -211,11 +219,20 @@ def _goal_waypoint(
     unit_d = distances_to_cells(match.cells, _cell_xy(occ, near), s)
     seen = in_clear_sight(match, occ, near, walls) if sight else np.ones(len(near), bool)
     cand = unit_d <= config.stop_distance - s
-    # The sight rule applies when some reachable cell within stop is in sight; with none,
-    # the old rule (distance alone) does.
-    sight_rule = sight and bool((cand & seen).any())
+    # The sight rule applies where the map knows its walls: a unit behind a wall is not
+    # stopped for from this side (tune s00-004 stopped 0.62 m from a lamp in the next
+    # room); the agent heads for a reachable cell nearer it in sight, or explores on. With
+    # every obstacle blocking (no structure), it applies when some reachable cell within
+    # stop is in sight; with none, the old rule (distance alone) does.
+    sight_rule = sight and (walls is not None or bool((cand & seen).any()))
     if sight_rule:
         cand &= seen
+    # The plan counts the agent arrived within half a step of its waypoint: cells whose
+    # whole arrival disc is within stop (and in sight) come first, so that where the agent
+    # arrives, it stops for the unit (tune s02-004 stopped 0.77 m away, out of sight).
+    sure = cand & _arrival_within_stop(near, unit_d, seen if sight_rule else None, occ, config)
+    if sure.any():
+        cand = sure
     matched = f"instance {match.unit_id} matches the goal (score {match.score:.2f})"
     if here <= config.stop_distance and (seen_here or not sight_rule):
         reason = f"{matched} and is {here:.2f} m away: within the stop distance."
@@ -258,6 +275,28 @@ def _goal_waypoint(
         else:
             return None
     return Waypoint((float(xy[0]), float(xy[1])), "goal", match.unit_id, match.score, reason)
+
+
+def _arrival_within_stop(
+    near: np.ndarray,
+    unit_d: np.ndarray,
+    seen: np.ndarray | None,
+    occ: DenseOccupancy,
+    config: NavConfig,
+) -> np.ndarray:
+    """[K] bool over the `near` cells: no point within half a step of the cell is beyond
+    `stop_distance` of the unit, and (with `seen`) no near cell there is out of sight."""
+    s = occ.cell_size
+    arrive = config.forward_step / 2
+    ok = unit_d <= config.stop_distance - s / 2 - arrive
+    if seen is None or seen.all():
+        return ok
+    unseen = np.zeros(occ.state.shape, dtype=bool)
+    unseen[near[~seen, 0], near[~seen, 1]] = True
+    k = int(np.ceil(arrive / s))
+    disc = np.hypot(*np.mgrid[-k : k + 1, -k : k + 1]) <= arrive / s + 0.5
+    beside = ndimage.binary_dilation(unseen, structure=disc)
+    return ok & ~beside[near[:, 0], near[:, 1]]
 
 
 def _usable_frontiers(
