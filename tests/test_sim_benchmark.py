@@ -167,6 +167,24 @@ def test_a_benchmark_env_starts_at_the_episode_start_and_scores_it() -> None:
         env.close()
 
 
+def test_a_benchmark_env_plays_with_the_split_s_perception_unless_told_otherwise() -> None:
+    # The bench loops and the replay check build their envs here: a house episode must see
+    # what `glmap eval` and the server's simulator see (the detector), not exact labels.
+    house = load_split("house-tune", "objectnav")[0]
+    assert house.perception == "detector"
+    for perception, want in ((None, "detector"), ("gt", "gt")):
+        env = make_env(house, CameraSpec(32, 24), max_steps=2, perception=perception)
+        try:
+            assert env.perception == want
+        finally:
+            env.close()
+    env = make_env(load_split("tune", "objectnav")[0], CameraSpec(32, 24), max_steps=2)
+    try:
+        assert env.perception == "gt"
+    finally:
+        env.close()
+
+
 def test_the_oracle_solves_benchmark_episodes_within_the_step_limit() -> None:
     from glmap_tools.sim.agents import OracleAgent
 

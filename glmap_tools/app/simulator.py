@@ -170,9 +170,7 @@ def open_bench(
         from glmap_tools.worlds.splits import make_env
 
         camera = CameraSpec(width=size[0], height=size[1])
-        env = make_env(bench, camera, max_steps=max_steps)
-        env.perception = perception_of(perception, bench)
-        return env
+        return make_env(bench, camera, max_steps, perception_of(perception, bench))
 
     key = ("bench", str(bench.layout_path), bench.task, size, max_steps)
     return SimEpisode(bench.task, -1, on_sim_thread(make), key=key, bench=bench)

@@ -348,9 +348,13 @@ def bench_grid(layout_path: Path) -> NavGrid:
 
 
 def make_env(
-    bench: BenchEpisode, camera: CameraSpec | None = None, max_steps: int = MAX_STEPS
+    bench: BenchEpisode,
+    camera: CameraSpec | None = None,
+    max_steps: int = MAX_STEPS,
+    perception: str | None = None,
 ) -> NavEnv:
-    """An environment on the episode's scene; start it with
+    """An environment on the episode's scene with `perception` ('gt' | 'detector'; None:
+    the split's own, `bench.perception`); start it with
     `env.reset(seed=..., options={"episode": bench.episode})`."""
     from glmap_tools.sim.env import InstNavEnv, ObjectNavEnv
 
@@ -360,6 +364,7 @@ def make_env(
         camera=camera,
         max_steps=max_steps,
         grid=bench_grid(bench.layout_path),
+        perception=perception or bench.perception,
     )
 
 
