@@ -177,7 +177,7 @@ class SessionRegistry:
                     "another name."
                 )
             from glmap_tools.map import GLMap
-            from glmap_tools.map.store import make_folder
+            from glmap_tools.map.store_file import make_folder
 
             make_folder(self.maps_dir)
 
@@ -251,7 +251,8 @@ class SessionRegistry:
                 file of the map itself is damaged and `overwrite` is false, or the write
                 failed (the old file is then unchanged).
         """
-        from glmap_tools.map.store import MapStore, make_folder
+        from glmap_tools.map.store import MapStore
+        from glmap_tools.map.store_file import make_folder
 
         with self._lock:
             path = self.map_path(name)

@@ -8,14 +8,11 @@ A store may also carry *extras*: named JSON-text rows of the meta table (key `ex
 that a caller keeps beside the map, e.g. the MCP server's simulator episode. An extra can
 be staged to go into the next frame's transaction, so the two never disagree.
 
-Schema versions: 1 had no structure layer; 2 adds the `structure` table (one row per chunk
-of the structure background layer). A version-1 file opens as a map with an empty
-structure layer, and becomes version 2 in the transaction of its first new frame.
+The tables and schema versions are in store_schema.py, units as rows in store_rows.py.
 """
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import sqlite3
@@ -35,48 +32,31 @@ from glmap_tools.map.store_check import (
     parse_version,
     read_state,
 )
-from glmap_tools.map.structure import ChunkKey, StructureChunk
-from glmap_tools.map.units import InstanceUnit, RegionUnit
-
-if TYPE_CHECKING:
-    from glmap_tools.map.fusion import FramePlan
-    from glmap_tools.map.state import MapState
-
-FORMAT = "glmap-tools map"
-SCHEMA_VERSION = 2
-EXTRA_PREFIX = "extra."
-__all__ = ["FORMAT", "SCHEMA_VERSION", "InvalidStoreError", "MapStore", "make_folder"]
-
-STRUCTURE_TABLE = """
-CREATE TABLE structure (ci INTEGER NOT NULL, cj INTEGER NOT NULL, keys BLOB NOT NULL,
-  means BLOB NOT NULL, covs BLOB NOT NULL, colors BLOB NOT NULL, opacities BLOB NOT NULL,
-  counts BLOB NOT NULL, PRIMARY KEY (ci, cj));
-"""
-
-SCHEMA = (
-    """
-CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-CREATE TABLE instances (
-  id INTEGER PRIMARY KEY, label TEXT NOT NULL, text TEXT NOT NULL, embedding BLOB NOT NULL,
-  means BLOB NOT NULL, covs BLOB NOT NULL, colors BLOB NOT NULL, opacities BLOB NOT NULL,
-  counts BLOB NOT NULL, observations INTEGER NOT NULL, first_frame INTEGER NOT NULL,
-  last_frame INTEGER NOT NULL);
-CREATE TABLE regions (
-  id INTEGER PRIMARY KEY, text TEXT NOT NULL, embedding BLOB NOT NULL,
-  instance_ids TEXT NOT NULL, observations INTEGER NOT NULL, first_frame INTEGER NOT NULL,
-  last_frame INTEGER NOT NULL);
-CREATE TABLE occupancy (ci INTEGER NOT NULL, cj INTEGER NOT NULL, counts BLOB NOT NULL,
-  PRIMARY KEY (ci, cj));
-CREATE TABLE frames (seq INTEGER PRIMARY KEY, frame_index INTEGER NOT NULL, pose BLOB NOT NULL);
-"""
-    + STRUCTURE_TABLE
+from glmap_tools.map.store_file import connect, fsync
+from glmap_tools.map.store_rows import (
+    frame_row,
+    instance_row,
+    occupancy_rows,
+    region_row,
+    structure_rows,
+)
+from glmap_tools.map.store_schema import (
+    EXTRA_PREFIX,
+    FORMAT,
+    SCHEMA,
+    SCHEMA_VERSION,
+    STRUCTURE_TABLE,
 )
 
+if TYPE_CHECKING:
+    from collections.abc import Iterable
 
-def to_npy(arr: np.ndarray) -> bytes:
-    buf = io.BytesIO()
-    np.save(buf, np.ascontiguousarray(arr), allow_pickle=False)
-    return buf.getvalue()
+    from glmap_tools.map.fusion import FramePlan
+    from glmap_tools.map.state import MapState
+    from glmap_tools.map.structure import ChunkKey, StructureChunk
+    from glmap_tools.map.units import InstanceUnit, RegionUnit
+
+__all__ = ["FORMAT", "SCHEMA_VERSION", "InvalidStoreError", "MapStore"]
 
 
 class MapStore:
@@ -117,7 +97,7 @@ class MapStore:
             return cls._create(path, create_with)
         if path.is_dir():
             raise StoreError(f"{str(path)!r} is a directory; pass the path of a map file.")
-        conn = _connect(path)
+        conn = connect(path)
         try:
             try:
                 meta = dict(conn.execute("SELECT key, value FROM meta").fetchall())
@@ -158,7 +138,7 @@ class MapStore:
             ) from None
         os.close(fd)
         try:
-            conn = _connect(Path(tmp))
+            conn = connect(Path(tmp))
             with conn:
                 conn.executescript(SCHEMA)
                 store = cls(Path(tmp), conn, config)
@@ -174,7 +154,7 @@ class MapStore:
                 else:
                     store._write_meta({"next_id": "1", "floor_z": json.dumps(config.floor_z)})
             conn.close()
-            _fsync(Path(tmp))
+            fsync(Path(tmp))
             os.replace(tmp, path)
         except BaseException as exc:  # no partial file: the target is the old one or none
             Path(tmp).unlink(missing_ok=True)
@@ -186,8 +166,8 @@ class MapStore:
                     "space and permissions, then save again."
                 ) from None
             raise
-        _fsync(path.parent)  # the rename itself survives a crash
-        return cls(path, _connect(path), config, SCHEMA_VERSION)
+        fsync(path.parent)  # the rename itself survives a crash
+        return cls(path, connect(path), config, SCHEMA_VERSION)
 
     @classmethod
     def create_from(cls, path: Path, glmap: MapState, overwrite: bool = False) -> MapStore:
@@ -281,62 +261,26 @@ class MapStore:
             "INSERT OR REPLACE INTO meta (key, value) VALUES (?, ?)", list(items.items())
         )
 
-    def _write_instance(self, u: InstanceUnit) -> None:
-        g = u.gaussians
-        self.conn.execute(
+    def _write_instances(self, units: Iterable[InstanceUnit]) -> None:
+        self.conn.executemany(
             "INSERT OR REPLACE INTO instances VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
-            (
-                u.id,
-                u.label,
-                u.text,
-                to_npy(u.embedding),
-                to_npy(g.means),
-                to_npy(g.covs),
-                to_npy(g.colors),
-                to_npy(g.opacities),
-                to_npy(g.counts),
-                u.observations,
-                u.first_frame,
-                u.last_frame,
-            ),
+            [instance_row(u) for u in units],
         )
 
-    def _write_region(self, r: RegionUnit) -> None:
-        self.conn.execute(
+    def _write_regions(self, regions: Iterable[RegionUnit]) -> None:
+        self.conn.executemany(
             "INSERT OR REPLACE INTO regions VALUES (?,?,?,?,?,?,?)",
-            (
-                r.id,
-                r.text,
-                to_npy(r.embedding),
-                json.dumps(list(r.instance_ids)),
-                r.observations,
-                r.first_frame,
-                r.last_frame,
-            ),
+            [region_row(r) for r in regions],
         )
 
     def _write_chunks(self, chunks: dict[tuple[int, int], np.ndarray]) -> None:
         self.conn.executemany(
-            "INSERT OR REPLACE INTO occupancy VALUES (?,?,?)",
-            [(ci, cj, to_npy(c)) for (ci, cj), c in chunks.items()],
+            "INSERT OR REPLACE INTO occupancy VALUES (?,?,?)", occupancy_rows(chunks)
         )
 
     def _write_structure(self, chunks: dict[ChunkKey, StructureChunk]) -> None:
         self.conn.executemany(
-            "INSERT OR REPLACE INTO structure VALUES (?,?,?,?,?,?,?,?)",
-            [
-                (
-                    ci,
-                    cj,
-                    to_npy(c.keys),
-                    to_npy(c.gaussians.means),
-                    to_npy(c.gaussians.covs),
-                    to_npy(c.gaussians.colors),
-                    to_npy(c.gaussians.opacities),
-                    to_npy(c.gaussians.counts),
-                )
-                for (ci, cj), c in chunks.items()
-            ],
+            "INSERT OR REPLACE INTO structure VALUES (?,?,?,?,?,?,?,?)", structure_rows(chunks)
         )
 
     def _migrate(self, glmap: MapState) -> None:
@@ -357,15 +301,13 @@ class MapStore:
         )
 
     def _write_everything(self, glmap: MapState) -> None:
-        for u in glmap.instances.values():
-            self._write_instance(u)
-        for r in glmap.regions.values():
-            self._write_region(r)
+        self._write_instances(glmap.instances.values())
+        self._write_regions(glmap.regions.values())
         self._write_chunks(glmap.occupancy.chunks)
         self._write_structure(glmap.structure.chunks)
         self.conn.executemany(
             "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
-            [(i, to_npy(p)) for i, p in enumerate(glmap.trajectory)],
+            [frame_row(i, p) for i, p in enumerate(glmap.trajectory)],
         )
         self._write_embedder(glmap)
         self._write_meta({"next_id": str(glmap.next_id), "floor_z": json.dumps(glmap.floor_z)})
@@ -388,13 +330,11 @@ class MapStore:
                     raise self._changed(plan.frame_index)
                 self.conn.execute(
                     "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
-                    (plan.frame_index, to_npy(plan.pose)),
+                    frame_row(plan.frame_index, plan.pose),
                 )
                 self._migrate(glmap)
-                for u in plan.instances.values():
-                    self._write_instance(u)
-                for r in plan.regions.values():
-                    self._write_region(r)
+                self._write_instances(plan.instances.values())
+                self._write_regions(plan.regions.values())
                 for table in ("instances", "regions"):  # units fused into an older one
                     self.conn.executemany(
                         f"DELETE FROM {table} WHERE id = ?", [(i,) for i in sorted(plan.removed)]
@@ -450,50 +390,3 @@ class MapStore:
             state.floor_z,
             state.trajectory,
         )
-
-
-def make_folder(folder: Path) -> None:
-    """Create `folder` (and its parents) for map files.
-
-    Raises:
-        StoreError: it cannot be created (a read-only or immutable parent, a file in the
-            way); the message names it and the fix.
-    """
-    try:
-        Path(folder).mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise StoreError(
-            f"cannot create the folder {str(folder)!r} for map files: {exc.strerror or exc}. "
-            "Create it, writable by the server, or choose another folder (--maps-dir)."
-        ) from None
-
-
-def _fsync(path: Path) -> None:
-    """Flush a file's (or a folder's) data to the disk; folders that cannot be opened pass."""
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        if path.is_dir():
-            return
-        raise
-    try:
-        os.fsync(fd)
-    except OSError:
-        if not path.is_dir():
-            raise
-    finally:
-        os.close(fd)
-
-
-def _connect(path: Path) -> sqlite3.Connection:
-    try:
-        conn = sqlite3.connect(str(path), isolation_level="DEFERRED", check_same_thread=False)
-        conn.execute("PRAGMA synchronous=NORMAL")
-    except sqlite3.DatabaseError as exc:
-        raise StoreError(
-            f"{str(path)!r} is not a GLMap store ({exc}); pass a .glmap file written by "
-            "glmap-tools, or a new path to create one."
-        ) from None
-    except sqlite3.Error as exc:
-        raise StoreError(f"cannot open {str(path)!r} as a map file: {exc}.") from None
-    return conn
