@@ -10,7 +10,7 @@ from typing import Annotated
 
 from pydantic import Field
 
-from glmap_tools.app.inputs import SessionArg
+from glmap_tools.app.arguments import SessionArg
 from glmap_tools.app.results import Exported
 from glmap_tools.app.runtime import REPLACES, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import check_map_name, locked

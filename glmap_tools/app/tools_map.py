@@ -8,13 +8,13 @@ from typing import Annotated, TypeVar
 from pydantic import Field
 
 from glmap_tools.app import tools_perception
+from glmap_tools.app.arguments import SessionArg
 from glmap_tools.app.inputs import (
     AnnotationInput,
     FileInput,
     FrameFiles,
     IntrinsicsInput,
     PoseInput,
-    SessionArg,
     decode_frame_files,
     embed_ahead,
     read_frame_files,

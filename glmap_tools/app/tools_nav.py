@@ -15,8 +15,8 @@ import numpy as np
 from pydantic import Field
 
 from glmap_tools.app import nav_steps, simulator
+from glmap_tools.app.arguments import SessionArg
 from glmap_tools.app.client_scores import held_scores, set_client_scores
-from glmap_tools.app.inputs import SessionArg
 from glmap_tools.app.nav_decision import (
     current_agent,
     decide_on_map,

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from glmap_tools.app.inputs import MAX_GROUPS, MAX_OBJECTS, Description, Label, SessionArg
+from glmap_tools.app.arguments import Description, Label, SessionArg
+from glmap_tools.app.inputs import MAX_GROUPS, MAX_OBJECTS
 from glmap_tools.app.results import ObserveResult, Picture
 from glmap_tools.app.runtime import ADDS, AppState, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import Session, locked

@@ -8,7 +8,7 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from glmap_tools.app import nav_steps, simulator
-from glmap_tools.app.inputs import SessionArg
+from glmap_tools.app.arguments import SessionArg
 from glmap_tools.app.navdraw import jpeg
 from glmap_tools.app.results import ImageResult, Picture
 from glmap_tools.app.runtime import ADDS, DROPS, Call, ToolSpec, in_thread, session_of

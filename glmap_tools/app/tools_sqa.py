@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import BaseModel, Field
 
-from glmap_tools.app.inputs import SessionArg
+from glmap_tools.app.arguments import SessionArg
 from glmap_tools.app.results import ImageResult, Picture, Reply
 from glmap_tools.app.runtime import READ_ONLY, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import locked

@@ -8,7 +8,7 @@ from typing import Annotated
 
 from pydantic import Field
 
-from glmap_tools.app.inputs import SessionArg
+from glmap_tools.app.arguments import SessionArg
 from glmap_tools.app.results import MapEntry, MapInfo, MapList, SavedMap
 from glmap_tools.app.runtime import (
     DROPS,

@@ -7,7 +7,8 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
-from glmap_tools.app.inputs import PoseInput, SessionArg, pose_of
+from glmap_tools.app.arguments import SessionArg
+from glmap_tools.app.inputs import PoseInput, pose_of
 from glmap_tools.app.results import ImageResult, Picture
 from glmap_tools.app.runtime import READ_ONLY, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import locked

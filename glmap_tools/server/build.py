@@ -17,9 +17,9 @@ from mcp.types import CallToolResult, InputRequiredResult, TextContent, Tool, To
 from pydantic import BaseModel, ValidationError
 
 from glmap_tools import __version__
+from glmap_tools.app.arguments import tidy_arguments, validation_message
 from glmap_tools.app.background import EMBEDDER, HANDSHAKE_HOLD_S, WHAT, Background, Task
 from glmap_tools.app.config import ServerConfig
-from glmap_tools.app.inputs import tidy_arguments, validation_message
 from glmap_tools.app.lifespan import needed_tasks, opened_state
 from glmap_tools.app.listing import lean_listing
 from glmap_tools.app.results import ImageResult, compact_json, compact_text, pictures_of

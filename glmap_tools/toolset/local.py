@@ -18,11 +18,16 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
-from glmap_tools.app.arguments import input_schema, parameters, validate_arguments
+from glmap_tools.app.arguments import (
+    input_schema,
+    parameters,
+    tidy_arguments,
+    validate_arguments,
+    validation_message,
+)
 from glmap_tools.app.background import Background
 from glmap_tools.app.catalog import TOOLS
 from glmap_tools.app.config import ServerConfig
-from glmap_tools.app.inputs import tidy_arguments, validation_message
 from glmap_tools.app.lifespan import needed_tasks, opened_state
 from glmap_tools.app.listing import lean_listing
 from glmap_tools.app.results import compact_description, compact_schema
