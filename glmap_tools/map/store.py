@@ -20,8 +20,6 @@ import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from glmap_tools.errors import StoreError
 from glmap_tools.map.config import MapConfig
 from glmap_tools.map.store_check import (
@@ -33,28 +31,19 @@ from glmap_tools.map.store_check import (
     read_state,
 )
 from glmap_tools.map.store_file import connect, fsync
-from glmap_tools.map.store_rows import (
-    frame_row,
-    instance_row,
-    occupancy_rows,
-    region_row,
-    structure_rows,
-)
+from glmap_tools.map.store_rows import Row, map_rows, plan_rows
 from glmap_tools.map.store_schema import (
     EXTRA_PREFIX,
     FORMAT,
+    INSERT,
     SCHEMA,
     SCHEMA_VERSION,
     STRUCTURE_TABLE,
 )
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable
-
     from glmap_tools.map.fusion import FramePlan
     from glmap_tools.map.state import MapState
-    from glmap_tools.map.structure import ChunkKey, StructureChunk
-    from glmap_tools.map.units import InstanceUnit, RegionUnit
 
 __all__ = ["FORMAT", "SCHEMA_VERSION", "InvalidStoreError", "MapStore"]
 
@@ -261,27 +250,9 @@ class MapStore:
             "INSERT OR REPLACE INTO meta (key, value) VALUES (?, ?)", list(items.items())
         )
 
-    def _write_instances(self, units: Iterable[InstanceUnit]) -> None:
-        self.conn.executemany(
-            "INSERT OR REPLACE INTO instances VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
-            [instance_row(u) for u in units],
-        )
-
-    def _write_regions(self, regions: Iterable[RegionUnit]) -> None:
-        self.conn.executemany(
-            "INSERT OR REPLACE INTO regions VALUES (?,?,?,?,?,?,?)",
-            [region_row(r) for r in regions],
-        )
-
-    def _write_chunks(self, chunks: dict[tuple[int, int], np.ndarray]) -> None:
-        self.conn.executemany(
-            "INSERT OR REPLACE INTO occupancy VALUES (?,?,?)", occupancy_rows(chunks)
-        )
-
-    def _write_structure(self, chunks: dict[ChunkKey, StructureChunk]) -> None:
-        self.conn.executemany(
-            "INSERT OR REPLACE INTO structure VALUES (?,?,?,?,?,?,?,?)", structure_rows(chunks)
-        )
+    def _insert(self, rows: dict[str, list[Row]], *tables: str) -> None:
+        for table in tables:
+            self.conn.executemany(INSERT[table], rows[table])
 
     def _migrate(self, glmap: MapState) -> None:
         """Upgrade a version-1 file to this schema, inside the caller's transaction."""
@@ -301,14 +272,8 @@ class MapStore:
         )
 
     def _write_everything(self, glmap: MapState) -> None:
-        self._write_instances(glmap.instances.values())
-        self._write_regions(glmap.regions.values())
-        self._write_chunks(glmap.occupancy.chunks)
-        self._write_structure(glmap.structure.chunks)
-        self.conn.executemany(
-            "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
-            [frame_row(i, p) for i, p in enumerate(glmap.trajectory)],
-        )
+        rows = map_rows(glmap)
+        self._insert(rows, "instances", "regions", "occupancy", "structure", "frames")
         self._write_embedder(glmap)
         self._write_meta({"next_id": str(glmap.next_id), "floor_z": json.dumps(glmap.floor_z)})
 
@@ -321,6 +286,7 @@ class MapStore:
         """
         if self._fingerprint()[0] != self._seen[0]:
             raise self._changed(plan.frame_index)
+        rows = plan_rows(plan)
         try:
             with self.conn:
                 # Take the write lock first, then check that no one else wrote meanwhile; the
@@ -328,19 +294,14 @@ class MapStore:
                 self.conn.execute("BEGIN IMMEDIATE")
                 if self._fingerprint()[1] != self._seen[1]:
                     raise self._changed(plan.frame_index)
-                self.conn.execute(
-                    "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
-                    frame_row(plan.frame_index, plan.pose),
-                )
+                self._insert(rows, "frames")
                 self._migrate(glmap)
-                self._write_instances(plan.instances.values())
-                self._write_regions(plan.regions.values())
+                self._insert(rows, "instances", "regions")
                 for table in ("instances", "regions"):  # units fused into an older one
                     self.conn.executemany(
                         f"DELETE FROM {table} WHERE id = ?", [(i,) for i in sorted(plan.removed)]
                     )
-                self._write_chunks(plan.occupancy)
-                self._write_structure(plan.structure)
+                self._insert(rows, "occupancy", "structure")
                 self._write_embedder(glmap)
                 self._write_meta(
                     {"next_id": str(plan.next_id), "floor_z": json.dumps(plan.floor_z)}

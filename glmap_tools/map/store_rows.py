@@ -1,4 +1,5 @@
-"""Map units as rows of the store's tables (store_schema.py), in column order.
+"""Map units as rows of the store's tables (store_schema.py), in column order: all of a map,
+or what one frame's plan changes, as {table: rows} in the order they are written.
 
 The way back, rows to checked units, is `store_check.py`'s reader.
 """
@@ -7,11 +8,16 @@ from __future__ import annotations
 
 import io
 import json
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from glmap_tools.map.structure import ChunkKey, StructureChunk
 from glmap_tools.map.units import InstanceUnit, RegionUnit
+
+if TYPE_CHECKING:
+    from glmap_tools.map.fusion import FramePlan
+    from glmap_tools.map.state import MapState
 
 Row = tuple[object, ...]
 
@@ -80,3 +86,25 @@ def structure_rows(chunks: dict[ChunkKey, StructureChunk]) -> list[Row]:
 def frame_row(frame_index: int, pose: np.ndarray) -> Row:
     """A row of the `frames` table (its `seq` is SQLite's)."""
     return (frame_index, to_npy(pose))
+
+
+def map_rows(glmap: MapState) -> dict[str, list[Row]]:
+    """The rows of all of `glmap` (every frame of its trajectory), by table."""
+    return {
+        "instances": [instance_row(u) for u in glmap.instances.values()],
+        "regions": [region_row(r) for r in glmap.regions.values()],
+        "occupancy": occupancy_rows(glmap.occupancy.chunks),
+        "structure": structure_rows(glmap.structure.chunks),
+        "frames": [frame_row(i, p) for i, p in enumerate(glmap.trajectory)],
+    }
+
+
+def plan_rows(plan: FramePlan) -> dict[str, list[Row]]:
+    """The rows one frame's plan writes (new and changed units, chunks, its pose), by table."""
+    return {
+        "frames": [frame_row(plan.frame_index, plan.pose)],
+        "instances": [instance_row(u) for u in plan.instances.values()],
+        "regions": [region_row(r) for r in plan.regions.values()],
+        "occupancy": occupancy_rows(plan.occupancy),
+        "structure": structure_rows(plan.structure),
+    }

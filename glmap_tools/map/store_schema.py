@@ -36,3 +36,12 @@ CREATE TABLE frames (seq INTEGER PRIMARY KEY, frame_index INTEGER NOT NULL, pose
 """
     + STRUCTURE_TABLE
 )
+
+# How a row (store_rows.py) goes into its table; a frame's `seq` is SQLite's.
+INSERT = {
+    "instances": "INSERT OR REPLACE INTO instances VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
+    "regions": "INSERT OR REPLACE INTO regions VALUES (?,?,?,?,?,?,?)",
+    "occupancy": "INSERT OR REPLACE INTO occupancy VALUES (?,?,?)",
+    "structure": "INSERT OR REPLACE INTO structure VALUES (?,?,?,?,?,?,?,?)",
+    "frames": "INSERT INTO frames (frame_index, pose) VALUES (?, ?)",
+}
