@@ -214,27 +214,34 @@ def test_a_stop_within_reach_but_behind_a_wall_moves_to_where_the_unit_is_in_sig
         NavConfig(stop_in_sight="yes")  # type: ignore[arg-type]
 
 
-def test_a_unit_against_the_far_side_of_a_wall_is_not_stopped_for_from_behind_it() -> None:
+def test_a_unit_against_the_far_side_of_a_room_wall_is_not_stopped_for_from_behind_it() -> None:
+    from glmap_tools.nav.perceive import ROOM_WALL, WALL
     from glmap_tools.nav.waypoint import in_clear_sight
 
     occ = room_with_door(20)
     occ.state[11:50, 34:36] = OBSTACLE  # a wall, 10 cm thick, splits the room
-    walls = np.zeros(occ.state.shape, dtype=bool)
-    walls[10:51, 10:51] = occ.state[10:51, 10:51] == OBSTACLE
+    walls = np.zeros(occ.state.shape, dtype=np.int8)
+    walls[10:51, 10:51] = np.where(occ.state[10:51, 10:51] == OBSTACLE, ROOM_WALL, 0)
     cells = np.array([(i, j) for i in range(36, 40) for j in range(28, 32)])  # against it
     match = GoalMatch(7, 0.9, 3, cells)
     here = occ.index_to_world(30, 29)  # 0.3 m from the unit, on the wall's other side
     trav = traversable(occ, RADIUS)
     field = agent_field(occ, here, NavConfig()).metres
     config = NavConfig()
-    # Every obstacle blocking, the wall lies within the tolerance the map's own drawing of
-    # the unit needs, so the old rule stops here; structure walls block from one cell on.
+    # The wall lies within the tolerance the map's own drawing of the unit needs (2 cells),
+    # so with every obstacle blocking the line "clears" it; a room's wall blocks from one.
     assert in_clear_sight(match, occ, np.array([[30, 29]]))[0]
     assert not in_clear_sight(match, occ, np.array([[30, 29]]), walls)[0]
     old = choose_waypoint(None, [], trav, here, match, config, occ=occ, distance=field)
     assert old.kind == "goal" and old.xy == here
+    # A room's wall blocks from one cell on: no stop and no approach from this side.
     wp = choose_waypoint(None, [], trav, here, match, config, occ=occ, distance=field, walls=walls)
-    assert wp.kind != "goal"  # nothing on this side is in sight of it: no stop, no approach
+    assert wp.kind != "goal"
+    # Structure below a room wall's height (furniture a detector missed, say) blocks only
+    # where some cell near the unit is in sight; here none is, so the old rule applies.
+    low = np.where(walls > 0, WALL, 0).astype(np.int8)
+    wp = choose_waypoint(None, [], trav, here, match, config, occ=occ, distance=field, walls=low)
+    assert wp.kind == "goal" and wp.xy == here
     # From the unit's side of the wall it is stopped for as before.
     there = occ.index_to_world(30, 44)
     field = agent_field(occ, there, config).metres

@@ -344,10 +344,19 @@ def frame_score(
     return float(np.max(scorer.score(goal, units)))
 
 
+# Structure this high above the floor is a room's wall, not furniture a detector missed
+# (whose pixels join the structure too): above nearly all furniture, below door lintels.
+ROOM_WALL_BAND = (1.55, 1.95)
+WALL, ROOM_WALL = 1, 2  # `walls_of` levels
+
+
 def walls_of(glmap: GLMap, occ: DenseOccupancy) -> np.ndarray | None:
-    """The structure obstacle cells over `occ` (None: the map keeps no structure, so every
-    obstacle cell counts as a wall)."""
+    """[H, W] int8 over `occ`: `WALL` on structure obstacle cells (`nav.grid.structure_walls`
+    in the obstacle band), `ROOM_WALL` where structure also stands in `ROOM_WALL_BAND`, else
+    0. None: the map keeps no structure, so every obstacle cell counts as a wall."""
     if len(glmap.structure) == 0 or glmap.floor_z is None:
         return None
     means = glmap.structure.gaussians().means
-    return structure_walls(means, glmap.floor_z, glmap.config.obstacle_band, occ)
+    levels = structure_walls(means, glmap.floor_z, glmap.config.obstacle_band, occ).astype(np.int8)
+    levels[structure_walls(means, glmap.floor_z, ROOM_WALL_BAND, occ)] = ROOM_WALL
+    return levels

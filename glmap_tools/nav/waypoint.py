@@ -96,13 +96,11 @@ def goal_cells_near(
     return np.stack([rows + r0, cols + c0], axis=1)
 
 
-# Obstacle cells this close to the unit's cells do not block sight: 2 where every obstacle
-# blocks (the map draws the unit's own object around its cells), 1 where only walls block
-# (the simulator's rule stops one cell short of the footprint). A wall the unit stands
-# against is 2 cells thick: with 2 cells of tolerance an agent behind it saw through it
-# (tune s00-004: a lamp on a nightstand, stopped 0.62 m from it in the next room).
-SIGHT_TOLERANCE_CELLS = 2
-SIGHT_TOLERANCE_WALL_CELLS = 1
+SIGHT_TOLERANCE_CELLS = 2  # obstacle cells this close to the unit's cells do not block sight
+ROOM_WALL = 2  # `nav.perceive.walls_of`'s level of a room's wall
+# Room walls block from one cell off the unit (the simulator's rule stops one cell short of
+# the footprint): a 10 cm wall the unit stands against is 2 cells, seen through at 2.
+ROOM_WALL_TOLERANCE_CELLS = 1
 
 
 def in_clear_sight(
@@ -110,18 +108,18 @@ def in_clear_sight(
     occ: DenseOccupancy,
     points_rc: np.ndarray,
     walls: np.ndarray | None = None,
+    tolerance: int = SIGHT_TOLERANCE_CELLS,
 ) -> np.ndarray:
     """[K] bool: whether the straight line from each (row, col) cell centre to the nearest
     cell of the matched unit crosses no obstacle of `occ` (obstacle cells within
-    `SIGHT_TOLERANCE_CELLS` of the unit's own cells, which the map draws around it, are
-    ignored; wall cells within `SIGHT_TOLERANCE_WALL_CELLS` when `walls` is given). The
-    simulator's success rule asks the same of the footprint's nearest point, so a stop
-    behind a door jamb, within reach but out of sight, fails.
+    `tolerance` cells of the unit's own cells, which the map draws around it, are
+    ignored). The simulator's success rule asks the same of the footprint's nearest point,
+    so a stop behind a door jamb, within reach but out of sight, fails.
 
-    `walls` ([H, W] bool over `occ`'s window, from `nav.grid.structure_walls`), when given,
-    limits the blocking cells to obstacles that are structure: furniture (a chair's own
-    seat in front of the unit that covers its back) does not hide what stands behind it
-    from the success rule, walls do."""
+    `walls` ([H, W] over `occ`'s window, nonzero on walls: `nav.perceive.walls_of`), when
+    given, limits the blocking cells to obstacles that are structure: furniture (a chair's
+    own seat in front of the unit that covers its back) does not hide what stands behind it
+    from the success rule, walls do; a room's wall from `ROOM_WALL_TOLERANCE_CELLS` on."""
     points_rc = np.asarray(points_rc, dtype=np.int64).reshape(-1, 2)
     if len(points_rc) == 0:
         return np.zeros(0, dtype=bool)
@@ -132,11 +130,13 @@ def in_clear_sight(
         return np.zeros(len(points_rc), dtype=bool)
     unit = np.zeros((h, w), dtype=bool)
     unit[rc[:, 0], rc[:, 1]] = True
-    tolerance = SIGHT_TOLERANCE_CELLS if walls is None else SIGHT_TOLERANCE_WALL_CELLS
     near_unit = ndimage.binary_dilation(unit, iterations=tolerance)
     blocking = (occ.state == OBSTACLE) & ~near_unit
     if walls is not None:
-        blocking &= walls
+        room = walls >= ROOM_WALL
+        tol = min(tolerance, ROOM_WALL_TOLERANCE_CELLS)
+        near_room = ndimage.binary_dilation(unit, iterations=tol) if tol else unit
+        blocking = (occ.state == OBSTACLE) & ((walls > 0) & ~near_unit | room & ~near_room)
     # The nearest unit cell of each point (Euclidean, in cells).
     d2 = ((points_rc[:, None, :] - rc[None, :, :]) ** 2).sum(axis=2)
     ends = rc[np.argmin(d2, axis=1)]
@@ -219,12 +219,19 @@ def _goal_waypoint(
     unit_d = distances_to_cells(match.cells, _cell_xy(occ, near), s)
     seen = in_clear_sight(match, occ, near, walls) if sight else np.ones(len(near), bool)
     cand = unit_d <= config.stop_distance - s
-    # The sight rule applies where the map knows its walls: a unit behind a wall is not
-    # stopped for from this side (tune s00-004 stopped 0.62 m from a lamp in the next
-    # room); the agent heads for a reachable cell nearer it in sight, or explores on. With
-    # every obstacle blocking (no structure), it applies when some reachable cell within
-    # stop is in sight; with none, the old rule (distance alone) does.
-    sight_rule = sight and (walls is not None or bool((cand & seen).any()))
+    # The sight rule applies when some reachable cell within stop is in sight. With none,
+    # the structure may be furniture a detector missed (a TV stand's pixels join the
+    # structure, and a stop in front of it is one), so only room walls block: a unit behind
+    # one is not stopped for from this side (tune s00-004 stopped 0.62 m from a lamp in the
+    # next room); the agent heads for a reachable cell nearer it in sight, or explores on.
+    # With no room wall on the line, the old rule (distance alone) applies.
+    sight_rule = sight and bool((cand & seen).any())
+    if sight and not sight_rule and walls is not None:
+        room = walls >= ROOM_WALL
+        tol = ROOM_WALL_TOLERANCE_CELLS
+        seen_here = bool(in_clear_sight(match, occ, agent_rc, room, tol)[0])
+        seen = in_clear_sight(match, occ, near, room, tol)
+        sight_rule = not (seen_here and seen[cand].all())
     if sight_rule:
         cand &= seen
     # The plan counts the agent arrived within half a step of its waypoint: cells whose
