@@ -76,10 +76,6 @@ CIRCLES: dict[frozenset[str], str] = {
         "constrain takes situate's TIE (in-function) while situate calls constrain; sqa is "
         "another engineer's this session"
     ),
-    frozenset({"glmap_tools.sqa.answer", "glmap_tools.sqa.families"}): (
-        "the families build answer.MapAnswer (in-function) while answer dispatches to the "
-        "families: MapAnswer belongs in sqa/records.py"
-    ),
 }
 
 

@@ -12,6 +12,7 @@ runs the same work once in the foreground, so `.ci/setup` fills numba's on-disk 
 from __future__ import annotations
 
 import logging
+import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -19,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from glmap_tools import synthetic
 from glmap_tools.errors import GLMapError
 
 if TYPE_CHECKING:
@@ -157,7 +159,6 @@ class BackgroundEmbedder:
 def load_embedder(kind: str, threads: int | None) -> Embedder:
     """The embedder `kind` ('minilm' or 'hashing'), with torch (if a model needed it)
     limited to `threads`; BLAS is limited by `threads.limited_threads`."""
-    import sys
 
     from glmap_tools.language import embed, minilm
 
@@ -175,7 +176,6 @@ def warm_kernels() -> float:
 
     Each kernel is compiled, or loaded from numba's cache when `.ci/setup` filled it.
     """
-    from glmap_tools import synthetic
     from glmap_tools.app.views import warm_up
     from glmap_tools.language.embed import HashingEmbedder
     from glmap_tools.map import GLMap, MapConfig

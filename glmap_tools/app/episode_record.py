@@ -14,7 +14,9 @@ import json
 import math
 from typing import TYPE_CHECKING, Any
 
+from glmap_tools.app import nav_steps, simulator
 from glmap_tools.errors import StoreError
+from glmap_tools.language.backends import make_scorer
 
 if TYPE_CHECKING:
     from glmap_tools.app.config import ServerConfig
@@ -115,7 +117,6 @@ def restore_episode(session: Session, text: str, config: ServerConfig, embedder:
     Raises:
         StoreError: the record cannot be read or replayed.
     """
-    from glmap_tools.app import nav_steps, simulator
     from glmap_tools.nav.config import ACTIONS
 
     try:
@@ -149,8 +150,6 @@ def restore_episode(session: Session, text: str, config: ServerConfig, embedder:
     simulator.reset(sim, seed, goal)
     scorer = None
     if config.llm.scorer != "embedding":
-        from glmap_tools.language.backends import make_scorer
-
         scorer = make_scorer(config.llm, embedder)
     nav = nav_steps.start(session, sim, embedder, scorer)
     glmap = session.live.glmap

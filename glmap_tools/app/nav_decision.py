@@ -4,6 +4,7 @@ unit, one unit's score, the drawing."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from glmap_tools.app import nav_steps
@@ -53,7 +54,6 @@ def decide_on_map(
     """Run the policy on the session's map (the episode's NavState, or a fresh one).
     act=False decides on a copy of the episode's NavState: a tool that only shows the
     decision (value_map) leaves the policy's memory as it was."""
-    from dataclasses import replace
 
     from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState, decide
 

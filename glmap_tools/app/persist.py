@@ -17,6 +17,7 @@ of a call the map and the episode are re-read if another process changed them.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import logging
 import os
@@ -61,7 +62,6 @@ class MapLock:
         Raises:
             StoreError: another process held it all that time (the message names its pid).
         """
-        import fcntl
 
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o600)
         deadline = time.monotonic() + self.wait_s

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 
 from glmap_tools.app.config import ServerConfig
 from glmap_tools.app.memory import trim
+from glmap_tools.app.persist import PinnedMap
 from glmap_tools.app.session import (
     DEFAULT_HANDLE,
     MAP_SUFFIX,
@@ -46,9 +47,10 @@ from glmap_tools.errors import (
     UnknownIdError,
     did_you_mean,
 )
+from glmap_tools.language.backends import make_text_merger
+from glmap_tools.map.store_file import make_folder
 
 if TYPE_CHECKING:
-    from glmap_tools.app.persist import PinnedMap
     from glmap_tools.language.embed import Embedder
     from glmap_tools.language.text_merger import TextMerger
 
@@ -92,8 +94,6 @@ class SessionRegistry:
         # the server keeps for it beside the map, e.g. pending frames, can go).
         self.on_drop: list[Callable[[str], None]] = []
         if config.map_name is not None:
-            from glmap_tools.app.persist import PinnedMap
-
             self.pin = PinnedMap(self, config.map_name)
         # The default session's map is made on first use: building a GLMap imports the
         # fusion code (scipy, numba), which the server's handshake must not wait for.
@@ -101,7 +101,6 @@ class SessionRegistry:
     # ------------------------------------------------------------------ maps
     def _merger(self) -> TextMerger:
         """The text merger of a map, as the settings ask (extractive unless told)."""
-        from glmap_tools.language.backends import make_text_merger
 
         return make_text_merger(self.config.llm, self.embedder)
 
@@ -177,7 +176,6 @@ class SessionRegistry:
                     "another name."
                 )
             from glmap_tools.map import GLMap
-            from glmap_tools.map.store_file import make_folder
 
             make_folder(self.maps_dir)
 
@@ -252,7 +250,6 @@ class SessionRegistry:
                 failed (the old file is then unchanged).
         """
         from glmap_tools.map.store import MapStore
-        from glmap_tools.map.store_file import make_folder
 
         with self._lock:
             path = self.map_path(name)

@@ -21,6 +21,7 @@ from glmap_tools.app.runtime import ADDS, AppState, Call, ToolSpec, in_thread, s
 from glmap_tools.app.session import Session, locked
 from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS
+from glmap_tools.map.report import UpdateReport
 from glmap_tools.perception.labelling import (
     IGNORE,
     SegmentGroup,
@@ -185,8 +186,6 @@ async def label_segments(
                 )
                 summary = report.summary()
             else:
-                from glmap_tools.map.report import UpdateReport
-
                 report = UpdateReport(frame_index=pending.frame_index)
                 summary = "every segment ignored: nothing added"
             store.remove(target.handle, frame)

@@ -15,6 +15,7 @@ from glmap_tools.app.runtime import ADDS, DROPS, Call, ToolSpec, in_thread, sess
 from glmap_tools.app.session import Session, locked
 from glmap_tools.app.sim_results import SimResult, sampling_report
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.language.backends import make_scorer
 
 Action = Literal["move_forward", "turn_left", "turn_right", "stop"]
 Size = Literal["160x120", "320x240", "640x480"]
@@ -88,8 +89,6 @@ async def sim_reset(
             state.registry.new_map(target, None)
         scorer = None
         if state.config.llm.scorer != "embedding":
-            from glmap_tools.language.backends import make_scorer
-
             scorer = make_scorer(state.config.llm, state.embedder)
         nav_steps.start(target, sim, state.embedder, scorer)
         return _reply(target, sim, [_integrate(target, sim)])

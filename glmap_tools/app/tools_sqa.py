@@ -12,10 +12,12 @@ from glmap_tools.app.results import ImageResult, Picture, Reply
 from glmap_tools.app.runtime import READ_ONLY, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import locked
 from glmap_tools.app.sim_results import SamplingReport, sampling_report
+from glmap_tools.errors import InvalidInputError, LLMError
+from glmap_tools.language.backends import LLMSettings
+from glmap_tools.language.sampling import fallback_message, note_fallback
 from glmap_tools.views.common import encode_png
 
 if TYPE_CHECKING:
-    from glmap_tools.language.backends import LLMSettings
     from glmap_tools.map import GLMap
 
 MAX_SITUATION = 512
@@ -182,9 +184,6 @@ def model_reading(settings: "LLMSettings", situation: str) -> tuple[dict[str, An
     A sampling reader that fails, is refused or times out falls back (`settings.fallback`:
     Ollama, else the offline reader; "none" raises) and says so in a log line.
     """
-    from glmap_tools.errors import LLMError
-    from glmap_tools.language.backends import LLMSettings
-    from glmap_tools.language.sampling import fallback_message, note_fallback
     from glmap_tools.sqa.llm_reading import llm_read_situation
 
     reader = settings.reader
@@ -214,8 +213,6 @@ def model_answer(
     """The configured model's answer (`LLMSettings.answerer`) from the four views and the
     map's notes (glmap_tools.sqa.mllm_answer), or None when a sampling request failed and
     the map's answer stands (`settings.fallback`; "none" raises), said in a log line."""
-    from glmap_tools.errors import LLMError
-    from glmap_tools.language.sampling import fallback_message, note_fallback
     from glmap_tools.sqa.mllm_answer import mllm_answer
 
     by = "the client's model (sampling)" if settings.answerer == "sampling" else "ollama"
@@ -253,7 +250,6 @@ async def locate_situation(
 ) -> ImageResult[SituationResult]:
     """Situated QA: place a situation (text or reading) in the map: pose, nearby units, heat
     map, 4 views; situation.reading: how it was read (fix, pass back)."""
-    from glmap_tools.errors import InvalidInputError
 
     if not situation.strip() and reading is None:
         raise InvalidInputError(

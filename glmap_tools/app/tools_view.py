@@ -13,6 +13,7 @@ from glmap_tools.app.results import ImageResult, Picture
 from glmap_tools.app.runtime import READ_ONLY, Call, ToolSpec, in_thread, session_of
 from glmap_tools.app.session import locked
 from glmap_tools.app.views import Rendered, ViewRequest, check_request, render_request
+from glmap_tools.errors import InvalidInputError
 
 Target = Literal["instance", "region", "map", "pose", "situated"]
 Side = int  # checked by _side (0 or 32..1024)
@@ -22,8 +23,6 @@ MIN_SIDE, MAX_SIDE = 32, 1024
 def _side(value: int, name: str) -> int:
     """An image side: 0 (the server's default) or 32..1024 pixels."""
     if value != 0 and not MIN_SIDE <= value <= MAX_SIDE:
-        from glmap_tools.errors import InvalidInputError
-
         raise InvalidInputError(
             f"{name}={value}: give 0 (the default) or a side greater than or equal to "
             f"{MIN_SIDE} and less than or equal to {MAX_SIDE} pixels."

@@ -17,6 +17,7 @@ import numpy as np
 
 import glmap_tools.views as gviews  # renders load on first use (the handshake does not wait)
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Pose
 from glmap_tools.map.units import InstanceUnit, RegionUnit
 from glmap_tools.views.common import view_intrinsics
@@ -194,7 +195,6 @@ def warm_up() -> None:
     """Compile (or load from numba's cache) the splatting kernels, incl. the depth pass."""
     from glmap_tools.gaussians.render import render
     from glmap_tools.gaussians.render import warm_up as warm_renderer
-    from glmap_tools.gaussians.types import GaussianSet
 
     warm_renderer()
     g = GaussianSet(

@@ -15,10 +15,16 @@ import numpy as np
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
+import json
+import multiprocessing as mp
+from collections import Counter
+
+from glmap_tools.language.minilm import default_embedder
 from glmap_tools.map import GLMap, MapConfig  # noqa: E402
 from glmap_tools.nav import EmbeddingScorer, NavConfig, map_units  # noqa: E402
 from glmap_tools.nav.episode import play  # noqa: E402
 from glmap_tools.sim.render import CameraSpec  # noqa: E402
+from glmap_tools.worlds.map_eval import build_map_from_tour, evaluate_instances
 from glmap_tools.worlds.splits import BenchEpisode, bench_layout, load_split, make_env  # noqa: E402
 
 _EMBEDDER: Any = None
@@ -28,8 +34,6 @@ def embedder() -> Any:
     """The bundled MiniLM embedder, loaded once."""
     global _EMBEDDER
     if _EMBEDDER is None:
-        from glmap_tools.language.minilm import default_embedder
-
         _EMBEDDER = default_embedder()
     return _EMBEDDER
 
@@ -130,7 +134,6 @@ def tune_eval(
 ) -> list[dict[str, Any]]:
     """Run every policy on the tune episodes `indices` with `workers` processes (<= 2 here);
     `overrides`: NavConfig fields to change (e.g. {"clearance_cost": 2.0})."""
-    import multiprocessing as mp
 
     jobs = [(task, k, p, max_steps, overrides or {}) for p in policies for k in indices]
     if workers <= 1:
@@ -149,8 +152,6 @@ def closed_loop(
     overrides: dict[str, Any] | None = None,
 ) -> int:
     """Print each episode's outcome and SR / SPL / failure classes per policy (tune split only)."""
-    import json
-    from collections import Counter
 
     if overrides:
         print(f"NavConfig overrides: {overrides}", flush=True)
@@ -191,7 +192,6 @@ def calibration_pairs() -> list[tuple[str, float, bool, int, float]]:
     objects by `worlds.map_eval.evaluate_instances`; instances matched to no object are left
     out (they are duplicates or fragments, neither clearly right nor wrong).
     """
-    from glmap_tools.worlds.map_eval import build_map_from_tour, evaluate_instances
 
     scorer = EmbeddingScorer(embedder(), floor=0.0)
     pairs: list[tuple[str, float, bool, int, float]] = []

@@ -12,7 +12,10 @@ stage, single-threaded so that the profiler sees every stage).
 from __future__ import annotations
 
 import argparse
+import cProfile
+import multiprocessing as mp
 import os
+import pstats
 import statistics
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -20,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from glmap_tools.bench.report import Report
+from glmap_tools.cli import main as glmap_main
 from glmap_tools.cli_format import HelpWithDefaults
 
 TARGET_FPS = 15.0
@@ -66,8 +70,6 @@ def _run(folder: str, out: str, variant: str, frames: int | None, embedder: str)
 
 def _profile(folder: str, out: str, frames: int | None, embedder: str) -> list[tuple[str, float]]:
     """(stage, ms per frame) of a single-threaded in-memory build, from cProfile."""
-    import cProfile
-    import pstats
 
     from glmap_tools.ingest.build import BuildSettings, Pipeline, build_map
 
@@ -100,8 +102,6 @@ def _profile(folder: str, out: str, frames: int | None, embedder: str) -> list[t
 
 def _tour(folder: Path) -> Path:
     if not (folder / "trajectory.log").is_file():
-        from glmap_tools.cli import main as glmap_main
-
         os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
         args = ["sim", "tour", LAYOUT, "--step", "0.15", "--spin", "16", "--out", str(folder)]
         glmap_main(args)
@@ -127,7 +127,6 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, list[dict]] = {v: [] for v in variants}
 
     def child(fn: Any, *a: Any) -> Any:
-        import multiprocessing as mp
 
         with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
             return pool.submit(fn, *a).result()

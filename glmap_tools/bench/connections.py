@@ -22,6 +22,8 @@ import time
 from pathlib import Path
 from urllib.parse import urlparse
 
+from glmap_tools.bench.report import Report
+
 TOKEN = "bench-connections-token"
 ANSWER_TARGET_S = 5.0
 CAP = 64
@@ -62,7 +64,6 @@ def authorised_call(url: str, timeout: float) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from glmap_tools.bench.report import Report
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench connections")
     parser.add_argument("--stalled", type=int, default=300, help="half-sent requests to open")

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -11,6 +13,7 @@ from glmap_tools import synthetic
 from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.language.embed import Embedder, HashingEmbedder
+from glmap_tools.language.minilm import default_embedder
 
 TARGET_MS = 150.0
 
@@ -50,8 +53,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     report = Report("bench integrate")
     if args.embedder == "minilm":
-        from glmap_tools.language.minilm import default_embedder
-
         inner: Embedder = default_embedder()
     else:
         inner = HashingEmbedder()
@@ -66,9 +67,6 @@ def main(argv: list[str] | None = None) -> int:
     n_objects = np.mean([len(s.objects) for _, s in frames])
     n_points = np.mean([sum(int(o.mask.sum()) for o in s.objects) for _, s in frames])
     for label, store in (("in memory", False), ("with SQLite store", True)):
-        import tempfile
-        from pathlib import Path
-
         embedder = TimedEmbedder(inner)
         with tempfile.TemporaryDirectory() as tmp:
             config = MapConfig(floor_z=0.0)

@@ -25,12 +25,18 @@ one extractive merge per buffer length, to show it costs about linear in the buf
 from __future__ import annotations
 
 import argparse
+import resource
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from glmap_tools.bench.report import Report, load_average
+from glmap_tools.geometry import Intrinsics, Pose
+from glmap_tools.geometry.frame import RGBDFrame
+from glmap_tools.server import ServerConfig
 
 LOCK_TARGET_S = 2.0
 SYLLABLES = ["zor", "bex", "qua", "vil", "mur", "tak", "pho", "gry", "lun", "dex", "kiv", "sno"]
@@ -42,8 +48,6 @@ def tiled_frame(objects: int, width: int, height: int) -> tuple[Any, np.ndarray]
     Returns:
         (RGBDFrame, ids [H, W] int32 with tile k holding id k + 1).
     """
-    from glmap_tools.geometry import Intrinsics, Pose
-    from glmap_tools.geometry.frame import RGBDFrame
 
     cols = int(np.ceil(np.sqrt(objects)))
     rows = int(np.ceil(objects / cols))
@@ -131,8 +135,6 @@ async def observed_with_probe(
 
 async def run(args: argparse.Namespace) -> int:
     from glmap_tools.app.frames import observe_arguments
-    from glmap_tools.bench.report import Report, load_average
-    from glmap_tools.server import ServerConfig
     from glmap_tools.toolset import Toolset
 
     report = Report("bench lock")
@@ -207,12 +209,10 @@ POISON: list[tuple[str, tuple[float, float, float], dict[str, float] | None]] = 
 
 async def run_refusals(args: argparse.Namespace) -> int:
     """Time each poisoning 64x48 frame of POISON after one good frame, and map_summary after."""
-    import resource
 
     from mcp import Client
 
     from glmap_tools.app.frames import observe_arguments
-    from glmap_tools.bench.report import Report
     from glmap_tools.server import ServerConfig, build_server
 
     report = Report("bench lock --refusals")
@@ -252,7 +252,6 @@ async def run_refusals(args: argparse.Namespace) -> int:
 
 def run_merge_scaling(args: argparse.Namespace) -> int:
     """Time one extractive merge per buffer length (hashing embedder: the algorithm alone)."""
-    from glmap_tools.bench.report import Report
     from glmap_tools.language.embed import HashingEmbedder
     from glmap_tools.language.text_merger import DELIMITER, ExtractiveTextMerger
 

@@ -14,6 +14,10 @@ reused connection (where Nagle's algorithm used to add ~40 ms per call).
 from __future__ import annotations
 
 import argparse
+import os
+import shlex
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -21,8 +25,13 @@ from typing import Any
 
 import numpy as np
 
+from glmap_tools import synthetic
+from glmap_tools.bench.integrate import scene_with_ten_objects
+from glmap_tools.bench.report import Report
 from glmap_tools.gaussians.types import COVARIANCE_EPSILON, DEFAULT_OPACITY, GaussianSet
-from glmap_tools.language.embed import Embedder
+from glmap_tools.language.embed import Embedder, HashingEmbedder
+from glmap_tools.language.minilm import default_embedder
+from glmap_tools.map.units import InstanceUnit, RegionUnit
 
 FIND_TARGET_MS = 10.0  # find_instance p50 at 10k instances (also over HTTP)
 OBSERVE_TARGET_MS = 250.0  # observe_frame p50, 640x480, 10 objects
@@ -109,7 +118,6 @@ def synthetic_map_file(path: Path, n: int, embedder: Embedder, seed: int = 0) ->
     """
     from glmap_tools.map import GLMap
     from glmap_tools.map.store import MapStore
-    from glmap_tools.map.units import InstanceUnit, RegionUnit
 
     rng = np.random.default_rng(seed)
     texts = synthetic_texts(n, rng)
@@ -163,9 +171,7 @@ async def timed(client: Any, tool: str, args: dict[str, Any]) -> float:
 
 def observe_frames(count: int) -> list[dict[str, Any]]:
     """observe_frame arguments of 640x480 views of a 10-object ray-cast scene."""
-    from glmap_tools import synthetic
     from glmap_tools.app.frames import observe_arguments
-    from glmap_tools.bench.integrate import scene_with_ten_objects
 
     boxes = scene_with_ten_objects()
     texts = {k: ("chair", f"a wooden chair number {k}") for k in range(1, 6)}
@@ -184,9 +190,6 @@ def observe_frames(count: int) -> list[dict[str, Any]]:
 async def run(args: argparse.Namespace) -> int:
     from mcp import Client
 
-    from glmap_tools.bench.report import Report
-    from glmap_tools.language.embed import HashingEmbedder
-    from glmap_tools.language.minilm import default_embedder
     from glmap_tools.server import ServerConfig, build_server
 
     report = Report("bench mcp")
@@ -258,18 +261,10 @@ async def run(args: argparse.Namespace) -> int:
 
 async def run_http(args: argparse.Namespace) -> int:
     """find_instance p50 over streamable HTTP against a spawned glmap-mcp."""
-    import os
-    import shlex
-    import subprocess
-    import sys
 
     import httpx2
     from mcp import Client
     from mcp.client.streamable_http import streamable_http_client
-
-    from glmap_tools.bench.report import Report
-    from glmap_tools.language.embed import HashingEmbedder
-    from glmap_tools.language.minilm import default_embedder
 
     report = Report("bench mcp --transport http")
     embedder: Embedder = default_embedder() if args.embedder == "minilm" else HashingEmbedder()

@@ -31,9 +31,17 @@ from typing import Any
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
+import json
+import time
+
 import numpy as np  # noqa: E402
 
+from agents.runner import open_session, play_episode
 from glmap_tools.bench.report import Report  # noqa: E402
+from glmap_tools.eval.spec import EvalSpec, select_episodes
+from glmap_tools.eval.stats import episodes_needed
+from glmap_tools.eval.table import markdown
+from glmap_tools.server import ServerConfig
 
 STEP_P50_MS = 150.0
 EPISODES_PER_HOUR = 100.0
@@ -42,7 +50,6 @@ ALL_AGENTS = ("glmap", "glmap-instance", "glmap-region", "egocentric", "frontier
 
 
 def _server_config(tmp: str, embedder: str) -> Any:
-    from glmap_tools.server import ServerConfig
 
     return ServerConfig(
         maps_dir=Path(tmp) / "maps",
@@ -54,7 +61,6 @@ def _server_config(tmp: str, embedder: str) -> Any:
 
 async def _step_times(session: Any, episode_ids: list[str], steps: int) -> list[float]:
     """Milliseconds of every nav_step call of the GLMap agent on `episode_ids`."""
-    from agents.runner import play_episode
 
     ms: list[float] = []
     for k, eid in enumerate(episode_ids):
@@ -84,8 +90,6 @@ def _straight_target(be: Any, metres: float) -> tuple[float, float] | None:
 
 async def _navigate_times(session: Any, split: str, metres: float, tries: int) -> list[dict]:
     """Time navigate_to over `metres` on the first episodes that offer a straight target."""
-    import json
-    import time
 
     from glmap_tools.worlds.splits import load_split
 
@@ -110,8 +114,6 @@ async def _navigate_times(session: Any, split: str, metres: float, tries: int) -
 
 
 async def _speed(report: Report, args: argparse.Namespace) -> None:
-    from agents.runner import open_session
-    from glmap_tools.eval.spec import select_episodes
 
     episodes = [be.episode_id for be in select_episodes("objectnav", args.split, 2, 1)]
     with tempfile.TemporaryDirectory() as tmp:
@@ -146,7 +148,6 @@ async def _speed(report: Report, args: argparse.Namespace) -> None:
 
 def _throughput(report: Report, args: argparse.Namespace) -> None:
     from glmap_tools.eval.run import run_eval
-    from glmap_tools.eval.spec import EvalSpec
 
     spec = EvalSpec(
         "objectnav", args.split, 1, args.throughput_episodes, ALL_AGENTS, embedder=args.embedder
@@ -165,8 +166,6 @@ def _throughput(report: Report, args: argparse.Namespace) -> None:
 
 def _table(report: Report, args: argparse.Namespace) -> None:
     from glmap_tools.eval.run import run_eval
-    from glmap_tools.eval.spec import EvalSpec
-    from glmap_tools.eval.table import markdown
 
     spec = EvalSpec(
         args.task,
@@ -219,8 +218,6 @@ def check_table_targets(report: Report, summary: Any, records: dict[str, Any]) -
         )
         both = sorted(set(records.get("glmap", {})) & set(records.get(other, {})))
         if both:
-            from glmap_tools.eval.stats import episodes_needed
-
             disagree = float(
                 np.mean(
                     [records["glmap"][e]["success"] != records[other][e]["success"] for e in both]

@@ -19,6 +19,8 @@ thresholds and minimum observation counts (see nav/design.md).
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
 import os
 import time
 from typing import Any
@@ -199,8 +201,6 @@ def config_overrides(pairs: list[str]) -> dict[str, Any]:
     Raises:
         InvalidInputError: an unknown field or a value NavConfig refuses.
     """
-    import dataclasses
-    import json
 
     fields = {f.name for f in dataclasses.fields(NavConfig)}
     out: dict[str, Any] = {}

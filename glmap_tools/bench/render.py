@@ -21,6 +21,7 @@ from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 
+import numba
 import numpy as np
 
 from glmap_tools.bench.report import Report
@@ -95,7 +96,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     import cv2
-    import numba
 
     args.out.mkdir(parents=True, exist_ok=True)
     report = Report("bench render")

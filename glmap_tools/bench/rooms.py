@@ -30,6 +30,7 @@ import numpy as np
 
 from glmap_tools.bench.report import Report
 from glmap_tools.errors import GLMapError, InvalidInputError
+from glmap_tools.language.backends import add_llm_arguments, make_scorer, settings_from_args
 from glmap_tools.nav.scorers import UnitText
 
 THRESHOLDS = (0.2, 0.3, 0.4, 0.5)
@@ -119,7 +120,6 @@ def room_table(rows: Sequence[dict[str, RoomScores]], report: Report) -> dict[st
 
 
 def main(argv: list[str] | None = None) -> int:
-    from glmap_tools.language.backends import add_llm_arguments, make_scorer, settings_from_args
     from glmap_tools.worlds.splits import bench_layout, load_split
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench rooms")

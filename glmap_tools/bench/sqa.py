@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from glmap_tools.bench.report import Report
+from glmap_tools.eval.sqa import SqaSpec, _embedder, scene_map
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -28,7 +29,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--cache", type=Path, default=Path("out/bench_sqa"), help="map cache folder")
     args = p.parse_args(argv)
 
-    from glmap_tools.eval.sqa import SqaSpec, _embedder, scene_map
     from glmap_tools.sqa import situate
     from glmap_tools.sqa.answer import OfflineAnswerer, answer_at
     from glmap_tools.sqa.views import labelled_views

@@ -26,6 +26,16 @@ from pathlib import Path
 from queue import Empty, Queue
 from typing import Any
 
+from glmap_tools.bench.report import Report
+from glmap_tools.server.handshake import (
+    MODERN_VERSIONS,
+    PreparedAnswers,
+    answers_path,
+    opening_requests,
+    prepare_handshake,
+    source_stamp,
+)
+
 INITIALIZE_TARGET_S = 0.5
 TOOLS_LIST_TARGET_S = 0.5
 FIRST_FIND_TARGET_S = 3.0  # the text embedder loads in the background meanwhile
@@ -93,7 +103,6 @@ class StdioPeer:
         """Open a session in `version` as a client does and list the tools: ((opening answer,
         seconds since launch), (tools/list answer, seconds)). A handshake-era client waits
         for the `initialize` answer before it sends more; a stateless one sends both."""
-        from glmap_tools.server.handshake import MODERN_VERSIONS, opening_requests
 
         first, *rest = opening_requests(version, client)
         self.send(first)
@@ -154,7 +163,6 @@ def measure_stateless(command: list[str], extra_args: list[str], timeout: float)
 
 def prepared_versions() -> set[str]:
     """The protocol versions this installation has prepared handshake answers for."""
-    from glmap_tools.server.handshake import PreparedAnswers, answers_path, source_stamp
 
     return set(PreparedAnswers(answers_path(), source_stamp()).complete())
 
@@ -175,7 +183,6 @@ def process_cpu_seconds(pid: int) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from glmap_tools.bench.report import Report
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench startup")
     parser.add_argument("--runs", type=int, default=3, help="fresh launches to time")
@@ -202,8 +209,6 @@ def main(argv: list[str] | None = None) -> int:
                 "since they were kept): run 1 answers through the SDK and keeps them"
             )
         else:
-            from glmap_tools.server.handshake import prepare_handshake
-
             report.info(
                 "no prepared handshake answers for this installation (its sources changed "
                 "since they were kept): preparing them first, as `glmap-mcp --prepare` does at "

@@ -14,6 +14,10 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from glmap_tools import synthetic
+from glmap_tools.bench.report import Report
+from glmap_tools.map import MapConfig
+
 TOOLS_LIST_TARGET_BYTES = 12 * 1024
 
 
@@ -50,10 +54,7 @@ def result_sizes(result: Any) -> tuple[int, int, int]:
 async def run(args: argparse.Namespace) -> int:
     from mcp import Client
 
-    from glmap_tools import synthetic
     from glmap_tools.app.frames import observe_arguments
-    from glmap_tools.bench.report import Report
-    from glmap_tools.map import MapConfig
     from glmap_tools.server import ServerConfig, build_server
 
     report = Report("bench tokens")

@@ -15,11 +15,11 @@ import numpy as np
 
 from glmap_tools.eval.stats import DEFAULT_RESAMPLES, bootstrap_mean
 from glmap_tools.sim.episodes import Difficulty
+from glmap_tools.worlds.difficulty import DIFFICULTY_BINS, DifficultyMeter
 
 
 def episode_difficulties(selected: Sequence[Any]) -> dict[str, Difficulty]:
     """episode id -> difficulty of each BenchEpisode (measured when its file has none)."""
-    from glmap_tools.worlds.difficulty import DifficultyMeter
     from glmap_tools.worlds.splits import bench_grid, bench_layout
 
     meters: dict[Any, DifficultyMeter] = {}
@@ -43,7 +43,6 @@ def difficulty_rows(
 ) -> list[dict[str, Any]]:
     """One row per (dimension, bin): episodes in it, and per agent SR (%) with its interval,
     mean SPL (%) and the episodes it finished there."""
-    from glmap_tools.worlds.difficulty import DIFFICULTY_BINS
 
     rows = []
     for dimension, bin_of, bins in DIFFICULTY_BINS:

@@ -4,10 +4,15 @@ tool calls per agent), situated QA (EM-1, EM-R1, localisation), and two runs sid
 from __future__ import annotations
 
 import argparse
+import hashlib
+import os
 from pathlib import Path
 
-from glmap_tools.eval.spec import SPLITS, TASKS
+from agents.runner import DEFAULT_LLM_MODEL, LLM_ENV
+from glmap_tools.eval import compare, sqa
+from glmap_tools.eval.spec import SPLITS, TASKS, EvalSpec, parse_agents
 from glmap_tools.language.backends import SCORERS
+from glmap_tools.language.prompts import PromptSet
 
 DEFAULT_AGENTS = "glmap,glmap-instance,glmap-region,egocentric,frontier,random"
 
@@ -19,7 +24,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     kinds = top.add_subparsers(dest="task", metavar="TASK", required=True)
     for task in TASKS:
         _register_nav(kinds, task)
-    from glmap_tools.eval import compare, sqa
 
     q = kinds.add_parser(
         "sqa",
@@ -108,11 +112,6 @@ def _llm_settings(args: argparse.Namespace, agents: tuple[str, ...]) -> tuple[st
     Worker processes inherit the environment (local workers; Ray workers need the same
     variables in their runtime environment).
     """
-    import hashlib
-    import os
-
-    from agents.runner import DEFAULT_LLM_MODEL, LLM_ENV
-    from glmap_tools.language.prompts import PromptSet
 
     os.environ[LLM_ENV["scorer"]] = args.scorer  # a value left in the shell must not differ
     if "llm-tools" not in agents and args.scorer != "llm":
@@ -131,7 +130,6 @@ def _llm_settings(args: argparse.Namespace, agents: tuple[str, ...]) -> tuple[st
 
 def run(args: argparse.Namespace) -> int:
     from glmap_tools.eval.run import run_eval
-    from glmap_tools.eval.spec import EvalSpec, parse_agents
 
     agents = parse_agents(args.agents)
     split, scenes_dir = args.split, None
@@ -140,9 +138,6 @@ def run(args: argparse.Namespace) -> int:
 
         split, scenes_dir = parse_scene_dir(args.scenes_dir)
     llm_model, prompts = _llm_settings(args, agents)
-    import os
-
-    from agents.runner import LLM_ENV
 
     os.environ[LLM_ENV["perception"]] = args.perception  # to the workers' servers
     spec = EvalSpec(

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.eval.stats import bootstrap_mean, paired_difference
 
 
 def load_folder(folder: Path) -> tuple[dict[str, Any], dict[str, dict[str, dict[str, Any]]]]:
@@ -39,7 +40,6 @@ def _settings(config: dict[str, Any]) -> dict[str, Any]:
 
 def compare(a: Path, b: Path, resamples: int = 2000) -> str:
     """The Markdown table comparing folders `a` and `b`."""
-    from glmap_tools.eval.stats import bootstrap_mean, paired_difference
 
     ca, ra = load_folder(a)
     cb, rb = load_folder(b)

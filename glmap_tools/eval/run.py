@@ -17,6 +17,7 @@ from glmap_tools.eval.by_difficulty import (
     difficulty_rows,
     episode_difficulties,
 )
+from glmap_tools.eval.ray_engine import check_address, run_ray
 from glmap_tools.eval.results import ResultsDir, _safe, write_json
 from glmap_tools.eval.spec import (
     EvalSpec,
@@ -147,8 +148,6 @@ def _engine(
     scene_dirs: dict[str, Path],
 ) -> Iterator[Outcome]:
     if ray_address:
-        from glmap_tools.eval.ray_engine import run_ray
-
         return run_ray(jobs, max(1, workers), embedder, ray_address, scene_dirs)
     if workers == 0:
         return run_inline(jobs, embedder, scene_dirs)
@@ -207,8 +206,6 @@ def run_eval(
     if workers < 0:
         raise InvalidInputError(f"--workers {workers} must be 0 (in process) or more.")
     if ray_address:
-        from glmap_tools.eval.ray_engine import check_address
-
         check_address(ray_address)  # fail before anything is written
     selected = select_episodes(
         spec.task, spec.split, spec.scenes, spec.episodes_per_scene, spec.scene_dirs

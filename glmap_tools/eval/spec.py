@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from agents.runner import AGENT_SIZE, AGENTS
 from glmap_tools.errors import InvalidInputError, did_you_mean
 from glmap_tools.language.backends import SCORERS
 
@@ -34,7 +35,6 @@ RESULT_KEYS = (
 
 def known_agents() -> tuple[str, ...]:
     """The agent names `agents.runner` can run."""
-    from agents.runner import AGENTS
 
     return tuple(AGENTS)
 
@@ -155,7 +155,6 @@ class EvalSpec:
 
     def result_config(self) -> dict[str, Any]:
         """The settings that decide an episode's result (stored beside the results)."""
-        from agents.runner import AGENT_SIZE
 
         d = asdict(self)
         # The model settings only count when a model plays (older folders lack them).

@@ -34,6 +34,8 @@ from typing import Any
 import numpy as np
 
 from glmap_tools.errors import GLMapError, InvalidInputError, did_you_mean
+from glmap_tools.eval.orphans import exit_with_parent
+from glmap_tools.eval.stats import bootstrap_mean, paired_difference
 
 SQA_AGENTS = ("glmap", "gt-pose", "random-pose", "text-only")
 LOCALISED_M, LOCALISED_DEG = 1.0, 45.0  # a pose counts as localised within these
@@ -343,7 +345,6 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
 def summarize(records: list[dict[str, Any]], agents: Sequence[str], resamples: int = 2000) -> str:
     """Markdown: EM-1, EM-R1 per agent with intervals, paired differences, per-type EM-1,
     and the localisation of the glmap agent."""
-    from glmap_tools.eval.stats import bootstrap_mean, paired_difference
 
     def values(agent: str, key: str) -> np.ndarray:
         rows = sorted(
@@ -454,8 +455,6 @@ def run_sqa_eval(
         for s in todo:
             keep(answer_scene(spec, s, layouts[s], str(out)))
     else:
-        from glmap_tools.eval.orphans import exit_with_parent
-
         # Each pool process exits as soon as this one is gone (killed), instead of answering on.
         with ProcessPoolExecutor(max_workers=workers, initializer=exit_with_parent) as pool:
             futures = [pool.submit(answer_scene, spec, s, layouts[s], str(out)) for s in todo]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
 
@@ -150,7 +151,6 @@ def episodes_needed(discordance: float, difference: float, power: float = 0.8) -
     Raises:
         InvalidInputError: a share outside (0, 1], a difference not in (0, discordance].
     """
-    from statistics import NormalDist
 
     if not (0.0 < discordance <= 1.0):
         raise InvalidInputError(f"discordance={discordance!r} must be a share in (0, 1].")

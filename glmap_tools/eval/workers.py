@@ -10,7 +10,10 @@ broken episode does not stop the others.
 from __future__ import annotations
 
 import asyncio
+import multiprocessing as mp
 import os
+import queue
+import sys
 import tempfile
 import threading
 import traceback
@@ -19,6 +22,11 @@ from concurrent.futures import Future
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
+
+from agents.runner import DEFAULT_LLM_MODEL, LLM_ENV, open_session, run_episode
+from glmap_tools.eval.orphans import exit_with_parent
+from glmap_tools.language.backends import LLMSettings
+from glmap_tools.server import ServerConfig
 
 SCORER_USED = "scorer_used"  # the f_S a worker's server scored with, in its records
 
@@ -64,8 +72,6 @@ def server_llm_settings() -> Any:
     """The worker server's `LLMSettings`: the offline defaults, or with `GLMAP_SCORER=llm`
     (set by `glmap eval --scorer llm`) the LLM scorer on the model, host and prompts of
     `agents.runner.LLM_ENV`."""
-    from agents.runner import DEFAULT_LLM_MODEL, LLM_ENV
-    from glmap_tools.language.backends import LLMSettings
 
     scorer = os.environ.get(LLM_ENV["scorer"]) or "embedding"
     if scorer == "embedding":
@@ -82,7 +88,6 @@ def server_llm_settings() -> Any:
 def llm_environment() -> dict[str, str]:
     """The `agents.runner.LLM_ENV` variables set in this process: what `glmap eval` hands a
     worker that does not inherit its environment (a Ray actor on a running cluster)."""
-    from agents.runner import LLM_ENV
 
     return {var: os.environ[var] for var in LLM_ENV.values() if var in os.environ}
 
@@ -127,8 +132,6 @@ class EpisodeWorker:
             self._loop.close()
 
     async def _hold(self, embedder: str, compute_threads: int) -> None:
-        from agents.runner import LLM_ENV, open_session
-        from glmap_tools.server import ServerConfig
 
         llm = server_llm_settings()
         self.scorer = llm.scorer
@@ -148,7 +151,6 @@ class EpisodeWorker:
             await self._stop.wait()
 
     async def _play(self, job: Job) -> dict[str, Any]:
-        from agents.runner import run_episode
 
         result = await run_episode(
             self._session,
@@ -178,7 +180,6 @@ class EpisodeWorker:
 
 def _log_to(path: Path) -> None:
     """Send this process's stderr (server logs, tracebacks, EGL warnings) to `path`."""
-    import sys
 
     path.parent.mkdir(parents=True, exist_ok=True)
     log = path.open("a", encoding="utf-8", buffering=1)
@@ -207,7 +208,6 @@ def _process_main(
     """A local worker process: walk the job list from `start` (wrapping around), play each
     job no other worker has claimed, and put an Outcome (as a dict) for each. Exits at once
     when the parent process is gone (killed), instead of playing on."""
-    from glmap_tools.eval.orphans import exit_with_parent
 
     exit_with_parent()
     if log:
@@ -245,8 +245,6 @@ def run_local(
     Raises:
         RuntimeError: a worker could not start or died (its error is in the message).
     """
-    import multiprocessing as mp
-    import queue
 
     ctx = mp.get_context("spawn")  # no inherited GL context, event loop or thread pools
     out_q: Any = ctx.Queue()

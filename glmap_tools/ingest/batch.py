@@ -18,6 +18,7 @@ from pathlib import Path
 
 from glmap_tools.atomic import write_atomic
 from glmap_tools.errors import InvalidInputError, StoreError
+from glmap_tools.eval.ray_engine import _import_ray, resolve_address
 from glmap_tools.ingest.build import BuildSettings, check_settings
 from glmap_tools.ingest.engines import ScanTask, run_local, run_ray
 from glmap_tools.ingest.scans import find_scans, map_path, stale_files
@@ -151,8 +152,6 @@ def build_many(
     _check_workers(workers)
     todo = [s for s in scans if overwrite or not map_path(out, s).exists()]
     if ray_address is not None:
-        from glmap_tools.eval.ray_engine import _import_ray, resolve_address
-
         resolve_address(ray_address)  # a malformed address fails here, before any write
         if todo:
             _import_ray()

@@ -22,14 +22,19 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from glmap_tools.errors import InvalidInputError, StoreError
+from glmap_tools.ingest.datasets import open_sequence
 from glmap_tools.ingest.prefetch import prefetched
+from glmap_tools.language import embed, minilm
 from glmap_tools.language.backends import LLMSettings, make_text_merger
+from glmap_tools.perception.backends import model_perception
+from glmap_tools.perception.labelling import semantics_from_labels
+from glmap_tools.perception.labels_file import FrameLabels, load_labels_file, pointed_labels
+from glmap_tools.perception.semantics import FrameSemantics
 
 if TYPE_CHECKING:
     from glmap_tools.ingest.datasets import IngestFrame, RGBDSequence
     from glmap_tools.language.embed import Embedder
     from glmap_tools.map import GLMap
-    from glmap_tools.perception.semantics import FrameSemantics
 
 PERCEPTIONS = ("annotated", "geometric", "geometric+mllm", "mllm")
 EMBEDDERS = ("minilm", "hashing")
@@ -141,7 +146,6 @@ def cpu_seconds() -> float:
 
 def make_embedder(name: str) -> Embedder:
     """The text embedder named by `--embedder`."""
-    from glmap_tools.language import embed, minilm
 
     return embed.HashingEmbedder() if name == "hashing" else minilm.default_embedder()
 
@@ -177,15 +181,11 @@ def make_perception(settings: BuildSettings) -> Callable[[IngestFrame], FrameSem
     if settings.perception == "annotated":
         return None
     if settings.perception in ("geometric+mllm", "mllm"):
-        from glmap_tools.perception.backends import model_perception
-
         backend = model_perception(
             settings.perception, settings.llm, settings.detector, settings.segmenter
         )
         return lambda item: backend(item.frame)
     from glmap_tools.perception.geometric import segment_frame
-    from glmap_tools.perception.labelling import semantics_from_labels
-    from glmap_tools.perception.labels_file import FrameLabels, load_labels_file, pointed_labels
 
     assert settings.labels is not None  # check_settings
     frames = load_labels_file(settings.labels)
@@ -252,9 +252,7 @@ def build_map(
         StoreError: `out` exists (without `overwrite`) or cannot be written.
         InvalidInputError: bad settings, an unreadable folder or frame, a bad annotation.
     """
-    from glmap_tools.ingest.datasets import open_sequence
     from glmap_tools.map import GLMap, MapConfig
-    from glmap_tools.perception.semantics import FrameSemantics
 
     if out.exists() and not overwrite:
         raise StoreError(f"{str(out)!r} exists; pass --overwrite to replace it or choose --out.")

@@ -8,8 +8,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.ingest.build import EMBEDDERS, PERCEPTIONS, BuildSettings
-from glmap_tools.ingest.summary import SUMMARY_NAME
+from glmap_tools.ingest.batch import build_many
+from glmap_tools.ingest.build import EMBEDDERS, PERCEPTIONS, BuildSettings, build_map
+from glmap_tools.ingest.scans import is_sequence
+from glmap_tools.ingest.summary import SUMMARY_NAME, cpu_per_frame, format_table
 from glmap_tools.language.backends import add_llm_arguments, settings_from_args
 
 if TYPE_CHECKING:
@@ -117,7 +119,6 @@ def settings_from(args: argparse.Namespace) -> BuildSettings:
 
 def is_many(source: Path | None) -> bool:
     """Whether `source` names many scans (a list file, or a folder that is not one scan)."""
-    from glmap_tools.ingest.scans import is_sequence
 
     if source is None:
         return False
@@ -144,8 +145,6 @@ def run_build(args: argparse.Namespace) -> int:
 def _run_one(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from glmap_tools.ingest.build import build_map
-
     bar = tqdm(total=0, unit="frame", disable=args.quiet)
 
     def progress(done: int, total: int) -> None:
@@ -170,8 +169,6 @@ def _run_one(args: argparse.Namespace) -> int:
 
 
 def _run_many(args: argparse.Namespace) -> int:
-    from glmap_tools.ingest.batch import build_many
-    from glmap_tools.ingest.summary import cpu_per_frame, format_table
 
     if args.out is None:
         raise InvalidInputError(

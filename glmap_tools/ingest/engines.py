@@ -10,14 +10,19 @@ counter (local) or a small counter actor (Ray). Local workers exit when the driv
 
 from __future__ import annotations
 
+import multiprocessing as mp
 import os
 import socket
+import time
 import traceback
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any
 
+from glmap_tools.eval.orphans import exit_with_parent
+from glmap_tools.eval.ray_engine import connect
 from glmap_tools.ingest.build import BuildSettings, cpu_seconds
 from glmap_tools.ingest.summary import ScanResult
 
@@ -97,7 +102,6 @@ def build_scan(task: ScanTask, progress: Callable[[int, int], None]) -> ScanResu
 # ----------------------------------------------------------------------------- local
 def _local_main(task: ScanTask, counts: Any, conn: Any) -> None:
     """A scan's own process: build, add frames to the shared counts, send the row back."""
-    from glmap_tools.eval.orphans import exit_with_parent
 
     exit_with_parent()
 
@@ -112,8 +116,6 @@ def _local_main(task: ScanTask, counts: Any, conn: Any) -> None:
 
 def run_local(tasks: Sequence[ScanTask], workers: int, frames: FrameCounts) -> Iterator[ScanResult]:
     """Build `tasks` with at most `workers` processes at once; yield each row as it ends."""
-    import multiprocessing as mp
-    from multiprocessing.connection import wait
 
     ctx = mp.get_context("spawn")  # a clean process: no inherited threads or BLAS state
     counts: Any = ctx.Array("q", 2)
@@ -170,7 +172,6 @@ class _FrameCounter:
 
 def _ray_main(task: ScanTask, counter: Any) -> ScanResult:
     """A scan on a Ray worker: frame progress goes to the counter actor every POLL_S."""
-    import time
 
     pending = [0, 0]
     last = [time.monotonic()]
@@ -210,7 +211,6 @@ def run_ray(
     Raises:
         RayUnavailableError: Ray missing, or the address not answering.
     """
-    from glmap_tools.eval.ray_engine import connect
 
     ray, started_here = connect(address, ray_cpus("local", workers))
     try:

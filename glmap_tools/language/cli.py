@@ -16,9 +16,11 @@ import json
 import threading
 from typing import Any
 
+from glmap_tools.language.llm import OllamaClient
+from glmap_tools.language.ollama_replay import OllamaReplayServer
+
 
 def _check(args: argparse.Namespace) -> int:
-    from glmap_tools.language.llm import OllamaClient
 
     info = OllamaClient(args.model, host=args.ollama_host, retries=0).check()
     print(json.dumps(info, indent=1))
@@ -26,7 +28,6 @@ def _check(args: argparse.Namespace) -> int:
 
 
 def _serve(args: argparse.Namespace, upstream: str | None) -> int:
-    from glmap_tools.language.ollama_replay import OllamaReplayServer
 
     stop = threading.Event()
     server = OllamaReplayServer(

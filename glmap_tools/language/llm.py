@@ -14,6 +14,7 @@ real `ollama` client code runs in CI without a model.
 from __future__ import annotations
 
 import json
+import os
 import re
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -209,7 +210,6 @@ class OllamaClient:
     _client: Any = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
-        import os
 
         import ollama
 

@@ -22,6 +22,7 @@ import difflib
 import hashlib
 import json
 import os
+import sys
 import threading
 import time
 import urllib.error
@@ -189,7 +190,6 @@ class _ReplayHTTPServer(ThreadingHTTPServer):
 
     def handle_error(self, request: Any, client_address: Any) -> None:
         """A client that hung up before its answer (a timeout test) is not an error."""
-        import sys
 
         if isinstance(sys.exc_info()[1], ConnectionError):
             return

@@ -17,6 +17,7 @@ from glmap_tools.map.fusion import FramePlan, plan_frame
 from glmap_tools.map.occupancy import OccupancyGrid
 from glmap_tools.map.report import MapSummary, UnitInfo, UpdateReport
 from glmap_tools.map.state import MapState, Unit
+from glmap_tools.map.store import MapStore
 from glmap_tools.map.units import InstanceUnit, RegionUnit
 from glmap_tools.perception.semantics import FrameSemantics
 
@@ -25,7 +26,6 @@ if TYPE_CHECKING:
 
     from glmap_tools.language.embed import Embedder
     from glmap_tools.language.text_merger import TextMerger
-    from glmap_tools.map.store import MapStore
 
 __all__ = ["GLMap", "Unit"]
 
@@ -56,7 +56,6 @@ class GLMap(MapState):
         Raises:
             StoreError: the file exists but is not a GLMap store, or is from a newer version.
         """
-        from glmap_tools.map.store import MapStore
 
         store = MapStore.open(Path(path), create_with=config or MapConfig())
         try:
@@ -70,7 +69,6 @@ class GLMap(MapState):
 
     def save_as(self, path: str | os.PathLike[str]) -> None:
         """Write the whole map to a new store file at `path` and keep committing there."""
-        from glmap_tools.map.store import MapStore
 
         self.store = MapStore.create_from(Path(path), self)
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
+from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
 from glmap_tools.nav.config import NavConfig
 
 EXPLAINED_CELLS = 2  # a map obstacle this close to the contact point explains a bump
@@ -274,7 +274,6 @@ def masks(
     The cells under the agent's footprint are both (it stands there) and cost the most, so
     a plan from inside an obstacle's margin leaves it by the shortest way.
     """
-    from glmap_tools.map.occupancy import FREE, UNKNOWN
 
     s = occ.cell_size
     cost = cell_cost(clear, config, s)

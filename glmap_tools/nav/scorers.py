@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.map.queries import parse_relation, with_relation
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
@@ -351,7 +352,6 @@ class RelationScorer:
 
     def score(self, goal: str, units: Sequence[UnitText]) -> np.ndarray:
         """[N] scores in [0, 1]: the base scores, instances weighed by their relation."""
-        from glmap_tools.map.queries import parse_relation, with_relation
 
         out = np.asarray(self.base.score(goal, units), dtype=np.float64).copy()
         if parse_relation(goal) is None:

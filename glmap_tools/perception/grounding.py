@@ -13,6 +13,7 @@ time. `transformers` and `torch` are imported when a model is loaded, not before
 
 from __future__ import annotations
 
+import io
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +23,8 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.language.llm import chat_structured
+from glmap_tools.language.prompts import default_prompts
 from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS
 from glmap_tools.perception.semantics import FrameSemantics, GroupObservation, ObjectObservation
 
@@ -232,12 +235,8 @@ class MLLMGroundedPerception:
 
     def describe(self, frame: RGBDFrame) -> FrameDescription:
         """The MLLM's objects and groups of the frame (prompt `frame_description`)."""
-        import io
 
         from PIL import Image
-
-        from glmap_tools.language.llm import chat_structured
-        from glmap_tools.language.prompts import default_prompts
 
         prompt = (self.prompts or default_prompts()).get("frame_description")
         buffer = io.BytesIO()

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.perception.labelling import SegmentGroup, SegmentLabel
 
@@ -155,7 +157,6 @@ def pointed_labels(
 
 def interior_points(mask: Any, count: int = 3, spacing: int = 60) -> list[list[int]]:
     """Up to `count` [x, y] pixels deep inside an [H, W] bool mask, `spacing` pixels apart."""
-    import numpy as np
     from scipy import ndimage
 
     depth = ndimage.distance_transform_edt(mask)
@@ -177,7 +178,6 @@ def labels_from_annotations(folder: Path, skip: Sequence[str] = ("floor", "wall"
     glmap_tools.perception.labels_file FOLDER > FOLDER.labels.json` (beside the
     folder: a camera JSON is looked for inside it).
     """
-    import numpy as np
     from PIL import Image
 
     frames = {}

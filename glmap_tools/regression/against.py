@@ -8,19 +8,23 @@ step. No quiet machine needed: both sides see the same rendered frames.
 
 from __future__ import annotations
 
+import importlib.util
+import inspect
 import json
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+import glmap_tools.data
 from glmap_tools.regression.fingerprint import differences, digest, map_fingerprint, report_fields
 
 
 def _module_from(path: Path, name: str) -> Any:
     """Load the module at `path` under `name` (beside this tree's modules)."""
-    import importlib.util
 
     spec = importlib.util.spec_from_file_location(name, path)
     assert spec is not None and spec.loader is not None, path
@@ -75,7 +79,6 @@ OLD_MODULES = (
 
 def _old_modules(tree: Path) -> dict[str, Any]:
     """OLD_MODULES as in `tree`, each calling the others' old versions."""
-    import importlib
 
     old = {
         name: _module_from(
@@ -118,7 +121,6 @@ def play_against(
 
     Each frame goes into both maps and both policies' memories, then to both `decide`s (an
     older `decide` that takes the frame remembers it itself)."""
-    import inspect
 
     from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState, decide
     from glmap_tools.nav.config import ACTIONS
@@ -176,7 +178,6 @@ def play_against(
 
 def tour_against(tree: Path, scene: str, max_frames: int) -> tuple[int, list[str]]:
     """Integrate a bench scene's tour into both trees' maps; (frames, differences)."""
-    import glmap_tools.data
     from glmap_tools.sim.render import CameraSpec
     from glmap_tools.worlds.map_eval import tour_frames
     from glmap_tools.worlds.splits import bench_layout
@@ -197,8 +198,6 @@ def tour_against(tree: Path, scene: str, max_frames: int) -> tuple[int, list[str
 def situate_against(tree: Path, results: Path) -> tuple[int, list[str]]:
     """`situate` of both trees on the maps and situations of a `glmap eval sqa --out`
     folder; (situations, differences)."""
-    import shutil
-    import tempfile
 
     from glmap_tools.language.minilm import default_embedder as embedder
     from glmap_tools.map import GLMap

@@ -36,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+import glmap_tools.data
 from glmap_tools.bench.report import Report
 from glmap_tools.regression.against import play_against, situate_against, tour_against
 from glmap_tools.regression.fingerprint import differences, digest, map_fingerprint, report_fields
@@ -101,7 +102,6 @@ def play(task: str, index: int, policy: str, max_steps: int) -> dict[str, Any]:
 
 def tour(scene: str, max_frames: int) -> dict[str, Any]:
     """Build a map from a bench scene's tour; its fingerprint."""
-    import glmap_tools.data
     from glmap_tools.language.minilm import default_embedder as embedder
     from glmap_tools.map import GLMap, MapConfig
     from glmap_tools.sim.render import CameraSpec

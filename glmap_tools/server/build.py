@@ -10,6 +10,7 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
 
+import anyio
 from mcp.server.mcpserver import Context, Image, MCPServer
 from mcp.server.mcpserver.exceptions import ToolError, UnexpectedToolError
 from mcp.shared.exceptions import MCPError
@@ -83,8 +84,6 @@ class GLMapServer(MCPServer[AppState]):
         return app
 
     async def _transport_ended(self, transport_id: str) -> None:
-        import anyio
-        import anyio.to_thread
 
         state = self.state
         if state is None:
@@ -144,7 +143,6 @@ class GLMapServer(MCPServer[AppState]):
     ) -> CallToolResult | InputRequiredResult:
         """`_call`, bracketed by the pinned map's enter/exit with `--map` (app.persist);
         a failure to lock or open the map is the call's tool error."""
-        import anyio.to_thread
 
         pin = app_state(context).registry.pin if self.pinned and context is not None else None
         if pin is None:
@@ -195,7 +193,6 @@ class GLMapServer(MCPServer[AppState]):
     async def _wait_for(
         self, name: str, pending: list[Task], context: Context[AppState, Any] | None
     ) -> None:
-        import anyio.to_thread
 
         what = " and ".join(WHAT[t.name] for t in pending)
         message = f"{name} waits: the server is still {what} (first calls after start only)"

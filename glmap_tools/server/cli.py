@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import argparse
 import hmac
+import logging
 import os
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -332,7 +334,6 @@ def perception_from_args(args: argparse.Namespace) -> Any:
 def prepare() -> int:
     """Fill numba's cache, check the embedder loads and prepare the handshake answers
     (`glmap-mcp --prepare`, .ci/setup)."""
-    import time
 
     from glmap_tools.app.background import load_embedder, warm_kernels
     from glmap_tools.server.handshake import answers_path, prepare_handshake
@@ -349,7 +350,6 @@ def prepare() -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    import logging
 
     logging.basicConfig(level=args.log_level, stream=sys.stderr)
     if args.prepare:

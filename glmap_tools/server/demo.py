@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from agents.runner import play_episode
+
 MAX_TEXT = 2500  # characters of a result shown in the transcript
 MAX_EPISODE_MAPS = 6  # value maps of the episode shown in the transcript
 IMAGE_EVERY = 4  # the agent fetches the view and the value map every this many calls
@@ -225,7 +227,6 @@ async def run(out: Path, scene: int, seed: int, embedder: str, max_steps: int) -
     """Build the server in process, let the GLMap agent play, query the map, write it all."""
     from mcp import Client
 
-    from agents.runner import play_episode
     from glmap_tools.server import ServerConfig, build_server
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")

@@ -209,7 +209,6 @@ class SceneRenderer:
 
 def release_current_context() -> None:
     """Make no EGL context current on the calling thread (a no-op off EGL)."""
-    import os
 
     if os.environ.get("PYOPENGL_PLATFORM") != "egl":
         return

@@ -30,9 +30,12 @@ from collections.abc import Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
+from glmap_tools.sqa.attributes import colour_phrase
+from glmap_tools.sqa.families import NAMES, answer_family, family, in_side, split_side
 from glmap_tools.sqa.records import MapAnswer
 from glmap_tools.sqa.situation_words import NUMBER_WORDS
 from glmap_tools.sqa.surroundings import Nearby, Surroundings, surroundings
+from glmap_tools.sqa.wording import variants
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
@@ -189,8 +192,6 @@ QUESTION_TYPES: list[tuple[str, re.Pattern[str]]] = [
 
 def question_type(question: str) -> tuple[str, dict[str, str]]:
     """(type, named parts) of a question; ("unknown", {}) when no rule reads it."""
-    from glmap_tools.sqa.families import family
-    from glmap_tools.sqa.wording import variants
 
     q = " ".join(question.lower().replace("’", "'").split())
     q = re.sub(r" (?:in total|altogether|in all)(?=[?.!]*$)", "", q)  # "how many ... in total"
@@ -269,7 +270,6 @@ def _colour(label: str | None, obj: str | None, where: Surroundings) -> MapAnswe
         for uid, lab in where.labels.items()
         if lab == label
     ]
-    from glmap_tools.sqa.attributes import colour_phrase
 
     for n in cands:
         text = n.text or where_text(where, n.unit_id)
@@ -332,7 +332,6 @@ class OfflineAnswerer:
             where: the map around the situated pose.
             exclude: unit ids not to answer with (the anchor one stands at).
         """
-        from glmap_tools.sqa.families import NAMES, answer_family, in_side, split_side
 
         kind, parts = question_type(question)
         skip = set(exclude) | set(where.walled)  # what one stands at; what a wall hides

@@ -33,10 +33,12 @@ import re
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
+from glmap_tools.sqa.egocentric import direction, in_sector, sector_of
+from glmap_tools.sqa.more_answers import MORE, answer_more, intent
+from glmap_tools.sqa.records import MapAnswer
 from glmap_tools.sqa.wording import EARLY, LATE, either_or
 
 if TYPE_CHECKING:
-    from glmap_tools.sqa.answer import MapAnswer
     from glmap_tools.sqa.surroundings import Nearby, Surroundings
 
 FOV = 120.0  # deg: what one sees without turning the head far
@@ -246,9 +248,6 @@ def answer_family(
         match: the label matcher (`answer._match_label`).
         room: the room reader (`answer._room`).
     """
-    from glmap_tools.sqa.answer import MapAnswer
-    from glmap_tools.sqa.egocentric import direction
-    from glmap_tools.sqa.more_answers import MORE, answer_more, intent
 
     near = [n for n in where.nearby if n.unit_id not in skip]
     if kind in MORE:
@@ -287,7 +286,6 @@ def answer_family(
 
 def _in_room(parts: dict[str, str], r: MapAnswer) -> MapAnswer:
     """Whether the room read from the map is the room asked about."""
-    from glmap_tools.sqa.answer import MapAnswer
 
     if not r.supported:
         return MapAnswer("", "in_room", False, r.evidence)
@@ -298,7 +296,6 @@ def _in_room(parts: dict[str, str], r: MapAnswer) -> MapAnswer:
 
 def _turn(parts: dict[str, str], near: list[Nearby]) -> MapAnswer:
     """The nearest unit within 45 degrees of the asked direction after the turn."""
-    from glmap_tools.sqa.answer import MapAnswer
 
     turn = parts.get("turn", "around")
     t = (
@@ -325,8 +322,6 @@ def _count(
     kind: str, parts: dict[str, str], near: list[Nearby], obj: str, label: str | None
 ) -> MapAnswer:
     """count / parity / exists: the units of the label around (on the asked side)."""
-    from glmap_tools.sqa.answer import MapAnswer
-    from glmap_tools.sqa.egocentric import in_sector, sector_of
 
     side = side_of(parts) or (f"{parts['hour']} o'clock" if "hour" in parts else None)
     sector = sector_of(parts)
@@ -346,7 +341,6 @@ def _count(
 
 def _see(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:
     """Whether a unit of the label lies within the field of view, no wall between."""
-    from glmap_tools.sqa.answer import MapAnswer
 
     seen = [n for n in cands if abs(n.bearing) <= FOV / 2]
     why = f"{len(seen)} {label} within {FOV / 2:.0f} deg of ahead, no wall between"
@@ -355,7 +349,6 @@ def _see(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:
 
 def _touch(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:
     """Whether the nearest unit of the label is within reach of an arm."""
-    from glmap_tools.sqa.answer import MapAnswer
 
     if not cands:
         return MapAnswer("no", kind, True, f"no {label} nearby")
@@ -368,7 +361,6 @@ def _beside(
     parts: dict[str, str], label: str, near: list[Nearby], cands: list[Nearby]
 ) -> MapAnswer:
     """The unit closest to the nearest unit of the label, on the asked side of it."""
-    from glmap_tools.sqa.answer import MapAnswer
 
     kind = "beside"
     if not cands:
@@ -395,7 +387,6 @@ def _beside(
 
 def _described(kind: str, label: str, cands: list[Nearby]) -> MapAnswer:
     """shape / state: the first such word in the descriptions of the label's units."""
-    from glmap_tools.sqa.answer import MapAnswer
 
     words = SHAPES if kind == "shape" else STATES
     for n in cands or []:

@@ -13,6 +13,9 @@ from typing import TYPE_CHECKING, Literal
 
 from pydantic import BaseModel, Field
 
+from glmap_tools.language.llm import chat_structured
+from glmap_tools.language.llm_scorer import SQA_QUESTIONS, _unit_lines
+from glmap_tools.language.prompts import default_prompts
 from glmap_tools.sqa.reading import Constraint, SituationReading
 
 if TYPE_CHECKING:
@@ -67,9 +70,6 @@ def llm_read_situation(
         LLMError: the model failed or never gave a valid reading (`chat_structured`).
         InvalidInputError: a constraint with neither or both of side and clock.
     """
-    from glmap_tools.language.llm import chat_structured
-    from glmap_tools.language.llm_scorer import SQA_QUESTIONS, _unit_lines
-    from glmap_tools.language.prompts import default_prompts
 
     prompt = (prompts or default_prompts()).get("sqa_situation")
     text = prompt.format(

@@ -15,6 +15,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from glmap_tools.sqa.sight import walls_of
+
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
 
@@ -158,8 +160,6 @@ def surroundings(
     labels = {uid: u.label for uid, u in glmap.instances.items()}
     walled: frozenset[int] = frozenset()
     if walls and rows:
-        from glmap_tools.sqa.sight import walls_of
-
         # Hidden: a wall lies before both the unit's centre and its nearest cell.
         ids = [n.unit_id for n in rows]
         ends = np.concatenate([sight[i] for i in ids])

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from glmap_tools.views.common import encode_png
+from glmap_tools.views.topdown import draw_topdown
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
@@ -133,7 +134,6 @@ def topdown_crop(
     """A top-down crop around the situated pose with instance ids as markers (GPT4Scene-
     style): the map's footprints within `radius` m, ids at their centroids, the agent as a
     red arrow along `heading`, north (+y) up, metre ticks; at most size x size pixels."""
-    from glmap_tools.views.topdown import draw_topdown
 
     window = (x - radius, y - radius, x + radius, y + radius)
     return draw_topdown(

@@ -16,6 +16,8 @@ from collections.abc import Awaitable, Callable, Iterable, Mapping
 from contextlib import ExitStack
 from typing import TYPE_CHECKING, Any
 
+import anyio.to_thread
+from anyio.from_thread import start_blocking_portal
 from pydantic import ValidationError
 
 from glmap_tools.app.arguments import (
@@ -156,8 +158,6 @@ class Toolset:
         state = self.state
         pending = self._background.pending(needed_tasks(name))
         if pending:
-            import anyio.to_thread
-
             names = [t.name for t in pending]
             await anyio.to_thread.run_sync(lambda: self._background.wait(names))
         call = Call(state, progress=self._progress, sampler=self.sampler)
@@ -173,8 +173,6 @@ class Toolset:
 
     def _blocking_portal(self) -> BlockingPortal:
         if self._portal is None:
-            from anyio.from_thread import start_blocking_portal
-
             self.open()
             assert self._stack is not None
             self._portal = self._stack.enter_context(start_blocking_portal())

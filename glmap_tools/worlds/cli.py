@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import time
+import warnings
 from pathlib import Path
 
 from glmap_tools.errors import InvalidInputError
@@ -173,7 +175,6 @@ def run_new(args: argparse.Namespace) -> int:
 
 
 def run_from_scan(args: argparse.Namespace) -> int:
-    import warnings
 
     from glmap_tools.sim.catalog import check_aliases
     from glmap_tools.sim.jsonfile import read_json
@@ -296,7 +297,6 @@ def run_eval(args: argparse.Namespace) -> int:
 
 def run_map_eval(args: argparse.Namespace) -> int:
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    import time
 
     from glmap_tools.language import embed, minilm
     from glmap_tools.map import GLMap

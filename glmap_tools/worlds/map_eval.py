@@ -24,6 +24,8 @@ from glmap_tools.geometry import Pose
 from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.language.text_merger import split_buffer
 from glmap_tools.perception.annotated import semantics_from_annotation
+from glmap_tools.perception.geometric import segment_frame
+from glmap_tools.perception.labelling import oracle_semantics
 from glmap_tools.perception.semantics import FrameSemantics
 from glmap_tools.sim.annotate import annotate_view
 from glmap_tools.sim.layout import Layout, SceneObject
@@ -178,9 +180,6 @@ def build_map_from_tour(
         tour_frames(layout, camera, step, spin, max_frames, min_pixels)
     ):
         if perception == "geometric":
-            from glmap_tools.perception.geometric import segment_frame
-            from glmap_tools.perception.labelling import oracle_semantics
-
             semantics, _ = oracle_semantics(segment_frame(frame), semantics)
         glmap.integrate(frame, semantics, frame_index=i)
         seen |= listed

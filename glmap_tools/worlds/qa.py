@@ -43,6 +43,8 @@ from glmap_tools.sim.instnav import anchor_phrase, describe_instance
 from glmap_tools.sim.layout import Layout, SceneObject
 from glmap_tools.sim.motion import wrap_angle
 from glmap_tools.sim.navgrid import NavGrid, build_nav_grid
+from glmap_tools.worlds import qa_phrasings as ph
+from glmap_tools.worlds.qa_phrasings import HELD_OUT
 
 FORMAT = "glmap-sim-sqa"
 VERSION = 3
@@ -269,8 +271,6 @@ def generate_qa(
         items = [(*q, 0) for q in _questions(layout, grid, position, heading, anchor, facing, rng)]
         extra: dict[str, Any] = {}
         if phrasings:
-            from glmap_tools.worlds import qa_phrasings as ph
-
             situation, s_kind, s_form, reading = ph.rewrite_situation(
                 layout,
                 landmarks,
@@ -295,8 +295,6 @@ def generate_qa(
             extra = {"situation_kind": s_kind, "situation_form": s_form, "reading": reading}
         for kind, question, answers, ids, form in items:
             if phrasings:
-                from glmap_tools.worlds.qa_phrasings import HELD_OUT
-
                 extra |= {
                     "question_form": f"{kind}/{form}",
                     "held_out": extra["situation_form"] == HELD_OUT[extra["situation_kind"]]
