@@ -26,6 +26,10 @@ from glmap_tools.errors import GLMapError
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
 
+# Imports inside functions stay there: cv2, gaussians, language.embed, scipy load on first use:
+# build_server stays light (test_server_startup): the server loads them in the background or on
+# first use; the tools load before these do, in the server and the in-process toolset alike.
+
 logger = logging.getLogger(__name__)
 
 # glmap-mcp's start-up work waits up to this long for the first tools/list (or call), so that

@@ -13,6 +13,9 @@ if TYPE_CHECKING:
     from glmap_tools.map import GLMap
     from glmap_tools.nav.scorers import ClientScores
 
+# Imports inside functions stay there: gaussians, language.embed, scipy, skfmm load on first use:
+# the tools load before these do, in the server and the in-process toolset alike.
+
 
 def check_client_scores(
     glmap: GLMap, scores: dict[int, float], priors: dict[str, float]

@@ -13,6 +13,11 @@ from glmap_tools.errors import InvalidInputError
 from glmap_tools.language.backends import LLMSettings
 from glmap_tools.map.config import MapConfig
 
+# Imports inside functions stay there: gymnasium, numba, scipy, sim.episodes, trimesh,
+# worlds.scene_dirs load on first use: `glmap-mcp` answers the handshake before they load (the
+# launch path); build_server stays light (test_server_startup): the server loads them in the
+# background or on first use.
+
 # HTTP limits (glmap_tools.server.http); here so the command line needs no uvicorn import.
 REQUEST_TIMEOUT_S = 10.0
 MAX_CONNECTIONS = 64

@@ -23,6 +23,10 @@ if TYPE_CHECKING:
     from glmap_tools.app.session import Session
     from glmap_tools.language.embed import Embedder
 
+# Imports inside functions stay there: gaussians, language.embed, scipy, skfmm load on first use:
+# build_server stays light (test_server_startup): the server loads them in the background or on
+# first use; the tools load before these do, in the server and the in-process toolset alike.
+
 RECORD_FORMAT = "glmap-tools episode"
 RECORD_VERSION = 1
 # NavState fields rebuilt by the replay, or not data.

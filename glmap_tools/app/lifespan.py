@@ -26,6 +26,10 @@ from glmap_tools.errors import StoreError
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
 
+# Imports inside functions stay there: language.embed load on first use: build_server stays light
+# (test_server_startup): the server loads them in the background or on first use; the tools load
+# before these do, in the server and the in-process toolset alike.
+
 # Tools that render or integrate also wait for the kernels; every tool that may embed text
 # waits for the embedder. These read files and stored numbers only: they never wait.
 NO_WAIT_TOOLS = ("list_maps", "map_summary", "describe_unit", "what_is_at")

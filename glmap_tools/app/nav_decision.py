@@ -17,6 +17,9 @@ from glmap_tools.errors import InvalidInputError
 if TYPE_CHECKING:
     from glmap_tools.nav import NavConfig, NavDecision
 
+# Imports inside functions stay there: language.embed, scipy, skfmm load on first use: the tools
+# load before these do, in the server and the in-process toolset alike.
+
 
 def episode_config(session: Session) -> NavConfig:
     """The episode's NavConfig, or the defaults without an episode."""

@@ -31,6 +31,10 @@ if TYPE_CHECKING:
     from glmap_tools.nav import GoalMatch, NavConfig, Scorer
     from glmap_tools.nav.approach import Approach
 
+# Imports inside functions stay there: gaussians, language.embed, scipy, skfmm load on first use:
+# build_server stays light (test_server_startup): the server loads them in the background or on
+# first use; the tools load before these do, in the server and the in-process toolset alike.
+
 # Per-call clients (a server process per tool call, e.g. LangChain's get_tools()) lose the
 # episode between calls; the message names both ways to keep it (docs/frameworks/langchain.md).
 NO_EPISODE = (

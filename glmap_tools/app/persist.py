@@ -37,6 +37,10 @@ if TYPE_CHECKING:
     from glmap_tools.language.text_merger import TextMerger
     from glmap_tools.map import MapConfig
 
+# Imports inside functions stay there: cv2, gaussians, language.embed, scipy load on first use:
+# build_server stays light (test_server_startup): the server loads them in the background or on
+# first use; the tools load before these do, in the server and the in-process toolset alike.
+
 log = logging.getLogger(__name__)
 
 # This module is imported before the handshake: the map, store and simulator modules

@@ -17,6 +17,8 @@ from glmap_tools.map.report import MapSummary, UnitInfo, UpdateReport
 if TYPE_CHECKING:
     from PIL.Image import Image as PILImage
 
+# Imports inside functions stay there: optional: PIL.
+
 _BARE = re.compile(r"[A-Za-z0-9_./:+-]+")
 
 

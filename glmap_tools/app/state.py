@@ -54,6 +54,10 @@ if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
     from glmap_tools.language.text_merger import TextMerger
 
+# Imports inside functions stay there: cv2, gaussians, language.embed, scipy load on first use:
+# build_server stays light (test_server_startup): the server loads them in the background or on
+# first use; the tools load before these do, in the server and the in-process toolset alike.
+
 DROPPED_KEPT = 4096  # dropped session keys remembered, to tell their clients
 
 

@@ -12,6 +12,11 @@ import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
+# Imports inside functions stay there: threadpoolctl load on first use: build_server stays light
+# (test_server_startup): the server loads them in the background or on first use; the tools load
+# before these do, in the server and the in-process toolset alike; an import that may fail is caught
+# where it is used.
+
 
 @contextmanager
 def limited_threads(threads: int | None) -> Iterator[None]:

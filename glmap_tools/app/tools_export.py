@@ -17,6 +17,9 @@ from glmap_tools.app.session import check_map_name, locked
 from glmap_tools.app.views import EMPTY_MAP
 from glmap_tools.errors import InvalidInputError, StoreError
 
+# Imports inside functions stay there: gaussians, numba load on first use: the tools load before
+# these do, in the server and the in-process toolset alike.
+
 PLY_SUFFIX = ".ply"
 ExportName = Annotated[
     str, Field(min_length=1, max_length=70, description="letters, digits, '-' or '_'")

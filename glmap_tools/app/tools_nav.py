@@ -51,6 +51,9 @@ from glmap_tools.errors import InvalidInputError
 if TYPE_CHECKING:
     from glmap_tools.nav import NavDecision
 
+# Imports inside functions stay there: language.embed, scipy, skfmm load on first use: the tools
+# load before these do, in the server and the in-process toolset alike.
+
 Units = Literal["both", "instances", "regions"]
 Policy = Literal["glmap", "glmap-instance", "glmap-region", "egocentric", "frontier"]
 POLICY_OF_UNITS = {"both": "glmap", "instances": "glmap-instance", "regions": "glmap-region"}

@@ -34,6 +34,9 @@ from glmap_tools.perception.semantics import FrameSemantics
 if TYPE_CHECKING:
     from glmap_tools.perception.geometric import Segment
 
+# Imports inside functions stay there: pIL, scipy load on first use: the tools load before these do,
+# in the server and the in-process toolset alike; optional: PIL.
+
 SegmentId = Annotated[int, Field(ge=1)]
 _pending_made = threading.Lock()
 

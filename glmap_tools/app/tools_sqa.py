@@ -20,6 +20,9 @@ from glmap_tools.views.common import encode_png
 if TYPE_CHECKING:
     from glmap_tools.map import GLMap
 
+# Imports inside functions stay there: gaussians load on first use: the tools load before these do,
+# in the server and the in-process toolset alike.
+
 MAX_SITUATION = 512
 
 

@@ -28,6 +28,10 @@ if TYPE_CHECKING:
     from glmap_tools.views import RenderedView
     from glmap_tools.views.topdown_frame import TopDownFrame
 
+# Imports inside functions stay there: gaussians, numba load on first use: build_server stays light
+# (test_server_startup): the server loads them in the background or on first use; the tools load
+# before these do, in the server and the in-process toolset alike.
+
 EMPTY_MAP = (
     "the map is empty; observe frames (observe_frame or sim_step) before rendering or exporting it."
 )

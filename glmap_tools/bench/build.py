@@ -25,6 +25,7 @@ from typing import Any
 from glmap_tools.bench.report import Report
 from glmap_tools.cli import main as glmap_main
 from glmap_tools.cli_format import HelpWithDefaults
+from glmap_tools.ingest.build import FAST, REFERENCE, BuildSettings, Pipeline, build_map
 
 TARGET_FPS = 15.0
 TARGET_RSS_MB = 1024.0
@@ -36,7 +37,6 @@ STEPS = ("blas1", "blas1+memory")
 
 
 def _pipeline(variant: str) -> Any:
-    from glmap_tools.ingest.build import FAST, REFERENCE, Pipeline
 
     return {
         "reference": REFERENCE,
@@ -48,7 +48,6 @@ def _pipeline(variant: str) -> Any:
 
 def _run(folder: str, out: str, variant: str, frames: int | None, embedder: str) -> dict:
     """One build in this (fresh) process: its figures."""
-    from glmap_tools.ingest.build import BuildSettings, build_map
 
     settings = BuildSettings(max_frames=frames, embedder=embedder)
     main_cpu = time.thread_time()
@@ -70,8 +69,6 @@ def _run(folder: str, out: str, variant: str, frames: int | None, embedder: str)
 
 def _profile(folder: str, out: str, frames: int | None, embedder: str) -> list[tuple[str, float]]:
     """(stage, ms per frame) of a single-threaded in-memory build, from cProfile."""
-
-    from glmap_tools.ingest.build import BuildSettings, Pipeline, build_map
 
     settings = BuildSettings(max_frames=frames, embedder=embedder)
     profiler = cProfile.Profile()

@@ -25,7 +25,11 @@ from typing import Any
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
+from mcp import Client
+
 from glmap_tools.bench.report import Report  # noqa: E402
+from glmap_tools.server import ServerConfig, build_server
+from glmap_tools.worlds.splits import load_split
 
 CALLS_TARGET = 10
 BUDGET = 10  # calls a client allows itself before it stops where it is
@@ -57,7 +61,6 @@ async def play(client: Any, episode: str, budget: int = BUDGET) -> tuple[dict, l
 
 def first_per_scene(split: str, task: str, scenes: int) -> list[str]:
     """The first episode id of each of the first `scenes` scenes of the split."""
-    from glmap_tools.worlds.splits import load_split
 
     chosen: dict[str, str] = {}
     for be in load_split(split, task):
@@ -66,9 +69,6 @@ def first_per_scene(split: str, task: str, scenes: int) -> list[str]:
 
 
 async def _run(report: Report, args: argparse.Namespace) -> None:
-    from mcp import Client
-
-    from glmap_tools.server import ServerConfig, build_server
 
     episodes = first_per_scene(args.split, args.task, args.scenes)
     counts, wins = [], 0

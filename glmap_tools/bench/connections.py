@@ -22,6 +22,11 @@ import time
 from pathlib import Path
 from urllib.parse import urlparse
 
+import anyio
+import httpx2
+from mcp import Client
+from mcp.client.streamable_http import streamable_http_client
+
 from glmap_tools.bench.report import Report
 
 TOKEN = "bench-connections-token"
@@ -40,10 +45,6 @@ def open_fds(pid: int) -> int:
 
 def authorised_call(url: str, timeout: float) -> float:
     """Seconds for a tools/list over a fresh connection with the token (inf on failure)."""
-    import anyio
-    import httpx2
-    from mcp import Client
-    from mcp.client.streamable_http import streamable_http_client
 
     async def call() -> None:
         http = httpx2.AsyncClient(

@@ -18,13 +18,20 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import cv2
+import numba
 import numpy as np
 
 from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
+from glmap_tools.gaussians import _estimator_fast
 from glmap_tools.gaussians.estimator import EstimatorConfig, GaussianEstimator
+from glmap_tools.gaussians.merge import remerge
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Intrinsics, Pose, backproject, depth_from_uint16
+
+# Imports inside functions stay there: gaussians load on first use; an import that may fail is
+# caught where it is used.
 
 REDWOOD_TARGET_MS = 13.0  # fit and merge of the bundled Redwood frame 0 at 1.5 cm
 ROOM = (2.8, 2.5, 2.5)  # corner walls at x = 2.8 and y = 2.5, ceiling at z = 2.5
@@ -150,7 +157,6 @@ def _cold_compile_seconds() -> float:
 
 def redwood_frame() -> tuple[np.ndarray, np.ndarray] | None:
     """Camera-frame points and colours of the bundled Redwood living-room frame 0, if readable."""
-    import cv2
 
     root = Path(__file__).resolve().parents[1] / "data" / "redwood_livingroom1_5frames"
     depth = cv2.imread(str(root / "depth" / "00000.png"), cv2.IMREAD_UNCHANGED)
@@ -195,11 +201,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-cold", action="store_true", help="skip the cold-compile probe")
     parser.add_argument("--psnr", action="store_true", help="also print the size-cap PSNR table")
     args = parser.parse_args(argv)
-
-    import numba
-
-    from glmap_tools.gaussians import _estimator_fast
-    from glmap_tools.gaussians.merge import remerge
 
     report = Report("bench estimator")
     t0 = time.perf_counter()

@@ -14,6 +14,7 @@ from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.language.embed import Embedder, HashingEmbedder
 from glmap_tools.language.minilm import default_embedder
+from glmap_tools.map import GLMap, MapConfig
 
 TARGET_MS = 150.0
 
@@ -43,7 +44,6 @@ def scene_with_ten_objects() -> list[synthetic.Box]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from glmap_tools.map import GLMap, MapConfig
 
     parser = argparse.ArgumentParser(
         prog="python -m glmap_tools.bench integrate", formatter_class=HelpWithDefaults

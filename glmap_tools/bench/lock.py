@@ -31,12 +31,19 @@ import time
 from pathlib import Path
 from typing import Any
 
+import anyio
 import numpy as np
+from mcp import Client
 
+from glmap_tools.app.frames import observe_arguments
+from glmap_tools.app.inputs import MAX_GROUPS, MAX_OBJECTS
 from glmap_tools.bench.report import Report, load_average
 from glmap_tools.geometry import Intrinsics, Pose
 from glmap_tools.geometry.frame import RGBDFrame
-from glmap_tools.server import ServerConfig
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.language.text_merger import DELIMITER, MAX_DESCRIPTION_CHARS, ExtractiveTextMerger
+from glmap_tools.server import ServerConfig, build_server
+from glmap_tools.toolset import Toolset
 
 LOCK_TARGET_S = 2.0
 SYLLABLES = ["zor", "bex", "qua", "vil", "mur", "tak", "pho", "gry", "lun", "dex", "kiv", "sno"]
@@ -94,7 +101,6 @@ async def observed_with_probe(
         (observe_frame seconds, seconds of each what_is_at call, the observe_frame result,
         seconds of each find_instance call of the other session).
     """
-    import anyio
 
     waits: list[float] = []
     across: list[float] = []
@@ -134,8 +140,6 @@ async def observed_with_probe(
 
 
 async def run(args: argparse.Namespace) -> int:
-    from glmap_tools.app.frames import observe_arguments
-    from glmap_tools.toolset import Toolset
 
     report = Report("bench lock")
     frame, ids = tiled_frame(args.objects, args.width, args.height)
@@ -210,11 +214,6 @@ POISON: list[tuple[str, tuple[float, float, float], dict[str, float] | None]] = 
 async def run_refusals(args: argparse.Namespace) -> int:
     """Time each poisoning 64x48 frame of POISON after one good frame, and map_summary after."""
 
-    from mcp import Client
-
-    from glmap_tools.app.frames import observe_arguments
-    from glmap_tools.server import ServerConfig, build_server
-
     report = Report("bench lock --refusals")
     frame, ids = tiled_frame(4, 64, 48)
     objects = [{"id": k, "label": "thing", "description": f"thing {k}"} for k in range(1, 5)]
@@ -252,8 +251,6 @@ async def run_refusals(args: argparse.Namespace) -> int:
 
 def run_merge_scaling(args: argparse.Namespace) -> int:
     """Time one extractive merge per buffer length (hashing embedder: the algorithm alone)."""
-    from glmap_tools.language.embed import HashingEmbedder
-    from glmap_tools.language.text_merger import DELIMITER, ExtractiveTextMerger
 
     report = Report("bench lock --merge-scaling")
     rng = np.random.default_rng(args.seed)
@@ -277,10 +274,6 @@ def run_merge_scaling(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import anyio
-
-    from glmap_tools.app.inputs import MAX_GROUPS, MAX_OBJECTS
-    from glmap_tools.language.text_merger import MAX_DESCRIPTION_CHARS
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench lock")
     parser.add_argument("--objects", type=int, default=MAX_OBJECTS)

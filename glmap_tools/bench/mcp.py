@@ -23,15 +23,23 @@ import time
 from pathlib import Path
 from typing import Any
 
+import anyio
+import httpx2
 import numpy as np
+from mcp import Client
+from mcp.client.streamable_http import streamable_http_client
 
 from glmap_tools import synthetic
+from glmap_tools.app.frames import observe_arguments
 from glmap_tools.bench.integrate import scene_with_ten_objects
 from glmap_tools.bench.report import Report
 from glmap_tools.gaussians.types import COVARIANCE_EPSILON, DEFAULT_OPACITY, GaussianSet
 from glmap_tools.language.embed import Embedder, HashingEmbedder
 from glmap_tools.language.minilm import default_embedder
+from glmap_tools.map import GLMap
+from glmap_tools.map.store import MapStore
 from glmap_tools.map.units import InstanceUnit, RegionUnit
+from glmap_tools.server import ServerConfig, build_server
 
 FIND_TARGET_MS = 10.0  # find_instance p50 at 10k instances (also over HTTP)
 OBSERVE_TARGET_MS = 250.0  # observe_frame p50, 640x480, 10 objects
@@ -116,8 +124,6 @@ def synthetic_map_file(path: Path, n: int, embedder: Embedder, seed: int = 0) ->
 
     Returns the seconds spent embedding the descriptions.
     """
-    from glmap_tools.map import GLMap
-    from glmap_tools.map.store import MapStore
 
     rng = np.random.default_rng(seed)
     texts = synthetic_texts(n, rng)
@@ -171,7 +177,6 @@ async def timed(client: Any, tool: str, args: dict[str, Any]) -> float:
 
 def observe_frames(count: int) -> list[dict[str, Any]]:
     """observe_frame arguments of 640x480 views of a 10-object ray-cast scene."""
-    from glmap_tools.app.frames import observe_arguments
 
     boxes = scene_with_ten_objects()
     texts = {k: ("chair", f"a wooden chair number {k}") for k in range(1, 6)}
@@ -188,9 +193,6 @@ def observe_frames(count: int) -> list[dict[str, Any]]:
 
 
 async def run(args: argparse.Namespace) -> int:
-    from mcp import Client
-
-    from glmap_tools.server import ServerConfig, build_server
 
     report = Report("bench mcp")
     embedder: Embedder = default_embedder() if args.embedder == "minilm" else HashingEmbedder()
@@ -262,10 +264,6 @@ async def run(args: argparse.Namespace) -> int:
 async def run_http(args: argparse.Namespace) -> int:
     """find_instance p50 over streamable HTTP against a spawned glmap-mcp."""
 
-    import httpx2
-    from mcp import Client
-    from mcp.client.streamable_http import streamable_http_client
-
     report = Report("bench mcp --transport http")
     embedder: Embedder = default_embedder() if args.embedder == "minilm" else HashingEmbedder()
     rng = np.random.default_rng(1)
@@ -324,7 +322,6 @@ async def run_http(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import anyio
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench mcp")
     parser.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")

@@ -34,14 +34,19 @@ os.environ.setdefault("HF_HUB_OFFLINE", "1")
 import json
 import time
 
+import anyio
 import numpy as np  # noqa: E402
 
 from agents.runner import open_session, play_episode
 from glmap_tools.bench.report import Report  # noqa: E402
+from glmap_tools.eval.run import run_eval
 from glmap_tools.eval.spec import EvalSpec, select_episodes
 from glmap_tools.eval.stats import episodes_needed
 from glmap_tools.eval.table import markdown
 from glmap_tools.server import ServerConfig
+from glmap_tools.sim.layout_io import load_layout
+from glmap_tools.sim.navgrid import build_nav_grid
+from glmap_tools.worlds.splits import load_split
 
 STEP_P50_MS = 150.0
 EPISODES_PER_HOUR = 100.0
@@ -72,8 +77,6 @@ async def _step_times(session: Any, episode_ids: list[str], steps: int) -> list[
 
 def _straight_target(be: Any, metres: float) -> tuple[float, float] | None:
     """A navigable point `metres` from the start along a free straight line, if any."""
-    from glmap_tools.sim.layout_io import load_layout
-    from glmap_tools.sim.navgrid import build_nav_grid
 
     grid = build_nav_grid(load_layout(be.layout_path))
     start = np.asarray(be.episode.start_position, np.float64)
@@ -90,8 +93,6 @@ def _straight_target(be: Any, metres: float) -> tuple[float, float] | None:
 
 async def _navigate_times(session: Any, split: str, metres: float, tries: int) -> list[dict]:
     """Time navigate_to over `metres` on the first episodes that offer a straight target."""
-
-    from glmap_tools.worlds.splits import load_split
 
     out: list[dict] = []
     for be in load_split(split, "objectnav"):
@@ -147,7 +148,6 @@ async def _speed(report: Report, args: argparse.Namespace) -> None:
 
 
 def _throughput(report: Report, args: argparse.Namespace) -> None:
-    from glmap_tools.eval.run import run_eval
 
     spec = EvalSpec(
         "objectnav", args.split, 1, args.throughput_episodes, ALL_AGENTS, embedder=args.embedder
@@ -165,7 +165,6 @@ def _throughput(report: Report, args: argparse.Namespace) -> None:
 
 
 def _table(report: Report, args: argparse.Namespace) -> None:
-    from glmap_tools.eval.run import run_eval
 
     spec = EvalSpec(
         args.task,
@@ -242,7 +241,6 @@ def check_table_targets(report: Report, summary: Any, records: dict[str, Any]) -
 
 
 def main(argv: list[str] | None = None) -> int:
-    import anyio
 
     p = argparse.ArgumentParser(prog="python -m glmap_tools.bench nav", description=__doc__)
     p.add_argument("--split", default="tune", help="split of the speed figures")

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from glmap_tools.bench._nav_loop import calibrate, closed_loop, run_episode
 from glmap_tools.bench.report import Report
 from glmap_tools.errors import InvalidInputError, did_you_mean
 from glmap_tools.map.grid import IndexGrid
@@ -37,6 +38,7 @@ from glmap_tools.nav.motion import clearance, masks
 from glmap_tools.nav.planner import distance_field, plan_on_field
 from glmap_tools.nav.value import value_map_from_scores
 from glmap_tools.nav.waypoint import choose_waypoint
+from glmap_tools.worlds.splits import load_split
 
 CELL = 0.05
 
@@ -166,8 +168,6 @@ def agent_step(report: Report, steps: int) -> None:
     is at most that, and this machine is shared, so wall time is printed for reference.
     """
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    from glmap_tools.bench._nav_loop import run_episode
-    from glmap_tools.worlds.splits import load_split
 
     be = load_split("tune", "objectnav")[0]
     result = run_episode(be, "glmap", max_steps=steps, timings=True)
@@ -242,12 +242,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     if args.calibrate:
-        from glmap_tools.bench._nav_loop import calibrate
-
         return calibrate()
     if args.episodes:
-        from glmap_tools.bench._nav_loop import closed_loop
-
         indices = _indices(args.episodes)
         policies = args.policies.split(",")
         overrides = config_overrides(args.set)

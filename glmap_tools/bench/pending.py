@@ -30,9 +30,13 @@ from pathlib import Path
 from typing import Any
 
 from glmap_tools import synthetic as sy
+from glmap_tools.app import memory
+from glmap_tools.app.frames import observe_arguments
+from glmap_tools.app.tools_perception import pending_frames
 from glmap_tools.bench.report import Report
 from glmap_tools.perception import pending
 from glmap_tools.server import ServerConfig
+from glmap_tools.toolset import Toolset
 
 MIB = 1 << 20
 MAPS_ALLOWANCE = 256 * MIB  # the sessions' maps and the interpreter's own growth
@@ -60,7 +64,6 @@ def reset_peak() -> None:
 
 def scene_arguments(size: int) -> dict[str, Any]:
     """observe_frame arguments (no annotations) of a `size` x `size` view of the test room."""
-    from glmap_tools.app.frames import observe_arguments
 
     boxes = sy.floor() + sy.chair(0.0, 0.5, object_id=1) + sy.table(1.3, 0.8, 2)
     boxes += sy.chair(-1.0, 1.0, object_id=3)
@@ -69,9 +72,6 @@ def scene_arguments(size: int) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from glmap_tools.app import memory
-    from glmap_tools.app.tools_perception import pending_frames
-    from glmap_tools.toolset import Toolset
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench pending")
     parser.add_argument("--sessions", type=int, default=32)

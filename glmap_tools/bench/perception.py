@@ -19,6 +19,14 @@ import numpy as np
 
 from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
+from glmap_tools.ingest.cli import bundled_folder
+from glmap_tools.ingest.datasets import open_sequence
+from glmap_tools.language.embed import HashingEmbedder
+from glmap_tools.map import GLMap
+from glmap_tools.perception.geometric import segment_frame
+from glmap_tools.perception.labelling import best_iou, oracle_semantics
+from glmap_tools.sim.layout_io import load_layout
+from glmap_tools.worlds.map_eval import evaluate_instances, tour_frames
 
 TARGET_MS = 150.0
 TARGET_PR = 0.7
@@ -30,10 +38,6 @@ CPU_MS: list[float] = []  # CPU time of this thread per tour frame (less load-se
 
 def redwood_iou(report: Report) -> tuple[float, list[float]]:
     """Mean best IoU of the Redwood objects; also the per-frame segmentation times (ms)."""
-    from glmap_tools.ingest.cli import bundled_folder
-    from glmap_tools.ingest.datasets import open_sequence
-    from glmap_tools.perception.geometric import segment_frame
-    from glmap_tools.perception.labelling import best_iou
 
     ious: dict[str, list[float]] = {}
     times = []
@@ -52,12 +56,6 @@ def redwood_iou(report: Report) -> tuple[float, list[float]]:
 
 def tour_quality(scene: str, max_frames: int, report: Report) -> tuple[float, float, list[float]]:
     """(precision, recall, ms per frame) of a geometric map of one benchmark scene's tour."""
-    from glmap_tools.language.embed import HashingEmbedder
-    from glmap_tools.map import GLMap
-    from glmap_tools.perception.geometric import segment_frame
-    from glmap_tools.perception.labelling import oracle_semantics
-    from glmap_tools.sim.layout_io import load_layout
-    from glmap_tools.worlds.map_eval import evaluate_instances, tour_frames
 
     path = os.path.join(os.path.dirname(__file__), "..", "data", "benchmark", scene, "layout.json")
     layout = load_layout(path)

@@ -21,6 +21,7 @@ from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 
+import cv2
 import numba
 import numpy as np
 
@@ -94,8 +95,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("out/bench_render"))
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-
-    import cv2
 
     args.out.mkdir(parents=True, exist_ok=True)
     report = Report("bench render")

@@ -28,10 +28,12 @@ from typing import Any
 
 import numpy as np
 
+from glmap_tools.bench._nav_loop import embedder as bundled
 from glmap_tools.bench.report import Report
 from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.language.backends import add_llm_arguments, make_scorer, settings_from_args
 from glmap_tools.nav.scorers import UnitText
+from glmap_tools.worlds.splits import bench_layout, load_split
 
 THRESHOLDS = (0.2, 0.3, 0.4, 0.5)
 ROOM_RANKING_TARGET = 0.8
@@ -120,7 +122,6 @@ def room_table(rows: Sequence[dict[str, RoomScores]], report: Report) -> dict[st
 
 
 def main(argv: list[str] | None = None) -> int:
-    from glmap_tools.worlds.splits import bench_layout, load_split
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench rooms")
     parser.add_argument("--split", default="tune", choices=("tune", "bench"))
@@ -130,8 +131,6 @@ def main(argv: list[str] | None = None) -> int:
     settings = settings_from_args(args)
     embedder = None
     if settings.scorer == "embedding":
-        from glmap_tools.bench._nav_loop import embedder as bundled
-
         embedder = bundled()
     scorer = make_scorer(settings, embedder)
     report = Report(f"bench rooms ({args.split} {args.task}, scorer {settings.scorer})")

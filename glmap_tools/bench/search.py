@@ -13,11 +13,11 @@ import argparse
 import time
 
 from glmap_tools.bench.report import Report
+from glmap_tools.language.calibration import make_embedder
 from glmap_tools.worlds import search_eval as se
 
 
 def main(argv: list[str] | None = None) -> int:
-    from glmap_tools.language.calibration import make_embedder
 
     parser = argparse.ArgumentParser(
         prog="python -m glmap_tools.bench search",

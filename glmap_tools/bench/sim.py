@@ -17,6 +17,9 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 import numpy as np  # noqa: E402
 
 from glmap_tools.bench.report import Report
+from glmap_tools.sim.env import ObjectNavEnv
+from glmap_tools.sim.render import CameraSpec
+from glmap_tools.worlds.splits import bench_episode, load_split, make_env
 
 TARGET_STEPS_PER_SECOND = 5.0
 TARGET_RESET_MS = 100.0  # per reset on a benchmark scene: thousands of episodes are run
@@ -34,10 +37,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)
     args = parser.parse_args(argv)
-
-    from glmap_tools.sim.env import ObjectNavEnv
-    from glmap_tools.sim.render import CameraSpec
-    from glmap_tools.worlds.splits import bench_episode, load_split, make_env
 
     report = Report("bench sim")
     camera = CameraSpec(args.width, args.height)

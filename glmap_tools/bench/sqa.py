@@ -18,6 +18,11 @@ import numpy as np
 
 from glmap_tools.bench.report import Report
 from glmap_tools.eval.sqa import SqaSpec, _embedder, scene_map
+from glmap_tools.sqa import situate
+from glmap_tools.sqa.answer import OfflineAnswerer, answer_at
+from glmap_tools.sqa.views import labelled_views
+from glmap_tools.worlds.qa import generate_qa
+from glmap_tools.worlds.splits import bench_layout, split_dir
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -28,12 +33,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
     p.add_argument("--cache", type=Path, default=Path("out/bench_sqa"), help="map cache folder")
     args = p.parse_args(argv)
-
-    from glmap_tools.sqa import situate
-    from glmap_tools.sqa.answer import OfflineAnswerer, answer_at
-    from glmap_tools.sqa.views import labelled_views
-    from glmap_tools.worlds.qa import generate_qa
-    from glmap_tools.worlds.splits import bench_layout, split_dir
 
     report = Report("bench sqa")
     spec = SqaSpec(split=args.split, situations=args.situations, embedder=args.embedder)

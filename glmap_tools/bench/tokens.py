@@ -18,6 +18,9 @@ from glmap_tools import synthetic
 from glmap_tools.bench.report import Report
 from glmap_tools.map import MapConfig
 
+# Imports inside functions stay there: anyio, cv2, gaussians, mcp load on first use: `bench tokens`
+# and `bench startup` stay light.
+
 TOOLS_LIST_TARGET_BYTES = 12 * 1024
 
 

@@ -16,11 +16,11 @@ import numpy as np
 from glmap_tools.eval.stats import DEFAULT_RESAMPLES, bootstrap_mean
 from glmap_tools.sim.episodes import Difficulty
 from glmap_tools.worlds.difficulty import DIFFICULTY_BINS, DifficultyMeter
+from glmap_tools.worlds.splits import bench_grid, bench_layout
 
 
 def episode_difficulties(selected: Sequence[Any]) -> dict[str, Difficulty]:
     """episode id -> difficulty of each BenchEpisode (measured when its file has none)."""
-    from glmap_tools.worlds.splits import bench_grid, bench_layout
 
     meters: dict[Any, DifficultyMeter] = {}
     out: dict[str, Difficulty] = {}

@@ -14,6 +14,9 @@ from glmap_tools.eval.spec import SPLITS, TASKS, EvalSpec, parse_agents
 from glmap_tools.language.backends import SCORERS
 from glmap_tools.language.prompts import PromptSet
 
+# Imports inside functions stay there: gymnasium, numba, scipy, sim.episodes, tqdm, trimesh,
+# worlds.scene_dirs load on first use: `glmap` imports every command module to build its parser.
+
 DEFAULT_AGENTS = "glmap,glmap-instance,glmap-region,egocentric,frontier,random"
 
 

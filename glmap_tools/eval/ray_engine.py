@@ -22,6 +22,9 @@ from typing import Any
 from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.eval.workers import EpisodeWorker, Job, Outcome, llm_environment
 
+# Imports inside functions stay there: grpc load on first use: `glmap` imports every command module
+# to build its parser; optional: ray.
+
 CONNECT_TIMEOUT_S = 5.0
 
 

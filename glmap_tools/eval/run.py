@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.eval.by_difficulty import (
     difficulty_markdown,
@@ -240,8 +242,6 @@ def run_eval(
     failures: list[Outcome] = []
     start = time.perf_counter()
     if jobs:
-        from tqdm import tqdm
-
         where = f"Ray ({ray_address})" if ray_address else f"{workers} workers"
         with tqdm(
             total=len(jobs) + skipped,

@@ -16,6 +16,9 @@ from agents.runner import AGENT_SIZE, AGENTS
 from glmap_tools.errors import InvalidInputError, did_you_mean
 from glmap_tools.language.backends import SCORERS
 
+# Imports inside functions stay there: gymnasium, numba, scipy, sim.episodes, trimesh,
+# worlds.scene_dirs load on first use: `glmap` imports every command module to build its parser.
+
 TASKS = ("objectnav", "instnav")
 SPLITS = ("tune", "bench", "house-tune", "house-bench")  # = worlds.scene_dirs.BUILT_IN_SPLITS
 EMBEDDERS = ("minilm", "hashing")

@@ -17,6 +17,9 @@ from glmap_tools.eval.stats import (
     paired_difference,
 )
 
+# Imports inside functions stay there: gymnasium load on first use: `glmap` imports every command
+# module to build its parser.
+
 
 @dataclass(frozen=True)
 class Metric:

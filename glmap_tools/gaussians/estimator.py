@@ -16,6 +16,8 @@ from glmap_tools.errors import InvalidInputError, did_you_mean
 from glmap_tools.gaussians.config import EstimatorConfig
 from glmap_tools.gaussians.types import GaussianSet
 
+# Imports inside functions stay there: gaussians, numba, scipy load on first use.
+
 Backend = Literal["fast", "reference"]
 BACKENDS: tuple[str, ...] = get_args(Backend)
 MAX_VOXEL_SPAN = (1 << 21) - 3  # voxels per axis the fast path's 21-bit packed keys can hold

@@ -20,6 +20,8 @@ from glmap_tools.gaussians.types import COVARIANCE_EPSILON, GaussianSet
 if TYPE_CHECKING:
     from glmap_tools.gaussians.config import EstimatorConfig
 
+# Imports inside functions stay there: gaussians, numba load on first use.
+
 ANY_MERGEABLE_CHUNK = 4096  # Gaussians per early-exit step of `any_mergeable`
 MAX_GRID_SPAN = 1 << 22  # candidate radii across a set that the numba grid search can key
 

@@ -31,6 +31,9 @@ from glmap_tools.ingest.summary import (
     summary_json,
 )
 
+# Imports inside functions stay there: tqdm load on first use: `glmap` imports every command module
+# to build its parser.
+
 
 @dataclass
 class ManyResult:

@@ -36,6 +36,9 @@ if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
     from glmap_tools.map import GLMap
 
+# Imports inside functions stay there: gaussians, scipy, threadpoolctl load on first use: `glmap`
+# imports every command module to build its parser.
+
 PERCEPTIONS = ("annotated", "geometric", "geometric+mllm", "mllm")
 EMBEDDERS = ("minilm", "hashing")
 

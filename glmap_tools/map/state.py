@@ -21,6 +21,8 @@ if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
     from glmap_tools.language.text_merger import TextMerger
 
+# Imports inside functions stay there: language.embed load on first use.
+
 Unit = InstanceUnit | RegionUnit
 
 

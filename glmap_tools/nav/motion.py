@@ -33,6 +33,8 @@ from scipy import ndimage
 from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
 from glmap_tools.nav.config import NavConfig
 
+# Imports inside functions stay there: circle: nav.grid import this module.
+
 EXPLAINED_CELLS = 2  # a map obstacle this close to the contact point explains a bump
 UNSEEN_EDGE = 0.3  # metres each side of the contact an unexplained bump marks
 

@@ -29,6 +29,8 @@ if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
     from glmap_tools.nav.scorers import Scorer, UnitText
 
+# Imports inside functions stay there: circle: nav.config, nav.grid, nav.scorers import this module.
+
 TRUNCATE = 3.0  # kernel half-width in sigmas
 
 

@@ -7,6 +7,9 @@ from typing import Any
 
 from glmap_tools.errors import InvalidInputError
 
+# Imports inside functions stay there: language.embed load on first use: `glmap` imports every
+# command module to build its parser.
+
 MODEL_PERCEPTIONS = ("geometric+mllm", "mllm")
 
 

@@ -33,6 +33,8 @@ if TYPE_CHECKING:
     from glmap_tools.language.llm import LLMClient
     from glmap_tools.language.prompts import PromptSet
 
+# Imports inside functions stay there: torch, transformers load on first use; optional: PIL.
+
 BOX_THRESHOLD = 0.40
 TEXT_THRESHOLD = 0.25
 FETCH_HINT = {

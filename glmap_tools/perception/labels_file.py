@@ -29,6 +29,9 @@ from glmap_tools.perception.labelling import SegmentGroup, SegmentLabel
 if TYPE_CHECKING:
     from glmap_tools.perception.geometric import Segment
 
+# Imports inside functions stay there: scipy load on first use: `glmap` imports every command module
+# to build its parser; optional: PIL.
+
 NEAR = 6  # pixels: a point just off a segment (its edge) still names it
 
 

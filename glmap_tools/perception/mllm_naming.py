@@ -25,6 +25,8 @@ if TYPE_CHECKING:
     from glmap_tools.geometry.frame import RGBDFrame
     from glmap_tools.perception.geometric import GeometricConfig, Segment
 
+# Imports inside functions stay there: pIL, scipy load on first use; optional: PIL.
+
 PROMPT = "segment_naming"
 
 

@@ -20,7 +20,17 @@ from typing import Any
 import numpy as np
 
 import glmap_tools.data
+from glmap_tools.language.minilm import default_embedder as embedder
+from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState, decide
+from glmap_tools.nav.config import ACTIONS
+from glmap_tools.nav.episode import agent_of, observation_frame, remember
+from glmap_tools.nav.perceive import frame_score
 from glmap_tools.regression.fingerprint import differences, digest, map_fingerprint, report_fields
+from glmap_tools.sim.render import CameraSpec
+from glmap_tools.sqa.situate import situate
+from glmap_tools.worlds.map_eval import tour_frames
+from glmap_tools.worlds.splits import bench_layout, load_split, make_env
 
 
 def _module_from(path: Path, name: str) -> Any:
@@ -99,8 +109,6 @@ class _TwoTrees:
     """This tree's and an older tree's `plan_frame` and `decide`, fed the same frames."""
 
     def __init__(self, tree: Path) -> None:
-        from glmap_tools.language.minilm import default_embedder as embedder
-        from glmap_tools.map import GLMap, MapConfig
 
         old = _old_modules(tree)
         self.fusion, self.policy = old["glmap_tools.map.fusion"], old["glmap_tools.nav.policy"]
@@ -121,13 +129,6 @@ def play_against(
 
     Each frame goes into both maps and both policies' memories, then to both `decide`s (an
     older `decide` that takes the frame remembers it itself)."""
-
-    from glmap_tools.nav import EmbeddingScorer, NavConfig, NavState, decide
-    from glmap_tools.nav.config import ACTIONS
-    from glmap_tools.nav.episode import agent_of, observation_frame, remember
-    from glmap_tools.nav.perceive import frame_score
-    from glmap_tools.sim.render import CameraSpec
-    from glmap_tools.worlds.splits import load_split, make_env
 
     two = _TwoTrees(tree)
     be = load_split("tune", task)[index]
@@ -178,9 +179,6 @@ def play_against(
 
 def tour_against(tree: Path, scene: str, max_frames: int) -> tuple[int, list[str]]:
     """Integrate a bench scene's tour into both trees' maps; (frames, differences)."""
-    from glmap_tools.sim.render import CameraSpec
-    from glmap_tools.worlds.map_eval import tour_frames
-    from glmap_tools.worlds.splits import bench_layout
 
     two = _TwoTrees(tree)
     layout = Path(glmap_tools.data.__path__[0]) / "benchmark" / "bench" / scene / "layout.json"
@@ -198,10 +196,6 @@ def tour_against(tree: Path, scene: str, max_frames: int) -> tuple[int, list[str
 def situate_against(tree: Path, results: Path) -> tuple[int, list[str]]:
     """`situate` of both trees on the maps and situations of a `glmap eval sqa --out`
     folder; (situations, differences)."""
-
-    from glmap_tools.language.minilm import default_embedder as embedder
-    from glmap_tools.map import GLMap
-    from glmap_tools.sqa.situate import situate
 
     old = _old_modules(tree)["glmap_tools.sqa.situate"]
     n, diff = 0, []

@@ -38,8 +38,15 @@ import numpy as np
 
 import glmap_tools.data
 from glmap_tools.bench.report import Report
+from glmap_tools.language.minilm import default_embedder as embedder
+from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.nav import NavConfig
+from glmap_tools.nav.episode import play as play_steps
 from glmap_tools.regression.against import play_against, situate_against, tour_against
 from glmap_tools.regression.fingerprint import differences, digest, map_fingerprint, report_fields
+from glmap_tools.sim.render import CameraSpec
+from glmap_tools.worlds.map_eval import build_map_from_tour
+from glmap_tools.worlds.splits import bench_layout, load_split, make_env
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
@@ -60,12 +67,6 @@ TOURS = ["s00", "s01"]
 def play(task: str, index: int, policy: str, max_steps: int) -> dict[str, Any]:
     """Play one tune episode (`nav.episode.play`); every step's decision and the final
     map's fingerprint."""
-    from glmap_tools.language.minilm import default_embedder as embedder
-    from glmap_tools.map import GLMap, MapConfig
-    from glmap_tools.nav import NavConfig
-    from glmap_tools.nav.episode import play as play_steps
-    from glmap_tools.sim.render import CameraSpec
-    from glmap_tools.worlds.splits import load_split, make_env
 
     be = load_split("tune", task)[index]
     env = make_env(be, camera=CameraSpec(320, 240), max_steps=max_steps)
@@ -102,11 +103,6 @@ def play(task: str, index: int, policy: str, max_steps: int) -> dict[str, Any]:
 
 def tour(scene: str, max_frames: int) -> dict[str, Any]:
     """Build a map from a bench scene's tour; its fingerprint."""
-    from glmap_tools.language.minilm import default_embedder as embedder
-    from glmap_tools.map import GLMap, MapConfig
-    from glmap_tools.sim.render import CameraSpec
-    from glmap_tools.worlds.map_eval import build_map_from_tour
-    from glmap_tools.worlds.splits import bench_layout
 
     layout = Path(glmap_tools.data.__path__[0]) / "benchmark" / "bench" / scene / "layout.json"
     glmap = GLMap(MapConfig(), embedder=embedder())

@@ -29,6 +29,9 @@ from glmap_tools.errors import GLMapError
 from glmap_tools.server import resources
 from glmap_tools.server.context import app_state, call_of
 
+# Imports inside functions stay there: language.embed load on first use: build_server stays light
+# (test_server_startup): the server loads them in the background or on first use.
+
 logger = logging.getLogger(__name__)
 
 BUG_NOTE = "This is a bug in glmap-tools"  # in every crash's message (the property test's mark)

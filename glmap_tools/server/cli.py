@@ -30,6 +30,10 @@ from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.language.backends import add_llm_arguments, settings_from_args
 from glmap_tools.map import MapConfig
 
+# Imports inside functions stay there: anyio, cv2, gaussians, gymnasium, h11, mcp, numba, scipy,
+# sim.episodes, trimesh, uvicorn, worlds.scene_dirs load on first use: `glmap-mcp` answers the
+# handshake before they load (the launch path).
+
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 TOKEN_ENV = "GLMAP_MCP_TOKEN"
 MCP_PATH = "/mcp"

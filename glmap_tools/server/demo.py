@@ -26,6 +26,9 @@ from typing import Any
 
 from agents.runner import play_episode
 
+# Imports inside functions stay there: anyio, cv2, gaussians, mcp load on first use: `glmap` imports
+# every command module to build its parser.
+
 MAX_TEXT = 2500  # characters of a result shown in the transcript
 MAX_EPISODE_MAPS = 6  # value maps of the episode shown in the transcript
 IMAGE_EVERY = 4  # the agent fetches the view and the value map every this many calls

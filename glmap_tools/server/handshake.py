@@ -31,6 +31,10 @@ from importlib.util import find_spec
 from pathlib import Path
 from typing import Any, BinaryIO, cast
 
+# Imports inside functions stay there: anyio, mcp load on first use: `glmap-mcp` answers the
+# handshake before they load (the launch path); `bench tokens` and `bench startup` stay light; an
+# import that may fail is caught where it is used.
+
 logger = logging.getLogger(__name__)
 
 FORMAT = 2

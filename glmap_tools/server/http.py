@@ -35,6 +35,8 @@ from uvicorn.protocols.http.h11_impl import H11Protocol
 
 from glmap_tools.app.config import MAX_CONNECTIONS, REQUEST_TIMEOUT_S
 
+# Imports inside functions stay there: starlette load on first use.
+
 LISTEN_BACKLOG = 128
 MAX_HEADER_BYTES = 16 * 1024  # request line and headers; h11's own limit for a head in pieces
 

@@ -29,6 +29,9 @@ from glmap_tools.sim.architecture import floor_and_ceiling, room_walls  # noqa: 
 from glmap_tools.sim.layout import Layout  # noqa: E402
 from glmap_tools.sim.meshes import PlacedPart, object_parts  # noqa: E402
 
+# Imports inside functions stay there: openGL load on first use; an import that may fail is caught
+# where it is used.
+
 Z_NEAR = 0.05  # metres
 Z_FAR = 40.0  # metres
 

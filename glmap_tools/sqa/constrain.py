@@ -27,6 +27,8 @@ if TYPE_CHECKING:
     from glmap_tools.nav.scorers import Scorer, UnitText
     from glmap_tools.sqa.reading import Constraint, SituationReading
 
+# Imports inside functions stay there: circle: sqa.place, sqa.situate, sqa.stand import this module.
+
 SPREAD = {"side": 35.0, "clock": 25.0}  # deg: how far off a stated direction still fits
 NEAR = 2.5  # m: what is "on my left" is this near; farther, its fit fades by e per FADE m
 FADE = 1.5

@@ -30,6 +30,8 @@ import numpy as np
 from glmap_tools.errors import GLMapError
 from glmap_tools.eval.sqa import SqaSpec, _embedder, scene_map
 from glmap_tools.sqa import situate
+from glmap_tools.worlds.qa import generate_qa
+from glmap_tools.worlds.splits import bench_layout, split_dir
 
 NEAR_OBJECT = 0.5  # m: a unit whose centre is this close to an object's footprint is it
 
@@ -112,9 +114,6 @@ def _parser() -> argparse.ArgumentParser:
 
 def diagnose_rows(args: argparse.Namespace) -> list[dict[str, Any]]:
     """One classified row per situation of the split's first scenes (`classify`)."""
-
-    from glmap_tools.worlds.qa import generate_qa
-    from glmap_tools.worlds.splits import bench_layout, split_dir
 
     spec = SqaSpec(split=args.split, situations=args.situations, seed=args.seed)
     manifest = json.loads((split_dir(args.split) / "split.json").read_text(encoding="utf-8"))

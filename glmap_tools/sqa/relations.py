@@ -20,6 +20,8 @@ if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
     from glmap_tools.nav.scorers import Scorer, UnitText
 
+# Imports inside functions stay there: scipy load on first use.
+
 NEAR = 1.0  # m between two units' cells for "next to" (the generator's and InstNav's)
 
 _RELATION = re.compile(r"\s+(next to|beside|near|on|in)\s+the\s+", re.IGNORECASE)

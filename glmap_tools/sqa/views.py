@@ -22,6 +22,8 @@ if TYPE_CHECKING:
     from glmap_tools.sqa.situate import Situation
     from glmap_tools.views.topdown import TopDownImage
 
+# Imports inside functions stay there: gaussians, numba load on first use.
+
 ORDER = ("front", "left", "back", "right")  # as a person turns: the captions read this way
 CAPTION = 22  # px of the caption band
 

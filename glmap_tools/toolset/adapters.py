@@ -20,6 +20,8 @@ from typing import Any, Protocol
 from glmap_tools.app.results import as_text, pictures_of
 from glmap_tools.errors import GLMapError
 
+# Imports inside functions stay there: optional: langchain_core, pydantic_ai, smolagents.
+
 
 class Toolset(Protocol):
     """What the adapters use of a `glmap_tools.toolset.Toolset`."""

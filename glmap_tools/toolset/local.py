@@ -50,6 +50,9 @@ if TYPE_CHECKING:
 
     from glmap_tools.language.sampling import Sampler
 
+# Imports inside functions stay there: mcp load on first use: the tools load before these do, in the
+# server and the in-process toolset alike; circle: toolset.adapters import this module.
+
 
 class Toolset:
     """The GLMap tools over one app state (embedder, sessions, maps) in this process.

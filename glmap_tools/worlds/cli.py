@@ -11,6 +11,10 @@ from pathlib import Path
 
 from glmap_tools.errors import InvalidInputError
 
+# Imports inside functions stay there: cv2, gaussians, gymnasium, language.embed, numba, pyrender,
+# scipy, sim.episodes, skfmm, trimesh load on first use: `glmap` imports every command module to
+# build its parser.
+
 
 def _camera(args: argparse.Namespace):  # noqa: ANN202 - imported lazily
     from glmap_tools.sim.render import CameraSpec

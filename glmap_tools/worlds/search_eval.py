@@ -33,10 +33,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.gaussians.types import COVARIANCE_EPSILON, DEFAULT_OPACITY, GaussianSet
+from glmap_tools.language.calibration import make_embedder
+from glmap_tools.map import GLMap
+from glmap_tools.map.units import InstanceUnit, RegionUnit
+from glmap_tools.worlds.generator import generate_apartment
+from glmap_tools.worlds.search_queries import default_queries_path
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
-    from glmap_tools.map import GLMap
     from glmap_tools.sim.layout import Layout
 
 SPLITS = ("tune", "held_out")
@@ -107,7 +112,6 @@ def load_queries(path: str | Path | None = None) -> list[Query]:
     Raises:
         InvalidInputError: a line that is not a query object with the fields above.
     """
-    from glmap_tools.worlds.search_queries import default_queries_path
 
     p = Path(path) if path is not None else default_queries_path()
     out = []
@@ -136,9 +140,6 @@ def load_queries(path: str | Path | None = None) -> list[Query]:
 
 def scene_map(layout: Layout, embedder: Embedder, seed: int = 0) -> SceneMap:
     """The GLMap a perfect perception would build of `layout` (see the module docstring)."""
-    from glmap_tools.gaussians.types import COVARIANCE_EPSILON, DEFAULT_OPACITY, GaussianSet
-    from glmap_tools.map import GLMap
-    from glmap_tools.map.units import InstanceUnit, RegionUnit
 
     rng = np.random.default_rng(seed)
     texts = [o.text for o in layout.objects] + [r.description for r in layout.regions]
@@ -184,7 +185,6 @@ def run_queries(
             embedding instead (the ranking before phrasings and labels; no match flags).
         maps: scene maps by scene seed, filled as needed (pass one dict to reuse them).
     """
-    from glmap_tools.worlds.generator import generate_apartment
 
     maps = {} if maps is None else maps
     out = []
@@ -298,7 +298,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--failures", action="store_true", help="list queries whose top hit is wrong"
     )
     args = parser.parse_args(argv)
-    from glmap_tools.language.calibration import make_embedder
 
     embedder = make_embedder(args.embedder)
     queries = load_queries(args.queries)

@@ -70,6 +70,9 @@ if TYPE_CHECKING:  # importing env pulls in the renderer
     from glmap_tools.sim.env import NavEnv
     from glmap_tools.sim.render import CameraSpec
 
+# Imports inside functions stay there: cv2, gaussians, language.embed, pyrender, skfmm load on first
+# use.
+
 SPLITS = BUILT_IN_SPLITS  # ("tune", "bench", "house-tune", "house-bench")
 DATA_ROOT = Path(__file__).resolve().parent.parent / "data" / "benchmark"
 MAX_STEPS = 500
