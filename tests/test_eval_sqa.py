@@ -58,7 +58,7 @@ def test_an_unknown_sqa_agent_suggests_the_closest():
 
 
 def test_two_stand_points_with_one_text_are_two_situations_in_the_localisation():
-    from glmap_tools.eval.sqa import summarize
+    from glmap_tools.eval.sqa_table import summarize
 
     def record(stand, err_m):
         return {

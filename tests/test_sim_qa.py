@@ -224,7 +224,7 @@ def test_phrasings_keep_the_poses_and_plain_answers_and_vary_the_words(qa, phras
 def test_every_phrased_question_is_read_as_its_family_and_every_situation_as_written(
     phrased,
 ) -> None:
-    from glmap_tools.eval.sqa import reading_ok
+    from glmap_tools.eval.sqa_table import reading_ok
     from glmap_tools.sqa.answer import question_type
 
     for q in phrased["questions"]:

@@ -5,7 +5,7 @@ import copy
 
 import pytest
 
-from glmap_tools.eval.sqa import reading_ok
+from glmap_tools.eval.sqa_table import reading_ok
 from glmap_tools.sqa.more_phrasings import HELD_OUT, QUESTION_FORMS, more_questions
 from glmap_tools.worlds.qa import generate_qa, situation_phrase
 from glmap_tools.worlds.splits import bench_layout, split_dir
