@@ -215,8 +215,7 @@ def test_a_stop_within_reach_but_behind_a_wall_moves_to_where_the_unit_is_in_sig
 
 
 def test_a_unit_against_the_far_side_of_a_room_wall_is_not_stopped_for_from_behind_it() -> None:
-    from glmap_tools.nav.perceive import ROOM_WALL, WALL
-    from glmap_tools.nav.waypoint import in_clear_sight
+    from glmap_tools.nav.waypoint import ROOM_WALL, WALL, in_clear_sight
 
     occ = room_with_door(20)
     occ.state[11:50, 34:36] = OBSTACLE  # a wall, 10 cm thick, splits the room

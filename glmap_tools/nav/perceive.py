@@ -19,7 +19,7 @@ from glmap_tools.nav.motion import bump_cells, clearance, masks
 from glmap_tools.nav.planner import DistanceField, distance_field
 from glmap_tools.nav.scorers import Scorer, UnitText, map_units
 from glmap_tools.nav.value import unit_cell_array
-from glmap_tools.nav.waypoint import GoalMatch, distances_to_cells
+from glmap_tools.nav.waypoint import ROOM_WALL, GoalMatch, distances_to_cells
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
@@ -347,13 +347,13 @@ def frame_score(
 # Structure this high above the floor is a room's wall, not furniture a detector missed
 # (whose pixels join the structure too): above nearly all furniture, below door lintels.
 ROOM_WALL_BAND = (1.55, 1.95)
-WALL, ROOM_WALL = 1, 2  # `walls_of` levels
 
 
 def walls_of(glmap: GLMap, occ: DenseOccupancy) -> np.ndarray | None:
-    """[H, W] int8 over `occ`: `WALL` on structure obstacle cells (`nav.grid.structure_walls`
-    in the obstacle band), `ROOM_WALL` where structure also stands in `ROOM_WALL_BAND`, else
-    0. None: the map keeps no structure, so every obstacle cell counts as a wall."""
+    """[H, W] int8 over `occ`: `nav.waypoint.WALL` on structure obstacle cells
+    (`nav.grid.structure_walls` in the obstacle band), `ROOM_WALL` where structure also
+    stands in `ROOM_WALL_BAND`, else 0. None: the map keeps no structure, so every obstacle
+    cell counts as a wall."""
     if len(glmap.structure) == 0 or glmap.floor_z is None:
         return None
     means = glmap.structure.gaussians().means

@@ -97,7 +97,7 @@ def goal_cells_near(
 
 
 SIGHT_TOLERANCE_CELLS = 2  # obstacle cells this close to the unit's cells do not block sight
-ROOM_WALL = 2  # `nav.perceive.walls_of`'s level of a room's wall
+WALL, ROOM_WALL = 1, 2  # levels of `nav.perceive.walls_of`: structure, a room's wall
 # Room walls block from one cell off the unit (the simulator's rule stops one cell short of
 # the footprint): a 10 cm wall the unit stands against is 2 cells, seen through at 2.
 ROOM_WALL_TOLERANCE_CELLS = 1
