@@ -1,0 +1,146 @@
+"""Other wordings of the same questions (`glmap_tools.sqa.wording`), tried in turn when a
+question as written falls to no family (`answer.question_type`): contractions, polite
+wrappers and embedded questions, synonyms, and fronted phrases moved to the end."""
+
+from __future__ import annotations
+
+import re
+
+from glmap_tools.sqa.question_parts import REL
+
+_CONTRACTIONS = (
+    (r"\bwhat's\b", "what is"),
+    (r"\bwhere's\b", "where is"),
+    (r"\bwhich's\b", "which is"),
+    (r"\bthere's\b", "there is"),
+    (r"\bit's\b", "it is"),
+    (r"\bthat's\b", "that is"),
+    (r"\bi'm\b", "i am"),
+    (r"\bi've\b", "i have"),
+    (r"\bi'd\b", "i would"),
+    (r"\bcan't\b", "cannot"),
+)
+_WRAPPER = re.compile(
+    r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?(?:tell me|let me know|say|check"
+    r"|see)|(?:please )?(?:tell me|let me know)|(?:do|would) you (?:happen to )?know"
+    r"|i (?:want|would like|need) to know|i wonder)(?: please)?[,:]? "
+)
+_QWORD = r"(?:what|which|where|how|is|are|can|could|do|does|should|would|will|am|shall|must)\b"
+_BE = r"(?:is|are)"
+_SYNONYMS = (
+    # "can you count the pillows around me", "please count how many chairs there are"
+    (r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?)?count (?=how many\b)", ""),
+    (r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?)?(?=count\b)", ""),
+    (r"^(how many [a-z][a-z -]*?) there (is|are)$", r"\1 \2 there"),
+    (
+        r"\b(?:am i able to|is it possible (?:for me )?to|would i be able to|will i be able to"
+        r"|could i be able to)\b",
+        "can i",
+    ),
+    (
+        r"^(?:would|will|could|is|are) (?:the |a |an )?([a-z][a-z -]*?) (?:be )?(?:visible|in view)"
+        r" (if|when|after|once) ",
+        r"can i see the \1 \2 ",
+    ),
+    (r"\b(?:if|when|once) i (?:turned|were to turn|was to turn)\b", "if i turn"),
+    (
+        r"^(if|when|since) i (?:wanted|wished|needed|would want|would like|had) to\b",
+        r"\1 i want to",
+    ),
+    (r"^in (which|what) (direction|way)\b", r"\1 \2"),
+    (r"^by how (many degrees|much|far)\b", r"how \1"),
+    (
+        r"\bfrom where i(?: am)?(?: standing| sitting| seated| lying| stand| sit| lie)?$",
+        "from here",
+    ),
+    (
+        r"^(?:does|do) (?:the |a |an )?([a-z][a-z -]*?) (?:look|seem|appear)(?: to be)? ",
+        r"is the \1 ",
+    ),
+    (r"^how (?:do|can|should|would) i (?:get|go|walk) to ", "which way should i go to get to "),
+    (
+        r"^(?:where|which way|which direction) (?:should|do|can|would|must) i (?:go|turn|walk|head)"
+        r"(?: to| in order to) (?!(?:the|a|an|get to|reach|find|see|face)\b)(.+)$",
+        r"if i want to \1, which way should i go",
+    ),
+    (r" (?:in total|altogether|in all|overall)$", ""),
+    (
+        r"^how many ([a-z][a-z -]*?) (?:does|do) (?:this|the) room (?:have|contain|hold)$",
+        r"how many \1 are there",
+    ),
+    (
+        r"^(how many [a-z][a-z -]*?) (?:(?:are|is) )?(?:hanging|standing|sitting|lying|placed"
+        r"|located|kept|set|positioned|resting|lie|sit|stand|rest|hang)"
+        r" (on|upon|atop|on top of|to|at|in|behind|around|near) ",
+        r"\1 are \2 ",
+    ),
+    (r"^(?:which|what)(?: one| object| thing)? (?:would|will|could|might) be ", "which is "),
+    (r"^what(?: one| object| thing)? is (" + REL[len("(?P<rel>") : -1] + r")\b", r"which is \1"),
+)
+# "among / out of / of / between the X and the Y, which ...?": the options go to the end.
+_OPTIONS_FIRST = re.compile(
+    r"^(?:among|amongst|out of|of|between|from|comparing) (?:the two,? )?"
+    r"((?:the |a |an )?[a-z][a-z -]*?) and ((?:the |a |an )?[a-z][a-z -]*?),? ((?:which|what)\b.+)$"
+)
+# "which is closer to me between / among / out of the X and the Y?"
+_OPTIONS_LAST = re.compile(
+    r"^((?:which|what)\b.+?),? (?:between|among|amongst|out of|of) (?:the two,? )?"
+    r"((?:the |a |an )?[a-z][a-z -]*?) and ((?:the |a |an )?[a-z][a-z -]*?)$"
+)
+_WHICH_OF = re.compile(
+    r"^which of ((?:the |a |an )?[a-z][a-z -]*?) and ((?:the |a |an )?[a-z][a-z -]*?) (is|are"
+    r"|lies|stands) (.+)$"
+)
+# A place or purpose before the question: "on my left, what is there?", "to see the clock,
+# should I look up or down?".
+_FRONTED = re.compile(
+    r"^((?:on|to|at) (?:my|the) (?:left|right)(?:[- ]hand side| side)?|behind me|at my back"
+    r"|in front of me|ahead of me|straight ahead|(?:at|in|on) (?:my |the )?[a-z0-9]+ ?o'clock"
+    r"(?: position| direction)?),? (" + _QWORD + r".+)$"
+    r"|^([^,]+), (" + _QWORD + r".+)$"
+)
+
+
+def _unwrap(q: str) -> str:
+    """A polite wrapper off, an embedded question put back in question order."""
+    bare = _WRAPPER.sub("", q)
+    if bare == q:
+        return q
+    m = re.match(
+        r"^(?:(?:whether|if|that) (.+?)|((?:the|a|an|this|that|my) .+?)) (" + _BE + r") (.+)$", bare
+    )
+    if m:  # "whether the door is closed", "(would you say) the sofa is blue" -> "is the ..."
+        return f"{m.group(3)} {m.group(1) or m.group(2)} {m.group(4)}"
+    m = re.match(
+        r"^((?:what|which)(?: kind of| type of| sort of)?(?: [a-z]+)?) (the .+) (" + _BE + r")$",
+        bare,
+    )
+    if m:  # "what colour the sofa is" -> "what colour is the sofa"
+        return f"{m.group(1)} {m.group(3)} {m.group(2)}"
+    return bare
+
+
+def variants(q: str) -> list[str]:
+    """Other wordings of a lower-cased question, each ending in '?', most literal first."""
+    q = q.strip(" ?.!")
+    for pattern, repl in _CONTRACTIONS:
+        q = re.sub(pattern, repl, q)
+    q = re.sub(r"\s*,?\s*please$", "", _unwrap(q))
+    q = re.sub(r",? or (?=(?:is it|are they|is that|are these) )|, or ", " or ", q)
+    for pattern, repl in _SYNONYMS:
+        q = re.sub(pattern, repl, q)
+    out = [q]
+    m = _OPTIONS_FIRST.match(q)
+    if m:
+        out.append(f"{m.group(3)}, {m.group(1)} or {m.group(2)}")
+    m = _OPTIONS_LAST.match(q)
+    if m:
+        out.append(f"{m.group(1)}, {m.group(2)} or {m.group(3)}")
+    m = _WHICH_OF.match(q)
+    if m:  # "which of the X and the Y is closer" -> "which is closer, the X or the Y"
+        out.append(f"which {m.group(3)} {m.group(4)}, {m.group(1)} or {m.group(2)}")
+    m = _FRONTED.match(q)
+    if m:
+        front, rest = (m.group(1), m.group(2)) if m.group(1) else (m.group(3), m.group(4))
+        out.append(f"{rest} {front}")
+    return [v + "?" for v in out]
