@@ -21,16 +21,17 @@ can produce the same form and hand it to `situate` (`glmap_tools.sqa.situate`) d
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.sqa import asides
+from glmap_tools.sqa.clauses import split_clauses
+from glmap_tools.sqa.reading_form import SIDE_BEARING as SIDE_BEARING
+from glmap_tools.sqa.reading_form import SIDES as SIDES
+from glmap_tools.sqa.reading_form import Constraint, SituationReading
+from glmap_tools.sqa.reading_form import Side as Side
 from glmap_tools.sqa.situation_words import BASE_POSTURES, HOUR_WORDS, POSTURES, RELATIONS, ROOMS
 
-Side = Literal["left", "right", "behind", "front"]
-SIDES: tuple[str, ...] = ("left", "right", "behind", "front")
-SIDE_BEARING = {"front": 0.0, "left": 90.0, "right": -90.0, "behind": 180.0}  # deg, + = left
 _DET = re.compile(r"^(?:the|a|an|some|my|this|that|one|two|three|several|few|of)\s+")
 _LEAD = re.compile(
     r"^(?:(?:i am|i'm|im|i|am|we are|currently|right now|now|just|here|also|there)\b\s*)+"
@@ -114,115 +115,6 @@ _PATTERNS: list[tuple[str, re.Pattern[str]]] = [
 ]
 
 
-@dataclass(frozen=True)
-class Constraint:
-    """An object at an egocentric side (left / right / behind / front) or clock hour.
-
-    Attributes:
-        object: its words ("lamp", "white door").
-        side: left / right / behind / front, or None when `clock` is given.
-        clock: 1..12 (12 straight ahead, 3 to the right), or None when `side` is given.
-    """
-
-    object: str
-    side: Side | None = None
-    clock: int | None = None
-
-    def __post_init__(self) -> None:
-        if (self.side is None) == (self.clock is None):
-            raise InvalidInputError(
-                f"constraint on {self.object!r}: give exactly one of side "
-                f"({'/'.join(SIDES)}) and clock (1..12)."
-            )
-        if self.side is not None and self.side not in SIDES:
-            raise InvalidInputError(f"side {self.side!r} is not one of {list(SIDES)}.")
-        if self.clock is not None and not 1 <= self.clock <= 12:
-            raise InvalidInputError(f"clock {self.clock!r} must be an hour 1..12.")
-
-    @property
-    def bearing_deg(self) -> float:
-        """Where the object should lie, degrees from straight ahead (+ = left)."""
-        if self.side is not None:
-            return SIDE_BEARING[self.side]
-        b = -30.0 * (self.clock or 12)
-        return (b + 180.0) % 360.0 - 180.0 if b != -180.0 else 180.0
-
-
-@dataclass(frozen=True)
-class SituationReading:
-    """Where a situation puts me: position, facing and egocentric constraints.
-
-    Attributes:
-        anchor: the object (or room) I am at, with its qualifying relations ("kitchen
-            sink", "white cabinet next to the fridge"); '' when the text names none.
-        relation: how I am placed to the anchor ("at", "on", "in front of", "between", ...).
-        posture: standing / sitting / lying / ..., or None.
-        activity: what I am doing ("rinsing a cup"), or None.
-        near: other objects the position names ("between the sofa and the table": table).
-        facing: the object I face, or None.
-        constraints: objects at egocentric sides or clock hours.
-    """
-
-    anchor: str = ""
-    relation: str = ""
-    posture: str | None = None
-    activity: str | None = None
-    near: tuple[str, ...] = ()
-    facing: str | None = None
-    constraints: tuple[Constraint, ...] = field(default_factory=tuple)
-
-    @property
-    def clean(self) -> bool:
-        """An anchor and something that fixes the heading (facing or a constraint)."""
-        return bool(self.anchor) and (self.facing is not None or bool(self.constraints))
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready form (the shape `from_dict` and `locate_situation` accept)."""
-        return {
-            "anchor": self.anchor,
-            "relation": self.relation,
-            "posture": self.posture,
-            "activity": self.activity,
-            "near": list(self.near),
-            "facing": self.facing,
-            "constraints": [
-                {"object": c.object, "side": c.side, "clock": c.clock} for c in self.constraints
-            ],
-        }
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> SituationReading:
-        """The reading from `as_dict`'s shape (missing keys take their defaults)."""
-        if not isinstance(data, dict):
-            raise InvalidInputError(
-                f"a situation reading is a JSON object, not {type(data).__name__}."
-            )
-        unknown = set(data) - {
-            "anchor",
-            "relation",
-            "posture",
-            "activity",
-            "near",
-            "facing",
-            "constraints",
-        }
-        if unknown:
-            raise InvalidInputError(f"unknown situation reading keys {sorted(unknown)}.")
-        cons = tuple(
-            Constraint(str(c["object"]), c.get("side"), c.get("clock"))
-            for c in data.get("constraints") or []
-        )
-        return cls(
-            anchor=str(data.get("anchor") or ""),
-            relation=str(data.get("relation") or ""),
-            posture=data.get("posture"),
-            activity=data.get("activity"),
-            near=tuple(str(n) for n in data.get("near") or ()),
-            facing=(str(data["facing"]) if data.get("facing") else None),
-            constraints=cons,
-        )
-
-
 def object_words(phrase: str) -> str:
     """The object's words: no leading article or 'there is', no trailing 'of me'."""
     p = phrase.strip(" .,;:!?\"'")
@@ -241,40 +133,35 @@ def _hour(h: str) -> int:
     return HOUR_WORDS.index(h) or 12
 
 
-def _clauses(text: str) -> list[str]:
-    t = " " + " ".join(text.lower().replace("’", "'").replace("`", "'").split()) + " "
-    t = re.sub(r"\bi'm\b", "i am", t)
-    t = re.sub(r"\bi(?:'ve| have) got\b|\bi've\b", "i have", t)
-    t = re.sub(r"\bo ?clock\b|\bo' clock\b", "o'clock", t)
-    t = asides.hands_to_sides(t)
-    t = asides.side_words(t)
-    t = asides.ACROSS.sub("in front of me", t)
-    # "between the X and the Y" keeps its "and" (marked) through the clause split.
-    t = re.sub(r"\bbetween ((?:the |a |an )?[\w -]+?) and ", r"between \1 & ", t)
-    parts = re.split(
-        r"[.;!?]+\s*|,\s*(?:and |while |with |but |so |whereas )?|"
-        r"\s+(?:and|while|whilst|but|whereas|as|because|since|when)\s+"
-        r"(?=(?:i|i am|my|the|a|an|there|to|on|in|at|"
-        r"behind|facing|looking|standing|sitting|seated|lying|leaning|crouching|kneeling)\b)"
-        # "with" starts a clause only before an egocentric one ("with the lamp on my left"),
-        # not inside a description ("the floor lamp with a green shade").
-        r"|\s+with\s+(?=my\b|(?:the|a|an)\s(?:(?!\b(?:and|is|are)\b)[\w\s-])+?\s"
-        r"(?:on|to|at|in front of|behind)\s(?:my|me)\b"
-        r"|(?:the|a|an)\s[\w\s-]+?\son (?:either|both|each) sides? of me\b)",
-        t,
-    )
-    out: list[str] = []
-    for p in (p.strip() for p in parts if p and p.strip()):
-        ego = asides.relative_ego(p)
-        if ego and out:  # "by the dishwasher, which is to my left": the dishwasher's side
-            out[-1] = f"{out[-1]} {ego}"
-        elif not asides.RELATIVE.match(p):  # any other ", which ..." names no place
-            out.append(p)
-    return out
-
-
 def _position(clause: str, out: dict[str, Any]) -> None:
     """Fill posture / activity / relation / anchor from a position clause."""
+    rest, present = _place_words(clause, out)
+    words = rest.split()
+    if words and (words[0] in POSTURES or words[0] in BASE_POSTURES):
+        w = BASE_POSTURES.get(words[0], words[0])
+        out.setdefault("posture", "sitting" if w in ("seated", "sat") else w)
+        rest = " ".join(words[1:])
+        rest = re.sub(r"^(?:up|down|here|there)\s+", "", rest)
+        # an adverb between the posture and the place: "sitting cross-legged on the rug"
+        if not re.match(_REL_START, rest):
+            rest = re.sub(r"^(?!(?:the|a|an|my)\b)[\w-]+\s+(?=" + _REL_START[1:] + ")", "", rest)
+    elif words and (
+        words[0].endswith("ing")
+        and words[0] not in ("facing", "looking")
+        or present is not None
+        and words[0] == present
+    ):
+        loc = _activity(rest, words, out)
+        if loc is None:
+            return
+        rest = loc
+    _anchor(rest, out)
+
+
+def _place_words(clause: str, out: dict[str, Any]) -> tuple[str, str | None]:
+    """The position clause without its subject and auxiliaries, a verb before the place
+    taken as the activity (into `out`), a leading room moved after the place; and the
+    present-tense verb the clause starts with ("i wash dishes at the sink"), or None."""
     rest = _LEAD.sub("", clause).strip()
     # "i have just sat down on the couch": the perfect's auxiliary goes
     rest = re.sub(
@@ -307,43 +194,38 @@ def _position(clause: str, out: dict[str, Any]) -> None:
     )
     if room_first:  # "in the living room sitting on the sofa": the sofa, in the living room
         rest = f"{room_first.group('pose')} in the {room_first.group('room')}"
-    words = rest.split()
-    if words and (words[0] in POSTURES or words[0] in BASE_POSTURES):
-        w = BASE_POSTURES.get(words[0], words[0])
-        out.setdefault("posture", "sitting" if w in ("seated", "sat") else w)
-        rest = " ".join(words[1:])
-        rest = re.sub(r"^(?:up|down|here|there)\s+", "", rest)
-        # an adverb between the posture and the place: "sitting cross-legged on the rug"
-        if not re.match(_REL_START, rest):
-            rest = re.sub(r"^(?!(?:the|a|an|my)\b)[\w-]+\s+(?=" + _REL_START[1:] + ")", "", rest)
-    elif words and (
-        words[0].endswith("ing")
-        and words[0] not in ("facing", "looking")
-        or present is not None
-        and words[0] == present.group(1)
-    ):
-        # An activity: "rinsing a cup at the kitchen sink", "closing the curtains".
-        m = re.search(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s", " " + rest + " ")
-        loc = None
-        if m and m.start() > 0:
-            head = rest[: m.start() - 1].strip() if m.start() > 0 else ""
-            tail = rest[m.start() :].strip()
-            # "getting a glass of water from the sink": the place after "from" / "out of"
-            if m.group(1) not in ("with", "to", "into", "over") or not head.split()[1:]:
-                out.setdefault("activity", head or words[0])
-                loc = tail
-            worked = object_words(" ".join(head.split()[1:]))
-            if re.match(r"(?:" + asides.IN_PLACE + r")$", words[0]) and m.group(1) in (
-                asides.NEAR_WORDS
-            ):  # "watering the plant near the window": I am at the plant
-                loc = f"at the {worked} {tail}" if worked else loc
-        if loc is None:
-            out.setdefault("activity", rest)
-            obj = object_words(" ".join(words[1:]))
-            if obj and not out.get("anchor") and words[1:2] != ["my"]:  # "washing my hands"
-                out["anchor"], out["relation"] = obj, "at"
-            return
-        rest = loc
+    return rest, present.group(1) if present is not None else None
+
+
+def _activity(rest: str, words: list[str], out: dict[str, Any]) -> str | None:
+    """An activity ("rinsing a cup at the kitchen sink", "closing the curtains") into `out`;
+    the place after it, or None when the clause names none (what is worked on, if anything,
+    is then the anchor)."""
+    m = re.search(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s", " " + rest + " ")
+    loc = None
+    if m and m.start() > 0:
+        head = rest[: m.start() - 1].strip() if m.start() > 0 else ""
+        tail = rest[m.start() :].strip()
+        # "getting a glass of water from the sink": the place after "from" / "out of"
+        if m.group(1) not in ("with", "to", "into", "over") or not head.split()[1:]:
+            out.setdefault("activity", head or words[0])
+            loc = tail
+        worked = object_words(" ".join(head.split()[1:]))
+        if re.match(r"(?:" + asides.IN_PLACE + r")$", words[0]) and m.group(1) in (
+            asides.NEAR_WORDS
+        ):  # "watering the plant near the window": I am at the plant
+            loc = f"at the {worked} {tail}" if worked else loc
+    if loc is None:
+        out.setdefault("activity", rest)
+        obj = object_words(" ".join(words[1:]))
+        if obj and not out.get("anchor") and words[1:2] != ["my"]:  # "washing my hands"
+            out["anchor"], out["relation"] = obj, "at"
+    return loc
+
+
+def _anchor(rest: str, out: dict[str, Any]) -> None:
+    """The anchor and the relation to it (into `out`) from the place words ("on the couch",
+    "between the sofa & the table", "in the kitchen next to the fridge")."""
     m = re.match(r"^(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s+(.+)$", rest)
     if not m:
         obj = object_words(rest)
@@ -391,7 +273,7 @@ def read_situation(text: str) -> SituationReading:
     out: dict[str, Any] = {}
     cons: list[Constraint] = []
     fronts: list[str] = []
-    clauses = _clauses(text)
+    clauses = split_clauses(text)
     for i, clause in enumerate(clauses):
         if asides.negated(clause) or asides.leading_adverbial(clause, i, len(clauses)):
             continue  # "i cannot see the tv", "after entering the room": no place
@@ -401,52 +283,11 @@ def read_situation(text: str) -> SituationReading:
             obj = object_words(both)
             cons += [Constraint(obj, side="left"), Constraint(obj, side="right")]
             continue
-        hit = False
-        for kind, pat in _PATTERNS:
-            m = pat.match(clause)
-            if not m:
-                continue
-            obj = object_words(asides.split_relative(m.group("x"))[0])
-            if not obj or obj in ("i", "me", "it") or re.match(r"(?:i|we)\b", obj):
-                continue  # "I am on the couch facing the tv in front of me": not an object
-            if kind == "behind":
-                cons.append(Constraint(obj, side="behind"))
-            elif kind == "clock":
-                hour = _hour(m.group("h"))
-                if hour == 12:
-                    fronts.append(obj)
-                else:
-                    cons.append(Constraint(obj, clock=hour))
-            elif kind == "side":
-                cons.append(Constraint(obj, side=m.group("s")))  # type: ignore[arg-type]
-            else:
-                fronts.append(obj)
-            hit = True
-            break
-        if hit:
+        if _egocentric(clause, cons, fronts):
             continue
-        m = re.search(r"(?:^|\s)" + _FACE_VERB + r"\s+(?P<x>.+)$", clause)
-        if m:  # "facing the tv (right) in front of me": the tail says it twice
-            clause = re.sub(r"\s+" + _JUST + _AHEAD + r"$", "", clause)
-            m = re.search(r"(?:^|\s)" + _FACE_VERB + r"\s+(?P<x>.+)$", clause)
-        if m:
-            before = clause[: m.start()].strip()
-            target = asides.split_relative(m.group("x"))[0]
-            verb = clause[m.start() : m.start("x")].strip()
-            if not _LEAD.sub("", before).strip():
-                # "Watching tv on the couch": the place after what is watched ("facing the
-                # cabinet next to the fridge" is one object).
-                split = re.match(r"^(.+?)\s+((?:on|at|from|in)\s+.+)$", target)
-                if split and verb.startswith(("watching", "looking", "staring", "gazing")):
-                    target, before = split.group(1), "i am " + split.group(2)
-            if verb.startswith("facing away"):
-                cons.append(Constraint(object_words(target), side="behind"))
-            elif object_words(target):
-                fronts.append(object_words(target))
-            if before:
-                _position(before, out)
-            continue
-        _position(clause, out)
+        rest = _facing(clause, out, cons, fronts)
+        if rest is not None:
+            _position(rest, out)
     for obj, (kind, value) in out.get("ego", []):  # "the door that is on my right"
         if kind == "side":
             cons.append(Constraint(obj, side=value))  # type: ignore[arg-type]
@@ -467,3 +308,60 @@ def read_situation(text: str) -> SituationReading:
         facing=facing,
         constraints=tuple(cons),
     )
+
+
+def _egocentric(clause: str, cons: list[Constraint], fronts: list[str]) -> bool:
+    """Read an egocentric clause ("the door is on my left", "behind me is the bed", "the
+    lamp is at my 2 o'clock") into `cons`, or what is ahead into `fronts`; False when the
+    clause is none."""
+    for kind, pat in _PATTERNS:
+        m = pat.match(clause)
+        if not m:
+            continue
+        obj = object_words(asides.split_relative(m.group("x"))[0])
+        if not obj or obj in ("i", "me", "it") or re.match(r"(?:i|we)\b", obj):
+            continue  # "I am on the couch facing the tv in front of me": not an object
+        if kind == "behind":
+            cons.append(Constraint(obj, side="behind"))
+        elif kind == "clock":
+            hour = _hour(m.group("h"))
+            if hour == 12:
+                fronts.append(obj)
+            else:
+                cons.append(Constraint(obj, clock=hour))
+        elif kind == "side":
+            cons.append(Constraint(obj, side=m.group("s")))  # type: ignore[arg-type]
+        else:
+            fronts.append(obj)
+        return True
+    return False
+
+
+def _facing(
+    clause: str, out: dict[str, Any], cons: list[Constraint], fronts: list[str]
+) -> str | None:
+    """Read a facing clause ("facing the window", "watching tv on the couch") into `fronts`
+    (or `cons`, facing away), and the position before or after it into `out`; None when
+    read, else the clause (without a repeated "in front of me") for the position reader."""
+    m = re.search(r"(?:^|\s)" + _FACE_VERB + r"\s+(?P<x>.+)$", clause)
+    if m:  # "facing the tv (right) in front of me": the tail says it twice
+        clause = re.sub(r"\s+" + _JUST + _AHEAD + r"$", "", clause)
+        m = re.search(r"(?:^|\s)" + _FACE_VERB + r"\s+(?P<x>.+)$", clause)
+    if not m:
+        return clause
+    before = clause[: m.start()].strip()
+    target = asides.split_relative(m.group("x"))[0]
+    verb = clause[m.start() : m.start("x")].strip()
+    if not _LEAD.sub("", before).strip():
+        # "Watching tv on the couch": the place after what is watched ("facing the
+        # cabinet next to the fridge" is one object).
+        split = re.match(r"^(.+?)\s+((?:on|at|from|in)\s+.+)$", target)
+        if split and verb.startswith(("watching", "looking", "staring", "gazing")):
+            target, before = split.group(1), "i am " + split.group(2)
+    if verb.startswith("facing away"):
+        cons.append(Constraint(object_words(target), side="behind"))
+    elif object_words(target):
+        fronts.append(object_words(target))
+    if before:
+        _position(before, out)
+    return None

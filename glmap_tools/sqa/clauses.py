@@ -1,0 +1,43 @@
+"""A situation text cut into clauses (`glmap_tools.sqa.reading`): lower-cased, asides
+normalised ("by my left foot" -> "on my left"), split at punctuation and at the
+conjunctions that start another clause; a relative clause that names a side joins the
+clause before it."""
+
+from __future__ import annotations
+
+import re
+
+from glmap_tools.sqa import asides
+
+
+def split_clauses(text: str) -> list[str]:
+    """The clauses of a situation text, lower-cased, in order."""
+    t = " " + " ".join(text.lower().replace("’", "'").replace("`", "'").split()) + " "
+    t = re.sub(r"\bi'm\b", "i am", t)
+    t = re.sub(r"\bi(?:'ve| have) got\b|\bi've\b", "i have", t)
+    t = re.sub(r"\bo ?clock\b|\bo' clock\b", "o'clock", t)
+    t = asides.hands_to_sides(t)
+    t = asides.side_words(t)
+    t = asides.ACROSS.sub("in front of me", t)
+    # "between the X and the Y" keeps its "and" (marked) through the clause split.
+    t = re.sub(r"\bbetween ((?:the |a |an )?[\w -]+?) and ", r"between \1 & ", t)
+    parts = re.split(
+        r"[.;!?]+\s*|,\s*(?:and |while |with |but |so |whereas )?|"
+        r"\s+(?:and|while|whilst|but|whereas|as|because|since|when)\s+"
+        r"(?=(?:i|i am|my|the|a|an|there|to|on|in|at|"
+        r"behind|facing|looking|standing|sitting|seated|lying|leaning|crouching|kneeling)\b)"
+        # "with" starts a clause only before an egocentric one ("with the lamp on my left"),
+        # not inside a description ("the floor lamp with a green shade").
+        r"|\s+with\s+(?=my\b|(?:the|a|an)\s(?:(?!\b(?:and|is|are)\b)[\w\s-])+?\s"
+        r"(?:on|to|at|in front of|behind)\s(?:my|me)\b"
+        r"|(?:the|a|an)\s[\w\s-]+?\son (?:either|both|each) sides? of me\b)",
+        t,
+    )
+    out: list[str] = []
+    for p in (p.strip() for p in parts if p and p.strip()):
+        ego = asides.relative_ego(p)
+        if ego and out:  # "by the dishwasher, which is to my left": the dishwasher's side
+            out[-1] = f"{out[-1]} {ego}"
+        elif not asides.RELATIVE.match(p):  # any other ", which ..." names no place
+            out.append(p)
+    return out
