@@ -180,13 +180,13 @@ def matched_goal_unit(
     """The matched goal unit of `decision` and whether stopping at `agent` would count."""
     from glmap_tools.nav import GoalMatch
     from glmap_tools.nav.policy import stop_would_count, unit_reach, walls_of
-    from glmap_tools.nav.value import unit_cell_array
+    from glmap_tools.nav.value import unit_core_cells
 
     unit_id = decision.matched_unit
     if unit_id is None:
         return None
     with locked(session) as glmap:
-        cells = unit_cell_array(glmap.grid, unit_id)
+        cells = unit_core_cells(glmap, unit_id, config.footprint_core)
         occ = decision.occupancy
         here, sight = unit_reach(
             occ, GoalMatch(unit_id, 1.0, 0, cells), agent[:2], walls_of(glmap, occ)

@@ -78,6 +78,9 @@ class NavConfig:
         unit_mass: how a unit's score s_u enters Eq. 7: 'unit' (default: s_u / |cells| on each
             cell, so every unit carries the mass s_u, as the single delta at p_u of Eq. 7 does)
             or 'cells' (s_u on each of its cells; situated localisation uses it).
+        footprint_core: share of a matched instance's points whose densest cells stand for
+            its footprint in the stop and approach rules (`nav.value.unit_core_cells`; 1 =
+            every cell the index grid gives it).
     """
 
     agent_radius: float = 0.18
@@ -105,6 +108,7 @@ class NavConfig:
     min_region_score: float = 0.3
     region_hint: float = 0.0
     unit_mass: str = "unit"
+    footprint_core: float = 0.8
 
     def __post_init__(self) -> None:
         positive = (
@@ -176,6 +180,11 @@ class NavConfig:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
                 raise InvalidInputError(f"NavConfig.{name}={value!r} must be a number >= 0.")
+        fc = self.footprint_core
+        if not (isinstance(fc, int | float) and 0.0 < fc <= 1.0):
+            raise InvalidInputError(
+                f"NavConfig.footprint_core={fc!r} must be a share in (0, 1] (1 = every cell)."
+            )
         if self.window_margin < 0:
             raise InvalidInputError(f"NavConfig.window_margin={self.window_margin!r} must be >= 0.")
 

@@ -18,7 +18,7 @@ from glmap_tools.nav.grid import agent_rc, known_window, reframe, structure_wall
 from glmap_tools.nav.motion import bump_cells, clearance, masks
 from glmap_tools.nav.planner import DistanceField, distance_field
 from glmap_tools.nav.scorers import Scorer, UnitText, map_units
-from glmap_tools.nav.value import unit_cell_array
+from glmap_tools.nav.value import unit_cell_array, unit_core_cells
 from glmap_tools.nav.waypoint import ROOM_WALL, GoalMatch, distances_to_cells
 
 if TYPE_CHECKING:
@@ -168,7 +168,8 @@ def find_goal_match(
     top = max(s for _, s in cand)
     tied = sorted((c for c in cand if c[1] >= top - SCORE_TIE), key=lambda c: c[0].unit_id)
     u, s = next((c for c in tied if c[0].unit_id == prefer), tied[0])
-    return GoalMatch(u.unit_id, s, u.observations, unit_cell_array(glmap.grid, u.unit_id))
+    cells = unit_core_cells(glmap, u.unit_id, config.footprint_core)
+    return GoalMatch(u.unit_id, s, u.observations, cells)
 
 
 # "the table next to the chair", "the lamp on the nightstand" (sim.instnav's InstNav goals;
@@ -262,9 +263,8 @@ def relation_match(
         if len(same) != 1 or not heads:
             return None
         u = heads[0]
-        return GoalMatch(
-            u.unit_id, score[u.unit_id], u.observations, unit_cell_array(glmap.grid, u.unit_id)
-        )
+        cells = unit_core_cells(glmap, u.unit_id, config.footprint_core)
+        return GoalMatch(u.unit_id, score[u.unit_id], u.observations, cells)
     anchors = [u for u in instances if u.label.strip().lower() == anchor]
     if not heads or not anchors:
         return None
@@ -286,7 +286,8 @@ def relation_match(
     u, cells = min(
         found, key=lambda f: (f[0].unit_id != prefer, -score[f[0].unit_id], f[0].unit_id)
     )
-    return GoalMatch(u.unit_id, score[u.unit_id], u.observations, cells)
+    core = unit_core_cells(glmap, u.unit_id, config.footprint_core)
+    return GoalMatch(u.unit_id, score[u.unit_id], u.observations, core)
 
 
 class TextVectors:
