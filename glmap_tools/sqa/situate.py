@@ -45,8 +45,8 @@ the 2D occupancy as walls do), and favouring the face that looks towards the fac
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -56,6 +56,7 @@ from glmap_tools.sqa.phrases import core_phrase, split_situation
 from glmap_tools.sqa.place import centroid, closest_pair, stand_point_near
 from glmap_tools.sqa.reading import SituationReading, read_situation
 from glmap_tools.sqa.relations import prefer_related, relation_phrases
+from glmap_tools.sqa.situation import ScoredUnit, Situation, top_units
 from glmap_tools.sqa.stand import front_stand_point
 
 if TYPE_CHECKING:
@@ -71,79 +72,6 @@ LOW_CONFIDENCE = 0.35  # best p below this: a result, marked low-confidence
 MAX_TEXT = 512
 TIE = 0.05  # scores this close to the best count as equally good
 REGION_MARGIN = 0.1  # a region must beat the best anchor object by this to place the agent
-
-
-@dataclass(frozen=True)
-class ScoredUnit:
-    """A unit that decided a heat map, with its probability."""
-
-    unit_id: int
-    kind: str
-    score: float
-    text: str
-
-
-@dataclass(frozen=True)
-class Situation:
-    """Where the text puts the agent.
-
-    Attributes:
-        x, y: l_a, metres (seen-free space).
-        heading: theta, radians counter-clockwise from +x.
-        h_r: H_r, the location heat map.
-        h_o: H_o, the facing heat map (None when the text names nothing faced).
-        peak_r: argmax H_r before snapping; peak_o: l_o (None without a facing target).
-        anchors: the units behind H_r's peak, best first.
-        facing: the units behind H_o's peak, best first.
-        confidence: min of the best p_r and, when there is one, the best p_o.
-        low_confidence: True when the best evidence is weak (still a result).
-        location_text, facing_text: the phrases scored (the whole text for an LLM scorer).
-        notes: how the pose was chosen.
-        anchor_id: the unit l_a was placed at; facing_id: the unit l_o is on (or None).
-    """
-
-    x: float
-    y: float
-    heading: float
-    h_r: ValueMap
-    h_o: ValueMap | None
-    peak_r: tuple[float, float]
-    peak_o: tuple[float, float] | None
-    anchors: tuple[ScoredUnit, ...]
-    facing: tuple[ScoredUnit, ...]
-    confidence: float
-    low_confidence: bool
-    location_text: str
-    facing_text: str
-    notes: list[str] = field(default_factory=list)
-    anchor_id: int | None = None
-    facing_id: int | None = None
-    reading: SituationReading | None = None
-
-    def as_dict(self) -> dict[str, Any]:
-        """A compact JSON-ready summary (no heat maps)."""
-        return {
-            "x": round(self.x, 2),
-            "y": round(self.y, 2),
-            "heading_deg": round(math.degrees(self.heading), 1),
-            "confidence": round(self.confidence, 3),
-            "low_confidence": self.low_confidence,
-            "location_text": self.location_text,
-            "facing_text": self.facing_text,
-            "anchors": [[u.unit_id, u.kind, round(u.score, 3), u.text[:80]] for u in self.anchors],
-            "facing": [[u.unit_id, u.kind, round(u.score, 3), u.text[:80]] for u in self.facing],
-            "notes": self.notes,
-            "reading": self.reading.as_dict() if self.reading is not None else None,
-        }
-
-
-def _top(units: list[UnitText], scores: np.ndarray, k: int = 3) -> tuple[ScoredUnit, ...]:
-    order = np.argsort(-scores, kind="stable")[:k]
-    return tuple(
-        ScoredUnit(units[i].unit_id, units[i].kind, float(scores[i]), units[i].text)
-        for i in order
-        if scores[i] > 0
-    )
 
 
 def situate(
@@ -189,50 +117,21 @@ def situate(
         NoMatchError: nothing in the map matches the text (the best candidates and their
             scores are in the message; no pose is invented).
     """
-    from glmap_tools.nav.scorers import EmbeddingScorer
-
     text = _checked_text(glmap, text, reading)
-    if scorer is None:
-        scorer = EmbeddingScorer(glmap.embedder)
-    if split_text is None:
-        split_text = isinstance(scorer, EmbeddingScorer)
-    if reading is None:
-        reading = read_situation(text)
+    scorer, split_text, reading = _scorer_and_reading(glmap, text, scorer, split_text, reading)
     location, facing = _phrases(text, reading, split_text)
     notes: list[str] = []
     ev = _evidence(glmap, scorer, location, facing, split_text, relate, notes)
     _check_some_match(ev, text)
     h_r, h_o, peak_o = _heat_maps(glmap, ev, facing, sigma)
-    anchors = _top(ev.r_units, ev.r_scores)
-    facing_id = _top(ev.instances, ev.p_o, 1)[0].unit_id if peak_o is not None else None
-    peak_r, anchor_ids = _anchor(glmap, ev, h_r, peak_o, anchors, notes, text)
-    pair = _object_pair(glmap, ev, facing, split_text, sight, notes)
-    if pair is not None:
-        anchor_ids = [pair[0]]
-        peak_r = centroid(glmap, pair[0])
-        if pair[1] is not None:
-            peak_o = centroid(glmap, pair[1])
-            facing_id = pair[1]
-    x, y, heading = _pose(glmap, peak_r, peak_o, anchor_ids, front_side, backrest, notes)
-    tgts = targets(glmap, scorer, ev.instances, reading.constraints, TIE, MIN_SCORE)
-    if tgts:
-        x, y, heading, a_id, f_id = constrained_pose(
-            glmap,
-            ev.instances,
-            tgts,
-            (x, y, heading),
-            anchor_ids[0] if anchor_ids else None,
-            ev.p_anchor
-            if split_text and float(ev.p_anchor.max(initial=0.0)) >= MIN_SCORE
-            else None,
-            ev.p_o if peak_o is not None else None,
-            facing_id,
-            anchor_from_facing=ev.best_r < MIN_SCORE,
-            backrest=backrest,
-            notes=notes,
-        )
-        anchor_ids = [a_id] if a_id is not None else anchor_ids
-        facing_id = f_id
+    anchors = top_units(ev.r_units, ev.r_scores)
+    peak_r, peak_o, anchor_ids, facing_id = _anchor_and_facing(
+        glmap, ev, h_r, peak_o, anchors, facing, split_text, sight, notes, text
+    )
+    pose = _pose(glmap, peak_r, peak_o, anchor_ids, front_side, backrest, notes)
+    x, y, heading, anchor_ids, facing_id = _egocentric_pose(
+        glmap, scorer, ev, reading, pose, anchor_ids, facing_id, peak_o, split_text, backrest, notes
+    )
     confidence = min(ev.best_r, ev.best_o) if facing else ev.best_r
     return Situation(
         x=x,
@@ -243,7 +142,7 @@ def situate(
         peak_r=peak_r,
         peak_o=peak_o,
         anchors=anchors,
-        facing=_top(ev.instances, ev.p_o),
+        facing=top_units(ev.instances, ev.p_o),
         confidence=confidence,
         low_confidence=confidence < LOW_CONFIDENCE,
         location_text=location,
@@ -271,6 +170,26 @@ def _checked_text(glmap: GLMap, text: str, reading: SituationReading | None) -> 
             "the map is empty: build it first (observe_frame, sim_step or glmap build)."
         )
     return text
+
+
+def _scorer_and_reading(
+    glmap: GLMap,
+    text: str,
+    scorer: Scorer | None,
+    split_text: bool | None,
+    reading: SituationReading | None,
+) -> tuple[Scorer, bool, SituationReading]:
+    """(scorer, split_text, reading) with their defaults: the embedding scorer, splitting
+    the text for it alone, and the offline reader's reading."""
+    from glmap_tools.nav.scorers import EmbeddingScorer
+
+    if scorer is None:
+        scorer = EmbeddingScorer(glmap.embedder)
+    if split_text is None:
+        split_text = isinstance(scorer, EmbeddingScorer)
+    if reading is None:
+        reading = read_situation(text)
+    return scorer, split_text, reading
 
 
 def _phrases(text: str, reading: SituationReading, split_text: bool) -> tuple[str, str]:
@@ -352,7 +271,7 @@ def _check_some_match(ev: _Evidence, text: str) -> None:
     """Raise NoMatchError, naming the best candidates, when nothing scores MIN_SCORE."""
     if ev.best_r >= MIN_SCORE or ev.best_o >= MIN_SCORE:
         return
-    cands = _top(ev.r_units + list(ev.instances), np.concatenate([ev.r_scores, ev.p_o]), 5)
+    cands = top_units(ev.r_units + list(ev.instances), np.concatenate([ev.r_scores, ev.p_o]), 5)
     shown = ", ".join(f"{u.kind} {u.unit_id} {u.text[:40]!r} ({u.score:.2f})" for u in cands)
     raise NoMatchError(
         f"nothing in the map matches the situation {text!r} (best scores below "
@@ -387,6 +306,32 @@ def _heat_maps(
     return h_r, h_o, h_o.argmax_xy()
 
 
+def _anchor_and_facing(
+    glmap: GLMap,
+    ev: _Evidence,
+    h_r: ValueMap,
+    peak_o: tuple[float, float] | None,
+    anchors: tuple[ScoredUnit, ...],
+    facing: str,
+    split_text: bool,
+    sight: bool,
+    notes: list[str],
+    text: str,
+) -> tuple[tuple[float, float], tuple[float, float] | None, list[int], int | None]:
+    """(argmax H_r, l_o, the units l_a is placed at, the unit l_o is on): from the heat
+    maps, or the best anchor/facing object pair when an object names where one stands."""
+    facing_id = top_units(ev.instances, ev.p_o, 1)[0].unit_id if peak_o is not None else None
+    peak_r, anchor_ids = _anchor(glmap, ev, h_r, peak_o, anchors, notes, text)
+    pair = _object_pair(glmap, ev, facing, split_text, sight, notes)
+    if pair is not None:
+        anchor_ids = [pair[0]]
+        peak_r = centroid(glmap, pair[0])
+        if pair[1] is not None:
+            peak_o = centroid(glmap, pair[1])
+            facing_id = pair[1]
+    return peak_r, peak_o, anchor_ids, facing_id
+
+
 def _anchor(
     glmap: GLMap,
     ev: _Evidence,
@@ -402,7 +347,7 @@ def _anchor(
         if peak_o is None:
             raise NoMatchError(f"nothing in the map tells where {text!r} is.")
         notes.append("no unit matches the location: l_a from what is faced")
-        return peak_o, [u.unit_id for u in _top(ev.instances, ev.p_o, 1)]
+        return peak_o, [u.unit_id for u in top_units(ev.instances, ev.p_o, 1)]
     peak_r = h_r.argmax_xy() or (0.0, 0.0)
     anchor_ids = [
         u.unit_id
@@ -465,3 +410,38 @@ def _pose(
         heading = math.atan2(peak_r[1] - y, peak_r[0] - x) if (x, y) != peak_r else 0.0
         notes.append("no facing target: heading towards the anchor")
     return x, y, heading
+
+
+def _egocentric_pose(
+    glmap: GLMap,
+    scorer: Scorer,
+    ev: _Evidence,
+    reading: SituationReading,
+    pose: tuple[float, float, float],
+    anchor_ids: list[int],
+    facing_id: int | None,
+    peak_o: tuple[float, float] | None,
+    split_text: bool,
+    backrest: bool,
+    notes: list[str],
+) -> tuple[float, float, float, list[int], int | None]:
+    """(x, y, theta, anchor ids, facing id) as the reading's egocentric constraints choose
+    them (`glmap_tools.sqa.constrain`); `pose` and the ids as given when none names
+    anything in the map. With l_o (`peak_o`), the facing scores weigh the candidates."""
+    tgts = targets(glmap, scorer, ev.instances, reading.constraints, TIE, MIN_SCORE)
+    if not tgts:
+        return (*pose, anchor_ids, facing_id)
+    x, y, heading, a_id, f_id = constrained_pose(
+        glmap,
+        ev.instances,
+        tgts,
+        pose,
+        anchor_ids[0] if anchor_ids else None,
+        ev.p_anchor if split_text and float(ev.p_anchor.max(initial=0.0)) >= MIN_SCORE else None,
+        ev.p_o if peak_o is not None else None,
+        facing_id,
+        anchor_from_facing=ev.best_r < MIN_SCORE,
+        backrest=backrest,
+        notes=notes,
+    )
+    return x, y, heading, ([a_id] if a_id is not None else anchor_ids), f_id
