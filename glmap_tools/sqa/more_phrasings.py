@@ -226,47 +226,8 @@ def _questions(
     def ask(kind: str, form: int, answers: list[str], **slots: str) -> None:
         out.append((kind, QUESTION_FORMS[kind][form].format(**slots), answers, form))
 
-    # Attributes: a colour said or another one; a material (wood, metal, leather).
-    coloured = [o for _, _, o in unique if o.attributes.get("color") in COLOURS]
-    if coloured:
-        o = coloured[int(rng.integers(len(coloured)))]
-        c = o.attributes["color"]
-        v = c if rng.random() < 0.5 else next(x for x in rng.permutation(COLOURS) if x != c)
-        k = _form("attribute", rng, (0, 2))
-        ask("attribute", k, ["yes" if v == c else "no"], o=o.category, v=str(v))
-        w = str(next(x for x in rng.permutation(COLOURS) if x != c))
-        v, w = (c, w) if rng.random() < 0.5 else (w, c)
-        ask("either", _form("either", rng), [c], o=o.category, v=v, w=w)
-    made = [o for _, _, o in unique if o.attributes.get("material") in sum(MATERIALS.values(), ())]
-    if made:
-        o = made[int(rng.integers(len(made)))]
-        m = str(rng.choice(list(MATERIALS)))
-        ask("attribute", 1, ["yes" if o.attributes["material"] in MATERIALS[m] else "no"],
-            o=o.category, v=m)  # fmt: skip
-    shaped = [o for o in layout.objects if o.room == anchor.room and _unique(layout, o)
-              and o.attributes.get("shape") in SHAPES]  # fmt: skip
-    if shaped:
-        o = shaped[0]
-        v, w = SHAPES if rng.random() < 0.5 else SHAPES[::-1]
-        ask("either", _form("either", rng), [o.attributes["shape"]], o=o.category, v=v, w=w)
-    # Clock hours: the nearest object within 10 deg of an hour, clear of every other object
-    # in the room (pictures and what stands on furniture too: the map holds them).
-    everything = [
-        (float(p.distance_to(position[None])[0]), _bearing(position, heading, p), p)
-        for p in layout.objects
-        if p.room == anchor.room and p.id != anchor.id and p.category != "rug"
-    ]
-    for dist, b, o in near:
-        h = round(-b / 30.0) % 12
-        if h in (0, 6) or abs(-b / 30.0 - round(-b / 30.0)) * 30.0 > 10.0:
-            continue
-        centre = -30.0 * h
-        rivals = [x for x in everything if x[2].id != o.id
-                  and abs(math.remainder(math.radians(x[1] - centre), math.tau)) <= math.radians(30)
-                  and x[0] - dist < 0.5 and x[2].category != o.category]  # fmt: skip
-        if not rivals:
-            ask("clock", _form("clock", rng), [o.category], h=HOUR_WORDS[h])
-            break
+    _ask_attributes(ask, layout, anchor, unique, rng)
+    _ask_clock(ask, layout, anchor, near, position, heading, rng)
     # Which side: left/right for a unique object in a side sector, front/behind straight.
     for _, b, o in unique:
         if _side(b):
@@ -293,6 +254,94 @@ def _questions(
         va, vb = float(np.prod(a.size)), float(np.prod(b2.size))
         if max(va, vb) >= 2.0 * min(va, vb):
             ask("compare", 1, ["yes" if va > vb else "no"], o=a.category, q=b2.category)
+    _ask_counts(ask, layout, rows, near, rng)
+    # Intents: which way to the object serving one, clear of the sector edges.
+    for _, b, o in near:
+        if o.category in INTENTS and _off_edges(b) and _unique(layout, o):
+            word = "forward" if abs(b) < 45 else "backward" if abs(b) > 135 else (
+                "left" if b > 0 else "right")  # fmt: skip
+            ask("direction", _form("direction", rng), [word], i=INTENTS[o.category])
+            break
+    # Turning angles: to the nearest 90 degrees, clear of 45 and 135.
+    for _, b, o in unique:
+        if _off_edges(b) and abs(b) > 20.0:
+            deg = int(round(abs(b) / 90.0)) * 90
+            ask("turn_angle", _form("turn_angle", rng), [f"{deg} degrees"], o=o.category)
+            break
+    return out
+
+
+def _ask_attributes(
+    ask: Callable[..., None],
+    layout: Layout,
+    anchor: SceneObject,
+    unique: list[Row],
+    rng: np.random.Generator,
+) -> None:
+    """Attribute and either-or questions on a colour, a material and a shape."""
+    # Attributes: a colour said or another one; a material (wood, metal, leather).
+    coloured = [o for _, _, o in unique if o.attributes.get("color") in COLOURS]
+    if coloured:
+        o = coloured[int(rng.integers(len(coloured)))]
+        c = o.attributes["color"]
+        v = c if rng.random() < 0.5 else next(x for x in rng.permutation(COLOURS) if x != c)
+        k = _form("attribute", rng, (0, 2))
+        ask("attribute", k, ["yes" if v == c else "no"], o=o.category, v=str(v))
+        w = str(next(x for x in rng.permutation(COLOURS) if x != c))
+        v, w = (c, w) if rng.random() < 0.5 else (w, c)
+        ask("either", _form("either", rng), [c], o=o.category, v=v, w=w)
+    made = [o for _, _, o in unique if o.attributes.get("material") in sum(MATERIALS.values(), ())]
+    if made:
+        o = made[int(rng.integers(len(made)))]
+        m = str(rng.choice(list(MATERIALS)))
+        ask("attribute", 1, ["yes" if o.attributes["material"] in MATERIALS[m] else "no"],
+            o=o.category, v=m)  # fmt: skip
+    shaped = [o for o in layout.objects if o.room == anchor.room and _unique(layout, o)
+              and o.attributes.get("shape") in SHAPES]  # fmt: skip
+    if shaped:
+        o = shaped[0]
+        v, w = SHAPES if rng.random() < 0.5 else SHAPES[::-1]
+        ask("either", _form("either", rng), [o.attributes["shape"]], o=o.category, v=v, w=w)
+
+
+def _ask_clock(
+    ask: Callable[..., None],
+    layout: Layout,
+    anchor: SceneObject,
+    near: list[Row],
+    position: np.ndarray,
+    heading: float,
+    rng: np.random.Generator,
+) -> None:
+    """What is at a clock hour: the first near object clearly at one."""
+    # Clock hours: the nearest object within 10 deg of an hour, clear of every other object
+    # in the room (pictures and what stands on furniture too: the map holds them).
+    everything = [
+        (float(p.distance_to(position[None])[0]), _bearing(position, heading, p), p)
+        for p in layout.objects
+        if p.room == anchor.room and p.id != anchor.id and p.category != "rug"
+    ]
+    for dist, b, o in near:
+        h = round(-b / 30.0) % 12
+        if h in (0, 6) or abs(-b / 30.0 - round(-b / 30.0)) * 30.0 > 10.0:
+            continue
+        centre = -30.0 * h
+        rivals = [x for x in everything if x[2].id != o.id
+                  and abs(math.remainder(math.radians(x[1] - centre), math.tau)) <= math.radians(30)
+                  and x[0] - dist < 0.5 and x[2].category != o.category]  # fmt: skip
+        if not rivals:
+            ask("clock", _form("clock", rng), [o.category], h=HOUR_WORDS[h])
+            break
+
+
+def _ask_counts(
+    ask: Callable[..., None],
+    layout: Layout,
+    rows: list[Row],
+    near: list[Row],
+    rng: np.random.Generator,
+) -> None:
+    """Counts on a side, divisibility, and what rests on a base."""
     # Counts on a side and divisibility, by category.
     cats = sorted({o.category for _, _, o in near})
     if cats:
@@ -315,20 +364,6 @@ def _questions(
             n = sum(p.category == c for p in on)
             ask("count_on", _form("count_on", rng), [str(n)], p=plural(c), b=base.category)
             break
-    # Intents: which way to the object serving one, clear of the sector edges.
-    for _, b, o in near:
-        if o.category in INTENTS and _off_edges(b) and _unique(layout, o):
-            word = "forward" if abs(b) < 45 else "backward" if abs(b) > 135 else (
-                "left" if b > 0 else "right")  # fmt: skip
-            ask("direction", _form("direction", rng), [word], i=INTENTS[o.category])
-            break
-    # Turning angles: to the nearest 90 degrees, clear of 45 and 135.
-    for _, b, o in unique:
-        if _off_edges(b) and abs(b) > 20.0:
-            deg = int(round(abs(b) / 90.0)) * 90
-            ask("turn_angle", _form("turn_angle", rng), [f"{deg} degrees"], o=o.category)
-            break
-    return out
 
 
 def more_questions(
