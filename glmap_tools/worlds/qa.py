@@ -33,14 +33,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.sim.describe import number_word, plural
 from glmap_tools.sim.instnav import anchor_phrase, describe_instance
-from glmap_tools.sim.layout import Layout, SceneObject
+from glmap_tools.sim.layout import Layout, Room, SceneObject
 from glmap_tools.sim.motion import wrap_angle
 from glmap_tools.sim.navgrid import NavGrid, build_nav_grid
 from glmap_tools.worlds import qa_phrasings as ph
@@ -173,6 +173,22 @@ def _questions(
             continue
         yield "color", f"What colour is the {o.category}{where}?", [o.attributes["color"]], [o.id]
         break
+    count = _count_question(layout, room)
+    if count is not None:
+        yield count
+    supports = [o for o in layout.objects if o.room == room.id and o.supported_by is not None]
+    for o in supports:
+        base = layout.object(o.supported_by or 0)
+        on_base = [p for p in layout.objects if p.supported_by == base.id]
+        if len(on_base) == 1 and sum(p.category == base.category for p in layout.objects) == 1:
+            yield "on", f"What is on the {base.category}?", [o.category], [o.id]
+            break
+    yield _reach_question(layout, grid, position, heading, facing, behind, rng)
+
+
+def _count_question(layout: Layout, room: Room) -> tuple[str, str, list[str], list[int]] | None:
+    """How many of a category the room's first region holds (one it has several of, if
+    any), or None when the room has no region."""
     for region in layout.regions:
         if region.room != room.id:
             continue
@@ -186,34 +202,39 @@ def _questions(
         if sum(g.name == name for g in layout.regions) > 1:
             name = f"{name} of the {room.name}"
         n = counts[category]
-        yield (
+        return (
             "count",
             f"How many {plural(category)} are in the {name}?",
             [number_word(n), str(n)],
             [m.id for m in members if m.category == category],
         )
-        break
-    supports = [o for o in layout.objects if o.room == room.id and o.supported_by is not None]
-    for o in supports:
-        base = layout.object(o.supported_by or 0)
-        on_base = [p for p in layout.objects if p.supported_by == base.id]
-        if len(on_base) == 1 and sum(p.category == base.category for p in layout.objects) == 1:
-            yield "on", f"What is on the {base.category}?", [o.category], [o.id]
-            break
-    # Straight ahead: the object I face (yes when the way is clear), something behind (no).
+    return None
+
+
+def _reach_question(
+    layout: Layout,
+    grid: NavGrid,
+    position: np.ndarray,
+    heading: float,
+    facing: SceneObject,
+    behind: SceneObject | None,
+    rng: np.random.Generator,
+) -> tuple[str, str, list[str], list[int]]:
+    """Can I reach an object by walking straight ahead: the one I face (yes when the way
+    is clear), or, half the time when there is one, the one behind me (no)."""
     dist = float(facing.distance_to(position[None])[0])
     direction = np.array([math.cos(heading), math.sin(heading)])
     end = position + direction * max(dist - 0.6, 0.0)
     clear = grid.segment_is_free(position, end) and abs(bearing(position, heading, facing)) < 0.35
     if behind is not None and rng.random() < 0.5:
-        yield (
+        return (
             "reach",
             f"Can I reach the {_name(layout, behind)} by walking straight ahead?",
             ["no"],
             [behind.id],
         )
     else:
-        yield (
+        return (
             "reach",
             f"Can I reach the {_name(layout, facing)} by walking straight ahead?",
             ["yes" if clear else "no"],
@@ -249,81 +270,18 @@ def generate_qa(
     for _ in range(situations * 4):
         if made >= situations or not landmarks:
             break
-        anchor = landmarks[int(rng.integers(len(landmarks)))]
-        anchor_text = situation_phrase(layout, anchor)
-        if anchor_text is None:  # nothing singles it out: the text could not say which
+        stand = _stand(layout, grid, landmarks, rng)
+        if stand is None:
             continue
-        position = _stand_point(layout, grid, anchor, rng)
-        if position is None:
-            continue
-        others = [o for o in landmarks if o.room == anchor.room and o.id != anchor.id]
-        others = [o for o in others if o.distance_to(position[None])[0] > 0.5]
-        named = [(o, situation_phrase(layout, o, anchor.room)) for o in others]
-        named = [(o, t) for o, t in named if t is not None]
-        if not named:
-            continue
-        facing, facing_text = named[int(rng.integers(len(named)))]
-        d = facing.position[:2] - position
-        heading = math.atan2(d[1], d[0])
+        anchor, anchor_text, position, facing, facing_text, heading = stand
         made += 1
         prep = "at" if anchor.category in AT_CATEGORIES else "next to"
         situation = f"I am standing {prep} the {anchor_text}, facing the {facing_text}."
         items = [(*q, 0) for q in _questions(layout, grid, position, heading, anchor, facing, rng)]
         extra: dict[str, Any] = {}
         if phrasings:
-            situation, s_kind, s_form, reading = ph.rewrite_situation(
-                layout,
-                landmarks,
-                situation_phrase,
-                position,
-                heading,
-                anchor,
-                facing,
-                anchor_text,
-                facing_text or "",
-                prep,
-                prng,
-            )
-            rewritten = []
-            for k, q, a, i, _ in items:
-                text, form = ph.rewrite_question(k, q, prng)
-                rewritten.append((k, text, a, i, form))
-            items = rewritten
-            items += ph.extra_questions(
-                layout, landmarks, situation_phrase, position, heading, anchor, prng
-            )
-            extra = {"situation_kind": s_kind, "situation_form": s_form, "reading": reading}
-        for kind, question, answers, ids, form in items:
-            if phrasings:
-                extra |= {
-                    "question_form": f"{kind}/{form}",
-                    "held_out": extra["situation_form"] == HELD_OUT[extra["situation_kind"]]
-                    or form == HELD_OUT.get(kind, -1),
-                }
-            questions.append(
-                {
-                    "question_id": len(questions),
-                    "scene_id": layout.name,
-                    "situation": situation,
-                    "alternative_situation": [],
-                    "question": question,
-                    "question_type": kind,
-                    "answers": [
-                        {"answer": a, "answer_confidence": "yes", "answer_id": i + 1}
-                        for i, a in enumerate(answers)
-                    ],
-                    "position": {
-                        "_x": round(float(position[0]), 4),
-                        "_y": round(float(position[1]), 4),
-                        "_z": 0.0,
-                    },
-                    "rotation": _quaternion(heading),
-                    "heading": round(heading, 5),
-                    "room": layout.room(anchor.room).name,
-                    "object_ids": [anchor.id, facing.id, *ids],
-                    **extra,
-                }
-            )
+            situation, items, extra = _phrased(layout, landmarks, stand, prep, items, prng)
+        questions += _records(layout, len(questions), stand, situation, items, extra, phrasings)
     if not questions:
         raise InvalidInputError(
             f"layout {layout.name!r} has no object with navigable floor next to it to stand at."
@@ -335,6 +293,127 @@ def generate_qa(
         "scene_seed": layout.seed,
         "questions": questions,
     }
+
+
+class _Stand(NamedTuple):
+    """Where a situation puts the agent: at the anchor, facing an object (with their words)."""
+
+    anchor: SceneObject
+    anchor_text: str
+    position: np.ndarray  # [2] m
+    facing: SceneObject
+    facing_text: str | None
+    heading: float  # radians
+
+
+def _stand(
+    layout: Layout, grid: NavGrid, landmarks: list[SceneObject], rng: np.random.Generator
+) -> _Stand | None:
+    """A situation at a random landmark; None when nothing singles the anchor out, there is
+    no floor beside it, or nothing in its room can be named to face."""
+    anchor = landmarks[int(rng.integers(len(landmarks)))]
+    anchor_text = situation_phrase(layout, anchor)
+    if anchor_text is None:  # nothing singles it out: the text could not say which
+        return None
+    position = _stand_point(layout, grid, anchor, rng)
+    if position is None:
+        return None
+    others = [o for o in landmarks if o.room == anchor.room and o.id != anchor.id]
+    others = [o for o in others if o.distance_to(position[None])[0] > 0.5]
+    named = [(o, situation_phrase(layout, o, anchor.room)) for o in others]
+    named = [(o, t) for o, t in named if t is not None]
+    if not named:
+        return None
+    facing, facing_text = named[int(rng.integers(len(named)))]
+    d = facing.position[:2] - position
+    heading = math.atan2(d[1], d[0])
+    return _Stand(anchor, anchor_text, position, facing, facing_text, heading)
+
+
+def _phrased(
+    layout: Layout,
+    landmarks: list[SceneObject],
+    stand: _Stand,
+    prep: str,
+    items: list[tuple[str, str, list[str], list[int], int]],
+    prng: np.random.Generator,
+) -> tuple[str, list[tuple[str, str, list[str], list[int], int]], dict[str, Any]]:
+    """(situation, items, extra fields) in many phrasings (`glmap_tools.worlds.qa_phrasings`):
+    the situation and the questions rewritten, the extra families' questions added."""
+    anchor, anchor_text, position, facing, facing_text, heading = stand
+    situation, s_kind, s_form, reading = ph.rewrite_situation(
+        layout,
+        landmarks,
+        situation_phrase,
+        position,
+        heading,
+        anchor,
+        facing,
+        anchor_text,
+        facing_text or "",
+        prep,
+        prng,
+    )
+    rewritten = []
+    for k, q, a, i, _ in items:
+        text, form = ph.rewrite_question(k, q, prng)
+        rewritten.append((k, text, a, i, form))
+    items = rewritten
+    items += ph.extra_questions(
+        layout, landmarks, situation_phrase, position, heading, anchor, prng
+    )
+    return (
+        situation,
+        items,
+        {"situation_kind": s_kind, "situation_form": s_form, "reading": reading},
+    )
+
+
+def _records(
+    layout: Layout,
+    first_id: int,
+    stand: _Stand,
+    situation: str,
+    items: list[tuple[str, str, list[str], list[int], int]],
+    extra: dict[str, Any],
+    phrasings: bool,
+) -> list[dict[str, Any]]:
+    """The situation's question records, SQA3D style, numbered from `first_id`; with
+    `phrasings`, each with the phrasing fields of `extra` and its own form."""
+    anchor, _, position, facing, _, heading = stand
+    out: list[dict[str, Any]] = []
+    for kind, question, answers, ids, form in items:
+        if phrasings:
+            extra |= {
+                "question_form": f"{kind}/{form}",
+                "held_out": extra["situation_form"] == HELD_OUT[extra["situation_kind"]]
+                or form == HELD_OUT.get(kind, -1),
+            }
+        out.append(
+            {
+                "question_id": first_id + len(out),
+                "scene_id": layout.name,
+                "situation": situation,
+                "alternative_situation": [],
+                "question": question,
+                "question_type": kind,
+                "answers": [
+                    {"answer": a, "answer_confidence": "yes", "answer_id": i + 1}
+                    for i, a in enumerate(answers)
+                ],
+                "position": {
+                    "_x": round(float(position[0]), 4),
+                    "_y": round(float(position[1]), 4),
+                    "_z": 0.0,
+                },
+                "rotation": _quaternion(heading),
+                "heading": round(heading, 5),
+                "room": layout.room(anchor.room).name,
+                "object_ids": [anchor.id, facing.id, *ids],
+                **extra,
+            }
+        )
+    return out
 
 
 def heading_from_rotation(rotation: dict[str, float]) -> float:

@@ -218,16 +218,61 @@ def extra_questions(
         for t in _around(layout, landmarks, position, heading, anchor.room)
         if t[2].id != anchor.id
     ]
+    # Which way to an object; is there a <category> on my <side>?
+    for question in (
+        _direction_question(layout, around, named, room.id, rng),
+        _exists_question(around, rng),
+    ):
+        if question is not None:
+            out.append(question)
+    # Parity of a category around me.
+    counts: dict[str, int] = {}
+    for _, _, o in around:
+        counts[o.category] = counts.get(o.category, 0) + 1
+    if counts:
+        c = sorted(counts)[int(rng.integers(len(counts)))]
+        n = counts[c] + (anchor.category == c and 0)
+        t, k = _form(rng, "parity")
+        out.append(("parity", t.format(p=plural(c)), ["even" if n % 2 == 0 else "odd"], [], k))
+    # Turning around: what was behind me (when one object clearly is).
+    behind = [(d, o) for d, b, o in around if abs(b) >= 150.0]
+    if behind and (
+        len(behind) == 1
+        or behind[1][0] - behind[0][0] >= 0.5
+        or behind[1][1].category == behind[0][1].category
+    ):
+        t, k = _form(rng, "turn")
+        out.append(("turn", t, [behind[0][1].category], [behind[0][1].id], k))
+    # Am I in the <room kind>?
+    kinds = sorted({r.type for r in layout.rooms})
+    asked = (
+        room.type
+        if rng.random() < 0.5 or len(kinds) < 2
+        else next(k for k in kinds[int(rng.integers(len(kinds))) :] + kinds if k != room.type)
+    )
+    t, k = _form(rng, "in_room")
+    out.append(("in_room", t.format(r=asked), ["yes" if asked == room.type else "no"], [], k))
+    return out
 
-    def form(kind: str) -> tuple[str, int]:
-        k = int(rng.integers(len(QUESTION_FORMS[kind])))
-        return QUESTION_FORMS[kind][k], k
 
-    # Direction to an object singled out in the room, clear of the sector edges.
+def _form(rng: np.random.Generator, kind: str) -> tuple[str, int]:
+    """A random question form of `kind`, with its index."""
+    k = int(rng.integers(len(QUESTION_FORMS[kind])))
+    return QUESTION_FORMS[kind][k], k
+
+
+def _direction_question(
+    layout: Layout,
+    around: list[tuple[float, float, SceneObject]],
+    named: Any,
+    room: int,
+    rng: np.random.Generator,
+) -> tuple[str, str, list[str], list[int], int] | None:
+    """Which way to an object singled out in the room, clear of the sector edges."""
     clear = [
         (b, o)
         for _, b, o in around
-        if all(abs(abs(b) - e) > EDGE for e in (45.0, 135.0)) and named(layout, o, room.id)
+        if all(abs(abs(b) - e) > EDGE for e in (45.0, 135.0)) and named(layout, o, room)
     ]
     if clear:
         b, o = clear[int(rng.integers(len(clear)))]
@@ -238,9 +283,15 @@ def extra_questions(
             if abs(b) > 135
             else ("left" if b > 0 else "right")
         )
-        t, k = form("direction")
-        out.append(("direction", t.format(x=named(layout, o, room.id)), [word], [o.id], k))
-    # Is there a <category> on my <side>?
+        t, k = _form(rng, "direction")
+        return "direction", t.format(x=named(layout, o, room)), [word], [o.id], k
+    return None
+
+
+def _exists_question(
+    around: list[tuple[float, float, SceneObject]], rng: np.random.Generator
+) -> tuple[str, str, list[str], list[int], int] | None:
+    """Is there a <category> on my <side>? (None when one is near the sector's edge.)"""
     cats = sorted({o.category for _, _, o in around})
     if cats:
         c = cats[int(rng.integers(len(cats)))]
@@ -252,33 +303,6 @@ def extra_questions(
         )
         if not near_edge:
             yes = any(o.category == c and lo <= b <= hi for _, b, o in around)
-            t, k = form("exists")
-            out.append(("exists", t.format(c=c, s=s), ["yes" if yes else "no"], [], k))
-    # Parity of a category around me.
-    counts: dict[str, int] = {}
-    for _, _, o in around:
-        counts[o.category] = counts.get(o.category, 0) + 1
-    if counts:
-        c = sorted(counts)[int(rng.integers(len(counts)))]
-        n = counts[c] + (anchor.category == c and 0)
-        t, k = form("parity")
-        out.append(("parity", t.format(p=plural(c)), ["even" if n % 2 == 0 else "odd"], [], k))
-    # Turning around: what was behind me (when one object clearly is).
-    behind = [(d, o) for d, b, o in around if abs(b) >= 150.0]
-    if behind and (
-        len(behind) == 1
-        or behind[1][0] - behind[0][0] >= 0.5
-        or behind[1][1].category == behind[0][1].category
-    ):
-        t, k = form("turn")
-        out.append(("turn", t, [behind[0][1].category], [behind[0][1].id], k))
-    # Am I in the <room kind>?
-    kinds = sorted({r.type for r in layout.rooms})
-    asked = (
-        room.type
-        if rng.random() < 0.5 or len(kinds) < 2
-        else next(k for k in kinds[int(rng.integers(len(kinds))) :] + kinds if k != room.type)
-    )
-    t, k = form("in_room")
-    out.append(("in_room", t.format(r=asked), ["yes" if asked == room.type else "no"], [], k))
-    return out
+            t, k = _form(rng, "exists")
+            return "exists", t.format(c=c, s=s), ["yes" if yes else "no"], [], k
+    return None
