@@ -42,7 +42,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     sub = sim.add_subparsers(dest="sim_command", metavar="SIM_COMMAND")
     sim.set_defaults(func=lambda args: (sim.print_help(), 2)[1])
+    _add_new(sub)
+    _add_from_scan(sub)
+    _add_tour(sub)
+    _add_episodes(sub)
+    _add_eval(sub)
+    _add_map_eval(sub)
+    _add_qa(sub)
 
+
+def _add_new(sub: argparse._SubParsersAction) -> None:
+    """`glmap sim new`."""
     p = sub.add_parser("new", help="generate a furnished apartment layout (JSON)")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same layout)")
     p.add_argument(
@@ -59,6 +69,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true")
     p.set_defaults(func=run_new)
 
+
+def _add_from_scan(sub: argparse._SubParsersAction) -> None:
+    """`glmap sim from-scan`."""
     p = sub.add_parser("from-scan", help="convert a scan's object list (oriented boxes)")
     p.add_argument("scan", type=Path, help="JSON with 'objects': category, center, size, yaw")
     p.add_argument("--out", type=Path, required=True, help="layout JSON to write")
@@ -72,6 +85,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true")
     p.set_defaults(func=run_from_scan)
 
+
+def _add_tour(sub: argparse._SubParsersAction) -> None:
+    """`glmap sim tour`."""
     p = sub.add_parser("tour", help="render a walk through every room into an RGB-D folder")
     p.add_argument("layout", type=Path, help="layout JSON")
     p.add_argument("--out", type=Path, required=True, help="folder to write")
@@ -87,6 +103,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _add_camera(p)
     p.set_defaults(func=run_tour)
 
+
+def _add_episodes(sub: argparse._SubParsersAction) -> None:
+    """`glmap sim episodes`."""
     p = sub.add_parser("episodes", help="generate an ObjectNav or InstNav episode set")
     p.add_argument("layout", type=Path, help="layout JSON")
     p.add_argument("--task", choices=["objectnav", "instnav"], default="objectnav")
@@ -109,6 +128,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.set_defaults(func=run_episodes)
 
+
+def _add_eval(sub: argparse._SubParsersAction) -> None:
+    """`glmap sim eval`."""
     p = sub.add_parser("eval", help="run the oracle or random agent on an episode set")
     p.add_argument("layout", type=Path, help="layout JSON")
     p.add_argument("episodes", type=Path, help="episode JSON (from `glmap sim episodes`)")
@@ -117,6 +139,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _add_camera(p, 160, 120)
     p.set_defaults(func=run_eval)
 
+
+def _add_map_eval(sub: argparse._SubParsersAction) -> None:
+    """`glmap sim map-eval`."""
     p = sub.add_parser(
         "map-eval", help="build a GLMap from a tour; instance precision/recall vs the layout"
     )
@@ -138,6 +163,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _add_camera(p)
     p.set_defaults(func=run_map_eval)
 
+
+def _add_qa(sub: argparse._SubParsersAction) -> None:
+    """`glmap sim qa`."""
     p = sub.add_parser("qa", help="generate a situated QA set (SQA3D-like JSON)")
     p.add_argument("layout", type=Path, help="layout JSON")
     p.add_argument("--situations", type=int, default=20)
