@@ -44,6 +44,18 @@ def build_parser() -> argparse.ArgumentParser:
         prog="glmap-mcp",
         description="Serve a GLMap (Gaussian-Language Map) to MCP clients.",
     )
+    _add_http_arguments(p)
+    _add_map_arguments(p)
+    _add_runtime_arguments(p)
+    add_llm_arguments(p, sampling=True)
+    _add_perception_arguments(p)
+    from glmap_tools.cli_format import show_defaults
+
+    return show_defaults(p)
+
+
+def _add_http_arguments(p: argparse.ArgumentParser) -> None:
+    """The transport, and HTTP's address, token and limits."""
     p.add_argument(
         "--transport", choices=["stdio", "streamable-http"], default="stdio", help="default stdio"
     )
@@ -71,6 +83,10 @@ def build_parser() -> argparse.ArgumentParser:
         default=REQUEST_TIMEOUT_S,
         help="seconds an HTTP request (headers and body) may take to arrive",
     )
+
+
+def _add_map_arguments(p: argparse.ArgumentParser) -> None:
+    """Where maps are saved and shared, and the scene folders played."""
     p.add_argument(
         "--maps-dir",
         type=Path,
@@ -99,6 +115,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="a folder of <scene>/layout.json + <scene>/<task>.json whose episodes sim_reset "
         "plays as NAME/<task>/<scene>-<index> (repeatable; NAME: the folder's name)",
     )
+
+
+def _add_runtime_arguments(p: argparse.ArgumentParser) -> None:
+    """The embedder, frame and voxel sizes, threads, start-up and logging."""
     p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
     p.add_argument("--max-frame-mb", type=float, default=24.0, help="files per observed frame")
     p.add_argument(
@@ -127,7 +147,10 @@ def build_parser() -> argparse.ArgumentParser:
         "answers (docs/mcp.md, Start-up), then exit (for setup)",
     )
     p.add_argument("--log-level", default="WARNING", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
-    add_llm_arguments(p, sampling=True)
+
+
+def _add_perception_arguments(p: argparse.ArgumentParser) -> None:
+    """Perception of frames without annotations, and the simulator's."""
     g = p.add_argument_group("perception of frames without annotations")
     g.add_argument(
         "--perception",
@@ -146,9 +169,6 @@ def build_parser() -> argparse.ArgumentParser:
         "or the split's own (auto: detector on the houses split)",
     )
     g.add_argument("--segmenter", type=Path, help="SAM model folder (--perception mllm)")
-    from glmap_tools.cli_format import show_defaults
-
-    return show_defaults(p)
 
 
 def config_from_args(args: argparse.Namespace) -> ServerConfig:
