@@ -214,58 +214,17 @@ def run_eval(
     )
     results = ResultsDir(out, spec.result_config(), mix_configs=mix_configs)
     records: dict[str, dict[str, dict[str, Any]]] = {a: {} for a in spec.agents}
-    jobs: list[Job] = []
     keys = {be.episode_id: episode_key(be) for be in selected}
-    stale: list[str] = []
-    for be in selected:  # scene order, so each worker's server reuses its env
-        seed = episode_seed(spec.seed, be.episode_id)
-        for agent in spec.agents:
-            record = results.load(agent, be.episode_id)
-            if record is not None and record.get("episode_key") not in (None, keys[be.episode_id]):
-                stale.append(f"{agent} on {be.episode_id}")
-            elif record is not None:
-                records[agent][be.episode_id] = record
-                continue
-            trace = results.trace_dir(agent, be.episode_id) if traces else None
-            jobs.append(
-                Job(agent, be.episode_id, be.scene, seed, spec.max_steps, str(trace or "") or None)
-            )
-    if stale and not mix_configs:
-        raise InvalidInputError(
-            f"{len(stale)} finished episodes in {results.root} were played on other benchmark "
-            f"files (e.g. {stale[0]}: the split was regenerated since); choose another --out, "
-            "or pass --mix-configs to replay them."
-        )
+    jobs = _pending_jobs(spec, selected, results, records, keys, traces, mix_configs)
     skipped = len(selected) * len(spec.agents) - len(jobs)
     if not play:
         jobs = []
     failures: list[Outcome] = []
     start = time.perf_counter()
     if jobs:
-        where = f"Ray ({ray_address})" if ray_address else f"{workers} workers"
-        with tqdm(
-            total=len(jobs) + skipped,
-            initial=skipped,
-            desc=f"{spec.task} {spec.split} on {where}",
-            unit="ep",
-            disable=not progress,
-            file=sys.stderr,
-        ) as bar:
-            for outcome in _engine(
-                jobs, workers, spec.embedder, ray_address, results.root / "logs", spec.scene_dirs
-            ):
-                outcome = _check_scorer(outcome, spec.scorer)
-                if outcome.record is None:
-                    failures.append(outcome)
-                    failed = failure_path(results.root, outcome)
-                    failed.parent.mkdir(parents=True, exist_ok=True)
-                    failed.write_text(outcome.error or "", encoding="utf-8")
-                    bar.set_postfix(failed=len(failures))
-                else:
-                    job = outcome.job
-                    stored = results.save({**outcome.record, "episode_key": keys[job.episode_id]})
-                    records[job.agent][job.episode_id] = stored
-                bar.update(1)
+        failures = _play(
+            jobs, spec, workers, ray_address, results, records, keys, skipped, progress
+        )
     wall = time.perf_counter() - start
     if complete_only:
         common = set.intersection(*(set(r) for r in records.values()))
@@ -289,6 +248,87 @@ def run_eval(
     )
     _write_summary(run)
     return run
+
+
+def _pending_jobs(
+    spec: EvalSpec,
+    selected: list[Any],
+    results: ResultsDir,
+    records: dict[str, dict[str, dict[str, Any]]],
+    keys: dict[str, str],
+    traces: bool,
+    mix_configs: bool,
+) -> list[Job]:
+    """The (episode, agent) jobs not yet finished in `results`; the finished ones go into
+    `records`.
+
+    Raises:
+        InvalidInputError: finished episodes were played on other benchmark files (a
+            regenerated split) and `mix_configs` is off.
+    """
+    jobs: list[Job] = []
+    stale: list[str] = []
+    for be in selected:  # scene order, so each worker's server reuses its env
+        seed = episode_seed(spec.seed, be.episode_id)
+        for agent in spec.agents:
+            record = results.load(agent, be.episode_id)
+            if record is not None and record.get("episode_key") not in (None, keys[be.episode_id]):
+                stale.append(f"{agent} on {be.episode_id}")
+            elif record is not None:
+                records[agent][be.episode_id] = record
+                continue
+            trace = results.trace_dir(agent, be.episode_id) if traces else None
+            jobs.append(
+                Job(agent, be.episode_id, be.scene, seed, spec.max_steps, str(trace or "") or None)
+            )
+    if stale and not mix_configs:
+        raise InvalidInputError(
+            f"{len(stale)} finished episodes in {results.root} were played on other benchmark "
+            f"files (e.g. {stale[0]}: the split was regenerated since); choose another --out, "
+            "or pass --mix-configs to replay them."
+        )
+    return jobs
+
+
+def _play(
+    jobs: list[Job],
+    spec: EvalSpec,
+    workers: int,
+    ray_address: str | None,
+    results: ResultsDir,
+    records: dict[str, dict[str, dict[str, Any]]],
+    keys: dict[str, str],
+    skipped: int,
+    progress: bool,
+) -> list[Outcome]:
+    """Play `jobs` on local workers or Ray, saving each record (into `records` too) and
+    each failure's error under the results folder; the failures."""
+    failures: list[Outcome] = []
+    where = f"Ray ({ray_address})" if ray_address else f"{workers} workers"
+    with tqdm(
+        total=len(jobs) + skipped,
+        initial=skipped,
+        desc=f"{spec.task} {spec.split} on {where}",
+        unit="ep",
+        disable=not progress,
+        file=sys.stderr,
+    ) as bar:
+        for outcome in _engine(
+            jobs, workers, spec.embedder, ray_address, results.root / "logs", spec.scene_dirs
+        ):
+            outcome = _check_scorer(outcome, spec.scorer)
+            if outcome.record is None:
+                failures.append(outcome)
+                failed = failure_path(results.root, outcome)
+                failed.parent.mkdir(parents=True, exist_ok=True)
+                failed.write_text(outcome.error or "", encoding="utf-8")
+                bar.set_postfix(failed=len(failures))
+            else:
+                job = outcome.job
+                stored = results.save({**outcome.record, "episode_key": keys[job.episode_id]})
+                records[job.agent][job.episode_id] = stored
+            bar.update(1)
+    return failures
 
 
 def _write_summary(run: EvalRun) -> None:
