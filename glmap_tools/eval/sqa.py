@@ -121,9 +121,7 @@ def _free_cells(glmap: Any) -> np.ndarray:
 
 def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[str, Any]:
     """Build (or reopen) the scene's map and answer its questions with every agent."""
-    from glmap_tools.sqa import situate
-    from glmap_tools.sqa.answer import OfflineAnswerer, answer_at, em1, em_r1
-    from glmap_tools.sqa.surroundings import surroundings
+    from glmap_tools.sqa.answer import OfflineAnswerer, em1, em_r1
     from glmap_tools.worlds.qa import generate_qa
     from glmap_tools.worlds.splits import bench_layout
 
@@ -151,59 +149,9 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
         answers = [a["answer"] for a in q["answers"]]
         for agent in spec.agents:
             t = time.perf_counter()
-            loc: dict[str, Any] = {}
-            at: Any = None  # the Situation the glmap agent answers at
-            if agent == "glmap":
-                text = q["situation"]
-                if text not in situated:
-                    try:
-                        situated[text] = situate(glmap, text)
-                    except GLMapError as exc:
-                        situated[text] = exc
-                s = situated[text]
-                if isinstance(s, GLMapError):
-                    pose = None
-                    loc = {"error": str(s)[:200]}
-                else:
-                    pose = (s.x, s.y, s.heading)
-                    at = s
-                    err_m = math.hypot(s.x - gt_xy[0], s.y - gt_xy[1])
-                    err_deg = abs(math.degrees(math.remainder(s.heading - gt_heading, math.tau)))
-                    loc = {"err_m": round(err_m, 3), "err_deg": round(err_deg, 1)}
-            elif agent == "gt-pose":
-                pose = (gt_xy[0], gt_xy[1], gt_heading)
-            elif agent == "random-pose":
-                k = int(rng.integers(len(free))) if len(free) else 0
-                xy = free[k] if len(free) else (0.0, 0.0)
-                pose = (float(xy[0]), float(xy[1]), float(rng.uniform(-math.pi, math.pi)))
-            else:
-                pose = None
-            if pose is None and agent != "text-only":
-                pred, supported, qtype = "", False, "unlocated"
-            elif at is not None:  # excludes the anchor one stands at
-                a, _ = answer_at(glmap, at, q["question"], answerer)
-                pred, supported, qtype = a.answer, a.supported, a.question_type
-            else:
-                if agent == "text-only":
-                    where = surroundings(glmap, 0.0, 0.0, 0.0, radius=None, walls=False)
-                else:
-                    assert pose is not None
-                    where = surroundings(glmap, pose[0], pose[1], pose[2])
-                a = answerer.answer(q["question"], where)
-                pred, supported, qtype = a.answer, a.supported, a.question_type
-                if agent == "text-only" and qtype in ("left", "right", "front", "behind", "clock"):
-                    pred = prior_label  # no pose: the map's most common label
-            forms = {}
-            if "question_form" in q:
-                forms = {
-                    "situation_form": q["situation_form"],
-                    "question_form": q["question_form"],
-                    "held_out": q["held_out"],
-                    "round": q.get("round", 1),
-                    "read": qtype,
-                }
-                if agent == "glmap":
-                    forms["reading_ok"] = reading_ok(q["situation"], q["reading"])
+            pose, at, loc = _pose(agent, glmap, q, situated, free, rng)
+            pred, supported, qtype = _answer(agent, glmap, q, pose, at, answerer, prior_label)
+            forms = _form_fields(q, agent, qtype)
             records.append(
                 {
                     **forms,
@@ -230,6 +178,99 @@ def answer_scene(spec: SqaSpec, scene: str, layout_path: str, out: str) -> dict[
         "instances": None,
         "records": records,
     }
+
+
+def _pose(
+    agent: str,
+    glmap: Any,
+    q: dict[str, Any],
+    situated: dict[str, Any],
+    free: np.ndarray,
+    rng: np.random.Generator,
+) -> tuple[tuple[float, float, float] | None, Any, dict[str, Any]]:
+    """(pose, the Situation the glmap agent answers at or None, localisation fields) of
+    `agent` for question `q`: located from the situation text (glmap; `situated` caches
+    each text's Situation or error), the true pose, a random free cell, or none."""
+    from glmap_tools.sqa import situate
+
+    gt_xy = (q["position"]["_x"], q["position"]["_y"])
+    gt_heading = float(q["heading"])
+    loc: dict[str, Any] = {}
+    at: Any = None  # the Situation the glmap agent answers at
+    if agent == "glmap":
+        text = q["situation"]
+        if text not in situated:
+            try:
+                situated[text] = situate(glmap, text)
+            except GLMapError as exc:
+                situated[text] = exc
+        s = situated[text]
+        if isinstance(s, GLMapError):
+            pose = None
+            loc = {"error": str(s)[:200]}
+        else:
+            pose = (s.x, s.y, s.heading)
+            at = s
+            err_m = math.hypot(s.x - gt_xy[0], s.y - gt_xy[1])
+            err_deg = abs(math.degrees(math.remainder(s.heading - gt_heading, math.tau)))
+            loc = {"err_m": round(err_m, 3), "err_deg": round(err_deg, 1)}
+    elif agent == "gt-pose":
+        pose = (gt_xy[0], gt_xy[1], gt_heading)
+    elif agent == "random-pose":
+        k = int(rng.integers(len(free))) if len(free) else 0
+        xy = free[k] if len(free) else (0.0, 0.0)
+        pose = (float(xy[0]), float(xy[1]), float(rng.uniform(-math.pi, math.pi)))
+    else:
+        pose = None
+    return pose, at, loc
+
+
+def _answer(
+    agent: str,
+    glmap: Any,
+    q: dict[str, Any],
+    pose: tuple[float, float, float] | None,
+    at: Any,
+    answerer: Any,
+    prior_label: str,
+) -> tuple[str, bool, str]:
+    """(prediction, supported, question type read) of `agent` at `pose`: at the Situation
+    (glmap), from the surroundings of the pose, or of the whole map (text-only)."""
+    from glmap_tools.sqa.answer import answer_at
+    from glmap_tools.sqa.surroundings import surroundings
+
+    if pose is None and agent != "text-only":
+        pred, supported, qtype = "", False, "unlocated"
+    elif at is not None:  # excludes the anchor one stands at
+        a, _ = answer_at(glmap, at, q["question"], answerer)
+        pred, supported, qtype = a.answer, a.supported, a.question_type
+    else:
+        if agent == "text-only":
+            where = surroundings(glmap, 0.0, 0.0, 0.0, radius=None, walls=False)
+        else:
+            assert pose is not None
+            where = surroundings(glmap, pose[0], pose[1], pose[2])
+        a = answerer.answer(q["question"], where)
+        pred, supported, qtype = a.answer, a.supported, a.question_type
+        if agent == "text-only" and qtype in ("left", "right", "front", "behind", "clock"):
+            pred = prior_label  # no pose: the map's most common label
+    return pred, supported, qtype
+
+
+def _form_fields(q: dict[str, Any], agent: str, qtype: str) -> dict[str, Any]:
+    """The phrasing fields of a record (none for a plain question)."""
+    forms = {}
+    if "question_form" in q:
+        forms = {
+            "situation_form": q["situation_form"],
+            "question_form": q["question_form"],
+            "held_out": q["held_out"],
+            "round": q.get("round", 1),
+            "read": qtype,
+        }
+        if agent == "glmap":
+            forms["reading_ok"] = reading_ok(q["situation"], q["reading"])
+    return forms
 
 
 def run_sqa_eval(

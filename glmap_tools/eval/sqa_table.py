@@ -40,23 +40,6 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
     rows = [r for r in records if "situation_form" in r]
     if not rows:
         return ""
-
-    def em(rs: list[dict[str, Any]], agent: str) -> str:
-        v = [r["em1"] for r in rs if r["agent"] == agent]
-        return f"{np.mean(v):.2f}" if v else "-"
-
-    def located(rs: list[dict[str, Any]]) -> tuple[str, str, int]:
-        sit = {}
-        for r in rs:
-            if r["agent"] == "glmap":
-                sit[(r["scene"], r["situation"], tuple(r.get("stand", ())))] = r
-        ok = [
-            "err_m" in r and r["err_m"] <= LOCALISED_M and r["err_deg"] <= LOCALISED_DEG
-            for r in sit.values()
-        ]
-        read = [bool(r.get("reading_ok")) for r in sit.values()]
-        return f"{np.mean(read):.2f}", f"{np.mean(ok):.2f}", len(sit)
-
     from glmap_tools.sqa.more_phrasings import HELD_OUT as HELD_OUT_2
     from glmap_tools.worlds.qa_phrasings import HELD_OUT
 
@@ -64,16 +47,57 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
     held_s |= {f"r2:{v}" for v in HELD_OUT_2.values() if isinstance(v, str)}
     held_q = {f"{k}/{v}" for k, v in HELD_OUT.items() if isinstance(v, int)}
     held_q |= {f"r2:{k}/{v}" for k, v in HELD_OUT_2.items() if isinstance(v, int)}
+    lines = _situation_form_table(rows, held_s)
+    lines += _question_form_table(rows, held_q)
+    lines.append("")
+    lines += _held_out_lines(rows, held_s, held_q)
+    both = [r for r in rows if r["situation_form"] in held_s and r["question_form"] in held_q]
+    if both:
+        n_both = sum(r["agent"] == "glmap" for r in both)
+        lines.append(
+            f"- held-out situation and question form together: {n_both} questions, "
+            f"EM-1 glmap {_em(both, 'glmap')} / text-only {_em(both, 'text-only')}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _em(rs: list[dict[str, Any]], agent: str) -> str:
+    """Mean EM-1 of `agent` on the records `rs`, to 2 decimals ('-' when none)."""
+    v = [r["em1"] for r in rs if r["agent"] == agent]
+    return f"{np.mean(v):.2f}" if v else "-"
+
+
+def _located(rs: list[dict[str, Any]]) -> tuple[str, str, int]:
+    """(share read right, share localised, situations) of glmap over the situations of `rs`."""
+    sit = {}
+    for r in rs:
+        if r["agent"] == "glmap":
+            sit[(r["scene"], r["situation"], tuple(r.get("stand", ())))] = r
+    ok = [
+        "err_m" in r and r["err_m"] <= LOCALISED_M and r["err_deg"] <= LOCALISED_DEG
+        for r in sit.values()
+    ]
+    read = [bool(r.get("reading_ok")) for r in sit.values()]
+    return f"{np.mean(read):.2f}", f"{np.mean(ok):.2f}", len(sit)
+
+
+def _situation_form_table(rows: list[dict[str, Any]], held_s: set[str]) -> list[str]:
+    """Markdown lines: per situation form, reading, localisation and EM-1 of glmap."""
     lines = ["", "| situation form | held out | situations | reading | localised | EM-1 glmap |"]
     lines.append("|---|---|---|---|---|---|")
     groups: dict[str, list[dict[str, Any]]] = {}
     for r in rows:
         groups.setdefault(r["situation_form"], []).append(r)
     for name, rs in sorted(groups.items()):
-        rd, loc, n = located(rs)
+        rd, loc, n = _located(rs)
         mark = "yes" if name in held_s else ""
-        lines.append(f"| {name} | {mark} | {n} | {rd} | {loc} | {em(rs, 'glmap')} |")
-    lines += [
+        lines.append(f"| {name} | {mark} | {n} | {rd} | {loc} | {_em(rs, 'glmap')} |")
+    return lines
+
+
+def _question_form_table(rows: list[dict[str, Any]], held_q: set[str]) -> list[str]:
+    """Markdown lines: per question form, family read, EM-1 glmap / text-only, supported."""
+    lines = [
         "",
         "| question form | held out | questions | family read | EM-1 glmap | EM-1 text-only "
         "| supported (glmap) |",
@@ -88,10 +112,15 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
         sup = np.mean([r["supported"] for r in g])
         mark = "yes" if name in held_q else ""
         lines.append(
-            f"| {name} | {mark} | {len(g)} | {read:.2f} | {em(rs, 'glmap')} "
-            f"| {em(rs, 'text-only')} | {sup:.2f} |"
+            f"| {name} | {mark} | {len(g)} | {read:.2f} | {_em(rs, 'glmap')} "
+            f"| {_em(rs, 'text-only')} | {sup:.2f} |"
         )
-    lines.append("")
+    return lines
+
+
+def _held_out_lines(rows: list[dict[str, Any]], held_s: set[str], held_q: set[str]) -> list[str]:
+    """Markdown bullets: held-out and tuned forms pooled (per set when there are two)."""
+    lines: list[str] = []
     sets = [("", rows)]
     if any(r.get("round", 1) == 2 for r in rows):
         sets = [
@@ -105,10 +134,10 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
         sit = [r for r in part if (r["situation_form"] in held_s) == pick]
         qs = [r for r in part if (r["question_form"] in held_q) == pick]
         if sit:
-            rd, loc, n = located(sit)
+            rd, loc, n = _located(sit)
             lines.append(
                 f"- {label} situation forms: {n} situations, reading {rd}, localised {loc}, "
-                f"EM-1 glmap {em(sit, 'glmap')} / text-only {em(sit, 'text-only')} on their "
+                f"EM-1 glmap {_em(sit, 'glmap')} / text-only {_em(sit, 'text-only')} on their "
                 "questions"
             )
         g = [r for r in qs if r["agent"] == "glmap"]
@@ -117,18 +146,11 @@ def summarize_forms(records: list[dict[str, Any]]) -> str:
             fam = np.mean([r["read"] == r["type"] for r in g])
             lines.append(
                 f"- {label} question forms: {len(g)} questions, family read {fam:.2f}, EM-1 "
-                f"glmap {em(qs, 'glmap')} (supported {len(sup)}: "
+                f"glmap {_em(qs, 'glmap')} (supported {len(sup)}: "
                 f"{np.mean([r['em1'] for r in sup]) if sup else float('nan'):.2f}; unsupported "
-                f"{len(g) - len(sup)}), text-only {em(qs, 'text-only')}"
+                f"{len(g) - len(sup)}), text-only {_em(qs, 'text-only')}"
             )
-    both = [r for r in rows if r["situation_form"] in held_s and r["question_form"] in held_q]
-    if both:
-        n_both = sum(r["agent"] == "glmap" for r in both)
-        lines.append(
-            f"- held-out situation and question form together: {n_both} questions, "
-            f"EM-1 glmap {em(both, 'glmap')} / text-only {em(both, 'text-only')}"
-        )
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def summarize(records: list[dict[str, Any]], agents: Sequence[str], resamples: int = 2000) -> str:
