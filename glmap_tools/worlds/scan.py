@@ -231,50 +231,14 @@ def layout_from_scan(
     if not isinstance(entries, list) or not entries:
         raise InvalidInputError("a scan needs a non-empty 'objects' list of oriented boxes.")
     up_rotation = world_zup_from_up_axis(str(up or meta.get("up", "z")))
-    boxes = []
-    for i, entry in enumerate(entries):
-        where = f"objects[{i}]"
-        if not isinstance(entry, Mapping):
-            raise InvalidInputError(f"{where} must be an object, got {entry!r}.")
-        category = str(entry.get("category", entry.get("label", ""))).strip()
-        if not category:
-            raise InvalidInputError(f"{where} has no 'category'; name the object's class.")
-        try:
-            center = up_rotation @ np.asarray(entry["center"], dtype=np.float64).reshape(3)
-            size = np.abs(np.asarray(entry.get("size", entry.get("extent")), dtype=np.float64))
-            size = size.reshape(3)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InvalidInputError(
-                f"{where} needs 'center' [x, y, z] and 'size' [sx, sy, sz] in metres."
-            ) from exc
-        if not (np.all(np.isfinite(center)) and np.all(np.isfinite(size)) and np.all(size > 0)):
-            raise InvalidInputError(f"{where} has a non-finite centre or a non-positive size.")
-        yaw, size = _box_pose(entry, size, up_rotation, where)
-        boxes.append((entry, category, center, size, yaw))
+    boxes = _scan_boxes(entries, up_rotation)
     rooms = _scan_rooms(meta)
     skipped: dict[int, str] = {}
     boxes = _into_room_frames(boxes, rooms, skipped)
     if use_meshes:
         _warn_unknown_categories([category for _, category, _, _, _ in boxes], aliases)
     bottom = min(c[2] - s[2] / 2 for _, _, c, s, _ in boxes) if floor_z is None else floor_z
-    objects, corners = [], []
-    for i, (entry, category, center, size, yaw) in enumerate(boxes):
-        heading = yaw - math.pi / 2  # our local -y is the front; the box's x is our width
-        half = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * size[:2] / 2
-        corners.append(half @ yaw_matrix(yaw)[:2, :2].T + center[:2])
-        objects.append(
-            {
-                "id": int(entry.get("id", i + 1)),
-                "category": category,
-                "mesh": mesh_for_category(category, aliases) if use_meshes else "primitive/box",
-                "position": [center[0], center[1], center[2] - size[2] / 2 - bottom],
-                "heading": heading,
-                "size": size.tolist(),
-                "attributes": dict(entry.get("attributes", {})),
-                "color": entry.get("color"),
-                "description": str(entry.get("description", "")),
-            }
-        )
+    objects, corners = _scan_objects(boxes, bottom, use_meshes, aliases)
     if "polygon" not in rooms[0]:
         pts = np.concatenate(corners)
         lo, hi = pts.min(axis=0) - margin, pts.max(axis=0) + margin
@@ -303,6 +267,67 @@ def layout_from_scan(
         for text in narrow_passages(layout):
             warnings.warn(text, LayoutWarning, stacklevel=2)
     return layout
+
+
+def _scan_boxes(
+    entries: list[Any], up_rotation: np.ndarray
+) -> list[tuple[Mapping[str, Any], str, np.ndarray, np.ndarray, float]]:
+    """(entry, category, centre [3] m z-up, size [3] m, yaw rad) of each checked scan entry.
+
+    Raises:
+        InvalidInputError: an entry that is no object, or lacks a category, a centre or a
+            size, or has a non-finite centre or a non-positive size.
+    """
+    boxes = []
+    for i, entry in enumerate(entries):
+        where = f"objects[{i}]"
+        if not isinstance(entry, Mapping):
+            raise InvalidInputError(f"{where} must be an object, got {entry!r}.")
+        category = str(entry.get("category", entry.get("label", ""))).strip()
+        if not category:
+            raise InvalidInputError(f"{where} has no 'category'; name the object's class.")
+        try:
+            center = up_rotation @ np.asarray(entry["center"], dtype=np.float64).reshape(3)
+            size = np.abs(np.asarray(entry.get("size", entry.get("extent")), dtype=np.float64))
+            size = size.reshape(3)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InvalidInputError(
+                f"{where} needs 'center' [x, y, z] and 'size' [sx, sy, sz] in metres."
+            ) from exc
+        if not (np.all(np.isfinite(center)) and np.all(np.isfinite(size)) and np.all(size > 0)):
+            raise InvalidInputError(f"{where} has a non-finite centre or a non-positive size.")
+        yaw, size = _box_pose(entry, size, up_rotation, where)
+        boxes.append((entry, category, center, size, yaw))
+    return boxes
+
+
+def _scan_objects(
+    boxes: list[tuple[Mapping[str, Any], str, np.ndarray, np.ndarray, float]],
+    bottom: float,
+    use_meshes: bool,
+    aliases: Mapping[str, str] | None,
+) -> tuple[list[dict[str, Any]], list[np.ndarray]]:
+    """(layout object dicts, footprint corners [4, 2] m of each) of the boxes, standing on
+    the floor at height `bottom`."""
+    objects, corners = [], []
+    for i, (entry, category, center, size, yaw) in enumerate(boxes):
+        heading = yaw - math.pi / 2  # our local -y is the front; the box's x is our width
+        half = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * size[:2] / 2
+        corners.append(half @ yaw_matrix(yaw)[:2, :2].T + center[:2])
+        objects.append(
+            {
+                "id": int(entry.get("id", i + 1)),
+                "category": category,
+                "mesh": mesh_for_category(category, aliases) if use_meshes else "primitive/box",
+                "position": [center[0], center[1], center[2] - size[2] / 2 - bottom],
+                "heading": heading,
+                "size": size.tolist(),
+                "attributes": dict(entry.get("attributes", {})),
+                "color": entry.get("color"),
+                "description": str(entry.get("description", "")),
+            }
+        )
+    return objects, corners
 
 
 MIN_PART_AREA = 0.25  # m^2: smaller pockets behind a narrow passage are not worth a warning
