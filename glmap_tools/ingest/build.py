@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 import resource
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from contextlib import nullcontext, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -277,18 +277,7 @@ def build_map(
     progress = progress or (lambda done, total: None)
     progress(0, len(sequence))
 
-    def prepare(k: int) -> tuple[IngestFrame, FrameSemantics | None]:
-        item = sequence.load(k)
-        semantics = _semantics(item, perceive)
-        if pipeline.prefetch:
-            _warm_embeddings(embedder, semantics)
-        return item, semantics
-
-    frames = (
-        prefetched(prepare, len(sequence))
-        if pipeline.prefetch
-        else (prepare(k) for k in range(len(sequence)))
-    )
+    frames = _frames(sequence, perceive, embedder, pipeline)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.building")
     if pipeline.in_memory:
@@ -296,6 +285,54 @@ def build_map(
     else:
         tmp.unlink(missing_ok=True)
         glmap = GLMap.open(tmp, config, embedder=embedder, text_merger=merger)
+    unannotated = _integrate(glmap, frames, out, tmp, pipeline, progress)
+    s = glmap.summary()
+    stats = BuildStats(
+        frames=s.frames,
+        unannotated=unannotated,
+        instances=s.instances,
+        regions=s.regions,
+        gaussians=s.gaussians,
+        seconds=time.perf_counter() - start,
+        cpu_s=cpu_seconds() - cpu_start,
+        peak_rss_mb=peak_rss_mb(),
+    )
+    return BuiltMap(glmap, sequence, stats)
+
+
+def _frames(
+    sequence: RGBDSequence,
+    perceive: Callable[[IngestFrame], FrameSemantics] | None,
+    embedder: Embedder,
+    pipeline: Pipeline,
+) -> Iterator[tuple[IngestFrame, FrameSemantics | None]]:
+    """The sequence's frames with their semantics (None: unannotated), each prepared on a
+    thread ahead of use when the pipeline prefetches."""
+
+    def prepare(k: int) -> tuple[IngestFrame, FrameSemantics | None]:
+        item = sequence.load(k)
+        semantics = _semantics(item, perceive)
+        if pipeline.prefetch:
+            _warm_embeddings(embedder, semantics)
+        return item, semantics
+
+    return (
+        prefetched(prepare, len(sequence))
+        if pipeline.prefetch
+        else (prepare(k) for k in range(len(sequence)))
+    )
+
+
+def _integrate(
+    glmap: GLMap,
+    frames: Iterator[tuple[IngestFrame, FrameSemantics | None]],
+    out: Path,
+    tmp: Path,
+    pipeline: Pipeline,
+    progress: Progress,
+) -> int:
+    """Fuse every frame into `glmap` and write it to `out` (through `tmp` or a temporary
+    file and a rename; nothing is left behind on failure); the unannotated frames' count."""
     unannotated = 0
     try:
         with _blas_limit(pipeline.blas_threads):
@@ -320,15 +357,4 @@ def build_map(
     finally:
         if hasattr(frames, "close"):
             frames.close()
-    s = glmap.summary()
-    stats = BuildStats(
-        frames=s.frames,
-        unannotated=unannotated,
-        instances=s.instances,
-        regions=s.regions,
-        gaussians=s.gaussians,
-        seconds=time.perf_counter() - start,
-        cpu_s=cpu_seconds() - cpu_start,
-        peak_rss_mb=peak_rss_mb(),
-    )
-    return BuiltMap(glmap, sequence, stats)
+    return unannotated
