@@ -21,7 +21,7 @@ from glmap_tools.errors import InvalidInputError, StoreError
 from glmap_tools.eval.ray_engine import _import_ray, resolve_address
 from glmap_tools.ingest.build import BuildSettings, check_settings
 from glmap_tools.ingest.engines import ScanTask, run_local, run_ray
-from glmap_tools.ingest.scans import find_scans, map_path, stale_files
+from glmap_tools.ingest.scans import Scan, find_scans, map_path, stale_files
 from glmap_tools.ingest.summary import (
     SUMMARY_NAME,
     ScanResult,
@@ -158,31 +158,9 @@ def build_many(
         resolve_address(ray_address)  # a malformed address fails here, before any write
         if todo:
             _import_ray()
-    earlier = read_summary(summary_path)
-    rows = [skipped_row(s, out, earlier) for s in scans if s not in todo]
-    if rows:
-        echo(
-            f"skipping {len(rows)} scan(s) whose maps exist in {out} (pass --overwrite to "
-            "rebuild them)"
-        )
-    out.mkdir(parents=True, exist_ok=True)
-    removed = stale_files(out, todo)
-    for path in removed:
-        path.unlink(missing_ok=True)
-    if removed:
-        echo(f"removed {len(removed)} temporary file(s) an interrupted build left in {out}")
-    local_workers = workers or 1
-    tasks = [
-        ScanTask(
-            s.name,
-            str(s.folder.resolve()),
-            str(map_path(out, s).resolve()),
-            settings,
-            overwrite=overwrite,
-            numba_threads=1 if ray_address else max(1, (os.cpu_count() or 1) // local_workers),
-        )
-        for s in todo
-    ]
+    rows = _skipped_rows(scans, todo, out, summary_path, echo)
+    removed = _remove_stale_files(out, todo, echo)
+    tasks = _scan_tasks(todo, out, settings, overwrite, workers, ray_address)
     start = time.perf_counter()
     bars = _Bars(len(tasks), progress and bool(tasks))
     engine: Iterator[ScanResult]
@@ -192,7 +170,7 @@ def build_many(
         elif ray_address is not None:
             engine = run_ray(tasks, workers, ray_address, bars.update_frames)
         else:
-            engine = run_local(tasks, local_workers, bars.update_frames)
+            engine = run_local(tasks, workers or 1, bars.update_frames)
         for row in engine:
             rows.append(row)
             bars.scan_done(sum(r.status == "failed" for r in rows))
@@ -203,3 +181,54 @@ def build_many(
         summary_path.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(summary_path, [summary_json(rows, wall_s, settings).encode()])
     return ManyResult(rows, summary_path, wall_s, removed)
+
+
+def _skipped_rows(
+    scans: list[Scan], todo: list[Scan], out: Path, summary_path: Path, echo: Callable[[str], None]
+) -> list[ScanResult]:
+    """The summary rows of the scans not to build (their maps exist), as the earlier
+    summary has them."""
+    earlier = read_summary(summary_path)
+    rows = [skipped_row(s, out, earlier) for s in scans if s not in todo]
+    if rows:
+        echo(
+            f"skipping {len(rows)} scan(s) whose maps exist in {out} (pass --overwrite to "
+            "rebuild them)"
+        )
+    return rows
+
+
+def _remove_stale_files(out: Path, todo: list[Scan], echo: Callable[[str], None]) -> list[Path]:
+    """Create `out` and remove the temporary files an interrupted build of `todo` left there;
+    the removed files."""
+    out.mkdir(parents=True, exist_ok=True)
+    removed = stale_files(out, todo)
+    for path in removed:
+        path.unlink(missing_ok=True)
+    if removed:
+        echo(f"removed {len(removed)} temporary file(s) an interrupted build left in {out}")
+    return removed
+
+
+def _scan_tasks(
+    todo: list[Scan],
+    out: Path,
+    settings: BuildSettings,
+    overwrite: bool,
+    workers: int | None,
+    ray_address: str | None,
+) -> list[ScanTask]:
+    """One build task per scan, with numba's threads shared among the local workers (one
+    each on Ray)."""
+    local_workers = workers or 1
+    return [
+        ScanTask(
+            s.name,
+            str(s.folder.resolve()),
+            str(map_path(out, s).resolve()),
+            settings,
+            overwrite=overwrite,
+            numba_threads=1 if ray_address else max(1, (os.cpu_count() or 1) // local_workers),
+        )
+        for s in todo
+    ]
