@@ -52,7 +52,7 @@ def test_a_mask_bled_over_the_table_widens_the_unit_but_its_core_stays_on_the_pl
     every = unit_cell_array(glmap.grid, uid)
     core = unit_core_cells(glmap, uid, 0.8)
     assert farthest_from_plant(every, size) > 0.3  # decimetres of table top per bled pixel
-    assert farthest_from_plant(core, size) <= 0.05
+    assert farthest_from_plant(core, size) <= 0.15  # the core and its 2-cell margin
     assert set(map(tuple, core.tolist())) < set(map(tuple, every.tolist()))
 
 

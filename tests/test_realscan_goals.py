@@ -82,6 +82,7 @@ class _Grid:
 
 class _Map:
     grid = _Grid()
+    instances: dict = {}  # no Gaussians: a match's footprint is its grid cells
 
 
 def test_tied_units_go_to_the_previous_match_else_to_the_lowest_id() -> None:

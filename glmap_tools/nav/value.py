@@ -128,8 +128,12 @@ def unit_cell_array(grid: IndexGrid, unit_id: int) -> np.ndarray:
     return arr
 
 
+CORE_MARGIN_CELLS = 2  # cells (0.1 m at 5 cm) kept around a unit's core
+
+
 def unit_core_cells(glmap: GLMap, unit_id: int, share: float) -> np.ndarray:
-    """[K, 2] the densest cells of an instance that hold `share` of its points.
+    """[K, 2] the cells of an instance near its densest cells, those holding `share` of its
+    points (within `CORE_MARGIN_CELLS`).
 
     Each Gaussian spreads its point count evenly over its 1-sigma cells (the cells the index
     grid gives the unit); cells are taken densest first until `share` of the count is held.
@@ -157,8 +161,13 @@ def unit_core_cells(glmap: GLMap, unit_id: int, share: float) -> np.ndarray:
     density = np.bincount(inverse.ravel(), weights=mass, minlength=len(keys))
     order = np.argsort(-density, kind="stable")
     held = np.cumsum(density[order])
-    keep = order[: int(np.searchsorted(held, share * held[-1])) + 1]
-    return keys[np.sort(keep)]
+    core = keys[order[: int(np.searchsorted(held, share * held[-1])) + 1]]
+    # The unit's cells within CORE_MARGIN_CELLS of the core: cell rounding and a partly seen
+    # edge stay; a bleed decimetres wide goes.
+    m = CORE_MARGIN_CELLS
+    offsets = np.stack(np.meshgrid(np.arange(-m, m + 1), np.arange(-m, m + 1)), -1).reshape(-1, 2)
+    near = {tuple(c) for c in (core[:, None, :] + offsets[None]).reshape(-1, 2).tolist()}
+    return cells[np.array([tuple(c) in near for c in cells.tolist()], dtype=bool)]
 
 
 def as_window(window: Window | DenseOccupancy) -> Window:
