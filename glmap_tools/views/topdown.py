@@ -12,7 +12,6 @@ import colorsys
 import math
 import numbers
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import cv2
@@ -21,7 +20,6 @@ import numpy as np
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Pose
 from glmap_tools.map.occupancy import CHUNK, FREE, OBSTACLE
-from glmap_tools.views.common import encode_png
 from glmap_tools.views.topdown_frame import (
     Canvas,
     Labels,
@@ -29,6 +27,7 @@ from glmap_tools.views.topdown_frame import (
     choose_frame,
     draw_ticks,
 )
+from glmap_tools.views.topdown_image import HeatMap, TopDownImage
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
@@ -41,102 +40,6 @@ MARGIN_CELLS = 2  # unseen cells kept around the content
 UNSEEN, FREE_RGB, OBSTACLE_RGB = (200, 200, 200), (255, 255, 255), (90, 90, 90)
 TRAJECTORY_RGB, AGENT_RGB = (30, 90, 210), (220, 30, 30)
 HEAT_OPACITY = 0.6
-
-
-@dataclass(frozen=True)
-class HeatMap:
-    """Values over index-grid cells, drawn as a colour overlay (e.g. a value map H(l)).
-
-    Attributes:
-        values: [H, W] float; row = y cell, column = x cell (like DenseOccupancy); NaN
-            cells are left undrawn.
-        origin: (i0, j0) integer cell (x index, y index) of values[0, 0].
-        cell_size: metres per cell (may differ from the map's; cells are looked up by
-            world position).
-        vmin: value drawn in the coldest colour; None = the smallest finite value.
-        vmax: value drawn in the hottest colour; None = the largest finite value.
-    """
-
-    values: np.ndarray  # [H, W]
-    origin: tuple[int, int]
-    cell_size: float
-    vmin: float | None = None
-    vmax: float | None = None
-
-    def __post_init__(self) -> None:
-        v = np.asarray(self.values, dtype=np.float64)
-        if v.ndim != 2 or v.size == 0:
-            raise InvalidInputError(
-                f"heat map values have shape {v.shape}; pass a non-empty [H, W] array."
-            )
-        if not (isinstance(self.cell_size, numbers.Real) and self.cell_size > 0):
-            raise InvalidInputError(f"heat map cell_size={self.cell_size!r} must be > 0 metres.")
-        object.__setattr__(self, "values", v)
-
-    def at(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:  # x, y: [K] -> [K]
-        """Values at world points (NaN outside the array)."""
-        c = np.floor(x / self.cell_size).astype(np.int64) - self.origin[0]
-        r = np.floor(y / self.cell_size).astype(np.int64) - self.origin[1]
-        h, w = self.values.shape
-        inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-        out = np.full(len(x), np.nan)
-        out[inside] = self.values[r[inside], c[inside]]
-        return out
-
-
-@dataclass(frozen=True)
-class TopDownImage:
-    """A top-down map image and how its pixels map to the world.
-
-    Pixel (col, row) covers world x = x0 + col * metres_per_pixel (left edge) and
-    y = y1 - row * metres_per_pixel (top edge): +x right, +y up.
-
-    Attributes:
-        rgb: [H, W, 3] uint8 RGB.
-        x0: world x of the image's left edge (m).
-        y1: world y of the image's top edge (m).
-        metres_per_pixel: scale.
-        legend: one line per drawn layer, saying what its colours mean.
-        tick: metres between the ticks on the left and bottom edges (0: none).
-        label_boxes: (left, top, right, bottom) pixels of each text label written;
-            no two overlap.
-        frame: the placement; pass it back to `draw_topdown` to keep it while the map
-            fits.
-    """
-
-    rgb: np.ndarray  # [H, W, 3]
-    x0: float
-    y1: float
-    metres_per_pixel: float
-    legend: tuple[str, ...]
-    tick: float = 0.0
-    label_boxes: tuple[tuple[int, int, int, int], ...] = ()
-    frame: TopDownFrame | None = None
-
-    def world_to_pixel(self, x: float, y: float) -> tuple[float, float]:
-        """(col, row) pixel coordinates of world (x, y)."""
-        return ((x - self.x0) / self.metres_per_pixel, (self.y1 - y) / self.metres_per_pixel)
-
-    def pixel_to_world(self, col: float, row: float) -> tuple[float, float]:
-        """World (x, y) of pixel coordinates (col, row)."""
-        return (self.x0 + col * self.metres_per_pixel, self.y1 - row * self.metres_per_pixel)
-
-    def to_png(self) -> bytes:
-        return encode_png(self.rgb)
-
-    def describe(self) -> str:
-        """How to read the image, for people and agents."""
-        h, w = self.rgb.shape[:2]
-        ticks = (
-            f"; ticks every {self.tick:g} m on the left (y) and bottom (x) edges"
-            if self.tick
-            else ""
-        )
-        return (
-            f"top-down map, {w}x{h} px, +x right, +y up, {self.metres_per_pixel * 100:.3g} cm "
-            f"per pixel; the top-left corner is world (x, y) = ({self.x0:.2f}, {self.y1:.2f}) m"
-            f"{ticks}. " + " ".join(self.legend)
-        )
 
 
 def palette(uid: int) -> tuple[int, int, int]:
@@ -305,12 +208,37 @@ def draw_topdown(
     if ticks:
         draw_ticks(image, frame, writer)
     if window is not None:  # ids only for what the crop shows
-        cells = {
-            u: c
-            for u, c in cells.items()
-            if lo[0] <= glmap.instances[u].centroid[0] <= hi[0]
-            and lo[1] <= glmap.instances[u].centroid[1] <= hi[1]
-        }
+        cells = _centred_within(glmap, cells, lo, hi)
+    _draw_overlays(image, frame, glmap, cells, writer, legend, labels, regions, trajectory)
+    if writer.skipped:
+        legend.append(f"{writer.skipped} labels left out where they would overlap others.")
+    if agent_xyh is not None:
+        legend.append(_draw_agent(image, frame, agent_xyh))
+    return TopDownImage(
+        image,
+        frame.x0,
+        frame.y1,
+        frame.metres_per_pixel,
+        tuple(legend),
+        tick=frame.tick,
+        label_boxes=tuple(writer.boxes),
+        frame=frame,
+    )
+
+
+def _draw_overlays(
+    image: np.ndarray,
+    frame: TopDownFrame,
+    glmap: GLMap,
+    cells: dict[int, np.ndarray],
+    writer: Labels,
+    legend: list[str],
+    labels: bool,
+    regions: bool,
+    trajectory: bool,
+) -> None:
+    """Draw the region hulls, the camera trajectory and the instance ids on `image` [H, W, 3],
+    each with its legend line (ids only when there are at most MAX_LABELS labels)."""
     label_count = len(cells) + (len(glmap.regions) if regions else 0)
     write_labels = labels and label_count <= MAX_LABELS
     if regions:
@@ -326,20 +254,18 @@ def draw_topdown(
             cx, cy = glmap.instances[uid].centroid[:2]
             writer.place(str(uid), frame.px(float(cx), float(cy)))
         legend.append("Numbers = instance ids at (or next to) their centroids.")
-    if writer.skipped:
-        legend.append(f"{writer.skipped} labels left out where they would overlap others.")
-    if agent_xyh is not None:
-        legend.append(_draw_agent(image, frame, agent_xyh))
-    return TopDownImage(
-        image,
-        frame.x0,
-        frame.y1,
-        frame.metres_per_pixel,
-        tuple(legend),
-        tick=frame.tick,
-        label_boxes=tuple(writer.boxes),
-        frame=frame,
-    )
+
+
+def _centred_within(
+    glmap: GLMap, cells: dict[int, np.ndarray], lo: np.ndarray, hi: np.ndarray
+) -> dict[int, np.ndarray]:
+    """The instances of `cells` whose centroid lies in the box lo..hi (x, y metres)."""
+    return {
+        u: c
+        for u, c in cells.items()
+        if lo[0] <= glmap.instances[u].centroid[0] <= hi[0]
+        and lo[1] <= glmap.instances[u].centroid[1] <= hi[1]
+    }
 
 
 def _check_arguments(max_side: int, heatmap: HeatMap | None) -> None:
