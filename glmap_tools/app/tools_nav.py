@@ -29,6 +29,7 @@ from glmap_tools.app.nav_decision import (
     unit_score,
     waypoint_result,
 )
+from glmap_tools.app.nav_session import NavSession
 from glmap_tools.app.navdraw import contact_sheet, jpeg
 from glmap_tools.app.results import ImageResult, Picture
 from glmap_tools.app.runtime import ADDS, READ_ONLY, REPLACES, Call, ToolSpec, in_thread, session_of
@@ -56,6 +57,7 @@ if TYPE_CHECKING:
 
 Units = Literal["both", "instances", "regions"]
 Policy = Literal["glmap", "glmap-instance", "glmap-region", "egocentric", "frontier"]
+StepOutcome = Literal["actions done", "policy would stop here", "episode over"]
 POLICY_OF_UNITS = {"both": "glmap", "instances": "glmap-instance", "regions": "glmap-region"}
 Goal = Annotated[str, Field(max_length=256, description="omit: the episode's")]
 
@@ -264,35 +266,10 @@ async def nav_step(
 
     def run() -> ImageResult[NavStepResult]:
         sim, nav = nav_steps.running(target)
-        decisions: list[Decision] = []
-        decision: NavDecision | None = None
-        agent = simulator.agent_pose(sim)
         collisions = sim.collisions
-        outcome: Literal["actions done", "policy would stop here", "episode over"] = "actions done"
-        walked = 0.0
-        with locked(target):
-            for k in range(actions):
-                report(k, actions, f"nav_step {k + 1}/{actions}")
-                decision, agent = decide_on_map(target, nav.goal, policy)
-                if decision.action == "stop" and not execute_stop:
-                    outcome = "policy would stop here"
-                    break
-                simulator.step(sim, decision.action)
-                nav_steps.integrate(target, sim)
-                after = simulator.agent_pose(sim)
-                walked += math.dist(agent[:2], after[:2])
-                decisions.append(
-                    Decision(
-                        step=int(sim.info["steps"]),
-                        action=decision.action,
-                        position=(round(after[0], 2), round(after[1], 2)),
-                        heading_deg=round(math.degrees(after[2])),
-                        waypoint=waypoint_result(decision, agent),
-                    )
-                )
-                if sim.over:
-                    outcome = "episode over"
-                    break
+        decisions, decision, agent, outcome, walked = _walk(
+            target, sim, nav, policy, actions, execute_stop, report
+        )
         counts: dict[str, int] = {}
         for d in decisions:
             counts[d.action] = counts.get(d.action, 0) + 1
@@ -336,6 +313,48 @@ async def nav_step(
         return ImageResult(data=info, images=pictures)
 
     return await in_thread(lambda: in_episode(target, run))
+
+
+def _walk(
+    target: Session,
+    sim: simulator.SimEpisode,
+    nav: NavSession,
+    policy: Policy,
+    actions: int,
+    execute_stop: bool,
+    report: Callable[[float, float | None, str], None],
+) -> tuple[list[Decision], "NavDecision | None", tuple[float, float, float], StepOutcome, float]:
+    """Up to `actions` policy steps under the session's lock: (the steps taken, the last
+    decision, the agent's pose it was made at, the outcome, metres walked)."""
+    decisions: list[Decision] = []
+    decision: NavDecision | None = None
+    agent = simulator.agent_pose(sim)
+    outcome: StepOutcome = "actions done"
+    walked = 0.0
+    with locked(target):
+        for k in range(actions):
+            report(k, actions, f"nav_step {k + 1}/{actions}")
+            decision, agent = decide_on_map(target, nav.goal, policy)
+            if decision.action == "stop" and not execute_stop:
+                outcome = "policy would stop here"
+                break
+            simulator.step(sim, decision.action)
+            nav_steps.integrate(target, sim)
+            after = simulator.agent_pose(sim)
+            walked += math.dist(agent[:2], after[:2])
+            decisions.append(
+                Decision(
+                    step=int(sim.info["steps"]),
+                    action=decision.action,
+                    position=(round(after[0], 2), round(after[1], 2)),
+                    heading_deg=round(math.degrees(after[2])),
+                    waypoint=waypoint_result(decision, agent),
+                )
+            )
+            if sim.over:
+                outcome = "episode over"
+                break
+    return decisions, decision, agent, outcome, walked
 
 
 TOOLS = [
