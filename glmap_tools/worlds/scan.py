@@ -49,7 +49,8 @@ from glmap_tools.sim.catalog import (
 )
 from glmap_tools.sim.layout import Layout, LayoutWarning, yaw_matrix
 from glmap_tools.sim.layout_io import layout_from_dict
-from glmap_tools.sim.navgrid import AGENT_RADIUS, MIN_PASSAGE_CELLS, build_nav_grid
+from glmap_tools.worlds.passages import MIN_PART_AREA as MIN_PART_AREA
+from glmap_tools.worlds.passages import narrow_passages
 
 UPRIGHT_TOLERANCE = 0.05  # |cos| of the box's z axis against world up must exceed 1 - this
 
@@ -328,49 +329,6 @@ def _scan_objects(
             }
         )
     return objects, corners
-
-
-MIN_PART_AREA = 0.25  # m^2: smaller pockets behind a narrow passage are not worth a warning
-
-
-def narrow_passages(layout: Layout) -> list[str]:
-    """One sentence per stretch of floor that the agent reaches only through a passage
-    narrower than `MIN_PASSAGE_CELLS` cells of centre positions (about 0.56 m between
-    obstacles: its 0.36 m body, a cell's rounding each side and 3 cells to line up in).
-
-    Why such a passage is impassable rather than a steering problem: the agent turns in
-    30 deg steps from its start heading and moves 0.25 m at a time, so its heading can be up
-    to 15 deg off a passage's axis; through a one-cell (0.41 m) gap it must keep its centre
-    on a 5 cm line, which a 0.25 m step leaves unless the heading is within about 6 deg of
-    the axis (about 1 start heading in 3). `glmap sim episodes` draws no start that needs
-    such a passage.
-    """
-    grid = build_nav_grid(layout)
-    labels = grid.passable_parts(MIN_PASSAGE_CELLS)
-    counts = np.bincount(labels.ravel())
-    counts[0] = 0
-    if counts.sum() == 0:
-        return []
-    main = int(np.argmax(counts))
-    gap = 2 * AGENT_RADIUS + (MIN_PASSAGE_CELLS + 1) * grid.cell
-    out = []
-    cell_area = grid.cell * grid.cell
-    for label in np.nonzero(counts)[0]:
-        if label == main or counts[label] * cell_area < MIN_PART_AREA:
-            continue
-        cells = np.argwhere(labels == label)
-        xy = grid.to_world(cells).mean(axis=0)
-        room_id = layout.room_at(xy)
-        room = f" in room {room_id} ({layout.room(room_id).name!r})" if room_id else ""
-        out.append(
-            f"the floor around ({xy[0]:.2f}, {xy[1]:.2f}){room}, "
-            f"{counts[label] * cell_area:.1f} m^2, is joined to the rest only through a "
-            f"passage narrower than about {gap:.2f} m between obstacles: the agent "
-            f"({2 * AGENT_RADIUS:.2f} m across, 30 deg turns) cannot be expected to pass it, "
-            "and glmap sim episodes draws no start that needs it. Move the furniture that "
-            "narrows it if the real room is wider there."
-        )
-    return out
 
 
 SQUARE_DEG = 1.0  # a box's yaw within this of a multiple of 90 deg is square to the scan axes
