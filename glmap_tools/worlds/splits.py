@@ -142,12 +142,7 @@ def hidden_episodes(
         return None
 
     while len(episodes) < count:
-        g = (
-            int(rng.integers(len(pool)))
-            if weights is None
-            else int(rng.choice(len(pool), p=weights))
-        )
-        text, ids, field = pool[g]
+        g = _draw_goal(rng, len(pool), weights)
         cell = hidden_start(g, rng)
         if cell is not None and int(parts[cell]) not in goal_parts[g]:
             # Joined to the goal only through a sliver the agent cannot follow: draw the
@@ -170,19 +165,36 @@ def hidden_episodes(
                 )
             continue
         misses = 0
-        xy = grid.to_world(np.array([cell]))[0]
-        episodes.append(
-            Episode(
-                episode_id=len(episodes),
-                task=task,
-                start_position=(round(float(xy[0]), 4), round(float(xy[1]), 4)),
-                start_heading=round(float(rng.uniform(-math.pi, math.pi)), 5),
-                goal_text=text,
-                goal_object_ids=ids,
-                geodesic_distance=round(float(field[cell]), 4),
-            )
-        )
+        episodes.append(_episode(len(episodes), task, grid, cell, rng, pool[g]))
     return EpisodeSet(task, layout.name, layout.seed, episodes, SUCCESS_DISTANCE)
+
+
+def _draw_goal(rng: np.random.Generator, goals: int, weights: np.ndarray | None) -> int:
+    """A goal index: uniform, or with the given weights ([goals], summing to 1)."""
+    return int(rng.integers(goals)) if weights is None else int(rng.choice(goals, p=weights))
+
+
+def _episode(
+    episode_id: int,
+    task: str,
+    grid: NavGrid,
+    cell: tuple[int, int],
+    rng: np.random.Generator,
+    goal: tuple[str, tuple[int, ...], np.ndarray],
+) -> Episode:
+    """The episode starting at `cell` (row, column) with a random heading, towards `goal`
+    (its text, object ids and geodesic field [rows, cols] in metres)."""
+    text, ids, field = goal
+    xy = grid.to_world(np.array([cell]))[0]
+    return Episode(
+        episode_id=episode_id,
+        task=task,
+        start_position=(round(float(xy[0]), 4), round(float(xy[1]), 4)),
+        start_heading=round(float(rng.uniform(-math.pi, math.pi)), 5),
+        goal_text=text,
+        goal_object_ids=ids,
+        geodesic_distance=round(float(field[cell]), 4),
+    )
 
 
 def scene_episodes(spec: SplitSpec, seed: int, layout: Layout, task: str) -> EpisodeSet:
