@@ -10,6 +10,10 @@ which compiles the numba kernels or loads them from the on-disk cache, is report
 frame of the same view at `--reference-size` (its per-pixel cost does not depend on the
 image size: every pixel visits every Gaussian) and is scaled by the pixel ratio; it is
 skipped past `--reference-max` Gaussians. Sample images go to `--out` (PNG).
+
+Where the fast path's time goes is printed per stage (projection, depth sort, binning into
+tile lists, rasterization with compositing), median wall and process CPU time over the
+same number of frames; CPU above wall means the stage ran on several threads.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ import numpy as np
 
 from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
+from glmap_tools.gaussians._render_numba import render_fast
 from glmap_tools.gaussians.render import render, warm_up
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Intrinsics, Pose
@@ -77,6 +82,21 @@ def _parse_size(text: str) -> tuple[int, int]:
 
 
 TARGETS_MS = {(50_000, 320, 240): 15.0, (1_000_000, 640, 480): 200.0}  # issue 31
+STAGES = ("project", "sort", "bin", "rasterize")
+
+
+def stage_times(
+    scene: GaussianSet, pose: Pose, intrinsics: Intrinsics, repeats: int
+) -> dict[str, tuple[float, float]]:
+    """Median (wall ms, CPU ms) of each fast-path stage over `repeats` frames."""
+    laps: dict[str, list[tuple[float, float]]] = {}
+    for _ in range(repeats):
+        render_fast(scene, pose, intrinsics, (1.0, 1.0, 1.0), 0.05, 50.0, stages=laps)
+    return {
+        name: (1000.0 * float(np.median([w for w, _ in laps[name]])),
+               1000.0 * float(np.median([c for _, c in laps[name]])))
+        for name in STAGES
+    }  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -109,14 +129,20 @@ def main(argv: list[str] | None = None) -> int:
     ref_w, ref_h = _parse_size(args.reference_size)
     cases = [(n, *_parse_size(size)) for size in args.sizes for n in args.counts]
     fast: dict[tuple[int, int, int], tuple[float, float]] = {}
+    stages: dict[tuple[int, int, int], dict[str, tuple[float, float]]] = {}
     for n, w, h in cases:  # all fast timings first, close together in time
         intrinsics = Intrinsics.from_fov(w, h, HFOV_DEG)
         scene = bench_scene(n, pose, intrinsics, args.seed)
         result = render(scene, pose, intrinsics)  # warm-up
         fast[n, w, h] = _time_ms(partial(render, scene, pose, intrinsics), args.repeats)
+        stages[n, w, h] = stage_times(scene, pose, intrinsics, args.repeats)
         path = args.out / f"render_{n}_{w}x{h}.png"
         cv2.imwrite(str(path), cv2.cvtColor(result.to_uint8(), cv2.COLOR_RGB2BGR))
     load_after_fast = os.getloadavg()[0]
+    print("fast path by stage, median wall / CPU ms: " + ", ".join(STAGES))
+    for (n, w, h), by_stage in stages.items():
+        cells = "  ".join(f"{wall:6.2f} / {cpu:6.2f}" for wall, cpu in by_stage.values())
+        print(f"{n:>9} {f'{w}x{h}':>9}  {cells}")
     print(f"{'N':>9} {'size':>9} {'fast ms':>8} {'(min)':>7} {'ref ms est.':>12} {'ref/fast':>9}")
     for n, w, h in cases:
         fast_ms, fast_min = fast[n, w, h]
