@@ -163,6 +163,41 @@ def usage_report() -> dict[str, Any]:
     return binding.usage.report()
 
 
+def _callable_binding() -> tuple[Sampler, asyncio.AbstractEventLoop, SamplingUsage]:
+    """(sampler, event loop, usage) of the call's binding, checked: a client that samples,
+    asked from off the event loop's thread.
+
+    Raises:
+        LLMUnavailableError: no client with the sampling capability on this call.
+        LLMError: asked for on the event loop's own thread.
+    """
+    binding = _ACTIVE.get()
+    if binding is None or binding.sampler is None or binding.loop is None:
+        raise LLMUnavailableError(
+            "no MCP client with the sampling capability on this call (the client did not "
+            "declare it, or the connection has no back-channel)"
+        )
+    try:
+        running = asyncio.get_running_loop()
+    except RuntimeError:
+        running = None
+    if running is binding.loop:
+        raise LLMError("sampling was asked for on the event loop's thread (a bug)")
+    return binding.sampler, binding.loop, binding.usage
+
+
+def _sampling_error(exc: BaseException, timeout: float) -> Exception | None:
+    """The `LLMError` a failed sampling call raises for `exc`; None for what is no
+    `Exception` (a cancellation, an interrupt), which is raised as it is."""
+    if isinstance(exc, TimeoutError):
+        return LLMError(f"the client's model gave no answer within {timeout:g} s")
+    if isinstance(exc, LLMError):
+        return exc
+    if isinstance(exc, Exception):
+        return LLMError(f"sampling failed: {type(exc).__name__}: {exc}")
+    return None
+
+
 def _chars(messages: Sequence[Mapping[str, Any]], system: str | None) -> int:
     return len(system or "") + sum(len(str(m.get("content") or "")) for m in messages)
 
@@ -197,18 +232,7 @@ class SamplingClient:
     ) -> LLMReply:
         """See `LLMClient.chat` (tools are not offered to the client's model; `format` is
         asked for in words by the prompts). Raises the `LLMError` family."""
-        binding = _ACTIVE.get()
-        if binding is None or binding.sampler is None or binding.loop is None:
-            raise LLMUnavailableError(
-                "no MCP client with the sampling capability on this call (the client did not "
-                "declare it, or the connection has no back-channel)"
-            )
-        try:
-            running = asyncio.get_running_loop()
-        except RuntimeError:
-            running = None
-        if running is binding.loop:
-            raise LLMError("sampling was asked for on the event loop's thread (a bug)")
+        sampler, loop, usage = _callable_binding()
         if tools:
             raise LLMError("tool calls are not offered to the client's model through sampling")
         msgs = [
@@ -225,32 +249,23 @@ class SamplingClient:
         sent = _chars(msgs, system)
         t0 = time.monotonic()
         future = asyncio.run_coroutine_threadsafe(
-            binding.sampler(
-                msgs, system=system or None, max_tokens=self.max_tokens, timeout=self.timeout
-            ),
-            binding.loop,
+            sampler(msgs, system=system or None, max_tokens=self.max_tokens, timeout=self.timeout),
+            loop,
         )
         try:
             reply = future.result(timeout=self.timeout + 1.0)
         except BaseException as exc:
             future.cancel()
             seconds = time.monotonic() - t0
-            binding.usage.add(sent, 0, seconds, ok=False)
-            if isinstance(exc, TimeoutError):
-                error: Exception = LLMError(
-                    f"the client's model gave no answer within {self.timeout:g} s"
-                )
-            elif isinstance(exc, LLMError):
-                error = exc
-            elif isinstance(exc, Exception):
-                error = LLMError(f"sampling failed: {type(exc).__name__}: {exc}")
-            else:
+            usage.add(sent, 0, seconds, ok=False)
+            error = _sampling_error(exc, self.timeout)
+            if error is None:
                 raise
             if self.transcript is not None:
                 self.transcript.write("error", model=self.model, error=str(error))
             raise error from None
         seconds = time.monotonic() - t0
-        binding.usage.add(sent, len(reply.content), seconds, ok=True)
+        usage.add(sent, len(reply.content), seconds, ok=True)
         reply = LLMReply(
             content=reply.content,
             prompt_tokens=reply.prompt_tokens or math.ceil(sent / CHARS_PER_TOKEN),
