@@ -9,9 +9,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from glmap_tools.gaussians._prefetch import prefetch_row
+
 RADIX_BITS = 11  # depth sort: bits per radix pass
 RADIX = 1 << RADIX_BITS
 N_PASSES = 3  # 3 x 11 bits cover a 32-bit key
+AHEAD = 16  # binning: Gaussians between a tile-range prefetch and its use
 
 
 @njit(cache=True)
@@ -107,6 +110,7 @@ def bin_kernel(
     cursor = np.zeros((n_chunks, n_tiles), dtype=np.int64)
     for c in prange(n_chunks):
         for j in range(m * c // n_chunks, m * (c + 1) // n_chunks):
+            prefetch_row(tiles, order[min(j + AHEAD, m - 1)])
             g = order[j]
             for ty in range(tiles[g, 2], tiles[g, 3] + 1):
                 for tx in range(tiles[g, 0], tiles[g, 1] + 1):
@@ -123,6 +127,7 @@ def bin_kernel(
     lists = np.empty(total, dtype=np.int32)
     for c in prange(n_chunks):
         for j in range(m * c // n_chunks, m * (c + 1) // n_chunks):
+            prefetch_row(tiles, order[min(j + AHEAD, m - 1)])
             g = order[j]
             for ty in range(tiles[g, 2], tiles[g, 3] + 1):
                 for tx in range(tiles[g, 0], tiles[g, 1] + 1):
