@@ -72,15 +72,7 @@ def scene_arguments(size: int) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-
-    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench pending")
-    parser.add_argument("--sessions", type=int, default=32)
-    parser.add_argument("--frames", type=int, default=pending.MAX_PENDING_FRAMES)
-    parser.add_argument("--size", type=int, default=1024, help="frame width and height (px)")
-    parser.add_argument(
-        "--in-flight", type=int, default=1, help="observe_frame calls sent at once (threads)"
-    )
-    args = parser.parse_args(argv)
+    args = _arguments(argv)
 
     report = Report("bench pending")
     cap = pending.MAX_SERVER_PENDING_BYTES / MIB
@@ -95,43 +87,14 @@ def main(argv: list[str] | None = None) -> int:
         config = ServerConfig(maps_dir=Path(tmp), embedder="hashing", warm_up=False)
         with Toolset(config) as tools:
             registry = tools.state.registry
-            # Warm-up: one frame observed and labelled, to measure one call's working memory.
-            warm = registry.start_session()
-            tools.call("observe_frame", {**call, "session": warm.handle})
-            tools.call("new_map", {"session": warm.handle})
-            base, _ = rss_mib()
-            reset_peak()
-            res = tools.call("observe_frame", {**call, "session": warm.handle})
-            _, warm_peak = rss_mib()
-            working = max(0.0, warm_peak - base - per_frame)
-            tools.call("new_map", {"session": warm.handle})
-            del res
+            warm, working = _working_memory(tools, call, per_frame)
             store = pending_frames(tools.state)
             base, _ = rss_mib()
             reset_peak()
             sessions = [registry.start_session() for _ in range(args.sessions - 1)] + [warm]
-            counts = {"kept": 0, "refused": 0}
-            lock = threading.Lock()
-
-            def observe(session: Any) -> None:
-                try:
-                    tools.call("observe_frame", {**call, "session": session.handle})
-                    outcome = "kept"
-                except pending.LimitError:
-                    outcome = "refused"
-                with lock:
-                    counts[outcome] += 1
-
-            start = time.perf_counter()
-            with ThreadPoolExecutor(max_workers=args.in_flight) as workers:
-                for k in range(args.frames):
-                    list(workers.map(observe, sessions))  # each session once per round
-                    report.info(
-                        f"round {k + 1}: pending frames hold {store.held() / MIB:.0f} MiB, "
-                        f"resident {rss_mib()[0]:.0f} MiB, {counts['refused']} frames refused "
-                        "so far"
-                    )
-            took = time.perf_counter() - start
+            counts, took = _rounds(
+                tools, call, sessions, args.frames, args.in_flight, store, report
+            )
             kept, refused = counts["kept"], counts["refused"]
             work_peak = memory.frame_work(tools.state).peak
             held = store.held() / MIB
@@ -155,6 +118,70 @@ def main(argv: list[str] | None = None) -> int:
     report.check("pending bytes after new_map", released, "<=", 1.0, "MiB")
     report.check("resident growth after new_map", after - base, "<=", 0.25 * cap, "MiB")
     return report.finish()
+
+
+def _arguments(argv: list[str] | None) -> argparse.Namespace:
+    """The command line of `python -m glmap_tools.bench pending`."""
+    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench pending")
+    parser.add_argument("--sessions", type=int, default=32)
+    parser.add_argument("--frames", type=int, default=pending.MAX_PENDING_FRAMES)
+    parser.add_argument("--size", type=int, default=1024, help="frame width and height (px)")
+    parser.add_argument(
+        "--in-flight", type=int, default=1, help="observe_frame calls sent at once (threads)"
+    )
+    return parser.parse_args(argv)
+
+
+def _working_memory(tools: Toolset, call: dict[str, Any], per_frame: float) -> tuple[Any, float]:
+    """Warm-up, in a session of its own: one frame observed and labelled, to measure one
+    call's working memory. (That session, the working memory in MiB beyond the frame.)"""
+    warm = tools.state.registry.start_session()
+    tools.call("observe_frame", {**call, "session": warm.handle})
+    tools.call("new_map", {"session": warm.handle})
+    base, _ = rss_mib()
+    reset_peak()
+    res = tools.call("observe_frame", {**call, "session": warm.handle})
+    _, warm_peak = rss_mib()
+    working = max(0.0, warm_peak - base - per_frame)
+    tools.call("new_map", {"session": warm.handle})
+    del res
+    return warm, working
+
+
+def _rounds(
+    tools: Toolset,
+    call: dict[str, Any],
+    sessions: list[Any],
+    frames: int,
+    in_flight: int,
+    store: pending.PendingFrames,
+    report: Report,
+) -> tuple[dict[str, int], float]:
+    """Every session sends `frames` frames, one a round, `in_flight` calls at once, each
+    round reported: ({"kept": n, "refused": n}, seconds)."""
+    counts = {"kept": 0, "refused": 0}
+    lock = threading.Lock()
+
+    def observe(session: Any) -> None:
+        try:
+            tools.call("observe_frame", {**call, "session": session.handle})
+            outcome = "kept"
+        except pending.LimitError:
+            outcome = "refused"
+        with lock:
+            counts[outcome] += 1
+
+    start = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=in_flight) as workers:
+        for k in range(frames):
+            list(workers.map(observe, sessions))  # each session once per round
+            report.info(
+                f"round {k + 1}: pending frames hold {store.held() / MIB:.0f} MiB, "
+                f"resident {rss_mib()[0]:.0f} MiB, {counts['refused']} frames refused "
+                "so far"
+            )
+    took = time.perf_counter() - start
+    return counts, took
 
 
 if __name__ == "__main__":
