@@ -183,38 +183,11 @@ def process_cpu_seconds(pid: int) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-
-    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench startup")
-    parser.add_argument("--runs", type=int, default=3, help="fresh launches to time")
-    parser.add_argument("--timeout", type=float, default=300.0, help="seconds per answer")
-    parser.add_argument(
-        "--unprepared",
-        action="store_true",
-        help="do not prepare the handshake answers first when this installation has none",
-    )
-    parser.add_argument(
-        "--server-command", default="", help="the server command (default: glmap-mcp here)"
-    )
-    parser.add_argument(
-        "server_args", nargs="*", help="extra glmap-mcp arguments (after --), e.g. -- --no-warm-up"
-    )
-    args = parser.parse_args(argv)
+    args = _arguments(argv)
     report = Report("bench startup")
     command = shlex.split(args.server_command) if args.server_command else server_command()
     report.info(f"glmap-mcp over stdio: {' '.join([*command, *args.server_args])}")
-    if not {PROTOCOL, STATELESS_PROTOCOL} <= prepared_versions():
-        if args.unprepared:
-            report.info(
-                "no prepared handshake answers for this installation (its sources changed "
-                "since they were kept): run 1 answers through the SDK and keeps them"
-            )
-        else:
-            report.info(
-                "no prepared handshake answers for this installation (its sources changed "
-                "since they were kept): preparing them first, as `glmap-mcp --prepare` does at "
-                "setup (--unprepared times that first launch instead)"
-            )
-            prepare_handshake()
+    _prepare_answers(report, args.unprepared)
     runs = []
     for i in range(args.runs):
         r = measure(command, args.server_args, args.timeout)
@@ -263,3 +236,40 @@ def main(argv: list[str] | None = None) -> int:
         "s",
     )
     return report.finish()
+
+
+def _arguments(argv: list[str] | None) -> argparse.Namespace:
+    """The command line of `python -m glmap_tools.bench startup`."""
+    parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench startup")
+    parser.add_argument("--runs", type=int, default=3, help="fresh launches to time")
+    parser.add_argument("--timeout", type=float, default=300.0, help="seconds per answer")
+    parser.add_argument(
+        "--unprepared",
+        action="store_true",
+        help="do not prepare the handshake answers first when this installation has none",
+    )
+    parser.add_argument(
+        "--server-command", default="", help="the server command (default: glmap-mcp here)"
+    )
+    parser.add_argument(
+        "server_args", nargs="*", help="extra glmap-mcp arguments (after --), e.g. -- --no-warm-up"
+    )
+    return parser.parse_args(argv)
+
+
+def _prepare_answers(report: Report, unprepared: bool) -> None:
+    """Prepare the handshake answers when this installation has none (as `glmap-mcp
+    --prepare` does at setup), unless `unprepared`: then run 1 times their making."""
+    if not {PROTOCOL, STATELESS_PROTOCOL} <= prepared_versions():
+        if unprepared:
+            report.info(
+                "no prepared handshake answers for this installation (its sources changed "
+                "since they were kept): run 1 answers through the SDK and keeps them"
+            )
+        else:
+            report.info(
+                "no prepared handshake answers for this installation (its sources changed "
+                "since they were kept): preparing them first, as `glmap-mcp --prepare` does at "
+                "setup (--unprepared times that first launch instead)"
+            )
+            prepare_handshake()
