@@ -24,10 +24,10 @@ from glmap_tools.nav import (
     value_map,
 )
 from glmap_tools.nav.episode import remember
+from glmap_tools.nav.footprint import GoalMatch, distance_to_cells
 from glmap_tools.nav.grid import structure_walls
 from glmap_tools.nav.policy import approach
 from glmap_tools.nav.value import unit_cell_array
-from glmap_tools.nav.waypoint import GoalMatch, distance_to_cells
 
 TEXTS = {
     1: ("chair", "a red chair with a wooden frame"),

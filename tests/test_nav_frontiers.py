@@ -17,8 +17,8 @@ from glmap_tools.nav import (
     frontiers,
     traversable,
 )
+from glmap_tools.nav.footprint import distances_to_cells
 from glmap_tools.nav.planner import agent_field
-from glmap_tools.nav.waypoint import distances_to_cells
 
 CELL = 0.05
 RADIUS = 0.18
@@ -168,7 +168,7 @@ def test_a_matched_unit_gives_the_nearest_navigable_cell_within_the_stop_distanc
 
 
 def test_a_stop_within_reach_but_behind_a_wall_moves_to_where_the_unit_is_in_sight() -> None:
-    from glmap_tools.nav.waypoint import in_clear_sight
+    from glmap_tools.nav.footprint import in_clear_sight
 
     occ = room_with_door(20)
     occ.state[11:39, 34] = OBSTACLE  # a wall stub from the top wall, open below row 38
@@ -215,7 +215,7 @@ def test_a_stop_within_reach_but_behind_a_wall_moves_to_where_the_unit_is_in_sig
 
 
 def test_a_unit_against_the_far_side_of_a_room_wall_is_not_stopped_for_from_behind_it() -> None:
-    from glmap_tools.nav.waypoint import ROOM_WALL, WALL, in_clear_sight
+    from glmap_tools.nav.footprint import ROOM_WALL, WALL, in_clear_sight
 
     occ = room_with_door(20)
     occ.state[11:50, 34:36] = OBSTACLE  # a wall, 10 cm thick, splits the room

@@ -15,11 +15,11 @@ import numpy as np
 from glmap_tools.map.occupancy import FREE, OBSTACLE, DenseOccupancy
 from glmap_tools.nav import GoalMatch, NavConfig, choose_waypoint
 from glmap_tools.nav.choose import PlanRequest, choose_and_plan
+from glmap_tools.nav.footprint import distance_to_cells
 from glmap_tools.nav.grid import agent_rc
 from glmap_tools.nav.motion import clearance, masks
 from glmap_tools.nav.perceive import Surroundings
 from glmap_tools.nav.planner import distance_field
-from glmap_tools.nav.waypoint import distance_to_cells
 
 CELL = 0.05
 CONFIG = NavConfig()

@@ -7,6 +7,7 @@ Pure numpy/scipy/scikit-fmm: no MCP, no model library (scorers receive an embedd
 from glmap_tools.nav.config import ACTIONS, POLICIES, STOP_THRESHOLDS, NavConfig
 from glmap_tools.nav.egocentric import EgocentricValueMap
 from glmap_tools.nav.errors import OutsideMapError, UnreachableGoalError
+from glmap_tools.nav.footprint import GoalMatch
 from glmap_tools.nav.frontiers import Frontier, frontiers
 from glmap_tools.nav.grid import Window, inflate, plannable, traversable
 from glmap_tools.nav.motion import bump_cells, clearance, drive
@@ -28,7 +29,7 @@ from glmap_tools.nav.value import (
     value_map_from_scores,
     value_map_reference,
 )
-from glmap_tools.nav.waypoint import GoalMatch, Waypoint, choose_waypoint
+from glmap_tools.nav.waypoint import Waypoint, choose_waypoint
 
 __all__ = [
     "ACTIONS",

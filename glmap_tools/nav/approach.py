@@ -11,6 +11,7 @@ import numpy as np
 from glmap_tools.map.occupancy import DenseOccupancy
 from glmap_tools.nav.choose import plan_to, plan_to_goal_cell
 from glmap_tools.nav.config import NavConfig
+from glmap_tools.nav.footprint import GoalMatch, distance_to_cells, in_clear_sight
 from glmap_tools.nav.grid import agent_rc
 from glmap_tools.nav.motion import forget_marks_near
 from glmap_tools.nav.perceive import (
@@ -21,7 +22,7 @@ from glmap_tools.nav.perceive import (
     walls_of,
 )
 from glmap_tools.nav.planner import Plan
-from glmap_tools.nav.waypoint import GoalMatch, choose_waypoint
+from glmap_tools.nav.waypoint import choose_waypoint
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
@@ -90,8 +91,6 @@ def unit_reach(
 
     `walls`: `walls_of(glmap, occ)` (None: every obstacle cell blocks the line).
     """
-    from glmap_tools.nav.waypoint import distance_to_cells, in_clear_sight
-
     here = distance_to_cells(unit.cells, xy, occ.cell_size)
     sight = in_clear_sight(unit, occ, np.array([agent_rc(occ, xy)]), walls)
     return here, bool(sight[0])

@@ -13,16 +13,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from glmap_tools.nav.config import NavConfig
+from glmap_tools.nav.footprint import GoalMatch, distance_to_cells, in_clear_sight
 from glmap_tools.nav.perceive import Surroundings
 from glmap_tools.nav.planner import Plan, plan_on_field
 from glmap_tools.nav.value import ValueMap
-from glmap_tools.nav.waypoint import (
-    GoalMatch,
-    Waypoint,
-    choose_waypoint,
-    distance_to_cells,
-    in_clear_sight,
-)
+from glmap_tools.nav.waypoint import Waypoint, choose_waypoint
 
 PROGRESS = 0.25  # metres of progress toward the waypoint that reset the stuck counter
 HOLD_AFTER_TURNS = 6  # turns in place after which the waypoint is held until the agent moves

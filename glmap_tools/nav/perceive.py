@@ -13,13 +13,13 @@ import numpy as np
 from glmap_tools.language.text_merger import DELIMITER
 from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
 from glmap_tools.nav.config import GOAL_MAX_BOTTOM, GOAL_MIN_SIZE, SCORE_TIE, NavConfig
+from glmap_tools.nav.footprint import ROOM_WALL, GoalMatch, distances_to_cells
 from glmap_tools.nav.frontiers import Frontier, frontiers
 from glmap_tools.nav.grid import agent_rc, known_window, reframe, structure_walls
 from glmap_tools.nav.motion import bump_cells, clearance, masks
 from glmap_tools.nav.planner import DistanceField, distance_field
 from glmap_tools.nav.scorers import Scorer, UnitText, map_units
 from glmap_tools.nav.value import unit_cell_array, unit_core_cells
-from glmap_tools.nav.waypoint import ROOM_WALL, GoalMatch, distances_to_cells
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
@@ -351,7 +351,7 @@ ROOM_WALL_BAND = (1.55, 1.95)
 
 
 def walls_of(glmap: GLMap, occ: DenseOccupancy) -> np.ndarray | None:
-    """[H, W] int8 over `occ`: `nav.waypoint.WALL` on structure obstacle cells
+    """[H, W] int8 over `occ`: `nav.footprint.WALL` on structure obstacle cells
     (`nav.grid.structure_walls` in the obstacle band), `ROOM_WALL` where structure also
     stands in `ROOM_WALL_BAND`, else 0. None: the map keeps no structure, so every obstacle
     cell counts as a wall."""

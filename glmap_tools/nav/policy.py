@@ -25,6 +25,7 @@ from glmap_tools.nav.choose import PROGRESS, Choice, PlanRequest, choose_and_pla
 from glmap_tools.nav.choose import progress as progress_of
 from glmap_tools.nav.config import NavConfig, check_policy
 from glmap_tools.nav.egocentric import EgocentricValueMap
+from glmap_tools.nav.footprint import GoalMatch
 from glmap_tools.nav.frontiers import Frontier
 from glmap_tools.nav.motion import marks_near
 from glmap_tools.nav.perceive import (
@@ -42,7 +43,7 @@ from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goa
 from glmap_tools.nav.state import NavState
 from glmap_tools.nav.value import ValueMap, evidence_scores, value_map_from_scores
 from glmap_tools.nav.verify import outvoted, seen_share
-from glmap_tools.nav.waypoint import GoalMatch, Waypoint
+from glmap_tools.nav.waypoint import Waypoint
 
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
@@ -249,6 +250,25 @@ def _remember(
     state.steps += 1
 
 
+def _policy_value(
+    policy: str,
+    glmap: GLMap,
+    scored: Scored,
+    occ: DenseOccupancy,
+    config: NavConfig,
+    state: NavState,
+) -> ValueMap | None:
+    """The value map `policy` explores by: Eq. 7 over the units, the egocentric
+    accumulator (kept in `state`), or none (frontier)."""
+    if policy in POLICY_UNITS:
+        return _unit_value_map(policy, glmap, scored, occ, config, state.missed)
+    if policy == "egocentric":
+        if state.egocentric is None:
+            state.egocentric = EgocentricValueMap(glmap.grid.cell_size, glmap.config.max_range)
+        return state.egocentric.as_value_map(occ)
+    return None
+
+
 def decide(
     glmap: GLMap,
     agent_xy: tuple[float, float],
@@ -295,14 +315,7 @@ def decide(
     scored = _score_units(glmap, goal, policy, scorer, state.rejected_units, config, prefer, missed)
     match = scored.match
 
-    # The value map: Eq. 7 over the units, or the egocentric accumulator.
-    value: ValueMap | None = None
-    if policy in POLICY_UNITS:
-        value = _unit_value_map(policy, glmap, scored, sur.occ, config, missed)
-    elif policy == "egocentric":
-        if state.egocentric is None:
-            state.egocentric = EgocentricValueMap(glmap.grid.cell_size, glmap.config.max_range)
-        value = state.egocentric.as_value_map(sur.occ)
+    value = _policy_value(policy, glmap, scored, sur.occ, config, state)
 
     # Choose a waypoint and plan to it.
     if state.steps < config.initial_spin and match is None:
@@ -313,17 +326,9 @@ def decide(
     else:
         walls = walls_of(glmap, sur.occ) if config.stop_in_sight and match is not None else None
         request = PlanRequest(
-            value,
-            sur,
-            xy,
-            heading,
-            match,
-            walls,
-            config,
-            state.last_waypoint,
-            state.turns_in_place,
-            tuple(state.avoid),
-        )
+            value, sur, xy, heading, match, walls, config,
+            state.last_waypoint, state.turns_in_place, tuple(state.avoid),
+        )  # fmt: skip
         choice, sur, blocked = _choose(glmap, request, blocked)
 
     # Act, and remember.

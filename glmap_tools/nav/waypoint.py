@@ -15,29 +15,23 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
+from glmap_tools.map.occupancy import DenseOccupancy
 from glmap_tools.nav.config import NavConfig
+from glmap_tools.nav.footprint import (
+    ROOM_WALL,
+    ROOM_WALL_TOLERANCE_CELLS,
+    GoalMatch,
+    cells_xy,
+    distance_to_cells,
+    distances_to_cells,
+    goal_cells_near,
+    in_clear_sight,
+    path_distances,
+)
 from glmap_tools.nav.frontiers import Frontier
 from glmap_tools.nav.value import ValueMap
 
 WAYPOINT_KINDS = ("goal", "frontier", "explore", "none")
-
-
-@dataclass(frozen=True)
-class GoalMatch:
-    """An instance that matches the goal.
-
-    Attributes:
-        unit_id: the instance id.
-        score: s_u in [0, 1].
-        observations: frames that observed it.
-        cells: [K, 2] int (i, j) index-grid cells of the unit (its footprint).
-    """
-
-    unit_id: int
-    score: float
-    observations: int
-    cells: np.ndarray  # [K, 2]
 
 
 @dataclass(frozen=True)
@@ -60,134 +54,6 @@ class Waypoint:
     reason: str
 
 
-def _cells_to_window(cells: np.ndarray, occ: DenseOccupancy) -> np.ndarray:
-    """[K, 2] (i, j) -> [K, 2] (row, col) in the occupancy window."""
-    return np.stack([cells[:, 1] - occ.origin[1], cells[:, 0] - occ.origin[0]], axis=1)
-
-
-def distance_to_cells(cells: np.ndarray, xy: tuple[float, float], cell_size: float) -> float:
-    """Metres from (x, y) to the nearest point of any of the [K, 2] (i, j) cells."""
-    if len(cells) == 0:
-        return math.inf
-    lo = cells * cell_size
-    dx = np.maximum(np.maximum(lo[:, 0] - xy[0], xy[0] - (lo[:, 0] + cell_size)), 0.0)
-    dy = np.maximum(np.maximum(lo[:, 1] - xy[1], xy[1] - (lo[:, 1] + cell_size)), 0.0)
-    return float(np.hypot(dx, dy).min())
-
-
-def goal_cells_near(
-    match: GoalMatch, occ: DenseOccupancy, ok: np.ndarray, radius: float
-) -> np.ndarray:
-    """[K, 2] (row, col) of `ok` cells whose centre is within `radius` m of the unit's cells."""
-    rc = _cells_to_window(match.cells, occ)
-    pad = int(math.ceil(radius / occ.cell_size)) + 1
-    h, w = ok.shape
-    r0, c0 = max(0, int(rc[:, 0].min()) - pad), max(0, int(rc[:, 1].min()) - pad)
-    r1, c1 = min(h, int(rc[:, 0].max()) + pad + 1), min(w, int(rc[:, 1].max()) + pad + 1)
-    if r1 <= r0 or c1 <= c0:
-        return np.zeros((0, 2), np.int64)
-    unit = np.zeros((r1 - r0, c1 - c0), dtype=bool)
-    inside = (rc[:, 0] >= r0) & (rc[:, 0] < r1) & (rc[:, 1] >= c0) & (rc[:, 1] < c1)
-    unit[rc[inside, 0] - r0, rc[inside, 1] - c0] = True
-    # Centre-to-centre distance minus half a cell: to the unit cell's near side.
-    dist = (ndimage.distance_transform_edt(~unit) - 0.5) * occ.cell_size
-    near = ok[r0:r1, c0:c1] & (dist <= radius)
-    rows, cols = np.nonzero(near)
-    return np.stack([rows + r0, cols + c0], axis=1)
-
-
-SIGHT_TOLERANCE_CELLS = 2  # obstacle cells this close to the unit's cells do not block sight
-WALL, ROOM_WALL = 1, 2  # levels of `nav.perceive.walls_of`: structure, a room's wall
-# Room walls block from one cell off the unit (the simulator's rule stops one cell short of
-# the footprint): a 10 cm wall the unit stands against is 2 cells, seen through at 2.
-ROOM_WALL_TOLERANCE_CELLS = 1
-
-
-def in_clear_sight(
-    match: GoalMatch,
-    occ: DenseOccupancy,
-    points_rc: np.ndarray,
-    walls: np.ndarray | None = None,
-    tolerance: int = SIGHT_TOLERANCE_CELLS,
-) -> np.ndarray:
-    """[K] bool: whether the straight line from each (row, col) cell centre to the nearest
-    cell of the matched unit crosses no obstacle of `occ` (obstacle cells within
-    `tolerance` cells of the unit's own cells, which the map draws around it, are
-    ignored). The simulator's success rule asks the same of the footprint's nearest point,
-    so a stop behind a door jamb, within reach but out of sight, fails.
-
-    `walls` ([H, W] over `occ`'s window, nonzero on walls: `nav.perceive.walls_of`), when
-    given, limits the blocking cells to obstacles that are structure: furniture (a chair's
-    own seat in front of the unit that covers its back) does not hide what stands behind it
-    from the success rule, walls do; a room's wall from `ROOM_WALL_TOLERANCE_CELLS` on."""
-    points_rc = np.asarray(points_rc, dtype=np.int64).reshape(-1, 2)
-    if len(points_rc) == 0:
-        return np.zeros(0, dtype=bool)
-    h, w = occ.state.shape
-    rc = _cells_to_window(match.cells, occ)
-    rc = rc[(rc[:, 0] >= 0) & (rc[:, 0] < h) & (rc[:, 1] >= 0) & (rc[:, 1] < w)]
-    if len(rc) == 0:
-        return np.zeros(len(points_rc), dtype=bool)
-    unit = np.zeros((h, w), dtype=bool)
-    unit[rc[:, 0], rc[:, 1]] = True
-    near_unit = ndimage.binary_dilation(unit, iterations=tolerance)
-    blocking = (occ.state == OBSTACLE) & ~near_unit
-    if walls is not None:
-        room = walls >= ROOM_WALL
-        tol = min(tolerance, ROOM_WALL_TOLERANCE_CELLS)
-        near_room = ndimage.binary_dilation(unit, iterations=tol) if tol else unit
-        blocking = (occ.state == OBSTACLE) & ((walls > 0) & ~near_unit | room & ~near_room)
-    # The nearest unit cell of each point (Euclidean, in cells).
-    d2 = ((points_rc[:, None, :] - rc[None, :, :]) ** 2).sum(axis=2)
-    ends = rc[np.argmin(d2, axis=1)]
-    n = int(np.ceil(np.sqrt(d2.min(axis=1).max()) * 4)) + 2  # quarter-cell samples
-    f = np.linspace(0.0, 1.0, n)[None, :, None]
-    samples = points_rc[:, None, :] + f * (ends - points_rc)[:, None, :]
-    cells = np.clip(np.rint(samples).astype(np.int64), 0, [h - 1, w - 1])
-    return ~blocking[cells[..., 0], cells[..., 1]].any(axis=1)
-
-
-def _cell_xy(occ: DenseOccupancy, rc: np.ndarray) -> np.ndarray:
-    """[K, 2] (row, col) cells of `occ`'s window -> [K, 2] (x, y) of their centres, metres."""
-    s = occ.cell_size
-    return np.stack(
-        [(rc[:, 1] + occ.origin[0] + 0.5) * s, (rc[:, 0] + occ.origin[1] + 0.5) * s], axis=1
-    )
-
-
-def _distances(
-    occ: DenseOccupancy,
-    rc: np.ndarray,
-    agent_xy: tuple[float, float],
-    distance: np.ndarray | None,
-) -> np.ndarray:
-    """[K] metres from the agent to the cells: geodesic over `distance`, else straight."""
-    if distance is not None:
-        return distance[rc[:, 0], rc[:, 1]]
-    xy = _cell_xy(occ, rc)
-    return np.hypot(xy[:, 0] - agent_xy[0], xy[:, 1] - agent_xy[1])
-
-
-def distances_to_cells(cells: np.ndarray, points_xy: np.ndarray, cell_size: float) -> np.ndarray:
-    """[N] metres from each of [N, 2] (x, y) points to the nearest point of the [K, 2] (i, j)
-    cells: `distance_to_cells` for many points (inf with no cells)."""
-    pts = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
-    if len(cells) == 0:
-        return np.full(len(pts), np.inf)
-    lo = cells * cell_size  # [K, 2]
-    out = np.empty(len(pts))
-    for a in range(0, len(pts), 256):  # [256, K] at a time
-        p = pts[a : a + 256, None, :]
-        dx = np.maximum(
-            np.maximum(lo[None, :, 0] - p[..., 0], p[..., 0] - lo[None, :, 0] - cell_size), 0
-        )
-        dy = np.maximum(
-            np.maximum(lo[None, :, 1] - p[..., 1], p[..., 1] - lo[None, :, 1] - cell_size), 0
-        )
-        out[a : a + 256] = np.hypot(dx, dy).min(axis=1)
-    return out
-
-
 def _goal_waypoint(
     match: GoalMatch,
     traversable: np.ndarray,
@@ -207,16 +73,66 @@ def _goal_waypoint(
     a stop would count (within `success_radius`, in sight) rather than give the unit up;
     else it heads for the reachable cell nearest the unit, when that is closer than here.
     None when there is nothing to head for yet (keep exploring)."""
+    here = distance_to_cells(match.cells, agent_xy, occ.cell_size)
+    ap = _approach_cells(match, traversable, agent_xy, config, occ, distance, walls)
+    matched = f"instance {match.unit_id} matches the goal (score {match.score:.2f})"
+    if here <= config.stop_distance and (ap.seen_here or not ap.sight_rule):
+        reason = f"{matched} and is {here:.2f} m away: within the stop distance."
+        xy = np.array(agent_xy, dtype=float)
+    elif ap.cand.any():
+        note = (
+            " (it was within reach but out of sight here)" if here <= config.stop_distance else ""
+        )
+        k = int(np.argmin(np.where(ap.cand, ap.d, np.inf)))
+        xy = cells_xy(occ, ap.near[k][None])[0]
+        reason = (
+            f"{matched}; heading to the nearest navigable cell within "
+            f"{config.stop_distance:.2f} m of it"
+            + (" in clear sight of it" if config.stop_in_sight else "")
+            + f"{note}."
+        )
+    else:
+        return _no_approach_cell(match, ap, here, agent_xy, config, occ, matched)
+    return Waypoint((float(xy[0]), float(xy[1])), "goal", match.unit_id, match.score, reason)
+
+
+@dataclass(frozen=True)
+class _Approach:
+    """The reachable navigable cells near a matched unit and which of them are within stop.
+
+    near: [K, 2] window (row, col) cells; d: their path distances from the agent; unit_d:
+    their distances to the unit's cells; seen: in sight of it; cand: within stop (and in
+    sight when the sight rule applies); seen_here: the agent sees the unit; sight_rule:
+    whether sight decides (`_goal_waypoint`)."""
+
+    near: np.ndarray
+    d: np.ndarray
+    unit_d: np.ndarray
+    seen: np.ndarray
+    cand: np.ndarray
+    seen_here: bool
+    sight_rule: bool
+
+
+def _approach_cells(
+    match: GoalMatch,
+    traversable: np.ndarray,
+    agent_xy: tuple[float, float],
+    config: NavConfig,
+    occ: DenseOccupancy,
+    distance: np.ndarray | None,
+    walls: np.ndarray | None,
+) -> _Approach:
+    """The cells `_goal_waypoint` may head for, and whether the sight rule applies."""
     s = occ.cell_size
-    here = distance_to_cells(match.cells, agent_xy, s)
     sight = config.stop_in_sight
     agent_rc = np.array(occ.world_to_index(*agent_xy))[None]
     seen_here = bool(in_clear_sight(match, occ, agent_rc, walls)[0]) if sight else True
     # Reachable navigable cells near the unit (a cell to spare on the EDT's rounding).
     near = goal_cells_near(match, occ, traversable, config.success_radius + s)
-    d = _distances(occ, near, agent_xy, distance)
+    d = path_distances(occ, near, agent_xy, distance)
     near, d = near[np.isfinite(d)], d[np.isfinite(d)]
-    unit_d = distances_to_cells(match.cells, _cell_xy(occ, near), s)
+    unit_d = distances_to_cells(match.cells, cells_xy(occ, near), s)
     seen = in_clear_sight(match, occ, near, walls) if sight else np.ones(len(near), bool)
     cand = unit_d <= config.stop_distance - s
     # The sight rule applies when some reachable cell within stop is in sight. With none,
@@ -240,47 +156,44 @@ def _goal_waypoint(
     sure = cand & _arrival_within_stop(near, unit_d, seen if sight_rule else None, occ, config)
     if sure.any():
         cand = sure
-    matched = f"instance {match.unit_id} matches the goal (score {match.score:.2f})"
-    if here <= config.stop_distance and (seen_here or not sight_rule):
-        reason = f"{matched} and is {here:.2f} m away: within the stop distance."
-        xy = np.array(agent_xy, dtype=float)
-    elif cand.any():
-        note = (
-            " (it was within reach but out of sight here)" if here <= config.stop_distance else ""
-        )
-        k = int(np.argmin(np.where(cand, d, np.inf)))
-        xy = _cell_xy(occ, near[k][None])[0]
+    return _Approach(near, d, unit_d, seen, cand, seen_here, sight_rule)
+
+
+def _no_approach_cell(
+    match: GoalMatch,
+    ap: _Approach,
+    here: float,
+    agent_xy: tuple[float, float],
+    config: NavConfig,
+    occ: DenseOccupancy,
+    matched: str,
+) -> Waypoint | None:
+    """No reachable cell within stop: the success rule decides, never a give-up.
+
+    Cells under the agent's own footprint count as free (it stands there) but are no place
+    to step to: they lie in an obstacle's margin."""
+    s = occ.cell_size
+    xy_near = cells_xy(occ, ap.near)
+    off_foot = np.hypot(xy_near[:, 0] - agent_xy[0], xy_near[:, 1] - agent_xy[1]) > (
+        config.agent_radius + s
+    )
+    closer = (ap.unit_d < here - s) & ap.seen & off_foot
+    if here <= config.success_radius and ap.seen_here and not closer.any():
         reason = (
-            f"{matched}; heading to the nearest navigable cell within "
-            f"{config.stop_distance:.2f} m of it"
-            + (" in clear sight of it" if sight else "")
-            + f"{note}."
+            f"{matched} and is {here:.2f} m away in sight: no navigable cell within "
+            f"{config.stop_distance:.2f} m of it can be reached, and a stop here is "
+            f"within the success radius ({config.success_radius:.2f} m)."
+        )
+        xy = np.array(agent_xy, dtype=float)
+    elif closer.any():
+        k = int(np.argmin(np.where(closer, ap.unit_d + 1e-3 * ap.d, np.inf)))
+        xy = cells_xy(occ, ap.near[k][None])[0]
+        reason = (
+            f"{matched}; no navigable cell within {config.stop_distance:.2f} m of it can "
+            f"be reached: heading to the reachable cell nearest it ({ap.unit_d[k]:.2f} m)."
         )
     else:
-        # No reachable cell within stop: the success rule decides, never a give-up.
-        # Cells under the agent's own footprint count as free (it stands there) but are no
-        # place to step to: they lie in an obstacle's margin.
-        xy_near = _cell_xy(occ, near)
-        off_foot = np.hypot(xy_near[:, 0] - agent_xy[0], xy_near[:, 1] - agent_xy[1]) > (
-            config.agent_radius + s
-        )
-        closer = (unit_d < here - s) & seen & off_foot
-        if here <= config.success_radius and seen_here and not closer.any():
-            reason = (
-                f"{matched} and is {here:.2f} m away in sight: no navigable cell within "
-                f"{config.stop_distance:.2f} m of it can be reached, and a stop here is "
-                f"within the success radius ({config.success_radius:.2f} m)."
-            )
-            xy = np.array(agent_xy, dtype=float)
-        elif closer.any():
-            k = int(np.argmin(np.where(closer, unit_d + 1e-3 * d, np.inf)))
-            xy = _cell_xy(occ, near[k][None])[0]
-            reason = (
-                f"{matched}; no navigable cell within {config.stop_distance:.2f} m of it can "
-                f"be reached: heading to the reachable cell nearest it ({unit_d[k]:.2f} m)."
-            )
-        else:
-            return None
+        return None
     return Waypoint((float(xy[0]), float(xy[1])), "goal", match.unit_id, match.score, reason)
 
 
@@ -318,7 +231,7 @@ def _usable_frontiers(
     for f in fronts:
         if not math.isfinite(f.distance):
             continue
-        xy = _cell_xy(occ, f.cells)
+        xy = cells_xy(occ, f.cells)
         keep = np.ones(len(xy), dtype=bool)
         for a in avoid:
             keep &= np.hypot(xy[:, 0] - a[0], xy[:, 1] - a[1]) > config.stop_distance
@@ -381,9 +294,9 @@ def _explore_waypoint(
     cells = np.argwhere(traversable)
     if not len(cells):
         return None
-    xy = _cell_xy(occ, cells)
+    xy = cells_xy(occ, cells)
     d = np.hypot(xy[:, 0] - peak[0], xy[:, 1] - peak[1])
-    reach = _distances(occ, cells, agent_xy, distance)
+    reach = path_distances(occ, cells, agent_xy, distance)
     d = np.where(np.isfinite(reach), d, np.inf)
     k = int(np.argmin(d))
     if not math.isfinite(float(d[k])) or any(

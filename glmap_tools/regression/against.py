@@ -81,6 +81,7 @@ def _decision(d: Any, state: Any) -> dict[str, Any]:
 # and the policy's decision touches); everything else is shared with this tree.
 OLD_MODULES = (
     "glmap_tools.map.fusion",
+    "glmap_tools.nav.footprint",
     "glmap_tools.nav.waypoint",
     "glmap_tools.nav.policy",
     "glmap_tools.sqa.situate",
@@ -88,13 +89,13 @@ OLD_MODULES = (
 
 
 def _old_modules(tree: Path) -> dict[str, Any]:
-    """OLD_MODULES as in `tree`, each calling the others' old versions."""
+    """OLD_MODULES as in `tree` (those it has), each calling the others' old versions."""
 
+    paths = {name: tree / (name.replace(".", "/") + ".py") for name in OLD_MODULES}
     old = {
-        name: _module_from(
-            tree / (name.replace(".", "/") + ".py"), "_old_" + name.replace(".", "_")
-        )
-        for name in OLD_MODULES
+        name: _module_from(path, "_old_" + name.replace(".", "_"))
+        for name, path in paths.items()
+        if path.exists()
     }
     for name, module in old.items():  # point names imported from a live module at the old one
         live = importlib.import_module(name)
