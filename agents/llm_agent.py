@@ -24,11 +24,13 @@ from pathlib import Path
 from typing import Any
 
 from agents.objectnav import Play, StepRecord
+from agents.session import AGENT_SIZE, open_session
 from agents.trace import TracedClient
 from glmap_tools.errors import InvalidInputError, did_you_mean
-from glmap_tools.language.llm import LLMClient
+from glmap_tools.language.llm import LLMClient, OllamaClient
 from glmap_tools.language.prompts import PromptSet, default_prompts
 from glmap_tools.language.transcript import Transcript
+from glmap_tools.server import ServerConfig
 
 # What a navigating agent may call; map admin tools (new_map, load_map, export_ply ...)
 # and sim_reset (the runner starts the episode) stay out of its hands.
@@ -281,8 +283,6 @@ async def run_llm_episode(
     `result.json` into `out_dir`. `image_size`: the simulator's images, default the
     agents' 320x240.
     """
-    from agents.runner import AGENT_SIZE
-
     t0 = time.perf_counter()
     out_dir.mkdir(parents=True, exist_ok=True)
     client = TracedClient(client_session, out_dir)
@@ -330,10 +330,6 @@ async def run_llm_episode(
 
 
 async def _main(args: argparse.Namespace) -> int:
-    from agents.runner import open_session
-    from glmap_tools.language.llm import OllamaClient
-    from glmap_tools.server import ServerConfig
-
     llm = OllamaClient(args.model, host=args.ollama_host, vision=args.vision)
     prompts = PromptSet(args.prompts) if args.prompts else None
     config = ServerConfig(embedder=args.embedder, warm_up=False)

@@ -4,8 +4,9 @@
     python -m agents.runner bench/objectnav/s03-017 --agent frontier --server-command glmap-mcp
     python -m agents.runner bench/objectnav/s03-017 --server-url http://127.0.0.1:8765/mcp
 
-`open_session` gives an in-memory client session on `build_server(config)` by default (no
-process, no port), or a session on a stdio server command or a streamable-HTTP URL.
+`open_session` (from `agents.session`) gives an in-memory client session on
+`build_server(config)` by default (no process, no port), or a session on a stdio server
+command or a streamable-HTTP URL.
 `run_episode` resets the simulator on the episode (320x240 images), lets the agent play it,
 and writes `trace.jsonl` (every tool call) and `report.md` / `report.html` into `out_dir`.
 """
@@ -14,11 +15,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import shlex
+import os
 import sys
+import tempfile
 import time
-from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
 
@@ -27,8 +27,13 @@ from pydantic import BaseModel, Field
 from agents.fs import region_scorer, split_agent
 from agents.instnav import agent_for
 from agents.report import write_report
+from agents.session import AGENT_SIZE, open_session
 from agents.trace import TracedClient
 from glmap_tools.errors import InvalidInputError, did_you_mean
+
+# Imports inside functions stay there: the llm-tools agent (asyncio, the LLM client, its
+# prompts), glmap_tools.server and anyio load when an episode or the command runs: `glmap`
+# imports eval.spec, and through it this module, to build its parser.
 
 AGENTS = (
     "glmap",
@@ -56,7 +61,6 @@ LLM_ENV = {
     "perception": "GLMAP_SIM_PERCEPTION",  # the workers' simulator perception (--perception)
 }
 DEFAULT_LLM_MODEL = "qwen3:8b"
-AGENT_SIZE = "320x240"
 
 
 class EpisodeResult(BaseModel):
@@ -94,37 +98,6 @@ def check_agent(agent: str) -> str:
             f"agent {agent!r} is not one of {list(AGENTS)}.{did_you_mean(agent, AGENTS)}"
         )
     return agent
-
-
-@asynccontextmanager
-async def open_session(
-    config: Any = None, *, server_command: str | None = None, server_url: str | None = None
-) -> AsyncIterator[Any]:
-    """An open MCP client session: in memory on `build_server(config)` by default.
-
-    Args:
-        config: a `glmap_tools.server.ServerConfig` for the in-memory server.
-        server_command: a stdio server command line (e.g. 'glmap-mcp --embedder hashing').
-        server_url: a streamable-HTTP URL (e.g. 'http://127.0.0.1:8765/mcp').
-    """
-    from mcp import Client
-
-    if server_command and server_url:
-        raise InvalidInputError("give server_command or server_url, not both.")
-    target: Any
-    if server_command:
-        from mcp.client.stdio import StdioServerParameters
-
-        argv = shlex.split(server_command)
-        target = StdioServerParameters(command=argv[0], args=argv[1:])
-    elif server_url:
-        target = server_url
-    else:
-        from glmap_tools.server import build_server
-
-        target = build_server(config)
-    async with Client(target) as client:
-        yield client
 
 
 async def play_episode(
@@ -227,9 +200,6 @@ async def _run_llm_episode(
     client_session: Any, episode_id: str, seed: int, out_dir: Path | None, max_steps: int
 ) -> EpisodeResult:
     """The llm-tools agent on one episode (model settings from `LLM_ENV`)."""
-    import os
-    import tempfile
-
     from agents.llm_agent import run_llm_episode
     from glmap_tools.language.llm import OllamaClient
     from glmap_tools.language.prompts import PromptSet

@@ -65,18 +65,9 @@ UPWARD: dict[tuple[str, str], str] = {
     ),
 }
 
-# Circles of modules that name each other's types; each to be broken by moving the shared
-# types to where they belong.
-CIRCLES: dict[frozenset[str], str] = {
-    frozenset({"agents.llm_agent", "agents.runner"}): (
-        "the runner starts the LLM agent, which takes the runner's open_session and "
-        "AGENT_SIZE (in-function imports both ways)"
-    ),
-    frozenset({"glmap_tools.sqa.situate", "glmap_tools.sqa.constrain"}): (
-        "constrain takes situate's TIE (in-function) while situate calls constrain; sqa is "
-        "another engineer's this session"
-    ),
-}
+# Circles of modules that import each other, each with its reason (none now): a new one is
+# broken by moving the shared names to where they belong.
+CIRCLES: dict[frozenset[str], str] = {}
 
 
 def module_name(path: Path) -> str:

@@ -22,12 +22,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from glmap_tools.sqa.place import centroid, free_cells, stand_point_near
+from glmap_tools.sqa.situation import TIE
+from glmap_tools.sqa.stand import front_stand_point
+
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
     from glmap_tools.nav.scorers import Scorer, UnitText
     from glmap_tools.sqa.reading import Constraint, SituationReading
-
-# Imports inside functions stay there: circle: sqa.place, sqa.situate, sqa.stand import this module.
 
 SPREAD = {"side": 35.0, "clock": 25.0}  # deg: how far off a stated direction still fits
 NEAR = 2.5  # m: what is "on my left" is this near; farther, its fit fades by e per FADE m
@@ -146,9 +148,6 @@ def constrained_pose(
     within TIE of the best (or, with no anchor, around each facing candidate), headed at
     each facing candidate, or, with nothing faced, at the heading that fits best. The
     pose the earlier rules chose wins exact ties (a bonus of TIE / 10)."""
-    from glmap_tools.sqa.place import centroid
-    from glmap_tools.sqa.situate import TIE
-
     ids = [u.unit_id for u in instances]
     faces = _near_best(p_face) if p_face is not None else []
     stands = _stand_candidates(glmap, ids, p_anchor, faces, anchor_from_facing, backrest)
@@ -190,8 +189,6 @@ def constrained_pose(
 
 def _near_best(p: np.ndarray) -> list[int]:
     """Indices of the scores within TIE of the best, best first (at most MAX_CANDIDATES)."""
-    from glmap_tools.sqa.situate import TIE
-
     order = np.argsort(-p, kind="stable")
     return [int(i) for i in order if p[i] >= float(p.max()) - TIE][:MAX_CANDIDATES]
 
@@ -206,9 +203,6 @@ def _stand_candidates(
 ) -> list[tuple[float, float, int | None]]:
     """(x, y, anchor id) stand points: one at each anchor within TIE of the best, or with
     no anchor, the front of each facing candidate and a ring of free cells around it."""
-    from glmap_tools.sqa.place import centroid, free_cells, stand_point_near
-    from glmap_tools.sqa.stand import front_stand_point
-
     stands: list[tuple[float, float, int | None]] = []
     if p_anchor is not None and not anchor_from_facing:
         for i in _near_best(p_anchor):

@@ -56,7 +56,7 @@ from glmap_tools.sqa.phrases import core_phrase, split_situation
 from glmap_tools.sqa.place import centroid, closest_pair, stand_point_near
 from glmap_tools.sqa.reading import SituationReading, read_situation
 from glmap_tools.sqa.relations import prefer_related, relation_phrases
-from glmap_tools.sqa.situation import ScoredUnit, Situation, top_units
+from glmap_tools.sqa.situation import TIE, ScoredUnit, Situation, top_units
 from glmap_tools.sqa.stand import front_stand_point
 
 if TYPE_CHECKING:
@@ -70,7 +70,6 @@ SIGMA = 0.5  # m: Eq. 7 bandwidth, the nav default (about a person's reach)
 MIN_SCORE = 0.15  # best p below this on both maps: the text matches nothing
 LOW_CONFIDENCE = 0.35  # best p below this: a result, marked low-confidence
 MAX_TEXT = 512
-TIE = 0.05  # scores this close to the best count as equally good
 REGION_MARGIN = 0.1  # a region must beat the best anchor object by this to place the agent
 
 

@@ -1,5 +1,7 @@
 """What `situate` (`glmap_tools.sqa.situate`) returns: where a situation text puts the
-agent (`Situation`) and the units that decided it (`ScoredUnit`)."""
+agent (`Situation`) and the units that decided it (`ScoredUnit`); and `TIE`, how close to
+the best a score counts as equally good, for situate and its constraints
+(`glmap_tools.sqa.constrain`) alike."""
 
 from __future__ import annotations
 
@@ -14,6 +16,8 @@ from glmap_tools.sqa.reading import SituationReading
 if TYPE_CHECKING:
     from glmap_tools.nav.scorers import UnitText
     from glmap_tools.nav.value import ValueMap
+
+TIE = 0.05  # scores this close to the best count as equally good
 
 
 @dataclass(frozen=True)
