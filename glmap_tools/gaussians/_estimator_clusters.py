@@ -252,9 +252,9 @@ def trace_rows(sums: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """[G, 5] additive rows (n, sx, sy, sz, sxx + syy + szz) of the moment rows sums[rows]."""
     out = np.empty((rows.shape[0], 5))
     for i in range(rows.shape[0]):
-        s = sums[rows[i]]
-        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = s[0], s[1], s[2], s[3]
-        out[i, 4] = s[4] + s[7] + s[9]
+        r = rows[i]
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = sums[r, 0], sums[r, 1], sums[r, 2], sums[r, 3]
+        out[i, 4] = sums[r, 4] + sums[r, 7] + sums[r, 9]
     return out
 
 
@@ -275,18 +275,37 @@ def _clusters_range(
         if start[c + 1] - start[c] == 1:
             out[c] = sums[emitted[members[start[c]]]]
             continue
-        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = a10 = a11 = a12 = 0.0
-        for k in range(start[c], start[c + 1]):
+        # The first member's neighbourhood is its `sums` row (summed in the same order from
+        # zero, so the same bits); the others add the neighbours not seen yet.
+        v = emitted[members[start[c]]]
+        for q in range(27):
+            u = neighbours[v, q]
+            if u >= 0:
+                stamp[u] = c
+        a0, a1, a2, a3, a4 = sums[v, 0], sums[v, 1], sums[v, 2], sums[v, 3], sums[v, 4]
+        a5, a6, a7, a8, a9 = sums[v, 5], sums[v, 6], sums[v, 7], sums[v, 8], sums[v, 9]
+        a10, a11, a12 = sums[v, 10], sums[v, 11], sums[v, 12]
+        for k in range(start[c] + 1, start[c + 1]):
             v = emitted[members[k]]
             for q in range(27):
                 u = neighbours[v, q]
                 if u < 0 or stamp[u] == c:
                     continue
                 stamp[u] = c
-                m = moments[u]
-                a0, a1, a2, a3 = a0 + m[0], a1 + m[1], a2 + m[2], a3 + m[3]
-                a4, a5, a6, a7 = a4 + m[4], a5 + m[5], a6 + m[6], a7 + m[7]
-                a8, a9, a10, a11, a12 = a8 + m[8], a9 + m[9], a10 + m[10], a11 + m[11], a12 + m[12]
+                a0, a1, a2, a3 = (
+                    a0 + moments[u, 0],
+                    a1 + moments[u, 1],
+                    a2 + moments[u, 2],
+                    a3 + moments[u, 3],
+                )
+                a4, a5, a6, a7 = (
+                    a4 + moments[u, 4],
+                    a5 + moments[u, 5],
+                    a6 + moments[u, 6],
+                    a7 + moments[u, 7],
+                )
+                a8, a9, a10 = a8 + moments[u, 8], a9 + moments[u, 9], a10 + moments[u, 10]
+                a11, a12 = a11 + moments[u, 11], a12 + moments[u, 12]
         o = out[c]
         o[0], o[1], o[2], o[3], o[4], o[5], o[6] = a0, a1, a2, a3, a4, a5, a6
         o[7], o[8], o[9], o[10], o[11], o[12] = a7, a8, a9, a10, a11, a12

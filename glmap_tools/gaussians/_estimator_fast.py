@@ -10,6 +10,7 @@ import numpy as np
 from glmap_tools.gaussians import _estimator_clusters as clusters
 from glmap_tools.gaussians import _estimator_grid as grid
 from glmap_tools.gaussians import _estimator_numba as kernels
+from glmap_tools.gaussians import _estimator_sweep as sweep
 from glmap_tools.gaussians import _estimator_voxels as voxels
 from glmap_tools.gaussians._estimator_union import union_additive
 from glmap_tools.gaussians.types import GaussianSet
@@ -98,9 +99,6 @@ def sorted_mergeable_pairs(
         [K, 2] int64.
     """
     m_cells = clusters.mean_cells(means, config.candidate_radius)
-    m_block, m_keys, m_table_keys, m_table_ids = grid.blocks_of(m_cells)
-    m_nbrs = grid.block_neighbours(m_keys, m_table_keys, m_table_ids)
-    head, nxt = clusters.cell_lists(m_cells, m_block, len(m_keys))
     params = np.array(
         [
             config.candidate_radius,
@@ -110,10 +108,30 @@ def sorted_mergeable_pairs(
             config.lambda_color,
         ]
     )
-    pi, pj, d = clusters.pairs_by_chunk(
+    keys, ny, nz = sweep.cell_keys(m_cells)
+    if len(keys) == 0 or keys[0] >= 0:
+        pi, pj, d = sweep.sweep_pairs(keys, ny, nz, means, covs, colors, kappa, params)
+    else:  # cell keys would overflow int64 (a cloud of ~2M radii along every axis)
+        pi, pj, d = grid_pairs(m_cells, means, covs, colors, kappa, params, n_chunks)
+    return clusters.sort_pairs(pi, pj, d)
+
+
+def grid_pairs(
+    m_cells: np.ndarray,
+    means: np.ndarray,
+    covs: np.ndarray,
+    colors: np.ndarray,
+    kappa: np.ndarray,
+    params: np.ndarray,
+    n_chunks: int = 1,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mergeable pairs by the hashed block grid (any extent), unordered; see `sweep_pairs`."""
+    m_block, m_keys, m_table_keys, m_table_ids = grid.blocks_of(m_cells)
+    m_nbrs = grid.block_neighbours(m_keys, m_table_keys, m_table_ids)
+    head, nxt = clusters.cell_lists(m_cells, m_block, len(m_keys))
+    return clusters.pairs_by_chunk(
         n_chunks, m_cells, m_block, m_nbrs, head, nxt, means, covs, colors, kappa, params
     )
-    return clusters.sort_pairs(pi, pj, d)
 
 
 def gaussian_rows(g: GaussianSet) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

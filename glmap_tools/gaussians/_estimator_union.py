@@ -22,33 +22,29 @@ def find_root(parent: np.ndarray, i: int) -> int:
 
 
 @numba.njit(cache=True)
-def moments_trace(m: np.ndarray, epsilon: float) -> float:
-    """trace(Sigma) (+3 eps) of a moment row (n, s_x, s_y, s_z, q)."""
-    n = m[0]
-    mx, my, mz = m[1] / n, m[2] / n, m[3] / n
-    return m[4] / n - (mx * mx + my * my + mz * mz) + 3.0 * epsilon
-
-
-@numba.njit(cache=True)
 def _union_additive(
     moments: np.ndarray, pairs: np.ndarray, cap_trace: float, epsilon: float
 ) -> np.ndarray:
     n = moments.shape[0]
     parent = np.arange(n)
     acc = moments.copy()
-    row = np.empty(5)
     for k in range(pairs.shape[0]):
         ri = find_root(parent, pairs[k, 0])
         rj = find_root(parent, pairs[k, 1])
         if ri == rj:
             continue
-        for c in range(5):
-            row[c] = acc[ri, c] + acc[rj, c]
-        if moments_trace(row, epsilon) > cap_trace:
+        # The row of the union, as scalars (a row array would be a view per pair).
+        w = acc[ri, 0] + acc[rj, 0]
+        sx = acc[ri, 1] + acc[rj, 1]
+        sy = acc[ri, 2] + acc[rj, 2]
+        sz = acc[ri, 3] + acc[rj, 3]
+        q = acc[ri, 4] + acc[rj, 4]
+        mx, my, mz = sx / w, sy / w, sz / w
+        if q / w - (mx * mx + my * my + mz * mz) + 3.0 * epsilon > cap_trace:
             continue
         root, other = (ri, rj) if ri < rj else (rj, ri)
         parent[other] = root
-        acc[root] = row
+        acc[root, 0], acc[root, 1], acc[root, 2], acc[root, 3], acc[root, 4] = w, sx, sy, sz, q
     labels = np.empty(n, dtype=np.int64)
     for i in range(n):
         labels[i] = find_root(parent, i)

@@ -1,0 +1,67 @@
+"""The estimator's fast merge: the sorted sweep finds the same pairs as the hashed grid."""
+
+import numpy as np
+import pytest
+
+from glmap_tools.gaussians import _estimator_clusters as clusters
+from glmap_tools.gaussians import _estimator_sweep as sweep
+from glmap_tools.gaussians._estimator_fast import gaussian_rows, grid_pairs
+from glmap_tools.gaussians.estimator import EstimatorConfig
+from glmap_tools.gaussians.types import GaussianSet
+
+CONFIG = EstimatorConfig()
+
+
+def clustered_set(n: int, seed: int, duplicates: int = 0) -> GaussianSet:
+    """n flat random Gaussians within a few voxels of each other, `duplicates` of them twice."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(n, 3, 3)) * np.array([0.012, 0.012, 0.002])
+    means = rng.uniform(0, 0.12, (n, 3)) * [1, 1, 0.3] + [0.5, 0.4, 0.3]
+    covs = a @ a.transpose(0, 2, 1) + 1e-6 * np.eye(3)
+    colors = rng.uniform(0.47, 0.53, (n, 3))
+    pick = rng.choice(n, duplicates, replace=False)
+    return GaussianSet(
+        means=np.concatenate([means, means[pick]]),
+        covs=np.concatenate([covs, covs[pick]]),
+        colors=np.concatenate([colors, colors[pick]]),
+        opacities=np.full(n + duplicates, 0.8),
+        counts=np.ones(n + duplicates),
+    )
+
+
+def sweep_and_grid(g: GaussianSet) -> tuple[np.ndarray, np.ndarray]:
+    means, covs, colors, kappa = gaussian_rows(g)
+    params = np.array(
+        [CONFIG.candidate_radius, CONFIG.voxel_size, CONFIG.tau, CONFIG.lambda_cov,
+         CONFIG.lambda_color]
+    )  # fmt: skip
+    cells = clusters.mean_cells(means, CONFIG.candidate_radius)
+    keys, ny, nz = sweep.cell_keys(cells)
+    assert keys.min() >= 0
+    by_sweep = clusters.sort_pairs(
+        *sweep.sweep_pairs(keys, ny, nz, means, covs, colors, kappa, params)
+    )
+    by_grid = clusters.sort_pairs(*grid_pairs(cells, means, covs, colors, kappa, params))
+    return by_sweep, by_grid
+
+
+@pytest.mark.parametrize("n", [1, 2, 40, 600])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_sweep_and_the_grid_find_the_same_pairs_in_the_same_order(n, seed):
+    by_sweep, by_grid = sweep_and_grid(clustered_set(n, seed, duplicates=n // 4))
+    np.testing.assert_array_equal(by_sweep, by_grid)
+    if n >= 40:
+        assert len(by_sweep) > n  # the set is dense enough that many pairs merge
+
+
+def test_the_radix_order_is_a_stable_argsort():
+    rng = np.random.default_rng(3)
+    keys = rng.integers(0, 1 << 40, 5000)
+    keys[::3] = keys[0]  # many ties
+    np.testing.assert_array_equal(sweep.radix_order(keys), np.argsort(keys, kind="stable"))
+
+
+def test_cell_keys_refuse_extents_that_would_overflow():
+    cells = np.array([[1, 1, 1], [1 << 21, 1 << 21, 1 << 21]], dtype=np.int64)
+    keys, _, _ = sweep.cell_keys(cells)
+    assert (keys == -1).all()
