@@ -19,7 +19,9 @@ PACKAGES = ("glmap_tools", "agents")
 # Packages on one line share a layer and do not import each other.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors",),
-    ("glmap_tools", "lazy", "atomic", "cli_format"),  # glmap_tools: the root's __version__
+    # glmap_tools: the root's __version__; orphans, ray_cluster: the worker processes and the
+    # Ray connection that batch builds (ingest) and evaluations (eval) share
+    ("glmap_tools", "lazy", "atomic", "cli_format", "orphans", "ray_cluster"),
     ("geometry",),
     ("gaussians",),
     ("language",),
@@ -52,13 +54,10 @@ UPWARD: dict[tuple[str, str], str] = {
         "under sim"
     ),
     ("glmap_tools.sqa.diagnose", "glmap_tools.eval.sqa"): (
-        "the SQA diagnosis reuses the evaluation's scene answering: a report that belongs in eval"
+        "the SQA diagnosis reuses the evaluation's scene answering (its maps, its embedder): a "
+        "report that belongs in eval, kept in sqa because `python -m glmap_tools.sqa.diagnose` "
+        "is the command docs/evaluation.md gives"
     ),
-    ("glmap_tools.ingest.batch", "glmap_tools.eval.ray_engine"): (
-        "batch builds run on the evaluation's Ray engine: the engine belongs below both"
-    ),
-    ("glmap_tools.ingest.engines", "glmap_tools.eval.ray_engine"): "as above",
-    ("glmap_tools.ingest.engines", "glmap_tools.eval.orphans"): "as above",
     ("glmap_tools.server.demo", "agents.runner"): (
         "`glmap demo` plays a scripted agent against the server: a command of the agents' "
         "layer that lives with the server"

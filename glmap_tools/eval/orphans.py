@@ -1,36 +1,7 @@
-"""Worker processes that exit with their parent (issue 27 item 5).
-
-`glmap eval` plays episodes in spawned worker processes (workers.run_local) and answers SQA
-scenes in a process pool (sqa.py). Killing the parent (SIGTERM, SIGKILL, a closed terminal)
-ran no cleanup, and a worker kept playing for 11 minutes. `exit_with_parent()`, called first
-thing in a worker (or as a pool's `initializer`), starts a daemon thread that waits on the
-parent's sentinel and ends the worker at once when the parent is gone, whatever killed it.
-"""
+"""Worker processes that exit with their parent: `glmap_tools.orphans`, below both
+`eval` and `ingest`, which use it; its names stay importable from here."""
 
 from __future__ import annotations
 
-import multiprocessing
-import os
-import threading
-from multiprocessing.connection import wait
-
-ORPHAN_EXIT_CODE = 70  # what a worker exits with when its parent went away first
-
-
-def exit_with_parent() -> bool:
-    """In a multiprocessing child: exit (os._exit) as soon as the parent process is gone.
-
-    Returns:
-        Whether a watchdog was started (False outside a multiprocessing child).
-    """
-    parent = multiprocessing.parent_process()
-    if parent is None or parent.sentinel is None:
-        return False
-    sentinel = parent.sentinel
-
-    def watch() -> None:
-        wait([sentinel])  # readable (EOF) once the parent's end of the pipe closes: it died
-        os._exit(ORPHAN_EXIT_CODE)
-
-    threading.Thread(target=watch, name="glmap-exit-with-parent", daemon=True).start()
-    return True
+from glmap_tools.orphans import ORPHAN_EXIT_CODE as ORPHAN_EXIT_CODE
+from glmap_tools.orphans import exit_with_parent as exit_with_parent

@@ -33,8 +33,8 @@ from typing import Any
 import numpy as np
 
 from glmap_tools.errors import GLMapError, InvalidInputError, did_you_mean
-from glmap_tools.eval.orphans import exit_with_parent
 from glmap_tools.eval.sqa_table import reading_ok, summarize, summarize_forms
+from glmap_tools.orphans import exit_with_parent
 
 # Imports inside functions stay there: cv2, gaussians, gymnasium, language.embed, numba, pyrender,
 # scipy, sim.episodes, skfmm, tqdm, trimesh, worlds.scene_dirs load on first use: `glmap` imports

@@ -24,8 +24,8 @@ from pathlib import Path
 from typing import Any
 
 from agents.runner import DEFAULT_LLM_MODEL, LLM_ENV, open_session, run_episode
-from glmap_tools.eval.orphans import exit_with_parent
 from glmap_tools.language.backends import LLMSettings
+from glmap_tools.orphans import exit_with_parent
 from glmap_tools.server import ServerConfig
 
 SCORER_USED = "scorer_used"  # the f_S a worker's server scored with, in its records

@@ -18,7 +18,6 @@ from pathlib import Path
 
 from glmap_tools.atomic import write_atomic
 from glmap_tools.errors import InvalidInputError, StoreError
-from glmap_tools.eval.ray_engine import _import_ray, resolve_address
 from glmap_tools.ingest.build import BuildSettings, check_settings
 from glmap_tools.ingest.engines import ScanTask, run_local, run_ray
 from glmap_tools.ingest.scans import Scan, find_scans, map_path, stale_files
@@ -30,6 +29,7 @@ from glmap_tools.ingest.summary import (
     skipped_row,
     summary_json,
 )
+from glmap_tools.ray_cluster import import_ray, resolve_address
 
 # Imports inside functions stay there: tqdm load on first use: `glmap` imports every command module
 # to build its parser.
@@ -157,7 +157,7 @@ def build_many(
     if ray_address is not None:
         resolve_address(ray_address)  # a malformed address fails here, before any write
         if todo:
-            _import_ray()
+            import_ray()
     rows = _skipped_rows(scans, todo, out, summary_path, echo)
     removed = _remove_stale_files(out, todo, echo)
     tasks = _scan_tasks(todo, out, settings, overwrite, workers, ray_address)

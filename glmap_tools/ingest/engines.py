@@ -5,7 +5,7 @@ worker with `max_calls=1`): its peak memory is its own, its memory is returned w
 ends, and a crash (killed for memory, a segfault) fails that scan alone. A scan's failure
 comes back as a row, not an exception. Frame progress travels back through a shared
 counter (local) or a small counter actor (Ray). Local workers exit when the driver does
-(`eval.orphans.exit_with_parent`).
+(`glmap_tools.orphans.exit_with_parent`).
 """
 
 from __future__ import annotations
@@ -21,10 +21,10 @@ from multiprocessing.connection import wait
 from pathlib import Path
 from typing import Any
 
-from glmap_tools.eval.orphans import exit_with_parent
-from glmap_tools.eval.ray_engine import connect
 from glmap_tools.ingest.build import BuildSettings, cpu_seconds
 from glmap_tools.ingest.summary import ScanResult
+from glmap_tools.orphans import exit_with_parent
+from glmap_tools.ray_cluster import connect
 
 # Imports inside functions stay there: numba load on first use: `glmap` imports every command module
 # to build its parser; optional: ray.
