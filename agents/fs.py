@@ -30,6 +30,10 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError
 
+# Imports inside functions stay there: the split's layouts (gymnasium), nav's scorer and the
+# MiniLM embedder load only for the scorers that read them (oracle-room, embedding), not
+# for a client playing with recorded scores or none.
+
 FS_SOURCES = ("oracle-room", "embedding", "recorded")
 RECORDED_ENV = "GLMAP_FS_RECORDED"
 

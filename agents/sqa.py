@@ -32,6 +32,10 @@ from glmap_tools.sqa.mllm_answer import (  # noqa: F401  (the agent's names sinc
     mllm_answer,
 )
 
+# Imports inside functions stay there: the server, the runner's session and the Ollama client
+# load only when the agent runs as a command (`_main`), not when its answer functions are
+# imported.
+
 
 @dataclass(frozen=True)
 class AgentAnswer:

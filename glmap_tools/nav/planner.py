@@ -20,6 +20,7 @@ from glmap_tools.map.occupancy import DenseOccupancy
 from glmap_tools.nav.config import NavConfig
 from glmap_tools.nav.errors import UnreachableGoalError
 from glmap_tools.nav.grid import agent_rc
+from glmap_tools.nav.motion import clearance, drive, masks
 
 # Dijkstra-8 / true length lies in [1, DIJKSTRA8_MAX_RATIO] for a straight, free path.
 DIJKSTRA8_MAX_RATIO = math.cos(math.pi / 8) + (math.sqrt(2) - 1) * math.sin(math.pi / 8)
@@ -244,8 +245,6 @@ def plan_on_field(
     `nav.motion.masks` for the agent, when the caller has them already. The agent has
     arrived (action 'stop') within `arrive` metres of the end (default half a step).
     """
-    from glmap_tools.nav.motion import clearance, drive, masks
-
     goal_rc = occ.world_to_index(float(goal_xy[0]), float(goal_xy[1]))
     h, w = field.metres.shape
     inside = 0 <= goal_rc[0] < h and 0 <= goal_rc[1] < w
@@ -297,8 +296,6 @@ def agent_field(
     clear: np.ndarray | None = None,
 ) -> DistanceField:
     """FMM geodesic cost from the agent over the plannable cells of `occ`."""
-    from glmap_tools.nav.motion import clearance, masks
-
     rc = agent_rc(occ, agent_xy)
     clear = clearance(occ) if clear is None else clear
     _, ok, speed = masks(occ, clear, rc, config)
@@ -331,8 +328,6 @@ def plan(
         UnreachableGoalError: `strict` and no path leads to the goal (names the nearest
             reachable point).
     """
-    from glmap_tools.nav.motion import clearance
-
     config = config or NavConfig()
     agent_rc(occ, goal_xy, "goal")
     clear = clearance(occ)
