@@ -7,16 +7,17 @@ entries ahead in a tile's list, whose rows lie scattered in memory.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
+from typing import Any, cast
 
+import numpy as np
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
 
-@intrinsic
-def prefetch_row(typingctx: Any, array: Any, row: Any) -> Any:
+def _prefetch_row(typingctx: Any, array: Any, row: Any) -> Any:
     """Prefetch the first element of array[row] (array: 2D numba array, row: integer)."""
     if not (isinstance(array, types.Array) and array.ndim == 2 and isinstance(row, types.Integer)):
         return None
@@ -46,3 +47,7 @@ def prefetch_row(typingctx: Any, array: Any, row: Any) -> Any:
         return context.get_dummy_value()
 
     return sig, codegen
+
+
+# Typed for callers (numba calls the intrinsic as prefetch_row(array, row)).
+prefetch_row = cast("Callable[[np.ndarray, int], None]", intrinsic(_prefetch_row))

@@ -109,8 +109,8 @@ def _live_rows(
     rects: np.ndarray, g: int, ty0: int, ty1: int, row_left: np.ndarray
 ) -> tuple[int, int]:
     """The rows of Gaussian g's footprint in the tile between its first and last live row."""
-    y_lo = max(np.int64(rects[g, 2]), ty0)
-    y_hi = min(np.int64(rects[g, 3]), ty1)
+    y_lo = max(int(rects[g, 2]), ty0)
+    y_hi = min(int(rects[g, 3]), ty1)
     while y_lo <= y_hi and row_left[y_lo - ty0] == 0:
         y_lo += 1
     while y_hi >= y_lo and row_left[y_hi - ty0] == 0:
@@ -313,11 +313,11 @@ def _rasterize_tile(
         y_lo, y_hi = _live_rows(rects, g, ty0, ty1, row_left)
         if y_lo > y_hi:
             continue
-        x0 = np.int64(rects[g, 0])
+        x0 = int(rects[g, 0])
         u = x0 + np.float64(params[g, DU])
-        v = np.int64(rects[g, 2]) + np.float64(params[g, DV])
+        v = int(rects[g, 2]) + np.float64(params[g, DV])
         x_lo = max(x0, tx0)
-        x_hi = min(np.int64(rects[g, 1]), tx1)
+        x_hi = min(int(rects[g, 1]), tx1)
         if params[g, OPACITY] > 0.0:
             n_done += _splat_compact(
                 params, g, u, v, x_lo, x_hi, y_lo, y_hi, tx0, ty0, tile_w, state, row_left,
