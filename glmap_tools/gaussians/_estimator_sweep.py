@@ -73,6 +73,23 @@ def radix_order(keys: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def _key_runs(keys: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """(run keys, run starts, run count): run r holds order[start[r]:start[r + 1]]."""
+    g = keys.shape[0]
+    run_key = np.empty(g, dtype=np.int64)
+    start = np.empty(g + 1, dtype=np.int64)
+    n_runs = 0
+    for s in range(g):
+        k = keys[order[s]]
+        if n_runs == 0 or k != run_key[n_runs - 1]:
+            run_key[n_runs] = k
+            start[n_runs] = s
+            n_runs += 1
+    start[n_runs] = g
+    return run_key, start, n_runs
+
+
+@numba.njit(cache=True)
 def sweep_pairs(
     keys: np.ndarray,
     ny: int,
@@ -94,17 +111,7 @@ def sweep_pairs(
     """
     g = keys.shape[0]
     order = radix_order(keys)
-    # Runs of equal keys: run r holds order[start[r]:start[r + 1]].
-    run_key = np.empty(g, dtype=np.int64)
-    start = np.empty(g + 1, dtype=np.int64)
-    n_runs = 0
-    for s in range(g):
-        k = keys[order[s]]
-        if n_runs == 0 or k != run_key[n_runs - 1]:
-            run_key[n_runs] = k
-            start[n_runs] = s
-            n_runs += 1
-    start[n_runs] = g
+    run_key, start, n_runs = _key_runs(keys, order)
     near = np.empty((g, 3))  # the means in key order, read in order by the sweep
     for s in range(g):
         for a in range(3):

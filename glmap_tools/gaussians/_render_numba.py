@@ -27,6 +27,7 @@ from glmap_tools.gaussians._render_common import (
     SIGMA_EXTENT,
     T_MIN,
     TILE,
+    CameraSetup,
     camera_setup,
 )
 from glmap_tools.gaussians._render_layout import (
@@ -253,6 +254,32 @@ def scatter_stride(n: int) -> int:
     return stride
 
 
+def _project(
+    gaussians: GaussianSet,
+    cam: CameraSetup,
+    k: Intrinsics,
+    near: float,
+    far: float,
+    tile_w: int,
+    tile_h: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """`project_kernel` over a set: (params, spans, depth, rects, tiles, valid)."""
+    n = len(gaussians)
+    params = np.empty((n, N_PARAMS), dtype=np.float32)
+    spans = np.empty((n, N_SPAN), dtype=np.float32)
+    z = np.empty(n, dtype=np.float64)
+    rects = np.empty((n, 4), dtype=np.int16)
+    tiles = np.empty((n, 4), dtype=np.int16)
+    valid = np.empty(n, dtype=np.bool_)
+    camera = np.array([k.fx, k.fy, k.cx, k.cy, *cam.tan_lo, *cam.tan_hi], dtype=np.float64)
+    project_kernel(
+        gaussians.means, gaussians.covs, gaussians.colors, gaussians.opacities, cam.rotation,
+        cam.translation, camera, k.width, k.height, near, far, LOW_PASS, ALPHA_MIN,
+        SIGMA_EXTENT, tile_w, tile_h, params, spans, z, rects, tiles, valid,
+    )  # fmt: skip
+    return params, spans, z, rects, tiles, valid
+
+
 def render_fast(
     gaussians: GaussianSet,
     pose: Pose,
@@ -274,40 +301,11 @@ def render_fast(
     cam = camera_setup(pose, intrinsics)
     k = intrinsics
     w, h = int(k.width), int(k.height)
-    n = len(gaussians)
     tile_w, tile_h = tile
     tiles_x = (w + tile_w - 1) // tile_w
     n_tiles = tiles_x * ((h + tile_h - 1) // tile_h)
-    params = np.empty((n, N_PARAMS), dtype=np.float32)
-    spans = np.empty((n, N_SPAN), dtype=np.float32)
-    z = np.empty(n, dtype=np.float64)
-    rects = np.empty((n, 4), dtype=np.int16)
-    tiles = np.empty((n, 4), dtype=np.int16)
-    valid = np.empty(n, dtype=np.bool_)
-    camera = np.array([k.fx, k.fy, k.cx, k.cy, *cam.tan_lo, *cam.tan_hi], dtype=np.float64)
-    project_kernel(
-        gaussians.means,
-        gaussians.covs,
-        gaussians.colors,
-        gaussians.opacities,
-        cam.rotation,
-        cam.translation,
-        camera,
-        w,
-        h,
-        float(near),
-        float(far),
-        LOW_PASS,
-        ALPHA_MIN,
-        SIGMA_EXTENT,
-        tile_w,
-        tile_h,
-        params,
-        spans,
-        z,
-        rects,
-        tiles,
-        valid,
+    params, spans, z, rects, tiles, valid = _project(
+        gaussians, cam, k, float(near), float(far), tile_w, tile_h
     )
     clock.lap("project")
     order = depth_order_kernel(valid, z)
