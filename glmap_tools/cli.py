@@ -8,6 +8,7 @@ import sys
 
 from glmap_tools.cli_format import show_defaults
 from glmap_tools.errors import GLMapError
+from glmap_tools.launch_env import set_thread_defaults
 
 # Each module provides `register(subparsers)`, adding its subcommand(s) with a `func`.
 COMMAND_MODULES = [
@@ -30,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    set_thread_defaults()
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

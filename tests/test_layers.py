@@ -20,8 +20,9 @@ PACKAGES = ("glmap_tools", "agents")
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors",),
     # glmap_tools: the root's __version__; orphans, ray_cluster: the worker processes and the
-    # Ray connection that batch builds (ingest) and evaluations (eval) share
-    ("glmap_tools", "lazy", "atomic", "cli_format", "orphans", "ray_cluster"),
+    # Ray connection that batch builds (ingest) and evaluations (eval) share; launch_env: what
+    # every launcher sets first
+    ("glmap_tools", "lazy", "atomic", "cli_format", "orphans", "ray_cluster", "launch_env"),
     ("geometry",),
     ("gaussians",),
     ("language",),

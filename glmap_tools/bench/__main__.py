@@ -8,9 +8,11 @@ import sys
 
 import glmap_tools.bench as bench_pkg
 from glmap_tools.errors import did_you_mean
+from glmap_tools.launch_env import set_thread_defaults
 
 
 def main(argv: list[str] | None = None) -> int:
+    set_thread_defaults()
     argv = list(sys.argv[1:] if argv is None else argv)
     names = sorted(m.name for m in pkgutil.iter_modules(bench_pkg.__path__) if m.name[0] != "_")
     if not argv or argv[0] in ("-h", "--help"):

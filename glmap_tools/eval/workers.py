@@ -25,6 +25,7 @@ from typing import Any
 
 from agents.runner import DEFAULT_LLM_MODEL, LLM_ENV, open_session, run_episode
 from glmap_tools.language.backends import LLMSettings
+from glmap_tools.launch_env import set_thread_defaults
 from glmap_tools.orphans import exit_with_parent
 from glmap_tools.server import ServerConfig
 
@@ -62,6 +63,7 @@ class Outcome:
 
 
 def _prepare_process(compute_threads: int) -> None:
+    set_thread_defaults()
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     os.environ.setdefault("HF_HUB_OFFLINE", "1")
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):

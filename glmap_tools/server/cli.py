@@ -28,6 +28,7 @@ from glmap_tools.app.config import (
 )
 from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.language.backends import add_llm_arguments, settings_from_args
+from glmap_tools.launch_env import set_thread_defaults
 from glmap_tools.map import MapConfig
 
 # Imports inside functions stay there: anyio, cv2, gaussians, gymnasium, h11, mcp, numba, scipy,
@@ -373,6 +374,7 @@ def prepare() -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    set_thread_defaults()
     args = build_parser().parse_args(argv)
 
     logging.basicConfig(level=args.log_level, stream=sys.stderr)
