@@ -223,6 +223,104 @@ def psnr_table(points: np.ndarray, colors: np.ndarray, voxel: float) -> None:
         print(f"{cap!s:>16} {len(g):>10} {psnr:>8.2f}")
 
 
+def _synthetic_rows(
+    points: np.ndarray, colors: np.ndarray, report: Report, repeats: int
+) -> np.ndarray:
+    """The synthetic frame's rows (fast vs reference, merged counts, a 50k-point
+    instance) and their checks; the instance's point indices."""
+    window = (np.arange(180, 300)[:, None] * 640 + np.arange(240, 400)[None, :]).ravel()
+    inst = instance_window(points)
+    inst_points, inst_colors = points[inst], colors[inst]
+    print(
+        f"\n{'voxel':>6} {'voxels':>7} {'fast ms/frame':>14} {'ref ms/frame*':>14} {'ratio':>6} "
+        f"{'G unmerged':>10} {'G merged':>9} {'B/G':>4} {'ms/50k inst':>12} {'G inst':>7}"
+    )
+    frame_ms: dict[float, float] = {}  # voxel -> median ms per frame
+    instance_ms: dict[float, float] = {}  # voxel -> median ms per 50k-point instance
+    for voxel in (0.015, 0.02):
+        cfg = EstimatorConfig(voxel_size=voxel)
+        fast = GaussianEstimator(cfg)
+        merged = fast.fit(points, colors)
+        unmerged = GaussianEstimator(replace(cfg, merge=False)).fit(points, colors)
+        n_voxels = len(np.unique(np.floor(points / voxel).astype(np.int64), axis=0))
+        fast_ms = _times_ms(lambda f=fast: f.fit(points, colors), repeats)
+        reference = GaussianEstimator(cfg, backend="reference")
+        ref_ms = _times_ms(lambda r=reference: r.fit(points[window], colors[window]), 1)[0]
+        ref_frame_ms = ref_ms * len(points) / len(window)
+        inst_ms = _times_ms(lambda f=fast: f.fit(inst_points, inst_colors), repeats)
+        n_inst = len(fast.fit(inst_points, inst_colors))
+        frame_ms[voxel], instance_ms[voxel] = fast_ms[1], inst_ms[1]
+        print(
+            f"{voxel * 100:>4.1f}cm {n_voxels:>7} {fast_ms[0]:>6.1f} /{fast_ms[1]:>6.1f} "
+            f"{ref_frame_ms:>14.0f} {ref_frame_ms / fast_ms[1]:>5.0f}x {len(unmerged):>10} "
+            f"{len(merged):>9} {merged.nbytes / max(len(merged), 1):>4.0f} "
+            f"{inst_ms[0]:>5.2f} /{inst_ms[1]:>5.2f} {n_inst:>7}"
+        )
+    print(
+        f"fast: min / median of {repeats} runs. * reference: one run on the central "
+        f"160x120-pixel window ({len(window)} points), extrapolated by point count."
+    )
+    report.check("fit of a 640x480 frame at 1.5 cm, median", frame_ms[0.015], "<=", 40.0, "ms")
+    for voxel, ms in instance_ms.items():
+        name = f"fit of a 50k-point instance at {voxel * 100:.1f} cm, median"
+        report.check(name, ms, "<=", 5.0, "ms")
+
+    return inst
+
+
+def _remerge_row(points: np.ndarray, colors: np.ndarray, inst: np.ndarray, repeats: int) -> None:
+    """Remerge of the instance fitted in two frames of the same view."""
+    cfg = EstimatorConfig(voxel_size=0.02)
+    again, again_colors = synthetic_frame(seed=1)  # the same view, colour noise re-drawn
+    both = GaussianSet.concat(
+        [
+            GaussianEstimator(cfg).fit(p[inst], c[inst])
+            for p, c in ((points, colors), (again, again_colors))
+        ]
+    )
+    remerge_ms = _times_ms(lambda: remerge(both, cfg), repeats)
+    print(
+        f"\nremerge of the instance fitted in two frames (2 cm): {len(both)} -> "
+        f"{len(remerge(both, cfg))} Gaussians, {remerge_ms[0]:.2f} / {remerge_ms[1]:.2f} ms"
+    )
+
+
+def _redwood_rows(report: Report, repeats: int) -> None:
+    """Redwood frame 0 at 1.5 and 2 cm, and the ratio against the reference estimator."""
+    real = redwood_frame()
+    if real is not None:
+        for voxel in (0.015, 0.02):
+            cfg = EstimatorConfig(voxel_size=voxel)
+            fast = GaussianEstimator(cfg)
+            real_ms = _times_ms(lambda f=fast: f.fit(*real), repeats)
+            unmerged = GaussianEstimator(replace(cfg, merge=False)).fit(*real)
+            print(
+                f"Redwood living room frame 0 ({len(real[0])} points) at {voxel * 100:.1f} cm: "
+                f"{real_ms[0]:.1f} / {real_ms[1]:.1f} ms, {len(unmerged)} -> "
+                f"{len(fast.fit(*real))} Gaussians"
+            )
+            if voxel == 0.015:
+                name = "fit of Redwood frame 0 at 1.5 cm (merged), median"
+                report.check(name, real_ms[1], "<=", REDWOOD_TARGET_MS, "ms")
+        ratios = reference_ratios(*real, 0.015, repeats)
+        print(
+            f"\nRedwood frame 0 at 1.5 cm against the reference estimator (same cloud, process "
+            f"CPU ms, numba threads {numba.get_num_threads()}):"
+        )
+        for merge, (fit_ms, reference_ms) in ratios.items():
+            label = "fit + merge" if merge else "fit alone  "
+            print(
+                f"  {label}  fast {fit_ms:7.2f}  reference {reference_ms:8.0f}  "
+                f"{reference_ms / fit_ms:5.0f}x"
+            )
+        merged_ms, unmerged_ms = ratios[True][0], ratios[False][0]
+        print(
+            f"  the merge adds {merged_ms - unmerged_ms:.2f} ms to the fit's {unmerged_ms:.2f} ms"
+        )
+        name = "fit + merge of Redwood frame 0 at 1.5 cm vs the reference estimator"
+        report.check(name, ratios[True][1] / merged_ms, ">=", REFERENCE_RATIO_TARGET, "x")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m glmap_tools.bench estimator", formatter_class=HelpWithDefaults
@@ -252,89 +350,9 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_cold:
         print(f"cold compile (fresh process, empty numba cache): {_cold_compile_seconds():.1f} s")
 
-    window = (np.arange(180, 300)[:, None] * 640 + np.arange(240, 400)[None, :]).ravel()
-    inst = instance_window(points)
-    inst_points, inst_colors = points[inst], colors[inst]
-    print(
-        f"\n{'voxel':>6} {'voxels':>7} {'fast ms/frame':>14} {'ref ms/frame*':>14} {'ratio':>6} "
-        f"{'G unmerged':>10} {'G merged':>9} {'B/G':>4} {'ms/50k inst':>12} {'G inst':>7}"
-    )
-    frame_ms: dict[float, float] = {}  # voxel -> median ms per frame
-    instance_ms: dict[float, float] = {}  # voxel -> median ms per 50k-point instance
-    for voxel in (0.015, 0.02):
-        cfg = EstimatorConfig(voxel_size=voxel)
-        fast = GaussianEstimator(cfg)
-        merged = fast.fit(points, colors)
-        unmerged = GaussianEstimator(replace(cfg, merge=False)).fit(points, colors)
-        n_voxels = len(np.unique(np.floor(points / voxel).astype(np.int64), axis=0))
-        fast_ms = _times_ms(lambda f=fast: f.fit(points, colors), args.repeats)
-        reference = GaussianEstimator(cfg, backend="reference")
-        ref_ms = _times_ms(lambda r=reference: r.fit(points[window], colors[window]), 1)[0]
-        ref_frame_ms = ref_ms * len(points) / len(window)
-        inst_ms = _times_ms(lambda f=fast: f.fit(inst_points, inst_colors), args.repeats)
-        n_inst = len(fast.fit(inst_points, inst_colors))
-        frame_ms[voxel], instance_ms[voxel] = fast_ms[1], inst_ms[1]
-        print(
-            f"{voxel * 100:>4.1f}cm {n_voxels:>7} {fast_ms[0]:>6.1f} /{fast_ms[1]:>6.1f} "
-            f"{ref_frame_ms:>14.0f} {ref_frame_ms / fast_ms[1]:>5.0f}x {len(unmerged):>10} "
-            f"{len(merged):>9} {merged.nbytes / max(len(merged), 1):>4.0f} "
-            f"{inst_ms[0]:>5.2f} /{inst_ms[1]:>5.2f} {n_inst:>7}"
-        )
-    print(
-        f"fast: min / median of {args.repeats} runs. * reference: one run on the central "
-        f"160x120-pixel window ({len(window)} points), extrapolated by point count."
-    )
-    report.check("fit of a 640x480 frame at 1.5 cm, median", frame_ms[0.015], "<=", 40.0, "ms")
-    for voxel, ms in instance_ms.items():
-        name = f"fit of a 50k-point instance at {voxel * 100:.1f} cm, median"
-        report.check(name, ms, "<=", 5.0, "ms")
-
-    cfg = EstimatorConfig(voxel_size=0.02)
-    again, again_colors = synthetic_frame(seed=1)  # the same view, colour noise re-drawn
-    both = GaussianSet.concat(
-        [
-            GaussianEstimator(cfg).fit(p[inst], c[inst])
-            for p, c in ((points, colors), (again, again_colors))
-        ]
-    )
-    remerge_ms = _times_ms(lambda: remerge(both, cfg), args.repeats)
-    print(
-        f"\nremerge of the instance fitted in two frames (2 cm): {len(both)} -> "
-        f"{len(remerge(both, cfg))} Gaussians, {remerge_ms[0]:.2f} / {remerge_ms[1]:.2f} ms"
-    )
-
-    real = redwood_frame()
-    if real is not None:
-        for voxel in (0.015, 0.02):
-            cfg = EstimatorConfig(voxel_size=voxel)
-            fast = GaussianEstimator(cfg)
-            real_ms = _times_ms(lambda f=fast: f.fit(*real), args.repeats)
-            unmerged = GaussianEstimator(replace(cfg, merge=False)).fit(*real)
-            print(
-                f"Redwood living room frame 0 ({len(real[0])} points) at {voxel * 100:.1f} cm: "
-                f"{real_ms[0]:.1f} / {real_ms[1]:.1f} ms, {len(unmerged)} -> "
-                f"{len(fast.fit(*real))} Gaussians"
-            )
-            if voxel == 0.015:
-                name = "fit of Redwood frame 0 at 1.5 cm (merged), median"
-                report.check(name, real_ms[1], "<=", REDWOOD_TARGET_MS, "ms")
-        ratios = reference_ratios(*real, 0.015, args.repeats)
-        print(
-            f"\nRedwood frame 0 at 1.5 cm against the reference estimator (same cloud, process "
-            f"CPU ms, numba threads {numba.get_num_threads()}):"
-        )
-        for merge, (fit_ms, reference_ms) in ratios.items():
-            label = "fit + merge" if merge else "fit alone  "
-            print(
-                f"  {label}  fast {fit_ms:7.2f}  reference {reference_ms:8.0f}  "
-                f"{reference_ms / fit_ms:5.0f}x"
-            )
-        merged_ms, unmerged_ms = ratios[True][0], ratios[False][0]
-        print(
-            f"  the merge adds {merged_ms - unmerged_ms:.2f} ms to the fit's {unmerged_ms:.2f} ms"
-        )
-        name = "fit + merge of Redwood frame 0 at 1.5 cm vs the reference estimator"
-        report.check(name, ratios[True][1] / merged_ms, ">=", REFERENCE_RATIO_TARGET, "x")
+    inst = _synthetic_rows(points, colors, report, args.repeats)
+    _remerge_row(points, colors, inst, args.repeats)
+    _redwood_rows(report, args.repeats)
     if args.psnr:
         psnr_table(*synthetic_frame(noise=0.0), 0.02)
     return report.finish()
