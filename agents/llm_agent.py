@@ -170,7 +170,8 @@ class LLMToolAgent:
         self.transcript.write(
             "note", event="episode_start", goal=start.get("goal"), prompt=system.ref
         )
-        status, steps, nudges = start, [], 0
+        steps: list[StepRecord] = []
+        status, nudges = start, 0
         while status.get("status") == "running":
             reason = self.budget.spent()
             if reason:
@@ -206,32 +207,45 @@ class LLMToolAgent:
                 )
                 continue
             nudges = 0
-            for call in reply.tool_calls:
-                content, images, new_status = await self._call(client, call.name, call.arguments)
-                messages.append(
-                    {
-                        "role": "tool",
-                        "tool_name": call.name,
-                        "content": content,
-                        "images": images if (images and self.llm.vision) else None,
-                    }
-                )
-                if new_status is not None:
-                    status = new_status
-                    steps.append(
-                        StepRecord(
-                            int(status["steps"]),
-                            call.name,
-                            list(status.get("position", [0.0, 0.0])),
-                            float(status.get("heading_deg", 0.0)),
-                            reason=json.dumps(call.arguments)[:200],
-                            call=len(client.records),
-                        )
-                    )
-                if status.get("status") != "running":
-                    break
+            status = await self._answer_calls(client, reply.tool_calls, messages, steps, status)
         self.transcript.write("note", event="episode_end", status=status)
         return Play(start, status, steps)
+
+    async def _answer_calls(
+        self,
+        client: TracedClient,
+        calls: Sequence[Any],
+        messages: list[dict[str, Any]],
+        steps: list[StepRecord],
+        status: dict[str, Any],
+    ) -> dict[str, Any]:
+        """Make the model's tool calls in order, each result a `tool` message; a call that
+        moved the agent adds a step. Stops at the call that ends the episode; the status."""
+        for call in calls:
+            content, images, new_status = await self._call(client, call.name, call.arguments)
+            messages.append(
+                {
+                    "role": "tool",
+                    "tool_name": call.name,
+                    "content": content,
+                    "images": images if (images and self.llm.vision) else None,
+                }
+            )
+            if new_status is not None:
+                status = new_status
+                steps.append(
+                    StepRecord(
+                        int(status["steps"]),
+                        call.name,
+                        list(status.get("position", [0.0, 0.0])),
+                        float(status.get("heading_deg", 0.0)),
+                        reason=json.dumps(call.arguments)[:200],
+                        call=len(client.records),
+                    )
+                )
+            if status.get("status") != "running":
+                break
+        return status
 
     async def _call(
         self, client: TracedClient, name: str, arguments: dict[str, Any]
