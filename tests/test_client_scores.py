@@ -81,6 +81,7 @@ def test_a_goal_match_reads_the_client_scores_through_the_policy_s_detector():
 
     class Map:
         grid = Grid()
+        instances: dict = {}  # no Gaussians: a match's footprint is its grid cells
 
     units = [UnitText(1, "instance", "a chair", observations=3, label="chair")]
     units.append(UnitText(2, "instance", "a fridge", observations=3, label="fridge"))
