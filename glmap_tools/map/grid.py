@@ -38,6 +38,15 @@ def gaussian_cells(
     """
     if len(means) == 0:
         return np.zeros((0, 2), dtype=np.int64)
+    ij, _ = gaussian_cell_owners(means, covs, cell_size, k)
+    return cells_of_points((ij + 0.5) * cell_size, cell_size)
+
+
+def gaussian_cell_owners(
+    means: np.ndarray, covs: np.ndarray, cell_size: float, k: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every (cell, Gaussian) pair of the footprints (mean +- k sigma) in x-y: cells [M, 2]
+    int64 (repeated where footprints overlap) and the index of the Gaussian of each [M]."""
     xy = np.asarray(means, dtype=np.float64)[:, :2]
     sigma = np.sqrt(np.maximum(np.asarray(covs, dtype=np.float64)[:, [0, 1], [0, 1]], 0.0))
     lo = np.floor((xy - k * sigma) / cell_size).astype(np.int64)
@@ -46,10 +55,8 @@ def gaussian_cells(
     per = nx * ny
     owner = np.repeat(np.arange(len(xy)), per)
     local = np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per)
-    i = lo[owner, 0] + local % nx[owner]
-    j = lo[owner, 1] + local // nx[owner]
-    centres = (np.stack([i, j], axis=1) + 0.5) * cell_size
-    return cells_of_points(centres, cell_size)
+    ij = np.stack([lo[owner, 0] + local % nx[owner], lo[owner, 1] + local // nx[owner]], axis=1)
+    return ij, owner
 
 
 def unit_cells(gaussians: GaussianSet, cell_size: float) -> frozenset[Cell]:

@@ -21,7 +21,7 @@ import numpy as np
 from scipy import ndimage
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.map.grid import IndexGrid
+from glmap_tools.map.grid import IndexGrid, gaussian_cell_owners
 from glmap_tools.map.occupancy import DenseOccupancy
 from glmap_tools.nav.grid import Window
 
@@ -146,16 +146,8 @@ def unit_core_cells(glmap: GLMap, unit_id: int, share: float) -> np.ndarray:
     if share >= 1.0 or unit is None or len(unit.gaussians) == 0 or len(cells) == 0:
         return cells
     g = unit.gaussians
-    size = glmap.grid.cell_size
-    xy = np.asarray(g.means, dtype=np.float64)[:, :2]
-    sigma = np.sqrt(np.maximum(np.asarray(g.covs, dtype=np.float64)[:, [0, 1], [0, 1]], 0.0))
-    lo = np.floor((xy - sigma) / size).astype(np.int64)
-    hi = np.floor((xy + sigma) / size).astype(np.int64)
-    nx, ny = hi[:, 0] - lo[:, 0] + 1, hi[:, 1] - lo[:, 1] + 1
-    per = nx * ny
-    owner = np.repeat(np.arange(len(xy)), per)
-    local = np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per)
-    ij = np.stack([lo[owner, 0] + local % nx[owner], lo[owner, 1] + local // nx[owner]], axis=1)
+    ij, owner = gaussian_cell_owners(g.means, g.covs, glmap.grid.cell_size)
+    per = np.bincount(owner, minlength=len(g))  # cells per Gaussian
     mass = (np.asarray(g.counts, dtype=np.float64) / per)[owner]
     keys, inverse = np.unique(ij, axis=0, return_inverse=True)
     density = np.bincount(inverse.ravel(), weights=mass, minlength=len(keys))
