@@ -149,12 +149,16 @@ class Drive:
         turns: signed turns to the chosen heading (+ = left; 0 = the heading faced).
         open: whether the chosen heading's step is open (False: no heading is; boxed in).
         gain: T where the agent stands less T where the chosen step lands (> 0: progress).
+        wanted: when the agent backs off (no step the body fits makes progress), the
+            heading of the step that would make the most progress: the way the plan goes
+            that the body cannot take from here; None otherwise.
     """
 
     action: str
     turns: int
     open: bool
     gain: float
+    wanted: float | None = None
 
 
 def drive(
@@ -189,7 +193,7 @@ def drive(
     better = landing < t0 - 1e-9 if math.isfinite(t0) else np.isfinite(landing)
     # Safe steps that make progress; else steps the body fits that do (a tight doorway);
     # else the least bad step the body fits (back off); else nothing is open.
-    for usable in (safe & better, body & better, body):
+    for tier, usable in enumerate((safe & better, body & better, body)):
         if usable.any():
             break
     else:
@@ -197,9 +201,12 @@ def drive(
     k = int(np.flatnonzero(usable)[np.argmin(cost[usable])])
     turns = int(ks[k])
     gain = t0 - float(landing[k]) if math.isfinite(t0) else 0.0
+    wanted = None
+    if tier == 2 and better.any():
+        wanted = float(headings[int(np.flatnonzero(better)[np.argmin(cost[better])])])
     if turns == 0:
-        return Drive("move_forward", 0, True, gain)
-    return Drive("turn_left" if turns > 0 else "turn_right", turns, True, gain)
+        return Drive("move_forward", 0, True, gain, wanted)
+    return Drive("turn_left" if turns > 0 else "turn_right", turns, True, gain, wanted)
 
 
 def bump_cells(

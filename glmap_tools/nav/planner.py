@@ -215,6 +215,8 @@ class Plan:
             reachable point, see `goal_xy`).
         goal_xy: (x, y) the path ends at.
         boxed: no heading offers an open step (`nav.motion.drive`).
+        back_off: the heading the path leaves by when the body cannot take it from here
+            and the agent backs off (`Drive.wanted`); None otherwise.
     """
 
     path: np.ndarray  # [K, 2]
@@ -223,6 +225,7 @@ class Plan:
     reachable: bool
     goal_xy: tuple[float, float]
     boxed: bool = False
+    back_off: float | None = None
 
 
 def plan_on_field(
@@ -277,7 +280,9 @@ def plan_on_field(
     if math.dist(agent_xy, end_xy) <= (config.forward_step / 2 if arrive is None else arrive):
         return Plan(path, length, "stop", reachable, end_xy)
     step = drive(occ, clear, to_go, agent_xy, heading, config)
-    return Plan(path, length, step.action, reachable, end_xy, boxed=not step.open)
+    return Plan(
+        path, length, step.action, reachable, end_xy, boxed=not step.open, back_off=step.wanted
+    )
 
 
 def nearest_finite(field: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] | None:

@@ -27,7 +27,7 @@ from glmap_tools.nav.config import NavConfig, check_policy
 from glmap_tools.nav.egocentric import EgocentricValueMap
 from glmap_tools.nav.footprint import GoalMatch
 from glmap_tools.nav.frontiers import Frontier
-from glmap_tools.nav.motion import marks_near
+from glmap_tools.nav.motion import bump_cells, marks_near
 from glmap_tools.nav.perceive import (
     FORGET_NEAR,
     SHORT_MOVE,
@@ -104,11 +104,13 @@ def surroundings(
 
 @dataclass(frozen=True)
 class Scored:
-    """The map's units scored against the goal, and the goal match among them."""
+    """The map's units scored against the goal, the goal match among them, and the
+    instances ruled out as goals (given up, unfit, or outvoted at their place)."""
 
     units: list[UnitText]
     by_id: dict[int, float]
     match: GoalMatch | None
+    ruled_out: frozenset[int] = frozenset()
 
 
 def _checked_pose(agent_xy: tuple[float, float], heading: float) -> tuple[float, float]:
@@ -147,7 +149,8 @@ def _score_units(
     views the map fused (`nav/verify.py`): an outvoted candidate gives way to the next."""
     units = map_units(glmap, "instances" if policy not in ("glmap", "glmap-region") else "both")
     scores = scorer.score(goal, units) if units else np.zeros(0)
-    skip = set(unfit_goals(glmap)) if units else set()
+    unfit = set(unfit_goals(glmap)) if units else set()
+    skip = set(unfit)
     match = find_goal_match(glmap, units, scores, rejected | skip, config, scorer, goal, prefer)
     while (
         policy in POLICY_UNITS
@@ -157,7 +160,18 @@ def _score_units(
         skip.add(match.unit_id)
         match = find_goal_match(glmap, units, scores, rejected | skip, config, scorer, goal, prefer)
     by_id = {u.unit_id: float(v) for u, v in zip(units, scores, strict=True)}
-    return Scored(units, by_id, match)
+    ruled_out = set(rejected) | unfit
+    if policy in POLICY_UNITS:
+        least = config.min_instance_score
+        ruled_out |= {
+            u.unit_id
+            for u in units
+            if u.kind == "instance"
+            and by_id[u.unit_id] >= least
+            and u.unit_id not in ruled_out
+            and outvoted(glmap, u.unit_id)
+        }
+    return Scored(units, by_id, match, frozenset(ruled_out))
 
 
 # The share of looks that must have seen a match; the one the agent already heads for keeps
@@ -185,10 +199,13 @@ def _unit_value_map(
     missed: dict[int, int],
 ) -> ValueMap:
     """Eq. 7 over the units the policy keeps, each above its kind's least score; an
-    instance's f_S is weighted by the share of the looks at it that saw it."""
+    instance's f_S is weighted by the share of the looks at it that saw it, and is 0 for
+    an instance ruled out as a goal (`Scored.ruled_out`)."""
     keep = UNIT_KINDS[POLICY_UNITS[policy]]
     least = {"instance": config.min_instance_score, "region": config.min_region_score}
-    by_id = dict(scored.by_id)
+    # An instance ruled out as a goal draws nothing: a 9 cm "tv stand" or one outvoted by a
+    # cabinet at its place kept the maximum of H for 400 steps (house-tune s01-000).
+    by_id = {uid: (0.0 if uid in scored.ruled_out else s) for uid, s in scored.by_id.items()}
     for u in scored.units:
         if u.kind == "instance" and u.unit_id in missed:
             by_id[u.unit_id] *= seen_share(u.observations, missed[u.unit_id])
@@ -330,6 +347,11 @@ def decide(
             state.last_waypoint, state.turns_in_place, tuple(state.avoid),
         )  # fmt: skip
         choice, sur, blocked = _choose(glmap, request, blocked)
+        if choice.plan.back_off is not None:
+            # The plan leads where the body does not fit: mark it as a bump would, or the
+            # agent steps back and the same plan brings it here again (house-tune s01-000:
+            # 250 steps between two cells).
+            blocked = blocked | set(bump_cells(sur.occ, xy, choice.plan.back_off, config))
 
     # Act, and remember.
     _remember(state, choice, blocked, xy, heading, config)
