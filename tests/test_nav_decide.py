@@ -28,6 +28,7 @@ from glmap_tools.nav.footprint import GoalMatch, distance_to_cells
 from glmap_tools.nav.grid import structure_walls
 from glmap_tools.nav.policy import approach
 from glmap_tools.nav.value import unit_cell_array
+from glmap_tools.nav.verify import outvoted
 
 TEXTS = {
     1: ("chair", "a red chair with a wooden frame"),
@@ -353,3 +354,36 @@ def test_approach_to_a_point_counts_one_step_away_as_arrived(built: GLMap) -> No
     going = approach(built, (0.0, 0.0), 0.0, (1.0, 0.0), NavState(), config)
     assert there.arrived and there.action == "stop"
     assert not going.arrived and going.action == "move_forward" and going.aim == (1.0, 0.0)
+
+
+def test_an_instance_ruled_out_as_a_goal_draws_nothing_in_the_value_map(built: GLMap) -> None:
+    """A unit the agent gave up (or one too small or too high to be a goal, or outvoted at
+    its place) keeps no pull: a 9 cm false "tv stand" kept the maximum of H for 400 steps
+    (house-tune s01-000)."""
+    chairs = {i for i, u in built.instances.items() if u.label == "chair"}  # parts included
+    config = replace(CONFIG, stop_threshold=1.0)  # no match: the value map leads
+    kw = {"policy": "glmap-instance", "config": config}  # no region holds the chair's cells
+    free = decide(built, (0.0, 0.0), 0.0, "a red chair", state=NavState(), **kw)
+    assert free.value is not None and free.value.value_at(1.2, 1.3) > 0.5
+    ruled = decide(built, (0.0, 0.0), 0.0, "a red chair", state=NavState(rejected_units=chairs), **kw)
+    assert ruled.value is not None and ruled.value.value_at(1.2, 1.3) < 0.05
+
+
+def test_an_instance_outvoted_at_its_place_draws_nothing_in_the_value_map() -> None:
+    """The detector called the chair a stool in six views and a chair in two: the "chair"
+    unit is outvoted and does not draw the search for a chair."""
+    boxes = scenes.floor(6.0) + walls() + scenes.chair(1.2, 1.3, object_id=1)
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    for k in range(8):
+        a = math.atan2(1.3, 1.2) + (k - 3.5) * 0.08
+        eye = (0.0, 0.0, 0.88)
+        frame, ids = scenes.view(boxes, eye, (math.cos(a), math.sin(a), 0.88), 96, 72)
+        texts = {1: ("chair", "a red chair") if k in (3, 4) else ("stool", "a wooden stool")}
+        glmap.integrate(frame, scenes.semantics(ids, texts))
+    labels = sorted(u.label for u in glmap.instances.values())
+    assert labels == ["chair", "stool"], labels
+    chair = next(i for i, u in glmap.instances.items() if u.label == "chair")
+    assert outvoted(glmap, chair)
+    config = replace(CONFIG, stop_threshold=1.0)
+    d = decide(glmap, (0.0, 0.0), 0.0, "a red chair", policy="glmap-instance", config=config)
+    assert d.value is None or d.value.value_at(1.2, 1.3) < 0.05
