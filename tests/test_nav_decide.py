@@ -365,7 +365,9 @@ def test_an_instance_ruled_out_as_a_goal_draws_nothing_in_the_value_map(built: G
     kw = {"policy": "glmap-instance", "config": config}  # no region holds the chair's cells
     free = decide(built, (0.0, 0.0), 0.0, "a red chair", state=NavState(), **kw)
     assert free.value is not None and free.value.value_at(1.2, 1.3) > 0.5
-    ruled = decide(built, (0.0, 0.0), 0.0, "a red chair", state=NavState(rejected_units=chairs), **kw)
+    ruled = decide(
+        built, (0.0, 0.0), 0.0, "a red chair", state=NavState(rejected_units=chairs), **kw
+    )
     assert ruled.value is not None and ruled.value.value_at(1.2, 1.3) < 0.05
 
 

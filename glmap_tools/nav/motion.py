@@ -193,11 +193,11 @@ def drive(
     better = landing < t0 - 1e-9 if math.isfinite(t0) else np.isfinite(landing)
     # Safe steps that make progress; else steps the body fits that do (a tight doorway);
     # else the least bad step the body fits (back off); else nothing is open.
-    for tier, usable in enumerate((safe & better, body & better, body)):
-        if usable.any():
-            break
-    else:
+    tiers = (safe & better, body & better, body)
+    tier = next((t for t, usable in enumerate(tiers) if usable.any()), None)
+    if tier is None:
         return Drive("turn_left", 1, False, 0.0)
+    usable = tiers[tier]
     k = int(np.flatnonzero(usable)[np.argmin(cost[usable])])
     turns = int(ks[k])
     gain = t0 - float(landing[k]) if math.isfinite(t0) else 0.0
