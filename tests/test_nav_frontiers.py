@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
@@ -19,6 +20,7 @@ from glmap_tools.nav import (
 )
 from glmap_tools.nav.footprint import distances_to_cells
 from glmap_tools.nav.planner import agent_field
+from glmap_tools.nav.value import gaussian_kernel_1d
 
 CELL = 0.05
 RADIUS = 0.18
@@ -105,10 +107,13 @@ def two_door_room() -> DenseOccupancy:
     return DenseOccupancy(state, occ.origin, CELL)
 
 
-def value_peak_at(occ: DenseOccupancy, row: int, col: int) -> ValueMap:
+def value_peak_at(occ: DenseOccupancy, row: int, col: int, sigma: float = 0.5) -> ValueMap:
+    """Eq. 7's map of one unit on one cell: the kernel K_sigma around it, peak 1."""
     values = np.zeros(occ.state.shape)
     values[row, col] = 1.0
-    return ValueMap(values, occ.origin, CELL, 1.0, 0.5)
+    k = gaussian_kernel_1d(sigma / CELL)
+    values = ndimage.convolve1d(ndimage.convolve1d(values, k, 0, mode="constant"), k, 1)
+    return ValueMap(values / values.max(), occ.origin, CELL, 1.0, sigma)
 
 
 def test_the_waypoint_is_the_frontier_closest_to_the_value_maximum() -> None:
@@ -133,6 +138,26 @@ def test_the_waypoint_is_the_frontier_closest_to_the_value_maximum() -> None:
     blocked = [f if f.cells[0, 0] != 50 else _unreachable(f) for f in fronts]
     wp = choose_waypoint(top, blocked, trav, here, None, config, occ=occ, distance=field)
     assert occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]
+
+
+def test_a_value_maximum_that_reaches_no_frontier_leaves_the_nearest_frontier_to_lead() -> None:
+    """H is 0 beyond the kernel's reach (3 sigma = 1.5 m) of every unit: a frontier there
+    is no closer to the goal for being closer to the peak, so the nearest one leads."""
+    occ = two_door_room()
+    here = occ.index_to_world(35, 40)  # nearer the right door
+    config = NavConfig()
+    field = agent_field(occ, here, config).metres
+    fronts = frontiers(occ, here, RADIUS, min_size=3, distance_field=field)
+    trav = traversable(occ, RADIUS)
+    far = value_peak_at(occ, 5, 5)  # below the room's corner, 2.25 m from either doorway
+    assert not (far.values[50, 11:31] > 0).any() and not (far.values[20:40, 50] > 0).any()
+    wp = choose_waypoint(far, fronts, trav, here, None, config, occ=occ, distance=field)
+    assert wp.kind == "frontier" and occ.world_to_index(*wp.xy)[1] == 50  # type: ignore[misc]
+    assert "reaches none" in wp.reason
+    # A wider kernel reaches both: the paper's rule again (the top door is the closer).
+    wide = value_peak_at(occ, 5, 5, sigma=1.0)
+    wp = choose_waypoint(wide, fronts, trav, here, None, config, occ=occ, distance=field)
+    assert occ.world_to_index(*wp.xy)[0] == 50  # type: ignore[misc]
 
 
 def _unreachable(f):  # type: ignore[no-untyped-def]

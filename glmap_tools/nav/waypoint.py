@@ -245,13 +245,21 @@ def _frontier_waypoint(
     value: ValueMap | None,
     peak: tuple[float, float] | None,
 ) -> Waypoint | None:
-    """The usable frontier cell closest to the value-map maximum `peak` (the paper's rule),
-    or, with no peak, the nearest frontier's cell closest to its target."""
+    """The usable frontier cell closest to the value-map maximum `peak` (the paper's rule)
+    among the frontiers an Eq. 7 map reaches (H > 0 on a cell of theirs); with no peak, or
+    a peak whose map reaches no frontier, the nearest frontier's cell closest to its target.
+
+    H is 0 beyond the kernel's reach (`TRUNCATE` sigma) of every scored unit: a frontier
+    there is "closest to the peak" by metres the map says nothing about (house-tune
+    s01-000: frontiers 5-10 m from a TV drew the agent back and forth across the house)."""
     if not usable:
         return None
-    if peak is not None:
+    reached = usable
+    if value is not None and value.sigma > 0:  # Eq. 7's map; the egocentric one is not smoothed
+        reached = [(f, xy) for f, xy in usable if _reaches(value, xy)]
+    if peak is not None and reached:
         best = None
-        for f, xy in usable:
+        for f, xy in reached:
             d = np.hypot(xy[:, 0] - peak[0], xy[:, 1] - peak[1])
             k = int(np.argmin(d))
             key = (float(d[k]), f.distance)
@@ -268,6 +276,8 @@ def _frontier_waypoint(
             f"({peak[0]:.2f}, {peak[1]:.2f}).",
         )
     why = "." if value is None else "; the value map is empty."
+    if peak is not None:
+        why = f"; the value map (maximum at ({peak[0]:.2f}, {peak[1]:.2f})) reaches none."
     f, xy = min(usable, key=lambda fx: (fx[0].distance, -fx[0].size))
     k = int(np.argmin(np.hypot(xy[:, 0] - f.target[0], xy[:, 1] - f.target[1])))
     return Waypoint(
@@ -277,6 +287,15 @@ def _frontier_waypoint(
         0.0,
         f"nearest frontier ({f.distance:.2f} m, {f.size} cells){why}",
     )
+
+
+def _reaches(value: ValueMap, xy: np.ndarray) -> bool:
+    """Whether H > 0 at one of the world points `xy` [K, 2]."""
+    r = np.floor(xy[:, 1] / value.cell_size).astype(np.int64) - value.origin[1]
+    c = np.floor(xy[:, 0] / value.cell_size).astype(np.int64) - value.origin[0]
+    h, w = value.values.shape
+    inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+    return bool((value.values[r[inside], c[inside]] > 0).any())
 
 
 def _explore_waypoint(
