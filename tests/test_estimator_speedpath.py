@@ -29,7 +29,9 @@ def clustered_set(n: int, seed: int, duplicates: int = 0) -> GaussianSet:
     )
 
 
-def sweep_and_grid(g: GaussianSet) -> tuple[np.ndarray, np.ndarray]:
+def sweep_and_grid(
+    g: GaussianSet, buffer: int = sweep.PAIR_BUFFER
+) -> tuple[np.ndarray, np.ndarray]:
     means, covs, colors, kappa = gaussian_rows(g)
     params = np.array(
         [CONFIG.candidate_radius, CONFIG.voxel_size, CONFIG.tau, CONFIG.lambda_cov,
@@ -39,7 +41,7 @@ def sweep_and_grid(g: GaussianSet) -> tuple[np.ndarray, np.ndarray]:
     keys, ny, nz = sweep.cell_keys(cells)
     assert keys.min() >= 0
     by_sweep = clusters.sort_pairs(
-        *sweep.sweep_pairs(keys, ny, nz, means, covs, colors, kappa, params)
+        *sweep.sweep_pairs(keys, ny, nz, means, covs, colors, kappa, params, buffer)
     )
     by_grid = clusters.sort_pairs(*grid_pairs(cells, means, covs, colors, kappa, params))
     return by_sweep, by_grid
@@ -52,6 +54,42 @@ def test_the_sweep_and_the_grid_find_the_same_pairs_in_the_same_order(n, seed):
     np.testing.assert_array_equal(by_sweep, by_grid)
     if n >= 40:
         assert len(by_sweep) > n  # the set is dense enough that many pairs merge
+
+
+@pytest.mark.parametrize("buffer", [1, 7, 64])
+def test_the_sweep_finds_the_same_pairs_whatever_its_buffer_holds(buffer):
+    # 120 copies of one Gaussian share a cell: one run meets far more pairs than the buffer
+    g = clustered_set(300, 4, duplicates=60)
+    g = GaussianSet.concat([g, *[GaussianSet(
+        g.means[:1], g.covs[:1], g.colors[:1], g.opacities[:1], g.counts[:1]
+    )] * 120])  # fmt: skip
+    by_sweep, by_grid = sweep_and_grid(g, buffer)
+    np.testing.assert_array_equal(by_sweep, by_grid)
+    assert len(by_sweep) > 120 * 119 // 2
+
+
+def test_the_sweep_computes_each_pairs_d_to_the_bit():
+    # the merge's tolerance is zero: D and the mergeable test are those of pair_distance
+    means, covs, colors, kappa = gaussian_rows(clustered_set(600, 6, duplicates=30))
+    params = np.array(
+        [CONFIG.candidate_radius, CONFIG.voxel_size, CONFIG.tau, CONFIG.lambda_cov,
+         CONFIG.lambda_color]
+    )  # fmt: skip
+    keys, ny, nz = sweep.cell_keys(clusters.mean_cells(means, CONFIG.candidate_radius))
+    pi, pj, d = sweep.sweep_pairs(keys, ny, nz, means, covs, colors, kappa, params, 64)
+    assert len(d) > 600
+    expected = [
+        clusters.pair_distance(means, covs, colors, i, j, CONFIG.lambda_cov, CONFIG.lambda_color)
+        for i, j in zip(pi.tolist(), pj.tolist(), strict=True)
+    ]
+    np.testing.assert_array_equal(d, expected)
+
+
+def test_the_radius_test_without_a_square_root_is_the_one_with_it():
+    rng = np.random.default_rng(5)
+    for radius in (0.01, 0.015, 0.02, 0.1, 1e-3, *rng.uniform(1e-3, 0.1, 200)):
+        bound = sweep.sqrt_bound(radius)
+        assert np.sqrt(bound) <= radius < np.sqrt(np.nextafter(bound, np.inf))
 
 
 def test_the_radix_order_is_a_stable_argsort():

@@ -266,6 +266,7 @@ def _clusters_range(
     members: np.ndarray,
     emitted: np.ndarray,
     neighbours: np.ndarray,
+    n_neighbours: np.ndarray,
     sums: np.ndarray,
     moments: np.ndarray,
     out: np.ndarray,
@@ -278,34 +279,23 @@ def _clusters_range(
         # The first member's neighbourhood is its `sums` row (summed in the same order from
         # zero, so the same bits); the others add the neighbours not seen yet.
         v = emitted[members[start[c]]]
-        for q in range(27):
-            u = neighbours[v, q]
-            if u >= 0:
-                stamp[u] = c
+        for q in range(n_neighbours[v]):
+            stamp[neighbours[v, q]] = c
         a0, a1, a2, a3, a4 = sums[v, 0], sums[v, 1], sums[v, 2], sums[v, 3], sums[v, 4]
         a5, a6, a7, a8, a9 = sums[v, 5], sums[v, 6], sums[v, 7], sums[v, 8], sums[v, 9]
         a10, a11, a12 = sums[v, 10], sums[v, 11], sums[v, 12]
         for k in range(start[c] + 1, start[c + 1]):
             v = emitted[members[k]]
-            for q in range(27):
+            for q in range(n_neighbours[v]):
                 u = neighbours[v, q]
-                if u < 0 or stamp[u] == c:
+                if stamp[u] == c:
                     continue
                 stamp[u] = c
-                a0, a1, a2, a3 = (
-                    a0 + moments[u, 0],
-                    a1 + moments[u, 1],
-                    a2 + moments[u, 2],
-                    a3 + moments[u, 3],
-                )
-                a4, a5, a6, a7 = (
-                    a4 + moments[u, 4],
-                    a5 + moments[u, 5],
-                    a6 + moments[u, 6],
-                    a7 + moments[u, 7],
-                )
-                a8, a9, a10 = a8 + moments[u, 8], a9 + moments[u, 9], a10 + moments[u, 10]
-                a11, a12 = a11 + moments[u, 11], a12 + moments[u, 12]
+                m = moments[u]
+                a0, a1, a2, a3 = a0 + m[0], a1 + m[1], a2 + m[2], a3 + m[3]
+                a4, a5, a6, a7 = a4 + m[4], a5 + m[5], a6 + m[6], a7 + m[7]
+                a8, a9, a10 = a8 + m[8], a9 + m[9], a10 + m[10]
+                a11, a12 = a11 + m[11], a12 + m[12]
         o = out[c]
         o[0], o[1], o[2], o[3], o[4], o[5], o[6] = a0, a1, a2, a3, a4, a5, a6
         o[7], o[8], o[9], o[10], o[11], o[12] = a7, a8, a9, a10, a11, a12
@@ -318,6 +308,7 @@ def _clusters_parallel(
     members: np.ndarray,
     emitted: np.ndarray,
     neighbours: np.ndarray,
+    n_neighbours: np.ndarray,
     sums: np.ndarray,
     moments: np.ndarray,
     out: np.ndarray,
@@ -326,7 +317,7 @@ def _clusters_parallel(
     for chunk in numba.prange(n_chunks):
         _clusters_range(
             chunk * n_clusters // n_chunks, (chunk + 1) * n_clusters // n_chunks, start,
-            members, emitted, neighbours, sums, moments, out,
+            members, emitted, neighbours, n_neighbours, sums, moments, out,
         )  # fmt: skip
 
 
@@ -335,6 +326,7 @@ def cluster_moments(
     labels: np.ndarray,
     emitted: np.ndarray,
     neighbours: np.ndarray,
+    n_neighbours: np.ndarray,
     sums: np.ndarray,
     moments: np.ndarray,
     n_chunks: int,
@@ -345,7 +337,8 @@ def cluster_moments(
         labels: [G] smallest member of each Gaussian's cluster; clusters are output in
             increasing label order.
         emitted: [G] voxel of each Gaussian.
-        neighbours: [V, 27] occupied neighbour voxels of each voxel (-1 = empty).
+        neighbours: [V, 27] occupied neighbour voxels of each voxel, in neighbours[v, :n[v]].
+        n_neighbours: [V] their number.
         sums: [V, 13] each voxel's neighbourhood moments (used for singletons).
         moments: [V, 13] each voxel's own moments.
         n_chunks: parallel work items.
@@ -370,7 +363,11 @@ def cluster_moments(
         fill[c] += 1
     out = np.empty((n_clusters, N_MOMENTS))
     if n_chunks == 1:
-        _clusters_range(0, n_clusters, start, members, emitted, neighbours, sums, moments, out)
+        _clusters_range(
+            0, n_clusters, start, members, emitted, neighbours, n_neighbours, sums, moments, out
+        )
     else:
-        _clusters_parallel(n_chunks, start, members, emitted, neighbours, sums, moments, out)
+        _clusters_parallel(
+            n_chunks, start, members, emitted, neighbours, n_neighbours, sums, moments, out
+        )
     return out

@@ -4,9 +4,12 @@ The means' cells (side = candidate radius) get mixed-radix keys, z fastest, so t
 "forward" neighbour cells of a cell form five key intervals: (x, y, z+1), (x, y+1, z-1..z+1)
 and (x+1, y-1..y+1, z-1..z+1). With the Gaussians in key order (a stable radix sort) and
 one cursor per interval that only moves forward, every pair within one cell of each other is
-met once, reading memory in order. The pairs, their D and the mergeable test are those of
-the grid search in `_estimator_clusters`; only the order in which they are found differs,
-and `sort_pairs` orders them by (D, i, j) afterwards.
+met once, reading memory in order. The means and D's other inputs are copied into key order
+first. The pairs within the radius are gathered into a buffer without a branch on the test
+(`sqrt(d2) <= radius` as `d2 <=` the largest such d2), and D and the mergeable test then run
+over the buffer, again without a branch. The pairs, their D and the mergeable test are those
+of the grid search in `_estimator_clusters` (same bits); only the order in which they are
+found differs, and `sort_pairs` orders them by (D, i, j) afterwards.
 """
 
 from __future__ import annotations
@@ -16,10 +19,9 @@ import math
 import numba
 import numpy as np
 
-from glmap_tools.gaussians._estimator_clusters import pair_distance
-
 RADIX_BITS = 11
 MAX_KEY = 1 << 62  # cells x * y * z must stay below this for the mixed-radix keys
+PAIR_BUFFER = 4096  # pairs within the radius gathered before D is computed for them
 
 
 @numba.njit(cache=True)
@@ -90,6 +92,163 @@ def _key_runs(keys: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 @numba.njit(cache=True)
+def sqrt_bound(radius: float) -> float:
+    """The largest x >= 0 with sqrt(x) <= radius in float64: `sqrt(x) <= radius` is `x <= it`."""
+    x = radius * radius
+    while math.sqrt(x) > radius:
+        x = np.nextafter(x, -np.inf)
+    while math.sqrt(np.nextafter(x, np.inf)) <= radius:
+        x = np.nextafter(x, np.inf)
+    return x
+
+
+@numba.njit(cache=True)
+def _packed(
+    order: np.ndarray, means: np.ndarray, covs: np.ndarray, colors: np.ndarray, kappa: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The means [G, 3] and the rest of D's inputs [G, 11] (covariance row, colour, kappa,
+    index), in key order, so the sweep reads memory in order."""
+    g = order.shape[0]
+    near = np.empty((g, 3))
+    rest = np.empty((g, 11))
+    for s in range(g):
+        o = order[s]
+        for a in range(3):
+            near[s, a] = means[o, a]
+            rest[s, 6 + a] = colors[o, a]
+        for a in range(6):
+            rest[s, a] = covs[o, a]
+        rest[s, 9] = kappa[o]
+        rest[s, 10] = o
+    return near, rest
+
+
+@numba.njit(cache=True)
+def _mergeable(
+    near: np.ndarray,
+    rest: np.ndarray,
+    buf: np.ndarray,
+    n_buf: int,
+    params: np.ndarray,
+    out_i: np.ndarray,
+    out_j: np.ndarray,
+    out_d: np.ndarray,
+    found: int,
+) -> int:
+    """Append the mergeable ones of the n_buf near pairs buf[:, :n_buf] (key positions) to
+    out_* from `found` (room for all n_buf assumed); returns the new count."""
+    voxel, tau, lc, lk = params[1], params[2], params[3], params[4]
+    for q in range(n_buf):  # no branches: every pair is written, the count moves if it merges
+        s, t = buf[0, q], buf[1, q]
+        ex = near[s, 0] - near[t, 0]
+        ey = near[s, 1] - near[t, 1]
+        ez = near[s, 2] - near[t, 2]
+        s00 = rest[s, 0] - rest[t, 0]
+        s11 = rest[s, 3] - rest[t, 3]
+        s22 = rest[s, 5] - rest[t, 5]
+        s01 = rest[s, 1] - rest[t, 1]
+        s02 = rest[s, 2] - rest[t, 2]
+        s12 = rest[s, 4] - rest[t, 4]
+        cr = rest[s, 6] - rest[t, 6]
+        cg = rest[s, 7] - rest[t, 7]
+        cb = rest[s, 8] - rest[t, 8]
+        # D and the threshold term by term as `_estimator_clusters.pair_distance` (same bits)
+        d = (
+            math.sqrt(ex**2 + ey**2 + ez**2)
+            + lc * math.sqrt(s00**2 + s11**2 + s22**2 + 2.0 * (s01**2 + s02**2 + s12**2))
+            + lk * math.sqrt(cr**2 + cg**2 + cb**2)
+        )
+        i, j = np.int64(rest[s, 10]), np.int64(rest[t, 10])
+        out_i[found], out_j[found], out_d[found] = min(i, j), max(i, j), d
+        found += d < 2.0 * voxel * (1.0 + tau * (rest[s, 9] + rest[t, 9]))
+    return found
+
+
+@numba.njit(cache=True, inline="always")
+def _gather(
+    near: np.ndarray,
+    sx: float,
+    sy: float,
+    sz: float,
+    s: int,
+    t: int,
+    near_sq: float,
+    buf: np.ndarray,
+    n_buf: int,
+) -> int:
+    ex = sx - near[t, 0]
+    ey = sy - near[t, 1]
+    ez = sz - near[t, 2]
+    buf[0, n_buf], buf[1, n_buf] = s, t
+    return n_buf + (ex**2 + ey**2 + ez**2 <= near_sq)
+
+
+@numba.njit(cache=True)
+def _near_pairs(
+    r: int,
+    run_key: np.ndarray,
+    start: np.ndarray,
+    near: np.ndarray,
+    offsets: np.ndarray,
+    cursors: np.ndarray,
+    near_sq: float,
+    buf: np.ndarray,
+) -> tuple[int, int]:
+    """Gather the pairs within the radius met by runs r, r + 1, ... into `buf`, until the
+    next run might not fit; returns (that run, pairs gathered).
+
+    Run r (key k) meets itself and the runs with keys in [k + offsets[0, m],
+    k + offsets[1, m]] for m = 1..5, which the key order holds at contiguous positions;
+    cursors[0, m] (first run with key >= the low end) and cursors[1, m] (first run past
+    the high end) only move forward.
+    """
+    n_runs = run_key.shape[0]
+    t_lo = np.empty(6, dtype=np.int64)
+    t_hi = np.empty(6, dtype=np.int64)
+    other = np.empty(buf.shape[1], dtype=np.int64)
+    n_buf = 0
+    while r < n_runs:
+        k = run_key[r]
+        width = start[r + 1] - start[r]
+        for m in range(1, 6):
+            c = cursors[0, m]
+            while c < n_runs and run_key[c] < k + offsets[0, m]:
+                c += 1
+            cursors[0, m] = c
+            t_lo[m] = start[c]
+            c = max(c, cursors[1, m])
+            while c < n_runs and run_key[c] <= k + offsets[1, m]:
+                c += 1
+            cursors[1, m] = c
+            t_hi[m] = start[c]
+            width += t_hi[m] - t_lo[m]
+        if n_buf + (start[r + 1] - start[r]) * width > buf.shape[1]:
+            break
+        # the positions of the other runs met, as one list
+        n_other = 0
+        for m in range(1, 6):
+            for t in range(t_lo[m], t_hi[m]):
+                other[n_other] = t
+                n_other += 1
+        for s in range(start[r], start[r + 1]):
+            sx, sy, sz = near[s, 0], near[s, 1], near[s, 2]
+            # no branch on the test: every t is written, the count moves if it is near
+            for t in range(s + 1, start[r + 1]):
+                n_buf = _gather(near, sx, sy, sz, s, t, near_sq, buf, n_buf)
+            for q in range(n_other):
+                n_buf = _gather(near, sx, sy, sz, s, other[q], near_sq, buf, n_buf)
+        r += 1
+    return r, n_buf
+
+
+@numba.njit(cache=True)
+def _grow(values: np.ndarray, size: int) -> np.ndarray:
+    out = np.empty(size, dtype=values.dtype)
+    out[: values.shape[0]] = values
+    return out
+
+
+@numba.njit(cache=True)
 def sweep_pairs(
     keys: np.ndarray,
     ny: int,
@@ -99,12 +258,15 @@ def sweep_pairs(
     colors: np.ndarray,
     kappa: np.ndarray,
     params: np.ndarray,
+    buffer: int = PAIR_BUFFER,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All mergeable pairs (i < j, ||mu_i - mu_j|| <= radius, D < threshold), by (i, j).
 
     Args:
         keys: [G] cell keys from `cell_keys` (all >= 0).
         params: [5] (radius, voxel, tau, lambda_cov, lambda_color).
+        buffer: pairs within the radius gathered before their D is computed (grows when
+            one run meets more).
 
     Returns:
         (i [K], j [K], D [K]).
@@ -112,54 +274,33 @@ def sweep_pairs(
     g = keys.shape[0]
     order = radix_order(keys)
     run_key, start, n_runs = _key_runs(keys, order)
-    near = np.empty((g, 3))  # the means in key order, read in order by the sweep
-    for s in range(g):
-        for a in range(3):
-            near[s, a] = means[order[s], a]
-    # Interval m of a run with key k: [k + lo_off[m], k + hi_off[m]]; m = 0 is the run itself.
+    run_key, start = run_key[:n_runs], start[: n_runs + 1]
+    near, rest = _packed(order, means, covs, colors, kappa)
     yz = ny * nz
-    lo_off = np.array([0, 1, nz - 1, yz - nz - 1, yz - 1, yz + nz - 1])
-    hi_off = np.array([0, 1, nz + 1, yz - nz + 1, yz + 1, yz + nz + 1])
-    radius, voxel, tau, lc, lk = params[0], params[1], params[2], params[3], params[4]
-    room = 4 * g + 16
-    out_i = np.empty(room, dtype=np.int64)
-    out_j = np.empty(room, dtype=np.int64)
-    out_d = np.empty(room)
+    offsets = np.array(
+        [
+            [0, 1, nz - 1, yz - nz - 1, yz - 1, yz + nz - 1],
+            [0, 1, nz + 1, yz - nz + 1, yz + 1, yz + nz + 1],
+        ]
+    )
+    cursors = np.zeros((2, 6), dtype=np.int64)
+    near_sq = sqrt_bound(params[0])
+    buf = np.empty((2, max(buffer, 1)), dtype=np.int64)
+    out_i = np.empty(g + 16, dtype=np.int64)
+    out_j = np.empty(g + 16, dtype=np.int64)
+    out_d = np.empty(g + 16)
     found = 0
-    for _attempt in range(2):  # the second pass only if the first ran out of room
-        cursor = np.zeros(6, dtype=np.int64)
-        found = 0
-        for r in range(n_runs):
-            k = run_key[r]
-            for m in range(6):
-                lo, hi = k + lo_off[m], k + hi_off[m]
-                c = cursor[m]
-                while c < n_runs and run_key[c] < lo:
-                    c += 1
-                cursor[m] = c
-                while c < n_runs and run_key[c] <= hi:
-                    for s in range(start[r], start[r + 1]):
-                        for t in range(s + 1 if c == r else start[c], start[c + 1]):
-                            ex = near[s, 0] - near[t, 0]
-                            ey = near[s, 1] - near[t, 1]
-                            ez = near[s, 2] - near[t, 2]
-                            if not math.sqrt(ex**2 + ey**2 + ez**2) <= radius:
-                                continue
-                            i, j = order[s], order[t]
-                            a, b = (i, j) if i < j else (j, i)
-                            d = pair_distance(means, covs, colors, a, b, lc, lk)
-                            if not d < 2.0 * voxel * (1.0 + tau * (kappa[a] + kappa[b])):
-                                continue
-                            if found < room:
-                                out_i[found], out_j[found], out_d[found] = a, b, d
-                            found += 1
-                    c += 1
-        if found <= room:
-            break
-        room = found
-        out_i = np.empty(room, dtype=np.int64)
-        out_j = np.empty(room, dtype=np.int64)
-        out_d = np.empty(room)
+    r = 0
+    while r < n_runs:  # the buffer fills, the pairs in it that merge are kept, and so on
+        r_next, n_buf = _near_pairs(r, run_key, start, near, offsets, cursors, near_sq, buf)
+        if r_next == r and n_buf == 0:  # one run has more pairs to test than the buffer holds
+            buf = np.empty((2, 2 * buf.shape[1]), dtype=np.int64)
+            continue
+        if found + n_buf > out_i.shape[0]:
+            room = max(2 * out_i.shape[0], found + n_buf)
+            out_i, out_j, out_d = _grow(out_i, room), _grow(out_j, room), _grow(out_d, room)
+        found = _mergeable(near, rest, buf, n_buf, params, out_i, out_j, out_d, found)
+        r = r_next
     # In (i, j) order, as the grid search finds them: `sort_pairs` sorts each D bucket by
     # insertion, which is quick on runs of equal D (duplicate Gaussians) only when these
     # already come in (i, j) order.
