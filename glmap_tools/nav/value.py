@@ -75,10 +75,17 @@ class ValueMap:
 
     def value_at(self, x: float, y: float) -> float:
         """H at world (x, y); 0 outside the window."""
-        r = math.floor(y / self.cell_size) - self.origin[1]
-        c = math.floor(x / self.cell_size) - self.origin[0]
+        return float(self.values_at(np.array([[x, y]], dtype=np.float64))[0])
+
+    def values_at(self, xy: np.ndarray) -> np.ndarray:
+        """[K] H at the world points `xy` [K, 2]; 0 outside the window."""
+        r = np.floor(xy[:, 1] / self.cell_size).astype(np.int64) - self.origin[1]
+        c = np.floor(xy[:, 0] / self.cell_size).astype(np.int64) - self.origin[0]
         h, w = self.values.shape
-        return float(self.values[r, c]) if 0 <= r < h and 0 <= c < w else 0.0
+        inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        out = np.zeros(len(xy), dtype=np.float64)
+        out[inside] = self.values[r[inside], c[inside]]
+        return out
 
     def top_cells(
         self, k: int = 5, min_separation: float = 0.5

@@ -256,7 +256,7 @@ def _frontier_waypoint(
         return None
     reached = usable
     if value is not None and value.sigma > 0:  # Eq. 7's map; the egocentric one is not smoothed
-        reached = [(f, xy) for f, xy in usable if _reaches(value, xy)]
+        reached = [(f, xy) for f, xy in usable if (value.values_at(xy) > 0).any()]
     if peak is not None and reached:
         best = None
         for f, xy in reached:
@@ -287,15 +287,6 @@ def _frontier_waypoint(
         0.0,
         f"nearest frontier ({f.distance:.2f} m, {f.size} cells){why}",
     )
-
-
-def _reaches(value: ValueMap, xy: np.ndarray) -> bool:
-    """Whether H > 0 at one of the world points `xy` [K, 2]."""
-    r = np.floor(xy[:, 1] / value.cell_size).astype(np.int64) - value.origin[1]
-    c = np.floor(xy[:, 0] / value.cell_size).astype(np.int64) - value.origin[0]
-    h, w = value.values.shape
-    inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-    return bool((value.values[r[inside], c[inside]] > 0).any())
 
 
 def _explore_waypoint(
