@@ -389,3 +389,27 @@ def test_an_instance_outvoted_at_its_place_draws_nothing_in_the_value_map() -> N
     config = replace(CONFIG, stop_threshold=1.0)
     d = decide(glmap, (0.0, 0.0), 0.0, "a red chair", policy="glmap-instance", config=config)
     assert d.value is None or d.value.value_at(1.2, 1.3) < 0.05
+
+
+def test_an_instance_draws_in_the_value_map_only_once_seen_as_often_as_a_match_needs() -> None:
+    """One glimpse naming a basket's top "a teal tv stand" pulled the agent to a false stop
+    (house-tune s02-000): an instance enters Eq. 7 once `min_observations` frames saw it."""
+    boxes = scenes.floor(6.0) + walls() + scenes.chair(1.2, 1.3, object_id=1)
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+
+    def h_at_chair(min_observations: int) -> tuple[str, float]:
+        config = replace(CONFIG, stop_threshold=1.0, min_observations=min_observations)
+        d = decide(glmap, (0.0, 0.0), 0.0, "a red chair", policy="glmap-instance", config=config)
+        return d.evidence, d.value.value_at(1.2, 1.3) if d.value is not None else 0.0
+
+    for eye in ((0.0, 0.0, 0.88), (0.2, 0.2, 1.2)):
+        frame, ids = scenes.view(boxes, eye, (1.2, 1.3, 0.4), 96, 72)
+        glmap.integrate(frame, scenes.semantics(ids, TEXTS))
+        seen = max(u.observations for u in glmap.instances.values())
+        if seen == 1:  # one glimpse: it would draw, but needs a second
+            assert h_at_chair(1)[0] == "units" and h_at_chair(1)[1] > 0.5
+            evidence, h = h_at_chair(2)
+            assert evidence == "none" and h < 0.05
+    assert seen == 2
+    evidence, h = h_at_chair(2)
+    assert evidence == "units" and h > 0.5

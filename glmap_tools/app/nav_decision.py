@@ -108,18 +108,6 @@ def waypoint_result(decision: NavDecision, agent: tuple[float, float, float]) ->
     return out
 
 
-def evidence(session: Session, units: str, scores: dict[int, float], config: NavConfig) -> str:
-    """What the value map stands on: 'units' (past the evidence gate), 'region hint'
-    (regions whose text suggests the goal) or 'none' (the nearest frontier decides)."""
-    from glmap_tools.nav.scorers import UNIT_KINDS, map_units
-    from glmap_tools.nav.value import evidence_scores
-
-    least = {"instance": config.min_instance_score, "region": config.min_region_score}
-    with locked(session) as glmap:
-        seen = [u for u in map_units(glmap, units) if u.unit_id in scores]
-    return evidence_scores(seen, scores, UNIT_KINDS[units], least, config.region_hint)[1]
-
-
 def top_units(
     session: Session, goal: str, scores: dict[int, float], k: int = 5
 ) -> list[tuple[int, str, float, str]]:

@@ -20,8 +20,6 @@ from glmap_tools.app.client_scores import held_scores, set_client_scores
 from glmap_tools.app.nav_decision import (
     current_agent,
     decide_on_map,
-    episode_config,
-    evidence,
     goal_text,
     matched_goal_unit,
     nav_png,
@@ -119,7 +117,7 @@ async def value_map(
             matched_unit=decision.matched_unit,
             top_cells=[(round(x, 2), round(y, 2), round(v, 3)) for x, y, v in top],
             top_units=top_units(target, wanted, decision.scores),
-            evidence=evidence(target, units, decision.scores, episode_config(target)),
+            evidence=decision.evidence,
             frontiers=len(decision.frontiers),
         )
         nav = nav_steps.of(target)

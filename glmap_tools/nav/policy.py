@@ -79,6 +79,8 @@ class NavDecision:
         matched_unit: the instance matching the goal, if any.
         occupancy: the occupancy window everything is over.
         scores: unit id -> s_u of the units scored this step.
+        evidence: what Eq. 7 stood on: 'units', 'region hint' or 'none'
+            (`value.evidence_scores`); '' for the policies without Eq. 7.
     """
 
     action: str
@@ -89,6 +91,7 @@ class NavDecision:
     matched_unit: int | None
     occupancy: DenseOccupancy
     scores: dict[int, float]
+    evidence: str = ""
 
 
 def surroundings(
@@ -197,22 +200,28 @@ def _unit_value_map(
     occ: DenseOccupancy,
     config: NavConfig,
     missed: dict[int, int],
-) -> ValueMap:
-    """Eq. 7 over the units the policy keeps, each above its kind's least score; an
-    instance's f_S is weighted by the share of the looks at it that saw it, and is 0 for
-    an instance ruled out as a goal (`Scored.ruled_out`)."""
+) -> tuple[ValueMap, str]:
+    """(H, what it stands on): Eq. 7 over the units the policy keeps, each above its
+    kind's least score; an instance's f_S is weighted by the share of the looks at it that
+    saw it, and is 0 for an instance ruled out as a goal (`Scored.ruled_out`) or seen in
+    fewer than `min_observations` frames."""
     keep = UNIT_KINDS[POLICY_UNITS[policy]]
     least = {"instance": config.min_instance_score, "region": config.min_region_score}
     # An instance ruled out as a goal draws nothing: a 9 cm "tv stand" or one outvoted by a
     # cabinet at its place kept the maximum of H for 400 steps (house-tune s01-000).
     by_id = {uid: (0.0 if uid in scored.ruled_out else s) for uid, s in scored.by_id.items()}
     for u in scored.units:
-        if u.kind == "instance" and u.unit_id in missed:
+        # An instance draws only once seen as often as a match needs: one glimpse naming a
+        # basket's top "a teal tv stand" pulled the agent to a false stop (house-tune s02-000).
+        if u.kind == "instance" and u.observations < config.min_observations:
+            by_id[u.unit_id] = 0.0
+        elif u.kind == "instance" and u.unit_id in missed:
             by_id[u.unit_id] *= seen_share(u.observations, missed[u.unit_id])
-    used, _ = evidence_scores(scored.units, by_id, keep, least, config.region_hint)
-    return value_map_from_scores(
+    used, evidence = evidence_scores(scored.units, by_id, keep, least, config.region_hint)
+    value = value_map_from_scores(
         used, glmap.grid, occ, config.value_sigma, unit_mass=config.unit_mass
     )
+    return value, evidence
 
 
 def _choose(
@@ -274,16 +283,16 @@ def _policy_value(
     occ: DenseOccupancy,
     config: NavConfig,
     state: NavState,
-) -> ValueMap | None:
-    """The value map `policy` explores by: Eq. 7 over the units, the egocentric
-    accumulator (kept in `state`), or none (frontier)."""
+) -> tuple[ValueMap | None, str]:
+    """(the value map `policy` explores by, what it stands on): Eq. 7 over the units, the
+    egocentric accumulator (kept in `state`), or none (frontier)."""
     if policy in POLICY_UNITS:
         return _unit_value_map(policy, glmap, scored, occ, config, state.missed)
     if policy == "egocentric":
         if state.egocentric is None:
             state.egocentric = EgocentricValueMap(glmap.grid.cell_size, glmap.config.max_range)
-        return state.egocentric.as_value_map(occ)
-    return None
+        return state.egocentric.as_value_map(occ), ""
+    return None, ""
 
 
 def decide(
@@ -332,7 +341,7 @@ def decide(
     scored = _score_units(glmap, goal, policy, scorer, state.rejected_units, config, prefer, missed)
     match = scored.match
 
-    value = _policy_value(policy, glmap, scored, sur.occ, config, state)
+    value, evidence = _policy_value(policy, glmap, scored, sur.occ, config, state)
 
     # Choose a waypoint and plan to it.
     if state.steps < config.initial_spin and match is None:
@@ -365,4 +374,5 @@ def decide(
         goal_unit,
         sur.occ,
         scored.by_id,
+        evidence,
     )
