@@ -14,6 +14,8 @@ from glmap_tools.sim.outcome import OUTCOMES, episode_outcome
         ((True, False, 0.0, True, True), "success"),
         ((False, False, 0.6, True, True), "stopped short"),
         ((False, False, 4.0, True, True), "stopped at a false positive"),
+        ((False, False, 4.0, True, True, True), "stopped at another instance"),
+        ((False, False, 0.6, True, True, True), "stopped short"),
         ((False, False, 4.0, False, False), "stopped at a false positive"),
         ((False, True, 4.0, False, False), "goal never seen"),
         ((False, True, 4.0, True, False), "goal seen, not recognised"),
@@ -39,7 +41,7 @@ def test_the_summary_counts_each_agents_outcomes_in_the_taxonomys_order() -> Non
     assert summary.outcomes["frontier"]["stopped at a false positive"] == 1
     table = markdown(summary)
     assert "| How episodes ended | success | stopped short |" in table
-    assert "| frontier | 0 | 0 | 1 | 0 | 0 | 1 |" in table
+    assert "| frontier | 0 | 0 | 0 | 1 | 0 | 0 | 1 |" in table
     assert summary.to_json()["outcomes"]["glmap"]["success"] == 1
 
 
@@ -60,4 +62,42 @@ def test_the_env_reports_whether_the_goal_was_seen_and_recognised() -> None:
     assert seen == sorted(seen)  # once seen, seen for the rest of the episode
     env.reset(seed=1)
     assert env.step(0)[4]["goal_seen"] == seen[0]  # a new episode starts unseen
+    env.close()
+
+
+def test_an_instnav_stop_beside_another_instance_of_the_category_is_told_apart() -> None:
+    """InstNav: a stop within reach of an object of the goal's category that is not the
+    described one is 'stopped at another instance', not a false positive."""
+    import os
+
+    import numpy as np
+
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    from glmap_tools.sim.env import InstNavEnv
+    from glmap_tools.sim.motion import AgentState
+    from glmap_tools.sim.reach import reaches
+    from glmap_tools.sim.render import CameraSpec
+
+    env = InstNavEnv(scene_seed=3, camera=CameraSpec(32, 24), max_steps=40)
+    for seed in range(40):
+        env.reset(seed=seed)
+        goal = env.layout.object(env.episode.goal_object_ids[0])
+        others = [o for o in env.layout.objects if o.category == goal.category and o.id != goal.id]
+        if others:
+            break
+    assert others, "no InstNav episode with two instances of the goal's category"
+    rows, cols = np.nonzero(env.grid.navigable)
+    cells = env.grid.to_world(np.stack([rows, cols], axis=1))
+    beside = reaches(env.grid, others[0], cells, env.success_distance)
+    beside &= ~reaches(env.grid, goal, cells, env.success_distance + 1.0)
+    beside &= np.array([env.distance_to_goal(AgentState(x, y, 0.0)) > 1.0 for x, y in cells])
+    assert beside.any()
+    x, y = cells[np.nonzero(beside)[0][0]]
+    env.state = AgentState(float(x), float(y), 0.0)
+    info = env.step(0)[4]
+    assert not info["success"] and info["stopped_at_goal_category"]
+    kind = episode_outcome(False, False, info["distance_to_goal"], True, True, True)
+    assert kind == "stopped at another instance"
+    env.reset(seed=seed)
+    assert not env.step(0)[4]["stopped_at_goal_category"]  # this start reaches no other instance
     env.close()

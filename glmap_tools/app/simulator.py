@@ -321,5 +321,6 @@ def status(sim: SimEpisode, camera_pose: bool = True) -> SimStatus:
             float(info["distance_to_goal"]),
             bool(info.get("goal_seen", True)),
             bool(info.get("goal_recognised", True)),
+            bool(info.get("stopped_at_goal_category", False)),
         )
     return SimStatus.model_validate(out)

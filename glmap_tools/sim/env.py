@@ -317,9 +317,23 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
             "collided": collided,
             "goal_seen": self._goal_seen,
             "goal_recognised": self._goal_recognised,
+            "stopped_at_goal_category": stopped and not success and self._at_goal_category(),
             "position": self.state.xy.copy(),
             "heading": self.state.heading,
         }
+
+    def _at_goal_category(self) -> bool:
+        """Whether the agent is within reach of an object of the goal's category that is not
+        a goal (InstNav: another instance than the described one)."""
+        assert self.episode is not None
+        goals = set(self.episode.goal_object_ids)
+        category = self.layout.object(self.episode.goal_object_ids[0]).category
+        xy = self.state.xy[None]
+        return any(
+            bool(reaches(self.grid, o, xy, self.success_distance)[0])
+            for o in self.layout.objects
+            if o.category == category and o.id not in goals
+        )
 
     def _note_goal(self, instance_mask: np.ndarray, annotation: dict[str, Any]) -> None:
         """Whether a goal object was ever in view (as many pixels as a detection needs)
