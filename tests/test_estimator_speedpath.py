@@ -30,7 +30,7 @@ def clustered_set(n: int, seed: int, duplicates: int = 0) -> GaussianSet:
 
 
 def sweep_and_grid(
-    g: GaussianSet, buffer: int = sweep.PAIR_BUFFER
+    g: GaussianSet, buffer: int = sweep.PAIR_BUFFER, n_chunks: int = 1
 ) -> tuple[np.ndarray, np.ndarray]:
     means, covs, colors, kappa = gaussian_rows(g)
     params = np.array(
@@ -41,7 +41,7 @@ def sweep_and_grid(
     keys, ny, nz = sweep.cell_keys(cells)
     assert keys.min() >= 0
     by_sweep = clusters.sort_pairs(
-        *sweep.sweep_pairs(keys, ny, nz, means, covs, colors, kappa, params, buffer)
+        *sweep.sweep_pairs(keys, ny, nz, means, covs, colors, kappa, params, buffer, n_chunks)
     )
     by_grid = clusters.sort_pairs(*grid_pairs(cells, means, covs, colors, kappa, params))
     return by_sweep, by_grid
@@ -49,21 +49,23 @@ def sweep_and_grid(
 
 @pytest.mark.parametrize("n", [1, 2, 40, 600])
 @pytest.mark.parametrize("seed", [0, 1])
-def test_the_sweep_and_the_grid_find_the_same_pairs_in_the_same_order(n, seed):
-    by_sweep, by_grid = sweep_and_grid(clustered_set(n, seed, duplicates=n // 4))
+@pytest.mark.parametrize("n_chunks", [1, 3])
+def test_the_sweep_and_the_grid_find_the_same_pairs_in_the_same_order(n, seed, n_chunks):
+    by_sweep, by_grid = sweep_and_grid(clustered_set(n, seed, duplicates=n // 4), n_chunks=n_chunks)
     np.testing.assert_array_equal(by_sweep, by_grid)
     if n >= 40:
         assert len(by_sweep) > n  # the set is dense enough that many pairs merge
 
 
 @pytest.mark.parametrize("buffer", [1, 7, 64])
-def test_the_sweep_finds_the_same_pairs_whatever_its_buffer_holds(buffer):
+@pytest.mark.parametrize("n_chunks", [1, 8])
+def test_the_sweep_finds_the_same_pairs_whatever_its_buffer_holds(buffer, n_chunks):
     # 120 copies of one Gaussian share a cell: one run meets far more pairs than the buffer
     g = clustered_set(300, 4, duplicates=60)
     g = GaussianSet.concat([g, *[GaussianSet(
         g.means[:1], g.covs[:1], g.colors[:1], g.opacities[:1], g.counts[:1]
     )] * 120])  # fmt: skip
-    by_sweep, by_grid = sweep_and_grid(g, buffer)
+    by_sweep, by_grid = sweep_and_grid(g, buffer, n_chunks)  # 8 chunks: some overflow
     np.testing.assert_array_equal(by_sweep, by_grid)
     assert len(by_sweep) > 120 * 119 // 2
 

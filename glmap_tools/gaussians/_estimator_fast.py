@@ -112,7 +112,9 @@ def sorted_mergeable_pairs(
     )
     keys, ny, nz = sweep.cell_keys(m_cells)
     if len(keys) == 0 or keys[0] >= 0:
-        pi, pj, d = sweep.sweep_pairs(keys, ny, nz, means, covs, colors, kappa, params)
+        pi, pj, d = sweep.sweep_pairs(
+            keys, ny, nz, means, covs, colors, kappa, params, sweep.PAIR_BUFFER, n_chunks
+        )
     else:  # cell keys would overflow int64 (a cloud of ~2M radii along every axis)
         pi, pj, d = grid_pairs(m_cells, means, covs, colors, kappa, params, n_chunks)
     return clusters.sort_pairs(pi, pj, d)

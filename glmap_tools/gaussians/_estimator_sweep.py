@@ -186,6 +186,7 @@ def _gather(
 @numba.njit(cache=True)
 def _near_pairs(
     r: int,
+    r_end: int,
     run_key: np.ndarray,
     start: np.ndarray,
     near: np.ndarray,
@@ -194,8 +195,8 @@ def _near_pairs(
     near_sq: float,
     buf: np.ndarray,
 ) -> tuple[int, int]:
-    """Gather the pairs within the radius met by runs r, r + 1, ... into `buf`, until the
-    next run might not fit; returns (that run, pairs gathered).
+    """Gather the pairs within the radius met by runs r, r + 1, ... r_end - 1 into `buf`,
+    until the next run might not fit; returns (that run, pairs gathered).
 
     Run r (key k) meets itself and the runs with keys in [k + offsets[0, m],
     k + offsets[1, m]] for m = 1..5, which the key order holds at contiguous positions;
@@ -207,7 +208,7 @@ def _near_pairs(
     t_hi = np.empty(6, dtype=np.int64)
     other = np.empty(buf.shape[1], dtype=np.int64)
     n_buf = 0
-    while r < n_runs:
+    while r < r_end:
         k = run_key[r]
         width = start[r + 1] - start[r]
         for m in range(1, 6):
@@ -249,6 +250,99 @@ def _grow(values: np.ndarray, size: int) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def _sweep_runs(
+    r0: int,
+    r1: int,
+    run_key: np.ndarray,
+    start: np.ndarray,
+    near: np.ndarray,
+    rest: np.ndarray,
+    offsets: np.ndarray,
+    params: np.ndarray,
+    buffer: int,
+    room: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The mergeable pairs met by runs r0..r1-1: (i, j, D, count), outputs of >= count rows.
+
+    `room` is the outputs' first size (they grow when more pairs merge).
+    """
+    n_runs = run_key.shape[0]
+    cursors = np.zeros((2, 6), dtype=np.int64)
+    if r0 < n_runs:  # where the forward-only cursors stand at run r0
+        k = run_key[r0]
+        for m in range(1, 6):
+            cursors[0, m] = np.searchsorted(run_key, k + offsets[0, m], side="left")
+            cursors[1, m] = np.searchsorted(run_key, k + offsets[1, m], side="right")
+    near_sq = sqrt_bound(params[0])
+    buf = np.empty((2, max(buffer, 1)), dtype=np.int64)
+    out_i = np.empty(room, dtype=np.int64)
+    out_j = np.empty(room, dtype=np.int64)
+    out_d = np.empty(room)
+    found = 0
+    r = r0
+    while r < r1:  # the buffer fills, the pairs in it that merge are kept, and so on
+        r_next, n_buf = _near_pairs(r, r1, run_key, start, near, offsets, cursors, near_sq, buf)
+        if r_next == r and n_buf == 0:  # one run has more pairs to test than the buffer holds
+            buf = np.empty((2, 2 * buf.shape[1]), dtype=np.int64)
+            continue
+        if found + n_buf > out_i.shape[0]:
+            room = max(2 * out_i.shape[0], found + n_buf)
+            out_i, out_j, out_d = _grow(out_i, room), _grow(out_j, room), _grow(out_d, room)
+        found = _mergeable(near, rest, buf, n_buf, params, out_i, out_j, out_d, found)
+        r = r_next
+    return out_i, out_j, out_d, found
+
+
+@numba.njit(cache=True, parallel=True)
+def _sweep_parallel(
+    bounds: np.ndarray,
+    run_key: np.ndarray,
+    start: np.ndarray,
+    near: np.ndarray,
+    rest: np.ndarray,
+    offsets: np.ndarray,
+    params: np.ndarray,
+    buffer: int,
+    room: int,
+    all_i: np.ndarray,
+    all_j: np.ndarray,
+    all_d: np.ndarray,
+    found: np.ndarray,
+) -> None:
+    """Chunk c (runs bounds[c]..bounds[c + 1]-1) writes its pairs at c * room, if they fit."""
+    for c in numba.prange(bounds.shape[0] - 1):  # nothing else here: array code spawns parfors
+        _sweep_chunk(c, bounds, run_key, start, near, rest, offsets, params, buffer, room,
+                     all_i, all_j, all_d, found)  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _sweep_chunk(
+    c: int,
+    bounds: np.ndarray,
+    run_key: np.ndarray,
+    start: np.ndarray,
+    near: np.ndarray,
+    rest: np.ndarray,
+    offsets: np.ndarray,
+    params: np.ndarray,
+    buffer: int,
+    room: int,
+    all_i: np.ndarray,
+    all_j: np.ndarray,
+    all_d: np.ndarray,
+    found: np.ndarray,
+) -> None:
+    pi, pj, d, n = _sweep_runs(
+        bounds[c], bounds[c + 1], run_key, start, near, rest, offsets, params, buffer, room
+    )
+    found[c] = n
+    if n <= room:  # else the caller runs this chunk again
+        base = c * room
+        for q in range(n):
+            all_i[base + q], all_j[base + q], all_d[base + q] = pi[q], pj[q], d[q]
+
+
+@numba.njit(cache=True)
 def sweep_pairs(
     keys: np.ndarray,
     ny: int,
@@ -259,6 +353,7 @@ def sweep_pairs(
     kappa: np.ndarray,
     params: np.ndarray,
     buffer: int = PAIR_BUFFER,
+    n_chunks: int = 1,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All mergeable pairs (i < j, ||mu_i - mu_j|| <= radius, D < threshold), by (i, j).
 
@@ -267,6 +362,8 @@ def sweep_pairs(
         params: [5] (radius, voxel, tau, lambda_cov, lambda_color).
         buffer: pairs within the radius gathered before their D is computed (grows when
             one run meets more).
+        n_chunks: > 1 splits the runs into that many chunks of about equal Gaussian counts
+            over the thread team; the output does not depend on it.
 
     Returns:
         (i [K], j [K], D [K]).
@@ -283,24 +380,42 @@ def sweep_pairs(
             [0, 1, nz + 1, yz - nz + 1, yz + 1, yz + nz + 1],
         ]
     )
-    cursors = np.zeros((2, 6), dtype=np.int64)
-    near_sq = sqrt_bound(params[0])
-    buf = np.empty((2, max(buffer, 1)), dtype=np.int64)
-    out_i = np.empty(g + 16, dtype=np.int64)
-    out_j = np.empty(g + 16, dtype=np.int64)
-    out_d = np.empty(g + 16)
-    found = 0
-    r = 0
-    while r < n_runs:  # the buffer fills, the pairs in it that merge are kept, and so on
-        r_next, n_buf = _near_pairs(r, run_key, start, near, offsets, cursors, near_sq, buf)
-        if r_next == r and n_buf == 0:  # one run has more pairs to test than the buffer holds
-            buf = np.empty((2, 2 * buf.shape[1]), dtype=np.int64)
-            continue
-        if found + n_buf > out_i.shape[0]:
-            room = max(2 * out_i.shape[0], found + n_buf)
-            out_i, out_j, out_d = _grow(out_i, room), _grow(out_j, room), _grow(out_d, room)
-        found = _mergeable(near, rest, buf, n_buf, params, out_i, out_j, out_d, found)
-        r = r_next
+    if n_chunks <= 1:
+        out_i, out_j, out_d, found = _sweep_runs(
+            0, n_runs, run_key, start, near, rest, offsets, params, buffer, g + 16
+        )
+    else:
+        bounds = np.empty(n_chunks + 1, dtype=np.int64)  # runs of about g / n_chunks Gaussians
+        for c in range(n_chunks + 1):
+            bounds[c] = np.searchsorted(start, c * g // n_chunks, side="left")
+        bounds[n_chunks] = n_runs
+        room = g // n_chunks + 16
+        all_i = np.empty(n_chunks * room, dtype=np.int64)
+        all_j = np.empty(n_chunks * room, dtype=np.int64)
+        all_d = np.empty(n_chunks * room)
+        counts = np.zeros(n_chunks, dtype=np.int64)
+        _sweep_parallel(
+            bounds, run_key, start, near, rest, offsets, params, buffer, room, all_i, all_j,
+            all_d, counts,
+        )  # fmt: skip
+        found = counts.sum()
+        out_i = np.empty(found, dtype=np.int64)
+        out_j = np.empty(found, dtype=np.int64)
+        out_d = np.empty(found)
+        at = 0
+        for c in range(n_chunks):
+            n = counts[c]
+            if n <= room:
+                out_i[at : at + n] = all_i[c * room : c * room + n]
+                out_j[at : at + n] = all_j[c * room : c * room + n]
+                out_d[at : at + n] = all_d[c * room : c * room + n]
+            else:  # more than its room merged: run it again here
+                pi, pj, d, _ = _sweep_runs(
+                    bounds[c], bounds[c + 1], run_key, start, near, rest, offsets, params,
+                    buffer, n,
+                )  # fmt: skip
+                out_i[at : at + n], out_j[at : at + n], out_d[at : at + n] = pi[:n], pj[:n], d[:n]
+            at += n
     # In (i, j) order, as the grid search finds them: `sort_pairs` sorts each D bucket by
     # insertion, which is quick on runs of equal D (duplicate Gaussians) only when these
     # already come in (i, j) order.
