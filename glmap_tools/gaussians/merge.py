@@ -179,7 +179,8 @@ def any_mergeable(a: GaussianSet, b: GaussianSet, config: EstimatorConfig) -> bo
     if len(a) < len(b):
         a, b = b, a
     tree_a = cKDTree(a.means.astype(np.float64))
-    kappa_a = curvature(a.covs)
+    kappa_a = np.full(len(a), np.nan)  # filled for the Gaussians met by some pair (per
+    # matrix, eigvalsh gives the same bits in any batch)
     for start in range(0, len(b), ANY_MERGEABLE_CHUNK):
         chunk = b.subset(np.arange(start, min(start + ANY_MERGEABLE_CHUNK, len(b))))
         found = tree_a.sparse_distance_matrix(
@@ -189,7 +190,12 @@ def any_mergeable(a: GaussianSet, b: GaussianSet, config: EstimatorConfig) -> bo
             continue
         ia = found["i"].astype(np.int64)
         ib = found["j"].astype(np.int64)
-        keep, _ = _filter_mergeable(a, ia, chunk, ib, config, kappa_a=kappa_a)
+        need = np.unique(ia[np.isnan(kappa_a[ia])])
+        kappa_a[need] = curvature(a.covs[need])
+        used_b = np.unique(ib)
+        kappa_b = np.zeros(len(chunk))
+        kappa_b[used_b] = curvature(chunk.covs[used_b])
+        keep, _ = _filter_mergeable(a, ia, chunk, ib, config, kappa_a=kappa_a, kappa_b=kappa_b)
         if keep.any():
             return True
     return False

@@ -97,10 +97,18 @@ class GaussianSet:
         )
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Axis-aligned ([3] min, [3] max) of the means; raises on an empty set."""
+        """Axis-aligned ([3] min, [3] max) of the means; raises on an empty set.
+
+        Computed once per set (a set's arrays are never changed in place; the nav policy
+        asks each unit's bounds many times a step) and returned as fresh copies.
+        """
         if len(self) == 0:
             raise InvalidInputError("an empty GaussianSet has no bounds.")
-        return self.means.min(axis=0), self.means.max(axis=0)
+        cached = self.__dict__.get("_bounds")
+        if cached is None:
+            cached = (self.means.min(axis=0), self.means.max(axis=0))
+            object.__setattr__(self, "_bounds", cached)
+        return cached[0].copy(), cached[1].copy()
 
     def equals(self, other: GaussianSet) -> bool:
         """Bit-exact equality of every array."""

@@ -76,6 +76,18 @@ def _lexical_rank(keys: np.ndarray) -> np.ndarray:  # [N, 3] -> [N] int64
     return rank
 
 
+def _distinct_chunks(chunks: np.ndarray) -> set[ChunkKey]:  # [K, 2] -> {(ci, cj)}
+    """The distinct rows of `chunks` (a frame spans few chunks: a flag per chunk in their
+    bounding box, no per-row Python)."""
+    if len(chunks) == 0:
+        return set()
+    lo = chunks.min(axis=0)
+    span = chunks.max(axis=0) - lo + 1
+    flat = (chunks[:, 0] - lo[0]) * span[1] + (chunks[:, 1] - lo[1])
+    present = np.flatnonzero(np.bincount(flat, minlength=int(span[0] * span[1])))
+    return {(int(f // span[1] + lo[0]), int(f % span[1] + lo[1])) for f in present}
+
+
 class StructureLayer:
     """All structure Gaussians of a map, in chunks keyed by (ci, cj).
 
@@ -115,7 +127,7 @@ class StructureLayer:
             return {}
         new_keys = self.voxel_keys(fitted)
         new_chunks = chunk_of_keys(new_keys)
-        touched = {(int(i), int(j)) for i, j in set(map(tuple, new_chunks.tolist()))}
+        touched = _distinct_chunks(new_chunks)
         old = [self.chunks[c] for c in sorted(touched) if c in self.chunks]
         old_keys = np.concatenate([c.keys for c in old]) if old else np.zeros((0, 3), np.int64)
         old_g = GaussianSet.concat([c.gaussians for c in old])

@@ -8,7 +8,9 @@ The colour pass draws everything as one merged mesh with per-vertex colours; the
 draws one node per object in its id colour and one node (colour 0) for walls, floors and
 ceilings. The id mask comes from pyrender's flat SEG pass
 (multisampling off), so every pixel is exactly one object id or 0; depth is read from the same
-pass so depth and mask agree pixel for pixel.
+pass so depth and mask agree pixel for pixel. The id pass skips the objects whose bounding box
+lies wholly outside a frustum a little wider than the camera's (they would draw no pixel, and
+each draw call costs pyrender ~0.1 ms of Python): the same images, fewer calls.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from glmap_tools.sim.meshes import PlacedPart, object_parts  # noqa: E402
 
 Z_NEAR = 0.05  # metres
 Z_FAR = 40.0  # metres
+CULL_MARGIN = 0.05  # tangent of the angle the culling frustum reaches past the image edge
 
 
 @dataclass(frozen=True)
@@ -124,6 +127,16 @@ def _primitive(parts: list[PlacedPart]) -> pyrender.Primitive:
     )
 
 
+def _box_corners(parts: list[PlacedPart]) -> np.ndarray:
+    """[8, 3] corners of the world bounding box of some parts (a point for none)."""
+    if not parts:
+        return np.zeros((8, 3))
+    pts = np.concatenate([part.vertices for part in parts])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pick = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+    return np.where(pick == 1, hi, lo)
+
+
 class SceneRenderer:
     """Renders a layout from world_from_camera poses (OpenCV camera, z-up world).
 
@@ -147,6 +160,9 @@ class SceneRenderer:
         self._color_mesh = pyrender.Mesh([_primitive(merged)])
         self.scene.add(self._color_mesh, name="color")
         self._id_meshes = []
+        self._id_boxes = np.array(
+            [_box_corners(parts) for parts in object_parts_all], dtype=np.float64
+        ).reshape(-1, 8, 3)
         for obj, parts in zip(layout.objects, object_parts_all, strict=True):
             mesh = pyrender.Mesh([_primitive(parts)])
             node = self.scene.add(mesh, name=str(obj.id))
@@ -159,6 +175,13 @@ class SceneRenderer:
         # pyrender puts pixel centres at +0.5 where OpenCV intrinsics put them at integers.
         cam = pyrender.IntrinsicsCamera(
             k.fx, k.fy, k.cx + 0.5, k.cy + 0.5, znear=Z_NEAR, zfar=Z_FAR
+        )
+        # Tangents of the culling frustum (image edges at -0.5 and W - 0.5, plus a margin).
+        self._cull_tangents = (
+            (k.cx + 1.0) / k.fx + CULL_MARGIN,
+            (k.width - k.cx) / k.fx + CULL_MARGIN,
+            (k.cy + 1.0) / k.fy + CULL_MARGIN,
+            (k.height - k.cy) / k.fy + CULL_MARGIN,
         )
         self.camera_node = self.scene.add(cam, pose=np.eye(4))
         self._renderer: pyrender.OffscreenRenderer | None = shared_offscreen_renderer(
@@ -176,7 +199,7 @@ class SceneRenderer:
         self.scene.set_pose(self.camera_node, to_opengl(pose))
         self._show(color=True)
         rgb, _ = self._renderer.render(self.scene, flags=pyrender.RenderFlags.FLAT)
-        self._show(color=False)
+        self._show(color=False, ids=self._in_view(pose))
         seg, depth = self._renderer.render(
             self.scene, flags=pyrender.RenderFlags.SEG, seg_node_map=self.seg_node_map
         )
@@ -188,10 +211,28 @@ class SceneRenderer:
             np.ascontiguousarray(rgb), np.ascontiguousarray(depth, dtype=np.float32), mask
         )
 
-    def _show(self, color: bool) -> None:
+    def _show(self, color: bool, ids: np.ndarray | None = None) -> None:
+        """Show the colour mesh, or the id meshes (those flagged in `ids` [objects] and the
+        architecture)."""
         self._color_mesh.is_visible = color
-        for mesh in self._id_meshes:
-            mesh.is_visible = not color
+        for k, mesh in enumerate(self._id_meshes):
+            mesh.is_visible = not color and (ids is None or k >= len(ids) or bool(ids[k]))
+
+    def _in_view(self, pose: Pose) -> np.ndarray:
+        """[objects] bool: the bounding box is not wholly outside the culling frustum."""
+        if len(self._id_boxes) == 0:
+            return np.zeros(0, dtype=bool)
+        cam = (self._id_boxes - pose.translation) @ pose.rotation  # OpenCV camera coordinates
+        x, y, z = cam[..., 0], cam[..., 1], cam[..., 2]
+        left, right, top, bottom = self._cull_tangents
+        outside = (
+            (z < 0.5 * Z_NEAR).all(axis=1)
+            | (x < -left * z).all(axis=1)
+            | (x > right * z).all(axis=1)
+            | (y < -top * z).all(axis=1)
+            | (y > bottom * z).all(axis=1)
+        )
+        return ~outside
 
     def close(self) -> None:
         """Stop using the shared OpenGL context (it stays alive for other renderers).
