@@ -1,5 +1,5 @@
 """Shortcuts of the agent's step that must not change a bit: frustum culling of the id
-pass, cached Gaussian bounds, the structure update's chunk set."""
+pass, cached Gaussian bounds, the structure update's chunk set, any_mergeable's early exit."""
 
 from __future__ import annotations
 
@@ -8,7 +8,10 @@ import os
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 import numpy as np
+import pytest
 
+from glmap_tools.gaussians.config import EstimatorConfig
+from glmap_tools.gaussians.merge import any_mergeable, mergeable_pairs
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Pose
 from glmap_tools.map.structure import _distinct_chunks
@@ -67,3 +70,34 @@ def test_the_touched_chunks_are_the_distinct_chunk_rows() -> None:
         chunks = rng.integers(low, low + 30, (n, 2))
         expected = {(int(i), int(j)) for i, j in chunks.tolist()}
         assert _distinct_chunks(chunks) == expected
+
+
+def _flat_set(rng: np.random.Generator, n: int, lo: float) -> GaussianSet:
+    spread = rng.choice([0.005, 0.01, 0.02])
+    half = rng.normal(size=(n, 3, 3)) * [spread, spread, rng.choice([0.001, spread])]
+    return GaussianSet(
+        rng.uniform(lo, lo + 0.15, (n, 3)), half @ half.transpose(0, 2, 1) + 1e-6 * np.eye(3),
+        rng.uniform(0, 1, (n, 3)), np.full(n, 0.8), np.ones(n),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("tau", [-5.0, -20.0, 0.0, 2.0])
+def test_any_mergeable_answers_as_the_full_pair_filter(tau: float) -> None:
+    config = EstimatorConfig(voxel_size=0.02, tau=tau)
+    rng = np.random.default_rng(3)
+    answers = set()
+    for _ in range(60):
+        a = _flat_set(rng, int(rng.integers(1, 400)), 0.0)
+        b = _flat_set(rng, int(rng.integers(1, 400)), rng.choice([0.0, 0.1]))
+        if rng.random() < 0.7:  # b re-observes part of a: jittered means, similar colours
+            pick = rng.integers(0, len(a), len(b))
+            b = GaussianSet(
+                a.means[pick] + rng.normal(0, rng.choice([0.003, 0.01, 0.03]), (len(b), 3)),
+                a.covs[pick] if rng.random() < 0.5 else b.covs,
+                np.clip(a.colors[pick] + rng.normal(0, rng.choice([0.01, 0.1]), (len(b), 3)), 0, 1),
+                b.opacities, b.counts,
+            )  # fmt: skip
+        pairs = mergeable_pairs(a, b, config)  # every pair within the radius, filtered fully
+        assert any_mergeable(a, b, config) == (len(pairs) > 0)
+        answers.add(len(pairs) > 0)
+    assert answers == {True, False}

@@ -23,6 +23,7 @@ if TYPE_CHECKING:
 # Imports inside functions stay there: gaussians, numba load on first use.
 
 ANY_MERGEABLE_CHUNK = 4096  # Gaussians per early-exit step of `any_mergeable`
+ANY_MERGEABLE_FIRST = 32  # pairs whose curvature `any_mergeable` computes first (then 4x more)
 MAX_GRID_SPAN = 1 << 22  # candidate radii across a set that the numba grid search can key
 
 
@@ -179,8 +180,6 @@ def any_mergeable(a: GaussianSet, b: GaussianSet, config: EstimatorConfig) -> bo
     if len(a) < len(b):
         a, b = b, a
     tree_a = cKDTree(a.means.astype(np.float64))
-    kappa_a = np.full(len(a), np.nan)  # filled for the Gaussians met by some pair (per
-    # matrix, eigvalsh gives the same bits in any batch)
     for start in range(0, len(b), ANY_MERGEABLE_CHUNK):
         chunk = b.subset(np.arange(start, min(start + ANY_MERGEABLE_CHUNK, len(b))))
         found = tree_a.sparse_distance_matrix(
@@ -190,14 +189,33 @@ def any_mergeable(a: GaussianSet, b: GaussianSet, config: EstimatorConfig) -> bo
             continue
         ia = found["i"].astype(np.int64)
         ib = found["j"].astype(np.int64)
-        need = np.unique(ia[np.isnan(kappa_a[ia])])
-        kappa_a[need] = curvature(a.covs[need])
-        used_b = np.unique(ib)
-        kappa_b = np.zeros(len(chunk))
-        kappa_b[used_b] = curvature(chunk.covs[used_b])
-        keep, _ = _filter_mergeable(a, ia, chunk, ib, config, kappa_a=kappa_a, kappa_b=kappa_b)
-        if keep.any():
+        if _some_pair_merges(a, ia, chunk, ib, config):
             return True
+    return False
+
+
+def _some_pair_merges(
+    a: GaussianSet, ia: np.ndarray, b: GaussianSet, ib: np.ndarray, config: EstimatorConfig
+) -> bool:
+    """Whether any pair (a[ia[k]], b[ib[k]]) has D < its merge threshold.
+
+    The curvatures (an eigvalsh per Gaussian, the cost) are computed for the pairs in
+    increasing D, in batches, until one pair merges. With tau <= 0 the threshold is at most
+    2 * voxel, so pairs with D >= 2 * voxel are dropped before any curvature. The answer is
+    that of `_filter_mergeable(...)[0].any()`: the same D and kappa per pair (eigvalsh gives
+    the same bits for a matrix in any batch), only fewer of them.
+    """
+    d = gaussian_distance(a, ia, b, ib, config)
+    bound = 2.0 * config.voxel_size if config.tau <= 0 else np.inf
+    near = np.flatnonzero(d < bound)
+    order = near[np.argsort(d[near], kind="stable")]
+    lo, size = 0, ANY_MERGEABLE_FIRST
+    while lo < len(order):
+        pick = order[lo : lo + size]
+        ka, kb = curvature(a.covs[ia[pick]]), curvature(b.covs[ib[pick]])
+        if np.any(d[pick] < merge_threshold(ka, kb, config)):
+            return True
+        lo, size = lo + size, 4 * size
     return False
 
 
