@@ -1,5 +1,6 @@
 """Shortcuts of the agent's step that must not change a bit: frustum culling of the id
-pass, cached Gaussian bounds, the structure update's chunk set, any_mergeable's early exit."""
+pass, cached Gaussian bounds, the structure update's chunk set, any_mergeable's early exit,
+block pooling."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from glmap_tools.gaussians.merge import any_mergeable, mergeable_pairs
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Pose
 from glmap_tools.map.structure import _distinct_chunks
+from glmap_tools.nav.planner import pool_any, pool_max
 from glmap_tools.sim.layout_io import layout_from_dict
 from glmap_tools.sim.render import CameraSpec, SceneRenderer
 
@@ -101,3 +103,18 @@ def test_any_mergeable_answers_as_the_full_pair_filter(tau: float) -> None:
         assert any_mergeable(a, b, config) == (len(pairs) > 0)
         answers.add(len(pairs) > 0)
     assert answers == {True, False}
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (5, 3), (61, 47)])
+@pytest.mark.parametrize("stride", [1, 2, 3, 4])
+def test_block_pooling_by_strided_slices_is_the_block_reduction(shape, stride) -> None:
+    rng = np.random.default_rng(4)
+    values = np.where(rng.random(shape) < 0.7, rng.uniform(0.1, 1.0, shape), 0.0)
+    mask = rng.random(shape) < 0.2
+    h, w = shape
+    pad = ((0, -h % stride), (0, -w % stride))
+    hb, wb = (h + pad[0][1]) // stride, (w + pad[1][1]) // stride
+    blocks = np.pad(values, pad).reshape(hb, stride, wb, stride)
+    np.testing.assert_array_equal(pool_max(values, stride), blocks.max(axis=(1, 3)))
+    blocks = np.pad(mask, pad).reshape(hb, stride, wb, stride)
+    np.testing.assert_array_equal(pool_any(mask, stride), blocks.any(axis=(1, 3)))

@@ -154,21 +154,27 @@ class DistanceField:
     cell_size: float
 
 
+def _pool(values: np.ndarray, stride: int, op: np.ufunc) -> np.ndarray:
+    """`op` over each stride x stride block (zero padded), as s * s strided slices: exact for
+    max / or, and several times faster than a reduction over the axes of a 4-D view."""
+    h, w = values.shape
+    m = np.pad(values, ((0, -h % stride), (0, -w % stride)))
+    out = m[::stride, ::stride].copy()
+    for i in range(stride):
+        for j in range(stride):
+            if i or j:
+                op(out, m[i::stride, j::stride], out=out)
+    return out
+
+
 def pool_any(mask: np.ndarray, stride: int) -> np.ndarray:
     """[ceil(H/s), ceil(W/s)] bool: blocks with at least one True cell."""
-    h, w = mask.shape
-    ph, pw = -h % stride, -w % stride
-    m = np.pad(mask, ((0, ph), (0, pw)))
-    blocks = m.reshape(m.shape[0] // stride, stride, m.shape[1] // stride, stride)
-    return np.asarray(blocks.any(axis=(1, 3)))
+    return _pool(np.asarray(mask, dtype=bool), stride, np.logical_or)
 
 
 def pool_max(values: np.ndarray, stride: int) -> np.ndarray:
     """[ceil(H/s), ceil(W/s)]: the largest value of each stride x stride block."""
-    h, w = values.shape
-    m = np.pad(values, ((0, -h % stride), (0, -w % stride)))
-    blocks = m.reshape(m.shape[0] // stride, stride, m.shape[1] // stride, stride)
-    return np.asarray(blocks.max(axis=(1, 3)))
+    return _pool(np.asarray(values), stride, np.maximum)
 
 
 def distance_field(
