@@ -58,8 +58,9 @@ def geodesic(
         f = np.where(mask | ~(speed > 0), 1.0, speed)
         dist = skfmm.travel_time(np.ma.MaskedArray(phi, mask), f, dx=cell_size)
         source_speed = float(f[goal_rc])
-    # The zero level set lies half a cell around the source centre.
-    out = np.ma.filled(dist, np.inf).astype(np.float64) + 0.5 * cell_size / source_speed
+    # The zero level set lies half a cell around the source centre; masked cells: inf.
+    out = np.ma.getdata(dist).astype(np.float64, copy=False) + 0.5 * cell_size / source_speed
+    out[np.ma.getmaskarray(dist)] = np.inf
     out[goal_rc] = 0.0
     return out
 
