@@ -67,3 +67,18 @@ def test_the_instnav_scorer_weighs_alike_instances_by_their_neighbours():
     assert scores[11] > scores[9]
     plain = base.score("a navy kitchen cabinet", units)
     assert np.array_equal(scorer.score("a navy kitchen cabinet", units), plain)  # no relation
+
+
+def test_the_described_instance_reaches_the_instnav_stop_threshold_and_its_look_alike_not():
+    """The whole goal sentence scored the described stove 0.71 against its own description
+    (house-bench s03-002, never matched): instances are scored for the target phrase, and
+    the relation decides RELATION_SHARE of it."""
+    from glmap_tools.nav.config import STOP_THRESHOLDS
+
+    sm = kitchen()
+    units = [u for u in map_units(sm.glmap, "instances") if sm.layout_id[u.unit_id] in CABINETS]
+    scorer = RelationScorer(EmbeddingScorer(sm.glmap.embedder), lambda: sm.glmap)
+    goal = "the navy kitchen cabinet next to the grey stove"
+    layout_ids = [sm.layout_id[u.unit_id] for u in units]
+    scores = dict(zip(layout_ids, scorer.score(goal, units), strict=True))
+    assert scores[11] >= STOP_THRESHOLDS["instnav"] > scores[9], scores

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.map.queries import parse_relation, with_relation
+from glmap_tools.map.queries import parse_relation, relation_evidence
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
@@ -333,11 +333,17 @@ class ClientScorer:
         return out
 
 
+# Share of an InstNav instance's score its "next to" relation decides: a look-alike with no
+# anchor beside it (0.95 for its target phrase) falls under the 0.75 stop threshold.
+RELATION_SHARE = 0.3
+
+
 class RelationScorer:
     """f_S for goals with a "next to" relation (InstNav: "the navy kitchen cabinet next to
-    the white refrigerator"): the base score of each instance, of which the relation decides
-    `map.queries.RELATION_WEIGHT` by what stands next to the instance in the map
-    (`map.queries.with_relation`). Goals without a relation keep the base scores.
+    the white refrigerator"): each instance scored for the goal's target phrase ("the navy
+    kitchen cabinet"), of which the relation decides `RELATION_SHARE` by what stands next to
+    the instance in the map (`map.queries.relation_evidence`). Regions, and goals without a
+    relation, keep the base scores of the whole goal.
 
     Args:
         base: the configured scorer.
@@ -351,10 +357,11 @@ class RelationScorer:
         self.category_margins: Callable[..., np.ndarray] | None = margins
 
     def score(self, goal: str, units: Sequence[UnitText]) -> np.ndarray:
-        """[N] scores in [0, 1]: the base scores, instances weighed by their relation."""
+        """[N] scores in [0, 1]: the base scores, instances by target and relation."""
 
         out = np.asarray(self.base.score(goal, units), dtype=np.float64).copy()
-        if parse_relation(goal) is None:
+        relation = parse_relation(goal)
+        if relation is None:
             return out
         glmap = self.glmap_of()
         rows = [
@@ -362,5 +369,9 @@ class RelationScorer:
         ]
         if rows:
             ids = np.array([units[k].unit_id for k in rows], dtype=np.int64)
-            out[rows] = with_relation(glmap, ids, out[rows], goal)
+            target = np.asarray(
+                self.base.score(relation.target, [units[k] for k in rows]), dtype=np.float64
+            )
+            evidence = relation_evidence(glmap, ids, relation)
+            out[rows] = target * (1.0 - RELATION_SHARE + RELATION_SHARE * evidence)
         return out
