@@ -1,9 +1,11 @@
-"""The estimator's fast merge: the sorted sweep finds the same pairs as the hashed grid."""
+"""The estimator's fast kernels: the sorted sweep finds the same pairs as the hashed grid, and
+the lockstep kernels give the bits of their plain scalar twins."""
 
 import numpy as np
 import pytest
 
 from glmap_tools.gaussians import _estimator_clusters as clusters
+from glmap_tools.gaussians import _estimator_numba as kernels
 from glmap_tools.gaussians import _estimator_sweep as sweep
 from glmap_tools.gaussians._estimator_fast import gaussian_rows, grid_pairs
 from glmap_tools.gaussians.estimator import EstimatorConfig
@@ -105,3 +107,15 @@ def test_cell_keys_refuse_extents_that_would_overflow():
     cells = np.array([[1, 1, 1], [1 << 21, 1 << 21, 1 << 21]], dtype=np.int64)
     keys, _, _ = sweep.cell_keys(cells)
     assert (keys == -1).all()
+
+
+def test_the_lockstep_curvatures_are_the_scalar_newton_bit_for_bit():
+    rng = np.random.default_rng(11)
+    a = rng.normal(size=(3000, 3, 3)) * rng.uniform(1e-4, 1e-2, (3000, 1, 3))
+    covs = a @ a.transpose(0, 2, 1) + 1e-6 * np.eye(3)
+    covs[:200] = np.diag([2e-5, 2e-5, 2e-5]) + 1e-9 * np.eye(3)  # repeated roots: the formula
+    covs[200:400] = np.diag(rng.uniform(1e-6, 1e-4, 3))  # diagonal
+    rows = covs[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    expected = np.array([max(kernels.min_eigenvalue(*r), 0.0) / (r[0] + r[3] + r[5]) for r in rows])
+    np.testing.assert_array_equal(kernels.curvatures(rows), expected)
+    np.testing.assert_array_equal(kernels.curvatures(rows[5:70]), expected[5:70])

@@ -15,6 +15,7 @@ from glmap_tools.gaussians._estimator_grid import SLOTS, neighbour_tables
 
 N_MOMENTS = 13
 NEWTON_STEPS = 6  # for the smallest eigenvalue; past this the closed form takes over
+LANES = 64  # Gaussians whose Newton iterations run in lockstep
 
 
 @numba.njit(cache=True)
@@ -186,14 +187,55 @@ def min_eigenvalue(a: float, b: float, c: float, d: float, e: float, f: float) -
     return _min_eigenvalue_trig(a, b, c, d, e, f)
 
 
+@numba.njit(cache=True, error_model="numpy")
+def curvatures_into(covs: np.ndarray, lo: int, hi: int, kappa: np.ndarray) -> None:
+    """kappa[i] = max(lambda_min, 0) / trace of covariance rows covs[i] (xx xy xz yy yz zz),
+    for lo <= i < hi, with the bits of `min_eigenvalue`.
+
+    Newton runs on LANES Gaussians in lockstep, each lane frozen once it converges or stops
+    (no branch, so the lanes overlap instead of waiting on one another's divisions); the lanes
+    that did not converge take the trigonometric formula after NEWTON_STEPS.
+    """
+    tr = np.empty(LANES)
+    c2 = np.empty(LANES)
+    det = np.empty(LANES)
+    lam = np.empty(LANES)
+    live = np.empty(LANES, dtype=np.bool_)
+    done = np.empty(LANES, dtype=np.bool_)
+    for i0 in range(lo, hi, LANES):
+        m = min(LANES, hi - i0)
+        for q in range(m):
+            a, b, c = covs[i0 + q, 0], covs[i0 + q, 1], covs[i0 + q, 2]
+            d, e, f = covs[i0 + q, 3], covs[i0 + q, 4], covs[i0 + q, 5]
+            tr[q] = a + d + f
+            c2[q] = a * d - b * b + a * f - c * c + d * f - e * e
+            det[q] = a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c)
+            lam[q] = 0.0
+            live[q] = True
+            done[q] = False
+        for _ in range(NEWTON_STEPS):
+            for q in range(m):
+                x = lam[q]
+                slope = (3.0 * x - 2.0 * tr[q]) * x + c2[q]
+                step = (((x - tr[q]) * x + c2[q]) * x - det[q]) / slope
+                go = live[q] & (slope > 0.0)  # a NaN slope ends in the formula either way
+                lam[q] = x - step if go else x
+                converged = go & (-step <= 1e-14 * tr[q])
+                done[q] |= converged
+                live[q] = go & (not converged)
+        for q in range(m):
+            x = lam[q]
+            if not done[q]:
+                c = covs[i0 + q]
+                x = _min_eigenvalue_trig(c[0], c[1], c[2], c[3], c[4], c[5])
+            kappa[i0 + q] = max(x, 0.0) / tr[q]
+
+
 @numba.njit(cache=True)
 def curvatures(covs: np.ndarray) -> np.ndarray:
     """[G] kappa = lambda_min / trace of covariance rows [G, 6] (xx xy xz yy yz zz)."""
     out = np.empty(covs.shape[0])
-    for i in range(covs.shape[0]):
-        c = covs[i]
-        lam = max(min_eigenvalue(c[0], c[1], c[2], c[3], c[4], c[5]), 0.0)
-        out[i] = lam / (c[0] + c[3] + c[5])
+    curvatures_into(covs, 0, covs.shape[0], out)
     return out
 
 
@@ -223,8 +265,7 @@ def _candidates_range(
         covs[i, 0], covs[i, 1], covs[i, 2] = cxx, cxy, cxz
         covs[i, 3], covs[i, 4], covs[i, 5] = cyy, cyz, czz
         colors[i, 0], colors[i, 1], colors[i, 2] = s[10] / n, s[11] / n, s[12] / n
-        lam = max(min_eigenvalue(cxx, cxy, cxz, cyy, cyz, czz), 0.0)
-        kappa[i] = lam / (cxx + cyy + czz)
+    curvatures_into(covs, lo, hi, kappa)
 
 
 @numba.njit(cache=True, parallel=True)

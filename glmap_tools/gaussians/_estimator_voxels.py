@@ -20,20 +20,20 @@ CELL_MARGIN = 4  # one block of empty cells below the smallest coordinate
 @numba.njit(cache=True)
 def scan_cloud(points: np.ndarray, colors: np.ndarray) -> np.ndarray:
     """[8] = (points all finite, colours all in [0, 1], point min xyz, point max xyz)."""
+    lx = ly = lz = np.inf
+    hx = hy = hz = -np.inf
+    finite = in_range = True
+    for i in range(points.shape[0]):  # no branches, the state in registers
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        lx, ly, lz = min(lx, x), min(ly, y), min(lz, z)
+        hx, hy, hz = max(hx, x), max(hy, y), max(hz, z)
+        finite &= (x - x == 0.0) & (y - y == 0.0) & (z - z == 0.0)  # NaN for NaN and inf
+        r, g, b = colors[i, 0], colors[i, 1], colors[i, 2]
+        in_range &= (r >= 0.0) & (r <= 1.0) & (g >= 0.0) & (g <= 1.0) & (b >= 0.0) & (b <= 1.0)
     out = np.empty(8)
-    out[0], out[1] = 1.0, 1.0
-    out[2:5] = np.inf
-    out[5:8] = -np.inf
-    for i in range(points.shape[0]):
-        for a in range(3):
-            p = points[i, a]
-            if not math.isfinite(p):
-                out[0] = 0.0
-            out[2 + a] = min(out[2 + a], p)
-            out[5 + a] = max(out[5 + a], p)
-            k = colors[i, a]
-            if not (k >= 0.0 and k <= 1.0):  # also NaN
-                out[1] = 0.0
+    out[0] = 1.0 if finite else 0.0
+    out[1] = 1.0 if in_range else 0.0
+    out[2], out[3], out[4], out[5], out[6], out[7] = lx, ly, lz, hx, hy, hz
     return out
 
 
