@@ -67,3 +67,21 @@ def test_rendering_the_same_pose_twice_gives_identical_images() -> None:
     np.testing.assert_array_equal(a.rgb, b.rgb)
     np.testing.assert_array_equal(a.depth, b.depth)
     np.testing.assert_array_equal(a.instance_mask, b.instance_mask)
+
+
+def test_surfaces_that_tie_in_depth_go_to_the_object_listed_first() -> None:
+    # Two boxes in the same place tie in depth on every pixel. pyrender drew its mesh nodes in
+    # the order of a set (memory addresses), so which id won differed between renderers.
+    boxes = [
+        {"id": i, "category": "box", "mesh": "primitive/box", "position": [1.5, 4.5, 0],
+         "size": [0.5, 0.5, 0.5]}
+        for i in (40, 9, 23)
+    ]  # fmt: skip
+    layout = layout_from_dict(
+        {"rooms": [{"id": 1, "type": "studio", "polygon": L_SHAPE}], "objects": boxes}
+    )
+    pose = Pose.looking_at(np.array([1.5, 2.5, 0.88]), np.array([1.5, 4.5, 0.25]))
+    for _ in range(8):  # new nodes at new addresses each time
+        renderer = SceneRenderer(layout, CameraSpec(160, 120))
+        ids = set(np.unique(renderer.render(pose).instance_mask)) - {0}
+        assert ids == {40}

@@ -8,7 +8,9 @@ The colour pass draws everything as one merged mesh with per-vertex colours; the
 draws one node per object in its id colour and one node (colour 0) for walls, floors and
 ceilings. The id mask comes from pyrender's flat SEG pass
 (multisampling off), so every pixel is exactly one object id or 0; depth is read from the same
-pass so depth and mask agree pixel for pixel. The id pass skips the objects whose bounding box
+pass so depth and mask agree pixel for pixel. Meshes draw in the order they were added
+(`_DrawOrderScene`), so where two surfaces tie in depth the same one wins in every process.
+The id pass skips the objects whose bounding box
 lies wholly outside a frustum a little wider than the camera's (they would draw no pixel, and
 each draw call costs pyrender ~0.1 ms of Python): the same images, fewer calls.
 """
@@ -137,6 +139,27 @@ def _box_corners(parts: list[PlacedPart]) -> np.ndarray:
     return np.where(pick == 1, hi, lo)
 
 
+class _DrawOrderScene(pyrender.Scene):
+    """A pyrender scene that draws its meshes in the order they were added.
+
+    pyrender keeps mesh nodes in a set and sorts them by distance from the camera to the
+    node's origin, which is the same for every node here; ties in depth then went to the
+    mesh first in the set's order, which follows memory addresses and differs by process.
+    """
+
+    def __init__(self, **kwargs: object) -> None:
+        self._added: dict[pyrender.Node, int] = {}
+        super().__init__(**kwargs)  # type: ignore[arg-type]
+
+    def add_node(self, node: pyrender.Node, parent_node: pyrender.Node | None = None) -> None:
+        super().add_node(node, parent_node)
+        self._added.setdefault(node, len(self._added))
+
+    @property
+    def mesh_nodes(self) -> list[pyrender.Node]:  # type: ignore[override]
+        return sorted(self._mesh_nodes, key=self._added.__getitem__)
+
+
 class SceneRenderer:
     """Renders a layout from world_from_camera poses (OpenCV camera, z-up world).
 
@@ -148,7 +171,7 @@ class SceneRenderer:
     def __init__(self, layout: Layout, camera: CameraSpec | None = None) -> None:
         self.camera = camera or CameraSpec()
         self.intrinsics = self.camera.intrinsics
-        self.scene = pyrender.Scene(bg_color=(0.0, 0.0, 0.0, 1.0), ambient_light=(1.0,) * 3)
+        self.scene = _DrawOrderScene(bg_color=(0.0, 0.0, 0.0, 1.0), ambient_light=(1.0,) * 3)
         self.seg_node_map: dict[pyrender.Node, tuple[int, int, int]] = {}
         # The colour pass draws one merged mesh (one draw call); the id pass draws one node per
         # object with its id colour. Each pass shows only its own meshes.
