@@ -60,7 +60,7 @@ def test_the_instnav_scorer_weighs_alike_instances_by_their_neighbours():
     sm = kitchen()
     units = [u for u in map_units(sm.glmap, "instances") if sm.layout_id[u.unit_id] in CABINETS]
     base = EmbeddingScorer(sm.glmap.embedder)
-    scorer = RelationScorer(base, lambda: sm.glmap)
+    scorer = RelationScorer(base, lambda: sm.glmap, anchor_min_observations=1)  # one frame each
     goal = "the navy kitchen cabinet next to the grey stove"
     layout_ids = [sm.layout_id[u.unit_id] for u in units]
     scores = dict(zip(layout_ids, scorer.score(goal, units), strict=True))
@@ -77,8 +77,26 @@ def test_the_described_instance_reaches_the_instnav_stop_threshold_and_its_look_
 
     sm = kitchen()
     units = [u for u in map_units(sm.glmap, "instances") if sm.layout_id[u.unit_id] in CABINETS]
-    scorer = RelationScorer(EmbeddingScorer(sm.glmap.embedder), lambda: sm.glmap)
+    scorer = RelationScorer(EmbeddingScorer(sm.glmap.embedder), lambda: sm.glmap, 1)
     goal = "the navy kitchen cabinet next to the grey stove"
     layout_ids = [sm.layout_id[u.unit_id] for u in units]
     scores = dict(zip(layout_ids, scorer.score(goal, units), strict=True))
     assert scores[11] >= STOP_THRESHOLDS["instnav"] > scores[9], scores
+
+
+def test_an_anchor_seen_in_fewer_frames_than_a_match_needs_is_no_anchor():
+    """A one-glimpse "box" beside a toilet made the wrong toilet the match (house-bench
+    s06-001): an anchor counts once seen in `anchor_min_observations` frames."""
+    sm = kitchen()
+    units = [u for u in map_units(sm.glmap, "instances") if sm.layout_id[u.unit_id] in CABINETS]
+    stove = sm.glmap.instances[unit_of(12)].observations
+    goal = "the navy kitchen cabinet next to the grey stove"
+    base = EmbeddingScorer(sm.glmap.embedder)
+    by_id = {}
+    for need in (stove, stove + 1):
+        scorer = RelationScorer(base, lambda: sm.glmap, anchor_min_observations=need)
+        by_id[need] = dict(
+            zip([sm.layout_id[u.unit_id] for u in units], scorer.score(goal, units), strict=True)
+        )
+    assert by_id[stove][11] > by_id[stove][9]  # the stove decides while it counts
+    assert by_id[stove + 1][11] < by_id[stove][11] - 0.05  # and gives nothing once it does not

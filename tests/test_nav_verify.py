@@ -126,3 +126,26 @@ def test_the_match_the_agent_heads_for_keeps_its_place_down_to_the_lower_seen_sh
     held.last_waypoint = Waypoint((1.0, 0.0), "goal", desk, 0.9, "heading to the desk.")
     d = decide(glmap, (0.0, 0.0), 0.0, "desk", policy="glmap", state=held, config=once)
     assert d.waypoint.kind == "goal" and d.waypoint.unit_id == desk
+
+
+def test_a_sink_between_two_cabinets_of_one_unit_is_not_outvoted_by_their_box() -> None:
+    # One "kitchen cabinet" unit spans the cabinets on both sides of the sink: its box holds
+    # the sink's, its floor cells do not (house-bench InstNav s07-002).
+    wood, white = (0.6, 0.45, 0.3), (0.9, 0.9, 0.9)
+    boxes = scenes.floor(6.0) + [
+        scenes.Box((2.0, -0.8, 0.0), (2.6, -0.4, 0.9), wood, 3),
+        scenes.Box((2.0, -0.4, 0.0), (2.6, 0.4, 0.9), white, 4),
+        scenes.Box((2.0, 0.4, 0.0), (2.6, 0.8, 0.9), wood, 3),
+    ]
+    texts = {3: ("kitchen cabinet", "a wooden kitchen cabinet"), 4: ("sink", "a white sink")}
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    for k in range(6):
+        eye = (1.0, -0.3 + 0.12 * k, 1.8)
+        frame, ids = scenes.view(boxes, eye, (2.3, 0.0, 0.6), 160, 120)
+        glmap.integrate(frame, scenes.semantics(ids, texts if k < 2 else {3: texts[3]}))
+    sink = next(i for i, u in glmap.instances.items() if u.label == "sink")
+    cabinet = next(i for i, u in glmap.instances.items() if u.label == "kitchen cabinet")
+    lo, hi = glmap.instances[sink].bounds()
+    assert same_place(lo, hi, *glmap.instances[cabinet].bounds())  # the box rule alone would
+    assert glmap.instances[cabinet].observations > glmap.instances[sink].observations
+    assert not outvoted(glmap, sink)

@@ -290,13 +290,18 @@ def _boxes(glmap: MapState, ids: np.ndarray) -> np.ndarray:
 
 
 def relation_evidence(
-    glmap: MapState, ids: np.ndarray, relation: Relation, radius: float = NEAR_M
+    glmap: MapState,
+    ids: np.ndarray,
+    relation: Relation,
+    radius: float = NEAR_M,
+    min_observations: int = 1,
 ) -> np.ndarray:
     """[N] how well each instance of `ids` stands next to the relation's anchor, in [0, 1].
 
     The best anchor score among the other instances whose footprint (cell box) lies within
     `radius` metres of its own: 1 for the anchor unit when the relation names an id, else
     the instance's score for the anchor text, mapped `clip((s - 0.2) / 0.8, 0, 1)`.
+    Instances seen in fewer than `min_observations` frames are no anchor.
     """
     all_ids, _ = glmap.instance_matrix()
     if len(ids) == 0 or len(all_ids) == 0:
@@ -306,6 +311,9 @@ def relation_evidence(
     else:
         _, a = text_scores(glmap, "instance", relation.anchor)
         anchor = np.clip((np.asarray(a, np.float64) - ANCHOR_FLOOR) / (1 - ANCHOR_FLOOR), 0, 1)
+    if min_observations > 1:
+        seen = np.array([glmap.instances[int(i)].observations for i in all_ids.tolist()])
+        anchor = np.where(seen >= min_observations, anchor, 0.0)
     mine, theirs = _boxes(glmap, np.asarray(ids)), _boxes(glmap, all_ids)
     cell = glmap.grid.cell_size
     # Gap between boxes, in cells (0 when they touch or overlap), per pair [N, M].

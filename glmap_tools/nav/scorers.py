@@ -348,11 +348,18 @@ class RelationScorer:
     Args:
         base: the configured scorer.
         glmap_of: the map the units belong to (the session's current map).
+        anchor_min_observations: frames an anchor must be seen in to count, as a goal match
+            must (`NavConfig.min_observations`): a one-glimpse "box" beside a toilet made
+            the wrong toilet the match for one step, and the agent stopped there
+            (house-bench InstNav s06-001).
     """
 
-    def __init__(self, base: Scorer, glmap_of: Callable[[], GLMap]) -> None:
+    def __init__(
+        self, base: Scorer, glmap_of: Callable[[], GLMap], anchor_min_observations: int = 2
+    ) -> None:
         self.base = base
         self.glmap_of = glmap_of
+        self.anchor_min_observations = anchor_min_observations
         margins = getattr(base, "category_margins", None)
         self.category_margins: Callable[..., np.ndarray] | None = margins
 
@@ -372,6 +379,8 @@ class RelationScorer:
             target = np.asarray(
                 self.base.score(relation.target, [units[k] for k in rows]), dtype=np.float64
             )
-            evidence = relation_evidence(glmap, ids, relation)
+            evidence = relation_evidence(
+                glmap, ids, relation, min_observations=self.anchor_min_observations
+            )
             out[rows] = target * (1.0 - RELATION_SHARE + RELATION_SHARE * evidence)
         return out

@@ -10,7 +10,10 @@ counts only if its views are at least as many as those of the other-labelled ins
 at the same place (`same_place`: the other's box covers `COVER` of the candidate's, and the
 candidate's covers `COVER_BACK` of the other's: a partial view of a cabinet taken for a TV
 stand still votes with the cabinet, while a pillow on a bed, inside the bed's box but far
-smaller, is not outvoted by the bed).
+smaller, is not outvoted by the bed) and the other's floor cells hold `COVER` of the
+candidate's core cells (a box is not a place: a kitchen-cabinet unit spanning the cabinets
+on both sides of a sink has a box around the sink but none of its cells; house-bench
+InstNav s07-002, where the sink was outvoted for 200 steps).
 """
 
 from __future__ import annotations
@@ -23,8 +26,11 @@ if TYPE_CHECKING:
     from glmap_tools.geometry.frame import RGBDFrame
     from glmap_tools.map.glmap import GLMap
 
+from glmap_tools.nav.value import unit_cell_array, unit_core_cells
+
 COVER = 0.5  # share of the candidate's box inside the other's
 COVER_BACK = 0.25  # share of the other's box inside the candidate's (a partial view is smaller)
+CORE = 0.8  # share of a unit's points its core cells hold (`NavConfig.footprint_core`)
 
 
 def covered_share(
@@ -60,11 +66,17 @@ def outvoted(glmap: GLMap, unit_id: int) -> bool:
         return False
     lo, hi = unit.bounds()
     votes = 0
+    core: set[tuple[int, int]] | None = None
     for other_id, other in glmap.instances.items():
         if other_id == unit_id or other.label == unit.label or len(other.gaussians) == 0:
             continue
         other_lo, other_hi = other.bounds()
-        if same_place(lo, hi, other_lo, other_hi):
+        if not same_place(lo, hi, other_lo, other_hi):
+            continue
+        if core is None:
+            core = {(int(i), int(j)) for i, j in unit_core_cells(glmap, unit_id, CORE)}
+        theirs = {(int(i), int(j)) for i, j in unit_cell_array(glmap.grid, other_id)}
+        if core and len(core & theirs) >= COVER * len(core):
             votes += other.observations
     return votes > unit.observations
 
