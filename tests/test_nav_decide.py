@@ -413,3 +413,23 @@ def test_an_instance_draws_in_the_value_map_only_once_seen_as_often_as_a_match_n
     assert seen == 2
     evidence, h = h_at_chair(2)
     assert evidence == "units" and h > 0.5
+
+
+def test_a_label_the_embedder_reads_as_the_goal_itself_is_no_other_category() -> None:
+    """House-tune s01-008: the refrigerator unit, named "a black fridge" by a later view,
+    lost its match to the map's own label "fridge" (margin -0.009)."""
+    from glmap_tools.language.minilm import default_embedder
+
+    embedder = default_embedder()
+    scorer = EmbeddingScorer(embedder)
+    texts = [("fridge", "a white refrigerator | a black fridge"), ("oven", "a black oven")]
+    units = [
+        UnitText(k, "instance", t, np.asarray(embedder.embed([t])[0]), 4, label)
+        for k, (label, t) in enumerate(texts)
+    ]
+    vocabulary = ["fridge", "oven", "refrigerator"]
+    margins = scorer.category_margins("refrigerator", units, vocabulary)
+    assert margins[0] > 0.0 > margins[1]
+    # "kitchen cabinet" still competes with "cabinet" (cosine 0.89, under SYNONYM_COS).
+    cabinet = [UnitText(0, "instance", "a white kitchen cabinet", None, 4, "kitchen cabinet")]
+    assert scorer.category_margins("cabinet", cabinet, ["kitchen cabinet", "cabinet"])[0] < 0

@@ -83,6 +83,15 @@ def map_units(glmap: GLMap, units: str = "both") -> list[UnitText]:
     return out
 
 
+# Cosine at which the embedder reads a map label as the goal's own name, not another
+# category. MiniLM: television / tv 0.977, fridge / refrigerator 0.968, while the closest
+# other categories reach 0.893 (kitchen cabinet / cabinet) and 0.853 (couch / sofa).
+# House-tune s01-008: a fourth view named the refrigerator unit "a black fridge", the map's
+# label "fridge" then beat the goal "refrigerator" by 0.009 and the match dropped for 300
+# steps.
+SYNONYM_COS = 0.95
+
+
 class EmbeddingScorer:
     """Cosine of the goal embedding against each unit's text embedding, mapped to [0, 1].
 
@@ -158,7 +167,9 @@ class EmbeddingScorer:
         of the map: its own vocabulary), embedded as noun phrases like the goal. A unit whose
         text is closer to some other label than to the goal ("a kitchen cabinet ..." for the
         goal "cabinet") gets a negative margin, whatever its absolute cosine; with no
-        competing label every margin is +inf.
+        competing label every margin is +inf. A label the embedder reads as the goal itself
+        (cosine >= `SYNONYM_COS`: "fridge" for "refrigerator", "television" for "tv") is no
+        other category.
         """
         if not units:
             return np.zeros(0)
@@ -175,6 +186,10 @@ class EmbeddingScorer:
                 v = np.asarray(v, dtype=np.float32)
                 self._label_cache[p] = v / max(float(np.linalg.norm(v)), 1e-12)
         vocab = np.stack([self._label_cache[p] for p in phrases])  # [L, D]
+        q = self.goal_embedding(goal)
+        vocab = vocab[vocab @ q < SYNONYM_COS * max(float(np.linalg.norm(q)), 1e-12)]
+        if len(vocab) == 0:
+            return np.full(len(units), np.inf)
         missing_units = [u.text for u in units if u.embedding is None]
         embedded = iter(self.embedder.embed(missing_units) if missing_units else [])
         rows = np.stack(
