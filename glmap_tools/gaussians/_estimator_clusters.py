@@ -266,6 +266,7 @@ def _clusters_range(
     members: np.ndarray,
     emitted: np.ndarray,
     neighbours: np.ndarray,
+    first: np.ndarray,
     n_neighbours: np.ndarray,
     sums: np.ndarray,
     moments: np.ndarray,
@@ -279,15 +280,15 @@ def _clusters_range(
         # The first member's neighbourhood is its `sums` row (summed in the same order from
         # zero, so the same bits); the others add the neighbours not seen yet.
         v = emitted[members[start[c]]]
-        for q in range(n_neighbours[v]):
-            stamp[neighbours[v, q]] = c
+        for q in range(first[v], first[v] + n_neighbours[v]):
+            stamp[neighbours[q]] = c
         a0, a1, a2, a3, a4 = sums[v, 0], sums[v, 1], sums[v, 2], sums[v, 3], sums[v, 4]
         a5, a6, a7, a8, a9 = sums[v, 5], sums[v, 6], sums[v, 7], sums[v, 8], sums[v, 9]
         a10, a11, a12 = sums[v, 10], sums[v, 11], sums[v, 12]
         for k in range(start[c] + 1, start[c + 1]):
             v = emitted[members[k]]
-            for q in range(n_neighbours[v]):
-                u = neighbours[v, q]
+            for q in range(first[v], first[v] + n_neighbours[v]):
+                u = neighbours[q]
                 if stamp[u] == c:
                     continue
                 stamp[u] = c
@@ -308,6 +309,7 @@ def _clusters_parallel(
     members: np.ndarray,
     emitted: np.ndarray,
     neighbours: np.ndarray,
+    first: np.ndarray,
     n_neighbours: np.ndarray,
     sums: np.ndarray,
     moments: np.ndarray,
@@ -317,7 +319,7 @@ def _clusters_parallel(
     for chunk in numba.prange(n_chunks):
         _clusters_range(
             chunk * n_clusters // n_chunks, (chunk + 1) * n_clusters // n_chunks, start,
-            members, emitted, neighbours, n_neighbours, sums, moments, out,
+            members, emitted, neighbours, first, n_neighbours, sums, moments, out,
         )  # fmt: skip
 
 
@@ -326,6 +328,7 @@ def cluster_moments(
     labels: np.ndarray,
     emitted: np.ndarray,
     neighbours: np.ndarray,
+    first: np.ndarray,
     n_neighbours: np.ndarray,
     sums: np.ndarray,
     moments: np.ndarray,
@@ -337,8 +340,10 @@ def cluster_moments(
         labels: [G] smallest member of each Gaussian's cluster; clusters are output in
             increasing label order.
         emitted: [G] voxel of each Gaussian.
-        neighbours: [V, 27] occupied neighbour voxels of each voxel, in neighbours[v, :n[v]].
-        n_neighbours: [V] their number.
+        neighbours: occupied neighbour voxels of each voxel v, in
+            neighbours[first[v] : first[v] + n_neighbours[v]].
+        first: [V] where v's list starts.
+        n_neighbours: [V] its length.
         sums: [V, 13] each voxel's neighbourhood moments (used for singletons).
         moments: [V, 13] each voxel's own moments.
         n_chunks: parallel work items.
@@ -364,10 +369,12 @@ def cluster_moments(
     out = np.empty((n_clusters, N_MOMENTS))
     if n_chunks == 1:
         _clusters_range(
-            0, n_clusters, start, members, emitted, neighbours, n_neighbours, sums, moments, out
-        )
+            0, n_clusters, start, members, emitted, neighbours, first, n_neighbours, sums,
+            moments, out,
+        )  # fmt: skip
     else:
         _clusters_parallel(
-            n_chunks, start, members, emitted, neighbours, n_neighbours, sums, moments, out
-        )
+            n_chunks, start, members, emitted, neighbours, first, n_neighbours, sums, moments,
+            out,
+        )  # fmt: skip
     return out

@@ -49,7 +49,7 @@ def fit_fast(
     threads = numba.get_num_threads() if len(voxel_block) >= PARALLEL_MIN_VOXELS else 1
     n_chunks = 1 if threads == 1 else CHUNKS_PER_THREAD * threads
     moments = kernels.voxel_moments(points, colors, point_voxel, len(voxel_block), origin)
-    neighbours, n_neighbours, sums = kernels.neighbourhood_moments(
+    neighbours, first, n_neighbours, sums = kernels.neighbourhood_moments(
         voxel_block, voxel_slot, slot_voxel, block_nbrs, moments, n_chunks
     )
     emitted = np.flatnonzero(sums[:, 0] >= config.min_points)
@@ -67,7 +67,7 @@ def fit_fast(
             config.epsilon,
         )
         sums = clusters.cluster_moments(
-            labels, emitted, neighbours, n_neighbours, sums, moments, threads
+            labels, emitted, neighbours, first, n_neighbours, sums, moments, threads
         )
         emitted = np.arange(len(sums))
     means32, covs32, cols32, counts = kernels.output_gaussians(
