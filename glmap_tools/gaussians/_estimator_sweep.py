@@ -22,6 +22,7 @@ import numpy as np
 RADIX_BITS = 11
 MAX_KEY = 1 << 62  # cells x * y * z must stay below this for the mixed-radix keys
 PAIR_BUFFER = 4096  # pairs within the radius gathered before D is computed for them
+SENTINEL = (1 << 63) - 1  # the run key after the last run
 
 
 @numba.njit(cache=True)
@@ -76,9 +77,10 @@ def radix_order(keys: np.ndarray) -> np.ndarray:
 
 @numba.njit(cache=True)
 def _key_runs(keys: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """(run keys, run starts, run count): run r holds order[start[r]:start[r + 1]]."""
+    """(run keys, run starts, run count): run r holds order[start[r]:start[r + 1]]; the key
+    after the last run is a sentinel larger than any key."""
     g = keys.shape[0]
-    run_key = np.empty(g, dtype=np.int64)
+    run_key = np.empty(g + 1, dtype=np.int64)
     start = np.empty(g + 1, dtype=np.int64)
     n_runs = 0
     for s in range(g):
@@ -88,6 +90,7 @@ def _key_runs(keys: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarr
             start[n_runs] = s
             n_runs += 1
     start[n_runs] = g
+    run_key[n_runs] = SENTINEL
     return run_key, start, n_runs
 
 
@@ -106,15 +109,15 @@ def sqrt_bound(radius: float) -> float:
 def _packed(
     order: np.ndarray, means: np.ndarray, covs: np.ndarray, colors: np.ndarray, kappa: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The means [G, 3] and the rest of D's inputs [G, 11] (covariance row, colour, kappa,
-    index), in key order, so the sweep reads memory in order."""
+    """The means [3, G] (x, y and z rows) and the rest of D's inputs [G, 11] (covariance row,
+    colour, kappa, index), in key order, so the sweep reads memory in order."""
     g = order.shape[0]
-    near = np.empty((g, 3))
+    near = np.empty((3, g))
     rest = np.empty((g, 11))
     for s in range(g):
         o = order[s]
         for a in range(3):
-            near[s, a] = means[o, a]
+            near[a, s] = means[o, a]
             rest[s, 6 + a] = colors[o, a]
         for a in range(6):
             rest[s, a] = covs[o, a]
@@ -135,14 +138,15 @@ def _mergeable(
     out_d: np.ndarray,
     found: int,
 ) -> int:
-    """Append the mergeable ones of the n_buf near pairs buf[:, :n_buf] (key positions) to
-    out_* from `found` (room for all n_buf assumed); returns the new count."""
+    """Append the mergeable ones of the n_buf near pairs buf[:n_buf] (key positions s, t
+    packed as s << 32 | t) to out_* from `found` (room for all n_buf assumed); returns the
+    new count."""
     voxel, tau, lc, lk = params[1], params[2], params[3], params[4]
     for q in range(n_buf):  # no branches: every pair is written, the count moves if it merges
-        s, t = buf[0, q], buf[1, q]
-        ex = near[s, 0] - near[t, 0]
-        ey = near[s, 1] - near[t, 1]
-        ez = near[s, 2] - near[t, 2]
+        s, t = buf[q] >> 32, buf[q] & 0xFFFFFFFF
+        ex = near[0, s] - near[0, t]
+        ey = near[1, s] - near[1, t]
+        ez = near[2, s] - near[2, t]
         s00 = rest[s, 0] - rest[t, 0]
         s11 = rest[s, 3] - rest[t, 3]
         s22 = rest[s, 5] - rest[t, 5]
@@ -164,25 +168,6 @@ def _mergeable(
     return found
 
 
-@numba.njit(cache=True, inline="always")
-def _gather(
-    near: np.ndarray,
-    sx: float,
-    sy: float,
-    sz: float,
-    s: int,
-    t: int,
-    near_sq: float,
-    buf: np.ndarray,
-    n_buf: int,
-) -> int:
-    ex = sx - near[t, 0]
-    ey = sy - near[t, 1]
-    ez = sz - near[t, 2]
-    buf[0, n_buf], buf[1, n_buf] = s, t
-    return n_buf + (ex**2 + ey**2 + ez**2 <= near_sq)
-
-
 @numba.njit(cache=True)
 def _near_pairs(
     r: int,
@@ -201,43 +186,41 @@ def _near_pairs(
     Run r (key k) meets itself and the runs with keys in [k + offsets[0, m],
     k + offsets[1, m]] for m = 1..5, which the key order holds at contiguous positions;
     cursors[0, m] (first run with key >= the low end) and cursors[1, m] (first run past
-    the high end) only move forward.
+    the high end) only move forward (run_key ends with a sentinel). The run's own tail and
+    the run of key k + 1 (m = 1) are one range of positions.
     """
-    n_runs = run_key.shape[0]
+    xs, ys, zs = near[0], near[1], near[2]
     t_lo = np.empty(6, dtype=np.int64)
     t_hi = np.empty(6, dtype=np.int64)
-    other = np.empty(buf.shape[1], dtype=np.int64)
     n_buf = 0
     while r < r_end:
         k = run_key[r]
-        width = start[r + 1] - start[r]
+        width = 0
         for m in range(1, 6):
             c = cursors[0, m]
-            while c < n_runs and run_key[c] < k + offsets[0, m]:
+            while run_key[c] < k + offsets[0, m]:
                 c += 1
             cursors[0, m] = c
             t_lo[m] = start[c]
             c = max(c, cursors[1, m])
-            while c < n_runs and run_key[c] <= k + offsets[1, m]:
+            while run_key[c] <= k + offsets[1, m]:
                 c += 1
             cursors[1, m] = c
             t_hi[m] = start[c]
             width += t_hi[m] - t_lo[m]
-        if n_buf + (start[r + 1] - start[r]) * width > buf.shape[1]:
+        s0, s1 = start[r], start[r + 1]
+        if n_buf + (s1 - s0) * (s1 - s0 + width) > buf.shape[0]:
             break
-        # the positions of the other runs met, as one list
-        n_other = 0
-        for m in range(1, 6):
-            for t in range(t_lo[m], t_hi[m]):
-                other[n_other] = t
-                n_other += 1
-        for s in range(start[r], start[r + 1]):
-            sx, sy, sz = near[s, 0], near[s, 1], near[s, 2]
-            # no branch on the test: every t is written, the count moves if it is near
-            for t in range(s + 1, start[r + 1]):
-                n_buf = _gather(near, sx, sy, sz, s, t, near_sq, buf, n_buf)
-            for q in range(n_other):
-                n_buf = _gather(near, sx, sy, sz, s, other[q], near_sq, buf, n_buf)
+        for s in range(s0, s1):
+            sx, sy, sz = xs[s], ys[s], zs[s]
+            t_lo[1] = s + 1  # the own run's tail, then the run of key k + 1
+            packed = s << 32
+            for m in range(1, 6):
+                # no branch on the test: every pair is written, the count moves if it is near
+                for t in range(t_lo[m], t_hi[m]):
+                    ex, ey, ez = sx - xs[t], sy - ys[t], sz - zs[t]
+                    buf[n_buf] = packed | t
+                    n_buf += ex**2 + ey**2 + ez**2 <= near_sq
         r += 1
     return r, n_buf
 
@@ -266,7 +249,7 @@ def _sweep_runs(
 
     `room` is the outputs' first size (they grow when more pairs merge).
     """
-    n_runs = run_key.shape[0]
+    n_runs = run_key.shape[0] - 1
     cursors = np.zeros((2, 6), dtype=np.int64)
     if r0 < n_runs:  # where the forward-only cursors stand at run r0
         k = run_key[r0]
@@ -274,7 +257,7 @@ def _sweep_runs(
             cursors[0, m] = np.searchsorted(run_key, k + offsets[0, m], side="left")
             cursors[1, m] = np.searchsorted(run_key, k + offsets[1, m], side="right")
     near_sq = sqrt_bound(params[0])
-    buf = np.empty((2, max(buffer, 1)), dtype=np.int64)
+    buf = np.empty(max(buffer, 1), dtype=np.int64)
     out_i = np.empty(room, dtype=np.int64)
     out_j = np.empty(room, dtype=np.int64)
     out_d = np.empty(room)
@@ -283,7 +266,7 @@ def _sweep_runs(
     while r < r1:  # the buffer fills, the pairs in it that merge are kept, and so on
         r_next, n_buf = _near_pairs(r, r1, run_key, start, near, offsets, cursors, near_sq, buf)
         if r_next == r and n_buf == 0:  # one run has more pairs to test than the buffer holds
-            buf = np.empty((2, 2 * buf.shape[1]), dtype=np.int64)
+            buf = np.empty(2 * buf.shape[0], dtype=np.int64)
             continue
         if found + n_buf > out_i.shape[0]:
             room = max(2 * out_i.shape[0], found + n_buf)
@@ -371,7 +354,7 @@ def sweep_pairs(
     g = keys.shape[0]
     order = radix_order(keys)
     run_key, start, n_runs = _key_runs(keys, order)
-    run_key, start = run_key[:n_runs], start[: n_runs + 1]
+    run_key, start = run_key[: n_runs + 1], start[: n_runs + 1]
     near, rest = _packed(order, means, covs, colors, kappa)
     yz = ny * nz
     offsets = np.array(
