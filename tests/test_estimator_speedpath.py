@@ -7,6 +7,7 @@ import pytest
 from glmap_tools.gaussians import _estimator_clusters as clusters
 from glmap_tools.gaussians import _estimator_numba as kernels
 from glmap_tools.gaussians import _estimator_sweep as sweep
+from glmap_tools.gaussians import _estimator_voxels as voxels
 from glmap_tools.gaussians._estimator_fast import gaussian_rows, grid_pairs
 from glmap_tools.gaussians.estimator import EstimatorConfig
 from glmap_tools.gaussians.types import GaussianSet
@@ -119,3 +120,22 @@ def test_the_lockstep_curvatures_are_the_scalar_newton_bit_for_bit():
     expected = np.array([max(kernels.min_eigenvalue(*r), 0.0) / (r[0] + r[3] + r[5]) for r in rows])
     np.testing.assert_array_equal(kernels.curvatures(rows), expected)
     np.testing.assert_array_equal(kernels.curvatures(rows[5:70]), expected[5:70])
+
+
+def test_the_input_scan_flags_what_numpy_flags_and_finds_the_extent():
+    rng = np.random.default_rng(4)
+    points = rng.normal(size=(1001, 3))
+    colors = rng.uniform(0, 1, (1001, 3)).astype(np.float32)
+    stats = voxels.scan_cloud(points, colors)
+    assert stats[0] == 1.0 and stats[1] == 1.0
+    np.testing.assert_array_equal(stats[2:5], points.min(axis=0))
+    np.testing.assert_array_equal(stats[5:8], points.max(axis=0))
+    for bad in (np.nan, np.inf, -np.inf):
+        p = points.copy()
+        p[700, 2] = bad
+        assert voxels.scan_cloud(p, colors)[0] == 0.0
+    one_up = np.nextafter(np.float32(1), np.float32(2))
+    for value, ok in ((0.0, 1), (-0.0, 1), (1.0, 1), (-1e-30, 0), (one_up, 0), (np.nan, 0)):
+        c = colors.copy()
+        c[333, 1] = value
+        assert voxels.scan_cloud(points, c)[1] == ok, value

@@ -7,41 +7,74 @@ appears in the input.
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
 from glmap_tools.gaussians._estimator_grid import SLOTS, block_key, hash_slot, slot_of
 
 CELL_MARGIN = 4  # one block of empty cells below the smallest coordinate
+EXPONENT_BITS = 0x7FF0000000000000  # of a float64: all set for inf and NaN
+ONE_BITS = 0x3F800000  # float32 1.0; non-negative float32s order as their bits
+NEGATIVE_ZERO_BITS = 0x80000000
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, fastmath={"nnan", "nsz"})
 def scan_cloud(points: np.ndarray, colors: np.ndarray) -> np.ndarray:
-    """[8] = (points all finite, colours all in [0, 1], point min xyz, point max xyz)."""
-    lx = ly = lz = np.inf
-    hx = hy = hz = -np.inf
-    finite = in_range = True
-    for i in range(points.shape[0]):  # no branches, the state in registers
-        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+    """[8] = (points all finite, colours all in [0, 1], point min xyz, point max xyz).
+
+    Args:
+        points: [N, 3] float64, C-contiguous, N >= 1.
+        colors: [N, 3] float32, C-contiguous.
+
+    Three loops over flat arrays, each vectorised: min/max (no-NaN math lets them vectorise;
+    with a NaN the min/max are unspecified but the cloud is refused anyway), the finite test
+    on the exponent bits, the colour range on the bits (0 <= bits <= those of 1.0, or -0.0).
+    """
+    flat = points.reshape(-1)
+    lx, ly, lz = flat[0], flat[1], flat[2]
+    hx, hy, hz = lx, ly, lz
+    for i in range(points.shape[0]):
+        x, y, z = flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]
         lx, ly, lz = min(lx, x), min(ly, y), min(lz, z)
         hx, hy, hz = max(hx, x), max(hy, y), max(hz, z)
-        finite &= (x - x == 0.0) & (y - y == 0.0) & (z - z == 0.0)  # NaN for NaN and inf
-        r, g, b = colors[i, 0], colors[i, 1], colors[i, 2]
-        in_range &= (r >= 0.0) & (r <= 1.0) & (g >= 0.0) & (g <= 1.0) & (b >= 0.0) & (b <= 1.0)
+    bits = flat.view(np.int64)
+    not_finite = False
+    for i in range(bits.shape[0]):
+        not_finite |= (bits[i] & EXPONENT_BITS) == EXPONENT_BITS
+    color_bits = colors.reshape(-1).view(np.uint32)
+    out_of_range = False
+    for i in range(color_bits.shape[0]):
+        c = color_bits[i]
+        out_of_range |= (c > ONE_BITS) & (c != NEGATIVE_ZERO_BITS)
     out = np.empty(8)
-    out[0] = 1.0 if finite else 0.0
-    out[1] = 1.0 if in_range else 0.0
+    out[0] = 0.0 if not_finite else 1.0
+    out[1] = 0.0 if out_of_range else 1.0
     out[2], out[3], out[4], out[5], out[6], out[7] = lx, ly, lz, hx, hy, hz
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def voxel_cells(points: np.ndarray, voxel: float, lo: np.ndarray) -> np.ndarray:
+    """[3 N] int32 cells floor(p / voxel) - lo + CELL_MARGIN, x y z of each point in turn.
+
+    Flat arrays: the loop vectorises (the divisions four at a time), which [N, 3] indexing
+    does not. Exact: floor(p / voxel) and lo are integers in float64, their difference small.
+    """
+    flat = points.reshape(-1)
+    out = np.empty(flat.shape[0], dtype=np.int32)
+    sx = float(lo[0] - CELL_MARGIN)
+    sy = float(lo[1] - CELL_MARGIN)
+    sz = float(lo[2] - CELL_MARGIN)
+    for i in range(points.shape[0]):
+        out[3 * i] = np.int32(np.floor(flat[3 * i] / voxel) - sx)
+        out[3 * i + 1] = np.int32(np.floor(flat[3 * i + 1] / voxel) - sy)
+        out[3 * i + 2] = np.int32(np.floor(flat[3 * i + 2] / voxel) - sz)
     return out
 
 
 @numba.njit(cache=True)
 def _voxelize_until_full(
-    points: np.ndarray,
-    voxel: float,
-    lo: np.ndarray,
+    cells: np.ndarray,
     start: int,
     state: np.ndarray,
     table_keys: np.ndarray,
@@ -60,10 +93,8 @@ def _voxelize_until_full(
     cap = table_keys.shape[0]
     n_blocks, n_voxels, last_key, b = state[0], state[1], state[2], state[3]
     i = start
-    while i < points.shape[0]:
-        cx = np.int64(math.floor(points[i, 0] / voxel)) - lo[0] + CELL_MARGIN
-        cy = np.int64(math.floor(points[i, 1] / voxel)) - lo[1] + CELL_MARGIN
-        cz = np.int64(math.floor(points[i, 2] / voxel)) - lo[2] + CELL_MARGIN
+    while i < point_voxel.shape[0]:
+        cx, cy, cz = np.int64(cells[3 * i]), np.int64(cells[3 * i + 1]), np.int64(cells[3 * i + 2])
         k = block_key(cx, cy, cz)
         if k != last_key:
             h = hash_slot(k, cap - 1)
@@ -140,6 +171,7 @@ def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
     while cap < n // 8:
         cap *= 2
     table_keys, table_ids = _rehash(np.empty(0, dtype=np.int64), 0, cap)
+    cells = voxel_cells(points, voxel, lo)
     keys = np.empty(cap // 2, dtype=np.int64)
     # A block's slots are set to -1 when the block is created: no memset of the whole store.
     slot_voxel = np.empty((cap // 2) * SLOTS, dtype=np.int32)
@@ -150,7 +182,7 @@ def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
     i = 0
     while True:
         i = _voxelize_until_full(
-            points, voxel, lo, i, state, table_keys, table_ids, keys, slot_voxel,
+            cells, i, state, table_keys, table_ids, keys, slot_voxel,
             point_voxel, voxel_block, voxel_slot,
         )  # fmt: skip
         if i == n:
