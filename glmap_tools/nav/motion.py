@@ -152,6 +152,8 @@ class Drive:
         wanted: when the agent backs off (no step the body fits makes progress), the
             heading of the step that would make the most progress: the way the plan goes
             that the body cannot take from here; None otherwise.
+        narrow: the agent backs off and no step at all lowers the cost-to-go: the plan's
+            way from here is narrower or bends sooner than one step (house-tune s02-004).
     """
 
     action: str
@@ -159,6 +161,7 @@ class Drive:
     open: bool
     gain: float
     wanted: float | None = None
+    narrow: bool = False
 
 
 def drive(
@@ -204,9 +207,10 @@ def drive(
     wanted = None
     if tier == 2 and better.any():
         wanted = float(headings[int(np.flatnonzero(better)[np.argmin(cost[better])])])
+    narrow = tier == 2 and not better.any()
     if turns == 0:
-        return Drive("move_forward", 0, True, gain, wanted)
-    return Drive("turn_left" if turns > 0 else "turn_right", turns, True, gain, wanted)
+        return Drive("move_forward", 0, True, gain, wanted, narrow)
+    return Drive("turn_left" if turns > 0 else "turn_right", turns, True, gain, wanted, narrow)
 
 
 def bump_cells(
@@ -214,6 +218,7 @@ def bump_cells(
     stop_xy: tuple[float, float],
     heading: float,
     config: NavConfig,
+    across: bool = False,
 ) -> list[tuple[int, int]]:
     """(i, j) cells to mark as obstacles after a forward move stopped at `stop_xy`.
 
@@ -222,6 +227,7 @@ def bump_cells(
     that one cell is marked; with none (something the camera did not see: furniture below
     its view), a segment across the heading `UNSEEN_EDGE` to each side (0.18 m, the body,
     left 2 of 24 table passes at 2 bumps and one at 4; 0.3 m at most 2, tests/test_nav_motion).
+    `across`: the segment in every case (a way too narrow for the agent's steps, to close).
     """
     s = occ.cell_size
     reach = body_radius(config, s)
@@ -234,7 +240,7 @@ def bump_cells(
     near = occ.state[max(0, r - k) : max(0, r + k + 1), max(0, c - k) : max(0, c + k + 1)]
     explained = 0 <= r < h and 0 <= c < w and bool((near == OBSTACLE).any())
     cell = (math.floor(contact[0] / s), math.floor(contact[1] / s))
-    if explained:
+    if explained and not across:
         return [cell]
     side = np.array([-math.sin(heading), math.cos(heading)])
     n = math.ceil(UNSEEN_EDGE / (s / 2))

@@ -223,7 +223,10 @@ class Plan:
         goal_xy: (x, y) the path ends at.
         boxed: no heading offers an open step (`nav.motion.drive`).
         back_off: the heading the path leaves by when the body cannot take it from here
-            and the agent backs off (`Drive.wanted`); None otherwise.
+            and the agent backs off (`Drive.wanted`, or toward the path one step on when no
+            step lowers the cost-to-go); None otherwise.
+        back_off_across: no step lowers the cost-to-go (`Drive.narrow`): the way is to be
+            closed across, not at one cell.
     """
 
     path: np.ndarray  # [K, 2]
@@ -233,6 +236,7 @@ class Plan:
     goal_xy: tuple[float, float]
     boxed: bool = False
     back_off: float | None = None
+    back_off_across: bool = False
 
 
 def plan_on_field(
@@ -287,9 +291,27 @@ def plan_on_field(
     if math.dist(agent_xy, end_xy) <= (config.forward_step / 2 if arrive is None else arrive):
         return Plan(path, length, "stop", reachable, end_xy)
     step = drive(occ, clear, to_go, agent_xy, heading, config)
+    back_off = step.wanted
+    if back_off is None and step.narrow:
+        back_off = path_heading(path, agent_xy, config.forward_step)
     return Plan(
-        path, length, step.action, reachable, end_xy, boxed=not step.open, back_off=step.wanted
+        path,
+        length,
+        step.action,
+        reachable,
+        end_xy,
+        boxed=not step.open,
+        back_off=back_off,
+        back_off_across=step.narrow,
     )
+
+
+def path_heading(path: np.ndarray, agent_xy: tuple[float, float], reach: float) -> float:
+    """Radians from the agent toward the first point of `path` [K, 2] at least `reach`
+    metres away (its last point when none is)."""
+    far = np.flatnonzero(np.linalg.norm(path - np.asarray(agent_xy), axis=1) >= reach)
+    x, y = path[int(far[0])] if len(far) else path[-1]
+    return math.atan2(float(y) - agent_xy[1], float(x) - agent_xy[0])
 
 
 def nearest_finite(field: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] | None:

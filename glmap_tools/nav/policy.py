@@ -356,11 +356,15 @@ def decide(
             state.last_waypoint, state.turns_in_place, tuple(state.avoid),
         )  # fmt: skip
         choice, sur, blocked = _choose(glmap, request, blocked)
-        if choice.plan.back_off is not None:
+        back_off = choice.plan.back_off
+        if back_off is not None:
             # The plan leads where the body does not fit: mark it as a bump would, or the
             # agent steps back and the same plan brings it here again (house-tune s01-000:
-            # 250 steps between two cells).
-            blocked = blocked | set(bump_cells(sur.occ, xy, choice.plan.back_off, config))
+            # 250 steps between two cells). A way no step can take closes across it
+            # (`Plan.back_off_across`): one cell left the plan a way past it (house-tune
+            # s02-004: 70 steps between two cells).
+            across = choice.plan.back_off_across
+            blocked = blocked | set(bump_cells(sur.occ, xy, back_off, config, across=across))
 
     # Act, and remember.
     _remember(state, choice, blocked, xy, heading, config)
