@@ -4,6 +4,7 @@ the lockstep kernels give the bits of their plain scalar twins."""
 import numpy as np
 import pytest
 
+from glmap_tools.gaussians import _estimator_candidates as candidates
 from glmap_tools.gaussians import _estimator_clusters as clusters
 from glmap_tools.gaussians import _estimator_numba as kernels
 from glmap_tools.gaussians import _estimator_sweep as sweep
@@ -139,3 +140,22 @@ def test_the_input_scan_flags_what_numpy_flags_and_finds_the_extent():
         c = colors.copy()
         c[333, 1] = value
         assert voxels.scan_cloud(points, c)[1] == ok, value
+
+
+def test_the_candidates_in_key_order_are_the_candidates_packed_by_the_sweep():
+    rng = np.random.default_rng(8)
+    sums = np.abs(rng.normal(size=(500, 13))) + 0.01
+    sums[:, 0] = rng.integers(3, 40, 500)
+    sums[:, 4:10] += 10.0  # a positive-definite-ish second moment
+    rows = np.sort(rng.choice(500, 400, replace=False))
+    means, covs, colors, kappa = kernels.candidate_gaussians(sums, rows, 1e-6, 1)
+    radius = 0.3
+    cells = candidates.candidate_cells(sums, rows, radius)
+    np.testing.assert_array_equal(cells, clusters.mean_cells(means, radius))
+    keys, _, _ = sweep.cell_keys(cells)
+    order = sweep.radix_order(keys)
+    expected = sweep._packed(order, means, covs, colors, kappa)
+    for n_chunks in (1, 3):
+        got = candidates.packed_candidates(sums, rows, order, 1e-6, n_chunks)
+        np.testing.assert_array_equal(got[0], expected[0])
+        np.testing.assert_array_equal(got[1], expected[1])

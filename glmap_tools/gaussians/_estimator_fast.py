@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
+from glmap_tools.gaussians import _estimator_candidates as candidates
 from glmap_tools.gaussians import _estimator_clusters as clusters
 from glmap_tools.gaussians import _estimator_grid as grid
 from glmap_tools.gaussians import _estimator_numba as kernels
@@ -56,10 +57,7 @@ def fit_fast(
     if len(emitted) == 0:
         return GaussianSet.empty()
     if config.merge and len(emitted) > 1:
-        means, covs, cols, kappa = kernels.candidate_gaussians(
-            sums, emitted, config.epsilon, n_chunks
-        )
-        pairs = sorted_mergeable_pairs(means, covs, cols, kappa, config, n_chunks)
+        pairs = _fit_pairs(sums, emitted, config, n_chunks)
         labels = union_additive(
             clusters.trace_rows(sums, emitted),
             pairs,
@@ -74,6 +72,39 @@ def fit_fast(
         sums, emitted, config.epsilon, origin
     )
     return GaussianSet(means32, covs32, cols32, np.full(len(means32), config.opacity), counts)
+
+
+def _fit_pairs(
+    sums: np.ndarray, emitted: np.ndarray, config: EstimatorConfig, n_chunks: int
+) -> np.ndarray:
+    """The mergeable pairs of the candidate Gaussians sums[emitted], ordered by (D, i, j):
+    `sorted_mergeable_pairs` with the candidates computed straight into the sweep's order."""
+    cells = candidates.candidate_cells(sums, emitted, config.candidate_radius)
+    keys, ny, nz = sweep.cell_keys(cells)
+    if len(keys) > 0 and keys[0] < 0:  # cell keys would overflow int64
+        means, covs, cols, kappa = kernels.candidate_gaussians(
+            sums, emitted, config.epsilon, n_chunks
+        )
+        return sorted_mergeable_pairs(means, covs, cols, kappa, config, n_chunks)
+    order = sweep.radix_order(keys)
+    near, rest = candidates.packed_candidates(sums, emitted, order, config.epsilon, n_chunks)
+    pi, pj, d = sweep.sweep_packed(
+        keys, order, ny, nz, near, rest, _pair_params(config), sweep.PAIR_BUFFER, n_chunks
+    )
+    return clusters.sort_pairs(pi, pj, d)
+
+
+def _pair_params(config: EstimatorConfig) -> np.ndarray:
+    """[5] (radius, voxel, tau, lambda_cov, lambda_color), the sweep's parameters."""
+    return np.array(
+        [
+            config.candidate_radius,
+            config.voxel_size,
+            config.tau,
+            config.lambda_cov,
+            config.lambda_color,
+        ]
+    )
 
 
 def sorted_mergeable_pairs(
@@ -101,15 +132,7 @@ def sorted_mergeable_pairs(
         [K, 2] int64.
     """
     m_cells = clusters.mean_cells(means, config.candidate_radius)
-    params = np.array(
-        [
-            config.candidate_radius,
-            config.voxel_size,
-            config.tau,
-            config.lambda_cov,
-            config.lambda_color,
-        ]
-    )
+    params = _pair_params(config)
     keys, ny, nz = sweep.cell_keys(m_cells)
     if len(keys) == 0 or keys[0] >= 0:
         pi, pj, d = sweep.sweep_pairs(

@@ -123,7 +123,7 @@ def neighbourhood_moments(
     block_nbrs: np.ndarray,
     moments: np.ndarray,
     n_chunks: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Each voxel's occupied 27-neighbours and the sum of their moment rows.
 
     `n_chunks` > 1 splits the voxels over the thread team; 1 runs on this thread alone.

@@ -351,11 +351,34 @@ def sweep_pairs(
     Returns:
         (i [K], j [K], D [K]).
     """
-    g = keys.shape[0]
     order = radix_order(keys)
+    near, rest = _packed(order, means, covs, colors, kappa)
+    return sweep_packed(keys, order, ny, nz, near, rest, params, buffer, n_chunks)
+
+
+@numba.njit(cache=True)
+def sweep_packed(
+    keys: np.ndarray,
+    order: np.ndarray,
+    ny: int,
+    nz: int,
+    near: np.ndarray,
+    rest: np.ndarray,
+    params: np.ndarray,
+    buffer: int = PAIR_BUFFER,
+    n_chunks: int = 1,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`sweep_pairs` on the Gaussians already in key order.
+
+    Args:
+        keys: [G] cell keys from `cell_keys` (all >= 0).
+        order: [G] `radix_order(keys)`.
+        near: [3, G] means in key order (x, y, z rows).
+        rest: [G, 11] covariance row, colour, kappa and index in key order (`_packed`).
+    """
+    g = keys.shape[0]
     run_key, start, n_runs = _key_runs(keys, order)
     run_key, start = run_key[: n_runs + 1], start[: n_runs + 1]
-    near, rest = _packed(order, means, covs, colors, kappa)
     yz = ny * nz
     offsets = np.array(
         [

@@ -94,7 +94,7 @@ def _voxelize_until_full(
     n_blocks, n_voxels, last_key, b = state[0], state[1], state[2], state[3]
     i = start
     while i < point_voxel.shape[0]:
-        cx, cy, cz = np.int64(cells[3 * i]), np.int64(cells[3 * i + 1]), np.int64(cells[3 * i + 2])
+        cx, cy, cz = int(cells[3 * i]), int(cells[3 * i + 1]), int(cells[3 * i + 2])
         k = block_key(cx, cy, cz)
         if k != last_key:
             h = hash_slot(k, cap - 1)
