@@ -159,3 +159,18 @@ def test_the_candidates_in_key_order_are_the_candidates_packed_by_the_sweep():
         got = candidates.packed_candidates(sums, rows, order, 1e-6, n_chunks)
         np.testing.assert_array_equal(got[0], expected[0])
         np.testing.assert_array_equal(got[1], expected[1])
+
+
+def test_the_pair_order_does_not_depend_on_the_order_the_pairs_come_in():
+    rng = np.random.default_rng(9)
+    k = 3000
+    pi = rng.integers(0, 500, k)
+    pj = pi + rng.integers(1, 500, k)
+    keep = np.unique(pi * 1000 + pj, return_index=True)[1]
+    pi, pj = pi[keep], pj[keep]
+    d = rng.choice([0.0, 0.25, 0.5, 0.75], len(pi))  # ties, crowded buckets
+    d[::7] = rng.uniform(0, 1, len(d[::7]))
+    expected = np.stack([pi, pj], axis=1)[np.lexsort((pj, pi, d))]
+    for seed in (0, 1):
+        p = np.random.default_rng(seed).permutation(len(pi))
+        np.testing.assert_array_equal(clusters.sort_pairs(pi[p], pj[p], d[p]), expected)

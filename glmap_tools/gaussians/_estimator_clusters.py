@@ -19,6 +19,7 @@ from glmap_tools.gaussians._estimator_numba import N_MOMENTS
 from glmap_tools.gaussians._estimator_voxels import CELL_MARGIN
 
 PAIRS_PER_GAUSSIAN = 16  # output room per Gaussian before a chunk is redone with more
+CROWDED_BUCKET = 32  # pairs in a D bucket past which it is sorted by stable sorts
 
 
 @numba.njit(cache=True)
@@ -210,8 +211,16 @@ def pairs_by_chunk(
 
 
 @numba.njit(cache=True)
+def _before(d: float, i: int, j: int, d_other: float, i_other: int, j_other: int) -> bool:
+    """(d, i, j) < (d_other, i_other, j_other)."""
+    return d < d_other or (d == d_other and (i < i_other or (i == i_other and j < j_other)))
+
+
+@numba.njit(cache=True)
 def sort_pairs(pi: np.ndarray, pj: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """[K, 2] pairs sorted by (D, i, j): a bucket sort on D, insertion sort per bucket."""
+    """[K, 2] pairs sorted by (D, i, j), whatever their order: a bucket sort on D, then
+    insertion sort per bucket, or for a crowded bucket (the D = 0 of duplicate Gaussians)
+    stable sorts by (i, j) and then by D."""
     k = d.shape[0]
     out = np.empty((k, 2), dtype=np.int64)
     if k == 0:
@@ -233,14 +242,20 @@ def sort_pairs(pi: np.ndarray, pj: np.ndarray, d: np.ndarray) -> np.ndarray:
         q = fill[bucket[p]]
         fill[bucket[p]] += 1
         sd[q], out[q, 0], out[q, 1] = d[p], pi[p], pj[p]
-    for b in range(n_buckets):  # insertion sort inside each (small) bucket
-        for a in range(start[b] + 1, start[b + 1]):
+    g = max(pi.max(), pj.max()) + 1
+    for b in range(n_buckets):
+        lo, hi = start[b], start[b + 1]
+        if hi - lo > CROWDED_BUCKET:
+            by_index = np.argsort(out[lo:hi, 0] * g + out[lo:hi, 1], kind="mergesort")
+            by_d = by_index[np.argsort(sd[lo:hi][by_index], kind="mergesort")]
+            di, oi, oj = sd[lo:hi][by_d], out[lo:hi, 0][by_d], out[lo:hi, 1][by_d]
+            for a in range(hi - lo):
+                sd[lo + a], out[lo + a, 0], out[lo + a, 1] = di[a], oi[a], oj[a]
+            continue
+        for a in range(lo + 1, hi):
             dq, iq, jq = sd[a], out[a, 0], out[a, 1]
             c = a - 1
-            while c >= start[b] and (
-                sd[c] > dq
-                or (sd[c] == dq and (out[c, 0] > iq or (out[c, 0] == iq and out[c, 1] > jq)))
-            ):
+            while c >= lo and _before(dq, iq, jq, sd[c], out[c, 0], out[c, 1]):
                 sd[c + 1], out[c + 1, 0], out[c + 1, 1] = sd[c], out[c, 0], out[c, 1]
                 c -= 1
             sd[c + 1], out[c + 1, 0], out[c + 1, 1] = dq, iq, jq

@@ -338,7 +338,7 @@ def sweep_pairs(
     buffer: int = PAIR_BUFFER,
     n_chunks: int = 1,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """All mergeable pairs (i < j, ||mu_i - mu_j|| <= radius, D < threshold), by (i, j).
+    """All mergeable pairs (i < j, ||mu_i - mu_j|| <= radius, D < threshold), unordered.
 
     Args:
         keys: [G] cell keys from `cell_keys` (all >= 0).
@@ -422,8 +422,4 @@ def sweep_packed(
                 )  # fmt: skip
                 out_i[at : at + n], out_j[at : at + n], out_d[at : at + n] = pi[:n], pj[:n], d[:n]
             at += n
-    # In (i, j) order, as the grid search finds them: `sort_pairs` sorts each D bucket by
-    # insertion, which is quick on runs of equal D (duplicate Gaussians) only when these
-    # already come in (i, j) order.
-    by_index = radix_order(out_i[:found] * g + out_j[:found])
-    return out_i[by_index], out_j[by_index], out_d[by_index]
+    return out_i[:found], out_j[:found], out_d[:found]
