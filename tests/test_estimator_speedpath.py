@@ -154,7 +154,7 @@ def test_the_candidates_in_key_order_are_the_candidates_packed_by_the_sweep():
     np.testing.assert_array_equal(cells, clusters.mean_cells(means, radius))
     keys, _, _ = sweep.cell_keys(cells)
     order = sweep.radix_order(keys)
-    expected = sweep._packed(order, means, covs, colors, kappa)
+    expected = candidates.pack_in_key_order(order, means, covs, colors, kappa)
     for n_chunks in (1, 3):
         got = candidates.packed_candidates(sums, rows, order, 1e-6, n_chunks)
         np.testing.assert_array_equal(got[0], expected[0])

@@ -3,7 +3,8 @@
 The fit's merge needs the candidates only as the sweep's inputs, so they are computed in
 the order of their mean cells' keys, in the sweep's layout, instead of being computed in
 Gaussian order and copied into key order afterwards. The arithmetic is that of
-`_estimator_numba.candidate_gaussians` (the same bits).
+`_estimator_numba.candidate_gaussians` (the same bits). `pack_in_key_order` puts Gaussians
+already computed (those `remerge` works on) into the same layout.
 """
 
 from __future__ import annotations
@@ -29,6 +30,27 @@ def candidate_cells(sums: np.ndarray, rows: np.ndarray, radius: float) -> np.nda
         for a in range(3):
             cells[i, a] = np.int64(math.floor((sums[r, 1 + a] / n) / radius)) + CELL_MARGIN
     return cells
+
+
+@numba.njit(cache=True)
+def pack_in_key_order(
+    order: np.ndarray, means: np.ndarray, covs: np.ndarray, colors: np.ndarray, kappa: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The means [3, G] (x, y and z rows) and the rest of D's inputs [G, 11] (covariance row,
+    colour, kappa, index), in key order, so the sweep reads memory in order."""
+    g = order.shape[0]
+    near = np.empty((3, g))
+    rest = np.empty((g, 11))
+    for s in range(g):
+        o = order[s]
+        for a in range(3):
+            near[a, s] = means[o, a]
+            rest[s, 6 + a] = colors[o, a]
+        for a in range(6):
+            rest[s, a] = covs[o, a]
+        rest[s, 9] = kappa[o]
+        rest[s, 10] = o
+    return near, rest
 
 
 @numba.njit(cache=True)
@@ -96,8 +118,8 @@ def packed_candidates(
 
     Returns:
         (means [3, G] (x, y, z rows), rest [G, 11] (covariance row xx xy xz yy yz zz with
-         eps, colour, kappa, Gaussian index)), both in key order: `_estimator_sweep._packed`
-         of `candidate_gaussians`.
+         eps, colour, kappa, Gaussian index)), both in key order: `pack_in_key_order` of
+         `candidate_gaussians`.
     """
     g = rows.shape[0]
     near = np.empty((3, g))

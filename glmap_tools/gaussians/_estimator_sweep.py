@@ -19,6 +19,8 @@ import math
 import numba
 import numpy as np
 
+from glmap_tools.gaussians._estimator_candidates import pack_in_key_order
+
 RADIX_BITS = 11
 MAX_KEY = 1 << 62  # cells x * y * z must stay below this for the mixed-radix keys
 PAIR_BUFFER = 4096  # pairs within the radius gathered before D is computed for them
@@ -103,27 +105,6 @@ def sqrt_bound(radius: float) -> float:
     while math.sqrt(np.nextafter(x, np.inf)) <= radius:
         x = np.nextafter(x, np.inf)
     return x
-
-
-@numba.njit(cache=True)
-def _packed(
-    order: np.ndarray, means: np.ndarray, covs: np.ndarray, colors: np.ndarray, kappa: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The means [3, G] (x, y and z rows) and the rest of D's inputs [G, 11] (covariance row,
-    colour, kappa, index), in key order, so the sweep reads memory in order."""
-    g = order.shape[0]
-    near = np.empty((3, g))
-    rest = np.empty((g, 11))
-    for s in range(g):
-        o = order[s]
-        for a in range(3):
-            near[a, s] = means[o, a]
-            rest[s, 6 + a] = colors[o, a]
-        for a in range(6):
-            rest[s, a] = covs[o, a]
-        rest[s, 9] = kappa[o]
-        rest[s, 10] = o
-    return near, rest
 
 
 @numba.njit(cache=True)
@@ -352,7 +333,7 @@ def sweep_pairs(
         (i [K], j [K], D [K]).
     """
     order = radix_order(keys)
-    near, rest = _packed(order, means, covs, colors, kappa)
+    near, rest = pack_in_key_order(order, means, covs, colors, kappa)
     return sweep_packed(keys, order, ny, nz, near, rest, params, buffer, n_chunks)
 
 
@@ -374,7 +355,8 @@ def sweep_packed(
         keys: [G] cell keys from `cell_keys` (all >= 0).
         order: [G] `radix_order(keys)`.
         near: [3, G] means in key order (x, y, z rows).
-        rest: [G, 11] covariance row, colour, kappa and index in key order (`_packed`).
+        rest: [G, 11] covariance row, colour, kappa and index in key order
+            (`pack_in_key_order`).
     """
     g = keys.shape[0]
     run_key, start, n_runs = _key_runs(keys, order)
