@@ -277,7 +277,7 @@ def test_a_caller_with_many_texts_holds_another_for_one_batch_not_its_whole_enco
     ("m", "k", "seed"), [(2, 384, 0), (10, 384, 1), (10, 1536, 2), (700, 1536, 3)]
 )
 def test_dense_in_panels_equals_the_plain_product_and_the_unpanelled_blocks(
-    m: int, k: int, seed: int
+    m: int, k: int, seed: int, blas_threads: int
 ) -> None:
     rng = np.random.default_rng(seed)
     x = rng.standard_normal((m, k)).astype(np.float32)
