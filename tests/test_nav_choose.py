@@ -12,7 +12,7 @@ from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, MapConfig
 from glmap_tools.nav import NavConfig
 from glmap_tools.nav.choose import PlanRequest, choose_and_plan, progress
-from glmap_tools.nav.perceive import bump_marks, surroundings_of
+from glmap_tools.nav.perceive import Bump, bump_marks, surroundings_of
 from glmap_tools.nav.planner import Plan
 from glmap_tools.nav.waypoint import Waypoint
 from tests.test_nav_decide import CONFIG, TEXTS, walls
@@ -87,6 +87,49 @@ def test_progress_resets_on_a_new_waypoint_and_never_gives_up_the_goal(kind) -> 
 def test_only_a_forward_move_stopped_short_leaves_bump_marks(room) -> None:
     config = CONFIG
     here = (0.0, 0.0)
-    assert bump_marks(room, here, "turn_left", here, 0.0, config) == set()
-    assert bump_marks(room, here, "move_forward", (-config.forward_step, 0.0), 0.0, config) == set()
-    assert bump_marks(room, here, "move_forward", here, 0.0, config)  # did not move at all
+    assert bump_marks(room, here, "turn_left", here, 0.0, config).cells == set()
+    full_step = bump_marks(room, here, "move_forward", (-config.forward_step, 0.0), 0.0, config)
+    assert full_step.cells == full_step.contact == set()
+    stopped = bump_marks(room, here, "move_forward", here, 0.0, config)  # did not move at all
+    assert stopped.cells and len(stopped.contact) == 1 and stopped.contact <= stopped.cells
+
+
+def _hall(width: float) -> GLMap:
+    """A hall `width` m wide along +x from a closed end at x = -0.4, seen both ways."""
+    grey, h, t = (0.8, 0.8, 0.8), 2.0, 0.1
+    half = width / 2
+    boxes = scenes.floor(6.0) + [
+        scenes.Box((-0.5, -half - t, 0), (3.0, -half, h), grey, 0),
+        scenes.Box((-0.5, half, 0), (3.0, half + t, h), grey, 0),
+        scenes.Box((-0.5, -half, 0), (-0.4, half, h), grey, 0),
+    ]
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    for x in (0.0, 1.0):
+        for k in range(8):
+            a = 2 * math.pi * k / 8
+            eye, at = (x, 0.0, 0.88), (x + math.cos(a), math.sin(a), 0.88)
+            frame, ids = scenes.view(boxes, eye, at, 96, 72)
+            glmap.integrate(frame, scenes.semantics(ids, TEXTS))
+    return glmap
+
+
+def test_a_bump_that_seals_a_hall_keeps_its_contact_cell() -> None:
+    """House-tune s01-006: a forward move stopped by a box below the camera's view, heading
+    across a hall. The bump's segment, inflated by the body, spans the hall, so the
+    marks sealed every frontier and were all forgotten; the agent drove into the box 24
+    times. The contact cell alone leaves a way past it, and is kept."""
+    from glmap_tools.nav.policy import _perceive_surroundings
+
+    glmap = _hall(1.0)
+    here, heading = (0.0, 0.0), math.radians(-29.0)
+    bump = bump_marks(glmap, here, "move_forward", here, heading, CONFIG)
+    assert not surroundings_of(glmap, here, bump.cells, CONFIG).fronts  # the case: sealed
+    sur, kept = _perceive_surroundings(glmap, here, set(), bump, CONFIG)
+    assert sur.fronts and kept == bump.contact
+    # Older marks go first: with a sealing one from before, the fresh contact stays.
+    old = {(i, 0) for i in range(20, 40)} | {(30, j) for j in range(-10, 10)}
+    assert not surroundings_of(glmap, here, old, CONFIG).fronts
+    sur, kept = _perceive_surroundings(glmap, here, old, bump, CONFIG)
+    assert sur.fronts and kept == bump.contact
+    sur, kept = _perceive_surroundings(glmap, here, old, Bump(set(), set()), CONFIG)
+    assert sur.fronts and kept == set()

@@ -433,3 +433,36 @@ def test_a_label_the_embedder_reads_as_the_goal_itself_is_no_other_category() ->
     # "kitchen cabinet" still competes with "cabinet" (cosine 0.89, under SYNONYM_COS).
     cabinet = [UnitText(0, "instance", "a white kitchen cabinet", None, 4, "kitchen cabinet")]
     assert scorer.category_margins("cabinet", cabinet, ["kitchen cabinet", "cabinet"])[0] < 0
+
+
+def test_a_unit_named_as_the_goal_keeps_it_against_a_narrower_name_of_the_goal() -> None:
+    """House-tune s01-006: once a view named a plant "potted plant", the map's plants (own
+    label "plant", text "a large potted plant in a black pot") sat closer to that label than
+    to the goal "plant" and never matched again. A kitchen cabinet still is no "cabinet"."""
+    from glmap_tools.language.minilm import default_embedder
+    from glmap_tools.nav.scorers import names_a_kind_of
+
+    assert names_a_kind_of("a potted plant", "a plant")
+    assert names_a_kind_of("a kitchen cabinet", "a cabinet")
+    assert not names_a_kind_of("a plant", "a plant")
+    assert not names_a_kind_of("a tv stand", "a tv")
+    embedder = default_embedder()
+    scorer = EmbeddingScorer(embedder)
+    texts = [
+        ("plant", "a large potted plant in a black pot"),
+        ("potted plant", "a small potted plant in a blue pot"),
+        ("vase", "a large orange vase"),
+    ]
+    units = [
+        UnitText(k, "instance", t, np.asarray(embedder.embed([t])[0]), 4, label)
+        for k, (label, t) in enumerate(texts)
+    ]
+    vocabulary = ["plant", "potted plant", "vase", "stove"]
+    margins = scorer.category_margins("plant", units, vocabulary)
+    assert margins[0] > 0.0  # its own label is the goal: "potted plant" does not compete
+    assert margins[1] < 0.0 and margins[2] < 0.0  # named otherwise: the label competes
+    # Without the rule the plant loses to "potted plant" (what the episode did).
+    plain = [UnitText(0, "instance", texts[0][1], units[0].embedding, 4, "")]
+    assert scorer.category_margins("plant", plain, vocabulary)[0] < 0.0
+    cabinet = [UnitText(0, "instance", "a white kitchen cabinet", None, 4, "kitchen cabinet")]
+    assert scorer.category_margins("cabinet", cabinet, ["kitchen cabinet", "cabinet"])[0] < 0

@@ -73,7 +73,7 @@ def approach(
     xy = (float(agent_xy[0]), float(agent_xy[1]))
     state.blocked |= bump_marks(
         glmap, xy, state.last_action, state.last_xy, state.last_heading, config
-    )
+    ).cells
     sur = surroundings_of(glmap, xy, state.blocked, config, with_frontiers=False)
     step = _approach(glmap, sur, xy, heading, target, config)
     if step.plan.boxed and forget_marks_near(state.blocked, xy, sur.occ.cell_size, FORGET_NEAR):

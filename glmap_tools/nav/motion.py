@@ -230,10 +230,7 @@ def bump_cells(
     `across`: the segment in every case (a way too narrow for the agent's steps, to close).
     """
     s = occ.cell_size
-    reach = body_radius(config, s)
-    pts = step_points(stop_xy, np.array([heading]), config, s)[0]
-    t = np.linalg.norm(pts - np.array(stop_xy), axis=1)
-    contact = pts[int(np.argmin(np.abs(t - reach)))]
+    contact = contact_point(stop_xy, heading, config, s)
     r, c = occ.world_to_index(float(contact[0]), float(contact[1]))
     h, w = occ.state.shape
     k = EXPLAINED_CELLS
@@ -249,6 +246,24 @@ def bump_cells(
     cells = {(math.floor(x / s), math.floor(y / s)) for x, y in seg}
     cells.add(cell)
     return sorted(cells)
+
+
+def contact_point(
+    stop_xy: tuple[float, float], heading: float, config: NavConfig, cell_size: float
+) -> np.ndarray:
+    """[2] where a forward move stopped at `stop_xy` touched: one body radius straight
+    ahead, on the line `drive` checks."""
+    pts = step_points(stop_xy, np.array([heading]), config, cell_size)[0]
+    t = np.linalg.norm(pts - np.array(stop_xy), axis=1)
+    return pts[int(np.argmin(np.abs(t - body_radius(config, cell_size))))]
+
+
+def contact_cell(
+    stop_xy: tuple[float, float], heading: float, config: NavConfig, cell_size: float
+) -> tuple[int, int]:
+    """The (i, j) cell of `contact_point`: the narrowest bump mark."""
+    x, y = contact_point(stop_xy, heading, config, cell_size)
+    return (math.floor(float(x) / cell_size), math.floor(float(y) / cell_size))
 
 
 def marks_near(

@@ -16,7 +16,7 @@ from glmap_tools.nav.config import GOAL_MAX_BOTTOM, GOAL_MIN_SIZE, SCORE_TIE, Na
 from glmap_tools.nav.footprint import ROOM_WALL, GoalMatch, distances_to_cells
 from glmap_tools.nav.frontiers import Frontier, frontiers
 from glmap_tools.nav.grid import agent_rc, known_window, reframe, structure_walls
-from glmap_tools.nav.motion import bump_cells, clearance, masks
+from glmap_tools.nav.motion import bump_cells, clearance, contact_cell, masks
 from glmap_tools.nav.planner import DistanceField, distance_field
 from glmap_tools.nav.scorers import Scorer, UnitText, map_units
 from glmap_tools.nav.value import unit_cell_array, unit_core_cells
@@ -48,6 +48,20 @@ def occupancy_window(
     return occ
 
 
+@dataclass(frozen=True)
+class Bump:
+    """Where the body touched when the simulator stopped the last forward move short.
+
+    Attributes:
+        cells: the (i, j) marks `nav.motion.bump_cells` gives (empty: no stopped move).
+        contact: the contact point's own cell alone (`nav.motion.contact_cell`), the mark
+            kept longest; empty with `cells`.
+    """
+
+    cells: set[Cell]
+    contact: set[Cell]
+
+
 def bump_marks(
     glmap: GLMap,
     xy: tuple[float, float],
@@ -55,15 +69,15 @@ def bump_marks(
     last_xy: tuple[float, float] | None,
     last_heading: float,
     config: NavConfig,
-) -> set[Cell]:
-    """Where the body touched when the simulator stopped the last forward move short
-    (`nav.motion.bump_cells`); empty when the last action was no stopped forward move."""
+) -> Bump:
+    """The `Bump` of the last action: empty when it was no stopped forward move."""
     if last_action != "move_forward" or last_xy is None:
-        return set()
+        return Bump(set(), set())
     if math.dist(xy, last_xy) >= config.forward_step - SHORT_MOVE:
-        return set()
+        return Bump(set(), set())
     occ = occupancy_window(glmap, xy, set(), config)
-    return set(bump_cells(occ, xy, last_heading, config))
+    cells = set(bump_cells(occ, xy, last_heading, config))
+    return Bump(cells, {contact_cell(xy, last_heading, config, occ.cell_size)})
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,7 @@ from glmap_tools.nav.motion import bump_cells, marks_near
 from glmap_tools.nav.perceive import (
     FORGET_NEAR,
     SHORT_MOVE,
+    Bump,
     Surroundings,
     bump_marks,
     find_goal_match,
@@ -124,16 +125,26 @@ def _checked_pose(agent_xy: tuple[float, float], heading: float) -> tuple[float,
 
 
 def _perceive_surroundings(
-    glmap: GLMap, xy: tuple[float, float], blocked: set[tuple[int, int]], config: NavConfig
+    glmap: GLMap,
+    xy: tuple[float, float],
+    old: set[tuple[int, int]],
+    bump: Bump,
+    config: NavConfig,
 ) -> tuple[Surroundings, set[tuple[int, int]]]:
     """(surroundings, bump marks kept): bumps may have sealed the only way on (a doorway
-    the map already draws narrow): they are forgotten before concluding there is nothing
-    left to explore."""
-    sur = surroundings_of(glmap, xy, blocked, config)
-    if not sur.fronts and blocked:
-        blocked = set()
+    the map already draws narrow, a hall a bump's segment spans). The marks are let go a
+    kind at a time before concluding there is nothing left to explore: the older ones, then
+    this bump's segment (its contact cell kept), then all. Forgetting a fresh bump at once
+    sent the agent into the same obstacle again and again (house-tune s01-006: 24 bumps in
+    a row into a box below the camera's view)."""
+    tries = [old | bump.cells, bump.cells, bump.contact, set()]
+    for k, blocked in enumerate(tries):
+        if k and (blocked == tries[k - 1] or not (blocked or tries[k - 1])):
+            continue
         sur = surroundings_of(glmap, xy, blocked, config)
-    return sur, blocked
+        if sur.fronts or not blocked:
+            return sur, blocked
+    raise AssertionError("unreachable: the last try has no marks")
 
 
 def _score_units(
@@ -228,20 +239,26 @@ def _choose(
     glmap: GLMap,
     req: PlanRequest,
     blocked: set[tuple[int, int]],
+    contact: set[tuple[int, int]],
 ) -> tuple[Choice, Surroundings, set[tuple[int, int]]]:
     """(choice, surroundings, bump marks kept): when no step is open, bump marks close by
-    box the agent in: they are forgotten and the choice is made again."""
+    box the agent in: they are forgotten and the choice is made again, the fresh bump's
+    `contact` cell last."""
     choice = choose_and_plan(req)
     if not choice.plan.boxed:
         return choice, req.sur, blocked
     near = marks_near(blocked, req.xy, req.sur.occ.cell_size, FORGET_NEAR)
-    if not near:
-        return choice, req.sur, blocked
-    blocked = blocked - near
-    sur = surroundings_of(glmap, req.xy, blocked, req.config)
-    again = choose_and_plan(replace(req, sur=sur, avoid=choice.avoid))
-    rejected = choice.rejected | again.rejected
-    return Choice(again.waypoint, again.plan, again.avoid, rejected), sur, blocked
+    drops = [near - contact, near] if near & contact else [near]
+    drops = [d for d in drops if d]
+    sur = req.sur
+    for drop in drops:
+        kept = blocked - drop
+        sur = surroundings_of(glmap, req.xy, kept, req.config)
+        again = choose_and_plan(replace(req, sur=sur, avoid=choice.avoid))
+        rejected = choice.rejected | again.rejected
+        if not again.plan.boxed or drop is drops[-1]:
+            return Choice(again.waypoint, again.plan, again.avoid, rejected), sur, kept
+    return choice, req.sur, blocked
 
 
 def _remember(
@@ -333,8 +350,8 @@ def decide(
         scorer = state.scorer
 
     # Perceive: bump marks, surroundings, unit scores and the goal match.
-    bumped = bump_marks(glmap, xy, state.last_action, state.last_xy, state.last_heading, config)
-    sur, blocked = _perceive_surroundings(glmap, xy, state.blocked | bumped, config)
+    bump = bump_marks(glmap, xy, state.last_action, state.last_xy, state.last_heading, config)
+    sur, blocked = _perceive_surroundings(glmap, xy, state.blocked, bump, config)
     last = state.last_waypoint
     prefer = last.unit_id if last is not None and last.kind == "goal" else None
     missed = state.missed  # `nav.episode.remember` counts the looks
@@ -355,7 +372,7 @@ def decide(
             value, sur, xy, heading, match, walls, config,
             state.last_waypoint, state.turns_in_place, tuple(state.avoid),
         )  # fmt: skip
-        choice, sur, blocked = _choose(glmap, request, blocked)
+        choice, sur, blocked = _choose(glmap, request, blocked, bump.contact)
         back_off = choice.plan.back_off
         if back_off is not None:
             # The plan leads where the body does not fit: mark it as a bump would, or the
