@@ -19,8 +19,10 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 def blas_threads() -> Iterator[int]:
     """BLAS at the machine's default thread count for one test (a test about what the
     thread count must not change); yields that count."""
-    from threadpoolctl import threadpool_limits
+    from threadpoolctl import threadpool_info, threadpool_limits
 
     threads = os.cpu_count() or 1
     with threadpool_limits(limits=threads, user_api="blas"):
+        blas = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+        assert blas and set(blas) == {threads}, f"BLAS runs {blas} threads, not {threads}"
         yield threads
