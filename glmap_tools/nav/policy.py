@@ -138,13 +138,11 @@ def _perceive_surroundings(
     sent the agent into the same obstacle again and again (house-tune s01-006: 24 bumps in
     a row into a box below the camera's view)."""
     tries = [old | bump.cells, bump.cells, bump.contact, set()]
-    for k, blocked in enumerate(tries):
-        if k and (blocked == tries[k - 1] or not (blocked or tries[k - 1])):
-            continue
-        sur = surroundings_of(glmap, xy, blocked, config)
-        if sur.fronts or not blocked:
-            return sur, blocked
-    raise AssertionError("unreachable: the last try has no marks")
+    for marks in dict.fromkeys(frozenset(t) for t in tries):  # each distinct set, in order
+        sur = surroundings_of(glmap, xy, set(marks), config)
+        if sur.fronts or not marks:
+            break
+    return sur, set(marks)
 
 
 def _score_units(
