@@ -1,6 +1,7 @@
 """f_S from the client: region scores an eval agent gives `value_map` (paper Eq. 7's s_u).
 
-The agents `glmap+oracle-room`, `glmap+embedding` and `glmap+recorded` play the glmap policy
+The agents `glmap+oracle-room`, `glmap+wrong-room`, `glmap+embedding` and `glmap+recorded` play
+the glmap policy
 through `nav_step` and, whenever the map holds regions they have not scored, read the
 region and instance index (the `glmap://current/...` resources) and send the new scores
 with `value_map(scores=...)`, as a user's LLM client would. They score *regions* only: a
@@ -10,6 +11,9 @@ differs is where the value map sends the agent.
 
 - `oracle-room` (an upper bound, not an agent): 1 for a region whose members stand, on
   average, in a room of a kind that holds a goal object (the scene's ground truth), else 0.
+- `wrong-room` (a lower bound, not an agent): the oracle turned round, 1 for a region in a
+  room of a kind that holds no goal object, else 0: a prior wrong everywhere, which shows
+  whether the value map follows f_S at all.
 - `embedding`: the server's own f_S computed in the client (MiniLM cosine of the goal's
   noun phrase and the region text, `(cos - 0.2) / 0.8`): the channel's null check.
 - `recorded`: scores a model gave earlier, from a JSONL file of
@@ -34,7 +38,7 @@ from glmap_tools.errors import InvalidInputError
 # MiniLM embedder load only for the scorers that read them (oracle-room, embedding), not
 # for a client playing with recorded scores or none.
 
-FS_SOURCES = ("oracle-room", "embedding", "recorded")
+FS_SOURCES = ("oracle-room", "wrong-room", "embedding", "recorded")
 RECORDED_ENV = "GLMAP_FS_RECORDED"
 
 
@@ -79,13 +83,15 @@ class OracleRoom:
     Args:
         rooms: (room kind, [K, 2] polygon) of every room of the scene.
         goal_kinds: the kinds of the rooms that hold a goal object.
+        wrong: score the other way round (1 outside the goal's kinds of room, inside 0).
     """
 
     rooms: list[tuple[str, np.ndarray]]
     goal_kinds: frozenset[str]
+    wrong: bool = False
 
     @classmethod
-    def for_episode(cls, episode_id: str) -> OracleRoom:
+    def for_episode(cls, episode_id: str, wrong: bool = False) -> OracleRoom:
         # glmap_tools.sim loads gymnasium: only the oracle needs it, not the runner's start.
         from glmap_tools.worlds.splits import bench_episode, bench_layout
 
@@ -96,7 +102,7 @@ class OracleRoom:
         kinds = frozenset(
             kind[o.room] for o in layout.objects if o.id in goal_ids and o.room in kind
         )
-        return cls([(room.type, room.polygon) for room in layout.rooms], kinds)
+        return cls([(room.type, room.polygon) for room in layout.rooms], kinds, wrong)
 
     def room_kind(self, xy: tuple[float, float]) -> str | None:
         from glmap_tools.sim.layout import points_in_polygon
@@ -107,10 +113,12 @@ class OracleRoom:
         return None
 
     def score(self, goal: str, regions: Sequence[RegionView]) -> dict[int, float]:
-        return {
-            r.region_id: float(r.xy is not None and self.room_kind(r.xy) in self.goal_kinds)
-            for r in regions
-        }
+        out = {}
+        for r in regions:
+            kind = self.room_kind(r.xy) if r.xy is not None else None
+            goal_kind = kind in self.goal_kinds
+            out[r.region_id] = float(kind is not None and goal_kind != self.wrong)
+        return out
 
 
 _EMBEDDING: list[Any] = []  # one EmbeddingScorer per process (the model loads once)
@@ -195,8 +203,8 @@ def split_agent(agent: str) -> tuple[str, str | None]:
 
 def region_scorer(source: str, episode_id: str) -> RegionScorer:
     """The scorer of `source` (FS_SOURCES) for one episode."""
-    if source == "oracle-room":
-        return OracleRoom.for_episode(episode_id)
+    if source in ("oracle-room", "wrong-room"):
+        return OracleRoom.for_episode(episode_id, wrong=source == "wrong-room")
     if source == "embedding":
         return ClientEmbedding()
     if source == "recorded":

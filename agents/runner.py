@@ -44,11 +44,13 @@ AGENTS = (
     "random",
     "llm-tools",
     "glmap+oracle-room",
+    "glmap+wrong-room",
     "glmap+embedding",
     "glmap+recorded",
 )
 # glmap+<source>: the glmap policy with region scores f_S the client gives value_map
-# (agents/fs.py: oracle-room is an upper bound from the scene's ground truth).
+# (agents/fs.py: oracle-room is an upper bound from the scene's ground truth, wrong-room
+# the same turned round).
 # llm-tools: a chat model through Ollama calls the tools itself (agents/llm_agent.py); its
 # model, server and prompt folder come from these environment variables (set by
 # `glmap eval --model/--ollama-host/--prompts`). "scorer" is the f_S of the eval workers'

@@ -40,6 +40,8 @@ def test_the_oracle_scores_regions_in_the_goal_s_kind_of_room_1_and_the_rest_0()
         RegionView(3, "no members", None),
     ]
     assert oracle.score(HOUSE.episode.goal_text, views) == {1: 1.0, 2: 0.0, 3: 0.0}
+    wrong = region_scorer("wrong-room", HOUSE.episode_id)
+    assert wrong.score(HOUSE.episode.goal_text, views) == {1: 0.0, 2: 1.0, 3: 0.0}
 
 
 def test_a_region_s_place_is_the_mean_of_its_members_centroids():

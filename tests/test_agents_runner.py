@@ -92,6 +92,7 @@ async def test_unknown_agents_and_episodes_are_refused_with_the_closest_name(tmp
         "random",
         "llm-tools",
         "glmap+oracle-room",
+        "glmap+wrong-room",
         "glmap+embedding",
         "glmap+recorded",
     )
