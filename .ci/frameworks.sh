@@ -4,9 +4,10 @@
 # tests/frameworks/ and tests/test_docs_run.py run their python as a subprocess that starts
 # .venv/bin/glmap-mcp over stdio by its absolute path. Exact versions: the framework table in
 # docs/frameworks/README.md is measured with them.
-# A venv is rebuilt only when its requirement line changes (about a minute each, pip cache cold).
+# A venv is rebuilt only when its requirement line changes (seconds each with uv).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+source .ci/install.sh  # pip_install: uv with pip's settings, pip where uv fails
 
 build() {  # NAME REQUIREMENT...
   local dir=".ci/venvs/$1"
@@ -16,8 +17,7 @@ build() {  # NAME REQUIREMENT...
   fi
   rm -rf "$dir"
   python3 -m venv "$dir"
-  # pip -q still prints one line per package for the machine's extra local indexes: drop them.
-  "$dir/bin/pip" install -q "$@" 2>&1 | { grep -vE "is ignored: it is neither|does not provide the extra" || true; }
+  pip_install "$dir" "$@"
   echo "$*" >"$dir/requirements.txt"
 }
 
