@@ -9,13 +9,20 @@ it, so no free cell lies within the stop distance (0.75 m) of the lamp.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from glmap_tools.map.occupancy import FREE, OBSTACLE, DenseOccupancy
 from glmap_tools.nav import GoalMatch, NavConfig, choose_waypoint
-from glmap_tools.nav.choose import PlanRequest, choose_and_plan
-from glmap_tools.nav.footprint import distance_to_cells
+from glmap_tools.nav.choose import (
+    GOAL_PATIENCE,
+    GoalProgress,
+    PlanRequest,
+    choose_and_plan,
+    goal_progress,
+)
+from glmap_tools.nav.footprint import ROOM_WALL, distance_to_cells
 from glmap_tools.nav.grid import agent_rc
 from glmap_tools.nav.motion import clearance, masks
 from glmap_tools.nav.perceive import Surroundings
@@ -110,3 +117,48 @@ def test_a_matched_unit_within_one_and_a_half_metres_is_never_left_for_a_give_up
         PlanRequest(None, sur, there, 0.0, match, furniture, CONFIG, None, 0, ())
     )
     assert choice.waypoint.kind == "none" and math.isinf(choice.plan.length)
+
+
+def test_an_agent_that_comes_no_closer_to_its_match_stops_where_a_stop_would_count() -> None:
+    # A small table: cells within the stop distance exist, the way to them is what fails (two
+    # unseen boxes closing a pocket swap the goal cell from side to side at every bump).
+    occ = table_room(0.3)
+    match = GoalMatch(5, 0.9, 3, LAMP)
+    furniture = np.zeros(occ.state.shape, dtype=bool)
+    here, far = (2.0, 3.0), (1.5, 3.0)
+    assert CONFIG.stop_distance < distance_to_cells(LAMP, here, CELL) <= CONFIG.success_radius
+    assert distance_to_cells(LAMP, far, CELL) > CONFIG.success_radius
+
+    def choice(xy: tuple[float, float], stuck: bool):
+        req = PlanRequest(
+            None, surroundings(occ, xy), xy, 0.0, match, furniture, CONFIG, None, 0, ()
+        )
+        return choose_and_plan(replace(req, goal_stuck=stuck))
+
+    assert choice(here, stuck=False).plan.action != "stop"  # it heads for a cell within stop
+    stopped = choice(here, stuck=True)
+    assert stopped.plan.action == "stop" and stopped.waypoint.unit_id == 5
+    assert "came no closer" in stopped.waypoint.reason
+    assert choice(far, stuck=True).plan.action != "stop"  # a stop there would not count
+    # Stuck, sight is read on room walls alone: the table as structure (furniture the
+    # detector missed) does not hide the lamp, the table as a room's wall does.
+    table = np.zeros(occ.state.shape, dtype=bool)
+    table[1:120, 1:120] = occ.state[1:120, 1:120] == OBSTACLE  # inside the room's walls
+    for level, stops in ((1, True), (ROOM_WALL, False)):
+        furniture = np.where(table, level, 0)
+        reason = choice(here, stuck=True).waypoint.reason
+        assert ("came no closer" in reason) is stops, (level, reason)
+
+
+def test_goal_progress_counts_the_steps_since_the_agent_last_closed_in_on_the_match() -> None:
+    match = GoalMatch(5, 0.9, 3, LAMP)
+    p = goal_progress(GoalProgress(), match, (2.0, 3.0), CELL)
+    assert (p.unit_id, p.since_progress) == (5, 0)
+    for _ in range(GOAL_PATIENCE * CONFIG.stuck_steps):
+        assert not p.stuck(CONFIG)
+        p = goal_progress(p, match, (2.1, 3.0), CELL)  # 0.1 m closer: not progress
+    assert p.stuck(CONFIG)
+    assert goal_progress(p, match, (2.3, 3.0), CELL).since_progress == 0  # 0.3 m closer
+    other = GoalMatch(6, 0.9, 3, LAMP)
+    assert goal_progress(p, other, (2.1, 3.0), CELL).since_progress == 0  # a new match
+    assert goal_progress(p, None, (2.1, 3.0), CELL) == GoalProgress()

@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from glmap_tools.nav.config import NavConfig
-from glmap_tools.nav.footprint import GoalMatch, distance_to_cells, in_clear_sight
+from glmap_tools.nav.footprint import ROOM_WALL, GoalMatch, distance_to_cells, in_clear_sight
 from glmap_tools.nav.perceive import Surroundings
 from glmap_tools.nav.planner import Plan, plan_on_field
 from glmap_tools.nav.value import ValueMap
@@ -25,6 +25,10 @@ ATTEMPTS = 8  # waypoints tried in one step before looking around
 # Metres: a matched unit this close is never left for a stop with nothing to do; the agent
 # stops for it instead (a give-up stop beside the goal lost episodes within reach).
 MATCH_NEAR = 1.5
+# x stuck_steps: steps without closing in on the matched unit after which the agent stops
+# where a stop would count. Its goal cell may swap sides at every bump (two unseen boxes
+# closing a pocket, house-tune s01-006: 350 steps 0 m from the goal by the success rule).
+GOAL_PATIENCE = 2
 
 XY = tuple[float, float]
 
@@ -44,6 +48,8 @@ class PlanRequest:
         last_waypoint: the previous step's waypoint.
         turns_in_place: turns in a row without moving.
         avoid: (x, y) of waypoints given up so far.
+        goal_stuck: the agent has not closed in on the match for `GOAL_PATIENCE` x
+            `stuck_steps` steps (`goal_progress`).
     """
 
     value: ValueMap | None
@@ -56,6 +62,7 @@ class PlanRequest:
     last_waypoint: Waypoint | None
     turns_in_place: int
     avoid: tuple[XY, ...]
+    goal_stuck: bool = False
 
 
 @dataclass(frozen=True)
@@ -152,6 +159,13 @@ def choose_and_plan(req: PlanRequest) -> Choice:
     held = _held(req)
     if held is not None:
         return held
+    if req.goal_stuck and req.match is not None:
+        # The way to the cells in sight failed: sight is read as when none can be reached,
+        # only room walls block (the structure between may be furniture the detector missed).
+        rooms = None if req.walls is None else np.where(req.walls >= ROOM_WALL, req.walls, 0)
+        if stop_would_count_here(req.match, replace(req, walls=rooms)):
+            why = "the agent came no closer to it for a while, and a stop here would count."
+            return _stop_for(req.match, req, why)
     sur, xy, config = req.sur, req.xy, req.config
     avoid, rejected, match = list(req.avoid), set[int](), req.match
     for _ in range(ATTEMPTS):
@@ -252,3 +266,35 @@ def progress(
     if since_progress >= config.stuck_steps and wp.xy is not None and wp.kind != "goal":
         return Progress(math.inf, 0, wp.xy)
     return Progress(best_distance, since_progress)
+
+
+@dataclass(frozen=True)
+class GoalProgress:
+    """How the agent closes in on the matched unit itself (not on its goal cell, which can
+    move to another side of the unit when a bump closes the way).
+
+    Attributes:
+        unit_id: the matched instance (None without a match).
+        best_distance: the agent's shortest distance to its cells so far, metres.
+        since_progress: steps since that distance last shrank by `PROGRESS` m.
+    """
+
+    unit_id: int | None = None
+    best_distance: float = math.inf
+    since_progress: int = 0
+
+    def stuck(self, config: NavConfig) -> bool:
+        return self.since_progress >= GOAL_PATIENCE * config.stuck_steps
+
+
+def goal_progress(
+    last: GoalProgress, match: GoalMatch | None, xy: XY, cell_size: float
+) -> GoalProgress:
+    """`last` brought up to this step: a new match starts afresh, a step `PROGRESS` m closer
+    to the match's cells resets the count."""
+    if match is None:
+        return GoalProgress()
+    here = distance_to_cells(match.cells, xy, cell_size)
+    if match.unit_id != last.unit_id or here < last.best_distance - PROGRESS:
+        return GoalProgress(match.unit_id, here, 0)
+    return GoalProgress(match.unit_id, last.best_distance, last.since_progress + 1)

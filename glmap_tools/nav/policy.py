@@ -21,7 +21,14 @@ import numpy as np
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.map.occupancy import DenseOccupancy
 from glmap_tools.nav.approach import Approach, approach, stop_would_count, unit_reach
-from glmap_tools.nav.choose import PROGRESS, Choice, PlanRequest, choose_and_plan, look_around
+from glmap_tools.nav.choose import (
+    PROGRESS,
+    Choice,
+    PlanRequest,
+    choose_and_plan,
+    goal_progress,
+    look_around,
+)
 from glmap_tools.nav.choose import progress as progress_of
 from glmap_tools.nav.config import NavConfig, check_policy
 from glmap_tools.nav.egocentric import EgocentricValueMap
@@ -357,6 +364,7 @@ def decide(
     match = scored.match
 
     value, evidence = _policy_value(policy, glmap, scored, sur.occ, config, state)
+    closing_in = goal_progress(state.goal_progress, match, xy, sur.occ.cell_size)
 
     # Choose a waypoint and plan to it.
     if state.steps < config.initial_spin and match is None:
@@ -369,6 +377,7 @@ def decide(
         request = PlanRequest(
             value, sur, xy, heading, match, walls, config,
             state.last_waypoint, state.turns_in_place, tuple(state.avoid),
+            goal_stuck=closing_in.stuck(config),
         )  # fmt: skip
         choice, sur, blocked = _choose(glmap, request, blocked, bump.contact)
         back_off = choice.plan.back_off
@@ -382,6 +391,7 @@ def decide(
             blocked = blocked | set(bump_cells(sur.occ, xy, back_off, config, across=across))
 
     # Act, and remember.
+    state.goal_progress = closing_in
     _remember(state, choice, blocked, xy, heading, config)
     goal_unit = match.unit_id if match is not None and choice.waypoint.kind == "goal" else None
     return NavDecision(

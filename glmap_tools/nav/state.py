@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from glmap_tools.nav.choose import GoalProgress
 from glmap_tools.nav.egocentric import EgocentricValueMap
 from glmap_tools.nav.scorers import Scorer
 from glmap_tools.nav.waypoint import Waypoint
@@ -27,6 +28,7 @@ class NavState:
         steps: decisions taken.
         missed: instance id -> frames that looked at it without seeing it (glmap policies,
             `verify.missed_in_view`).
+        goal_progress: how the agent closes in on its match (`choose.goal_progress`).
     """
 
     egocentric: EgocentricValueMap | None = None
@@ -43,3 +45,4 @@ class NavState:
     steps: int = 0
     scorer: Scorer | None = None
     missed: dict[int, int] = field(default_factory=dict)
+    goal_progress: GoalProgress = field(default_factory=GoalProgress)
