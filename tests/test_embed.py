@@ -329,3 +329,28 @@ def test_the_numpy_minilm_gives_sentence_transformers_vectors_without_importing_
         texts, convert_to_numpy=True, normalize_embeddings=True, batch_size=1
     )
     np.testing.assert_allclose(ours, reference, rtol=0, atol=1e-6)
+
+
+def test_the_numpy_minilm_encodes_on_one_blas_thread_and_gives_the_rest_back(monkeypatch) -> None:
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas() -> list[int]:  # numpy's BLAS, which runs the encoder's products
+        info = threadpool_info()
+        return [
+            b["num_threads"] for b in info if b["user_api"] == "blas" and "numpy" in b["filepath"]
+        ]
+
+    embedder = default_embedder()
+    encoder = embedder._model.encoder
+    seen: list[list[int]] = []
+    real = encoder.encode_ids
+
+    def watched(ids: np.ndarray) -> np.ndarray:
+        seen.append(blas())
+        return real(ids)
+
+    monkeypatch.setattr(encoder, "encode_ids", watched)
+    with threadpool_limits(limits=2, user_api="blas"):  # a caller's own thread count
+        embedder.embed(["a threads test text nobody embedded before 7f3a"])
+        assert seen and all(threads == [1] for threads in seen), seen
+        assert blas() == [2]  # given back as it was
