@@ -259,6 +259,7 @@ async def test_a_server_built_in_process_also_waits_for_the_map_lock(tmp_path):
 def test_the_navigator_memory_survives_its_json_form():
     from glmap_tools.app.episode_record import apply_memory, nav_memory
     from glmap_tools.nav import NavState
+    from glmap_tools.nav.choose import GoalProgress
     from glmap_tools.nav.waypoint import Waypoint
 
     state = NavState(
@@ -271,12 +272,14 @@ def test_the_navigator_memory_survives_its_json_form():
         last_heading=1.5,
         since_progress=3,
         steps=7,
+        goal_progress=GoalProgress(5, 0.73, 11),
     )
     again = NavState()
     apply_memory(again, json.loads(json.dumps(nav_memory(state))))
     assert again == state
     apply_memory(again, json.loads(json.dumps(nav_memory(NavState()))))
     assert again == NavState() and again.best_distance == float("inf")
+    assert again.goal_progress.best_distance == float("inf")
 
 
 async def test_a_map_file_spoilt_after_launch_fails_the_call_and_is_left_as_it_is(tmp_path):

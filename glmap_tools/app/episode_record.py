@@ -100,6 +100,20 @@ def apply_memory(state: Any, memory: dict[str, Any]) -> None:
         current = getattr(state, f.name)
         if f.name == "last_waypoint" and value is not None:
             value = Waypoint(**{**value, "xy": _tuple(value["xy"]) if value["xy"] else None})
+        elif (
+            isinstance(value, dict)
+            and dataclasses.is_dataclass(current)
+            and not isinstance(current, type)
+        ):
+            # A small record of plain fields (nav.choose.GoalProgress): inf was written as None.
+            was = dataclasses.asdict(current)
+            value = dataclasses.replace(
+                current,
+                **{
+                    k: math.inf if v is None and isinstance(was[k], float) else v
+                    for k, v in value.items()
+                },
+            )
         elif isinstance(current, set):
             value = {_tuple(v) if isinstance(v, list) else v for v in value}
         elif isinstance(current, dict):
