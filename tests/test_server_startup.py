@@ -209,3 +209,31 @@ def test_scene_folders_are_still_read_at_launch_when_given(tmp_path):
     with pytest.raises(GLMapError, match="no scene"):
         config_from_args(args)
     assert config_from_args(build_parser().parse_args([])).scene_dirs == {}
+
+
+def test_the_kernel_warm_up_reaches_the_fits_merge_and_the_fusions_remerge(monkeypatch):
+    # `glmap-mcp --prepare` fills numba's cache with what warm_kernels runs: a warm-up whose
+    # instance is too small to merge leaves the merge kernels to compile in the first
+    # observe_frame of every server (~40 s).
+    from glmap_tools.app.background import warm_kernels
+    from glmap_tools.gaussians import _estimator_fast
+
+    found: dict[str, list[int]] = {"fit": [], "remerge": []}
+
+    def counted(name, fn):  # type: ignore[no-untyped-def]
+        def wrapper(*args, **kwargs):  # type: ignore[no-untyped-def]
+            pairs = fn(*args, **kwargs)
+            found[name].append(len(pairs))
+            return pairs
+
+        return wrapper
+
+    monkeypatch.setattr(_estimator_fast, "_fit_pairs", counted("fit", _estimator_fast._fit_pairs))
+    monkeypatch.setattr(
+        _estimator_fast,
+        "sorted_mergeable_pairs",
+        counted("remerge", _estimator_fast.sorted_mergeable_pairs),
+    )
+    warm_kernels()
+    assert max(found["fit"], default=0) > 0, found  # the fit found mergeable pairs
+    assert max(found["remerge"], default=0) > 0, found  # the fused unit's Gaussians merged

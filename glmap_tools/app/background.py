@@ -35,6 +35,7 @@ logger = logging.getLogger(__name__)
 # glmap-mcp's start-up work waits up to this long for the first tools/list (or call), so that
 # its imports (torch) do not take the interpreter from the handshake on a busy machine.
 HANDSHAKE_HOLD_S = 2.0
+WARM_VIEW = (128, 96)  # warm_kernels' frames: the chair gets ~1100 points, enough to merge
 EMBEDDER = "embedder"
 KERNELS = "kernels"
 WHAT = {
@@ -176,9 +177,13 @@ def load_embedder(kind: str, threads: int | None) -> Embedder:
 
 
 def warm_kernels() -> float:
-    """Run every numba kernel once (integrate a small frame, render with depth); seconds.
+    """Run every numba kernel of the map and the renderer once; seconds.
 
-    Each kernel is compiled, or loaded from numba's cache when `.ci/setup` filled it.
+    Two views of a chair and a third from the first pose again: the chair's masked points
+    are enough for merged Gaussians (the fit's pair sweep, capped union and cluster sums),
+    and its second and third observations fuse with the unit (`remerge`). Then a render
+    with depth. Each kernel is compiled, or loaded from numba's cache when `.ci/setup`
+    filled it.
     """
     from glmap_tools.app.views import warm_up
     from glmap_tools.language.embed import HashingEmbedder
@@ -186,12 +191,10 @@ def warm_kernels() -> float:
 
     start = time.perf_counter()
     boxes = synthetic.floor(2.0) + synthetic.chair(0.0, 0.0, object_id=1)
-    frame, ids = synthetic.view(boxes, (0.0, -2.0, 1.3), (0.0, 0.0, 0.4), 64, 48)
     texts = {1: ("chair", "a red chair")}
     glmap = GLMap(MapConfig(), embedder=HashingEmbedder())
-    for shift in (0.0, 0.05):  # the second frame merges: the fusion kernels run too
-        moved = synthetic.view(boxes, (shift, -2.0, 1.3), (0.0, 0.0, 0.4), 64, 48)
-        glmap.integrate(moved[0], synthetic.semantics(moved[1], texts))
-    glmap.integrate(frame, synthetic.semantics(ids, texts))
+    for shift in (0.0, 0.05, 0.0):
+        frame, ids = synthetic.view(boxes, (shift, -1.2, 1.1), (0.0, 0.0, 0.4), *WARM_VIEW)
+        glmap.integrate(frame, synthetic.semantics(ids, texts))
     warm_up()
     return time.perf_counter() - start
