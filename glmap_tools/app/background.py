@@ -179,13 +179,23 @@ def load_embedder(kind: str, threads: int | None) -> Embedder:
 def warm_kernels() -> float:
     """Run every numba kernel of the map and the renderer once; seconds.
 
-    Two views of a chair and a third from the first pose again: the chair's masked points
-    are enough for merged Gaussians (the fit's pair sweep, capped union and cluster sums),
-    and its second and third observations fuse with the unit (`remerge`). Then a render
-    with depth. Each kernel is compiled, or loaded from numba's cache when `.ci/setup`
-    filled it.
+    Each kernel is compiled, or loaded from numba's cache when `.ci/setup` filled it.
     """
     from glmap_tools.app.views import warm_up
+
+    start = time.perf_counter()
+    warm_map_kernels()
+    warm_up()
+    return time.perf_counter() - start
+
+
+def warm_map_kernels() -> float:
+    """Run the map's kernels once (the estimator, its merge, fusion); seconds.
+
+    Two views of a chair and a third from the first pose again: the chair's masked points
+    are enough for merged Gaussians (the fit's pair sweep, capped union and cluster sums),
+    and its second and third observations fuse with the unit (`remerge`).
+    """
     from glmap_tools.language.embed import HashingEmbedder
     from glmap_tools.map import GLMap, MapConfig
 
@@ -196,5 +206,4 @@ def warm_kernels() -> float:
     for shift in (0.0, 0.05, 0.0):
         frame, ids = synthetic.view(boxes, (shift, -1.2, 1.1), (0.0, 0.0, 0.4), *WARM_VIEW)
         glmap.integrate(frame, synthetic.semantics(ids, texts))
-    warm_up()
     return time.perf_counter() - start

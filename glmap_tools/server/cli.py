@@ -14,6 +14,7 @@ import argparse
 import hmac
 import logging
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -358,19 +359,40 @@ def perception_from_args(args: argparse.Namespace) -> Any:
 
 def prepare() -> int:
     """Fill numba's cache, check the embedder loads and prepare the handshake answers
-    (`glmap-mcp --prepare`, .ci/setup)."""
+    (`glmap-mcp --prepare`, .ci/setup).
 
-    from glmap_tools.app.background import load_embedder, warm_kernels
+    Numba compiles on one core: the map's kernels compile in a second process while this
+    one compiles the renderer's, loads the embedder and prepares the handshake answers
+    (servers of its own, started one after another on a thread).
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    from glmap_tools.app.background import load_embedder
+    from glmap_tools.app.views import warm_up
     from glmap_tools.server.handshake import answers_path, prepare_handshake
 
-    seconds = warm_kernels()
-    print(f"glmap-mcp kernels ready in {seconds:.1f} s (numba cache filled)")
     start = time.perf_counter()
-    load_embedder("minilm", None).embed(["a chair"])
-    print(f"text embedder loaded in {time.perf_counter() - start:.1f} s")
-    versions = prepare_handshake()
+    map_kernels = subprocess.Popen([sys.executable, "-c", MAP_KERNELS_SCRIPT])
+    with ThreadPoolExecutor(1) as pool:
+        try:
+            handshake = pool.submit(prepare_handshake)
+            warm_up()
+            load_embedder("minilm", None).embed(["a chair"])
+        finally:
+            map_kernels.wait()
+        versions = handshake.result()
+    if map_kernels.returncode != 0:
+        print(
+            "glmap-mcp: error: compiling the map's kernels failed (its error is above)",
+            file=sys.stderr,
+        )
+        return 1
+    print(f"glmap-mcp kernels ready in {time.perf_counter() - start:.1f} s (numba cache filled)")
     print(f"handshake answers prepared for {', '.join(versions)} in {answers_path()}")
     return 0
+
+
+MAP_KERNELS_SCRIPT = "from glmap_tools.app.background import warm_map_kernels; warm_map_kernels()"
 
 
 def main(argv: list[str] | None = None) -> int:
