@@ -284,7 +284,7 @@ def _boxes(glmap: MapState, ids: np.ndarray) -> np.ndarray:
     for k, uid in enumerate(ids.tolist()):
         cells = glmap.grid.cells_of_unit(int(uid))
         if cells:
-            arr = np.array(sorted(cells), dtype=np.float64)
+            arr = np.array(list(cells), dtype=np.float64)
             out[k] = (*arr.min(axis=0), *arr.max(axis=0))
     return out
 
@@ -314,7 +314,13 @@ def relation_evidence(
     if min_observations > 1:
         seen = np.array([glmap.instances[int(i)].observations for i in all_ids.tolist()])
         anchor = np.where(seen >= min_observations, anchor, 0.0)
-    mine, theirs = _boxes(glmap, np.asarray(ids)), _boxes(glmap, all_ids)
+    theirs = _boxes(glmap, all_ids)
+    row = {u: k for k, u in enumerate(all_ids.tolist())}
+    ids_list = np.asarray(ids).tolist()
+    if all(u in row for u in ids_list):  # the usual case: boxes read once
+        mine = theirs[[row[u] for u in ids_list]]
+    else:
+        mine = _boxes(glmap, np.asarray(ids))
     cell = glmap.grid.cell_size
     # Gap between boxes, in cells (0 when they touch or overlap), per pair [N, M].
     dx = np.maximum(theirs[None, :, 0] - mine[:, None, 2], mine[:, None, 0] - theirs[None, :, 2])
