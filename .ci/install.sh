@@ -15,9 +15,10 @@ pip_install() {
   local venv="$1"
   shift
   if [ "${GLMAP_SETUP_PIP:-0}" != 1 ] && "$venv/bin/pip" install -q --disable-pip-version-check uv >/dev/null 2>&1; then
-    # --compile-bytecode: pip writes .pyc files at install, uv does not by default; without
-    # them (and with PYTHONDONTWRITEBYTECODE set) every process compiles its imports anew.
-    local args=(--python "$venv/bin/python" --index-strategy unsafe-best-match --compile-bytecode) v
+    local args=(--python "$venv/bin/python" --index-strategy unsafe-best-match) v
+    # uv writes no .pyc files at install (pip does); Python writes each on first import, unless
+    # PYTHONDONTWRITEBYTECODE is set: then every process would compile its imports anew.
+    if [ -n "${PYTHONDONTWRITEBYTECODE:-}" ]; then args+=(--compile-bytecode); fi
     for v in $(pip_setting "$venv" index-url); do args+=(--index-url "$v"); done
     for v in $(pip_setting "$venv" extra-index-url); do args+=(--extra-index-url "$v"); done
     for v in $(pip_setting "$venv" find-links); do args+=(--find-links "$v"); done
