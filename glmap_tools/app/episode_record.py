@@ -106,11 +106,10 @@ def apply_memory(state: Any, memory: dict[str, Any]) -> None:
             and not isinstance(current, type)
         ):
             # A small record of plain fields (nav.choose.GoalProgress): inf was written as None.
-            was = dataclasses.asdict(current)
             value = dataclasses.replace(
                 current,
                 **{
-                    k: math.inf if v is None and isinstance(was[k], float) else v
+                    k: math.inf if v is None and isinstance(getattr(current, k), float) else v
                     for k, v in value.items()
                 },
             )

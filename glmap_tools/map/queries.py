@@ -316,11 +316,7 @@ def relation_evidence(
         anchor = np.where(seen >= min_observations, anchor, 0.0)
     theirs = _boxes(glmap, all_ids)
     row = {u: k for k, u in enumerate(all_ids.tolist())}
-    ids_list = np.asarray(ids).tolist()
-    if all(u in row for u in ids_list):  # the usual case: boxes read once
-        mine = theirs[[row[u] for u in ids_list]]
-    else:
-        mine = _boxes(glmap, np.asarray(ids))
+    mine = theirs[[row[u] for u in np.asarray(ids).tolist()]]  # `ids` are instances of the map
     cell = glmap.grid.cell_size
     # Gap between boxes, in cells (0 when they touch or overlap), per pair [N, M].
     dx = np.maximum(theirs[None, :, 0] - mine[:, None, 2], mine[:, None, 0] - theirs[None, :, 2])
