@@ -237,3 +237,57 @@ def test_the_kernel_warm_up_reaches_the_fits_merge_and_the_fusions_remerge(monke
     warm_kernels()
     assert max(found["fit"], default=0) > 0, found  # the fit found mergeable pairs
     assert max(found["remerge"], default=0) > 0, found  # the fused unit's Gaussians merged
+
+
+# A fresh process: warm the kernels as `glmap-mcp --prepare` and the server's start do, then
+# play the tools' common calls; prints the (module, kernel, signature) the calls needed that
+# the warm-up had not compiled or loaded.
+UNWARMED_KERNELS = """
+import asyncio, json, sys, tempfile
+from pathlib import Path
+from numba.core.registry import CPUDispatcher
+from mcp import Client
+from glmap_tools.app.background import warm_kernels
+from glmap_tools.server import ServerConfig, build_server
+from tests.test_server_fixtures import frame_args
+
+def compiled():
+    return {
+        (name, attr, str(sig))
+        for name, module in list(sys.modules.items()) if name.startswith("glmap_tools")
+        for attr, value in list(vars(module).items()) if isinstance(value, CPUDispatcher)
+        for sig in value.signatures
+    }
+
+CALLS = [
+    ("sim_reset", {"episode": "tune/objectnav/s03-013"}),
+    ("nav_step", {"actions": 3}),
+    ("navigate_to", {"x": 15.43, "y": 3.93, "max_steps": 2}),
+    ("observe_frame", frame_args()),
+    ("find_instance", {"query": "a bed"}),
+    ("render_view", {"target": "map", "x": 1.0, "y": 1.0}),
+]
+
+async def play():
+    with tempfile.TemporaryDirectory() as tmp:
+        config = ServerConfig(maps_dir=Path(tmp), embedder="hashing", warm_up=False)
+        async with Client(build_server(config)) as client:
+            for name, args in CALLS:
+                result = await client.call_tool(name, args)
+                assert not result.is_error, (name, result.content[0].text)
+
+warm_kernels()
+before = compiled()
+asyncio.run(play())
+print(json.dumps(sorted(compiled() - before)))
+"""
+
+
+@pytest.mark.slow  # a server process plays a short episode
+def test_the_tools_common_calls_need_no_kernel_the_warm_up_left_out():
+    # Each one left out compiles in the first call that needs it, after `--prepare` too.
+    done = subprocess.run(
+        [sys.executable, "-c", UNWARMED_KERNELS], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert json.loads(done.stdout.splitlines()[-1]) == []

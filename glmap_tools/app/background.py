@@ -177,7 +177,7 @@ def load_embedder(kind: str, threads: int | None) -> Embedder:
 
 
 def warm_kernels() -> float:
-    """Run every numba kernel of the map and the renderer once; seconds.
+    """Run every numba kernel of the map, the renderer and the simulator once; seconds.
 
     Each kernel is compiled, or loaded from numba's cache when `.ci/setup` filled it.
     """
@@ -186,7 +186,15 @@ def warm_kernels() -> float:
     start = time.perf_counter()
     warm_map_kernels()
     warm_up()
+    warm_sim_kernels()
     return time.perf_counter() - start
+
+
+def warm_sim_kernels() -> None:
+    """Run the simulator's kernel once (the Dijkstra of every episode's success distance)."""
+    from glmap_tools.sim import geodesic
+
+    geodesic.warm_up()
 
 
 def warm_map_kernels() -> float:

@@ -362,12 +362,12 @@ def prepare() -> int:
     (`glmap-mcp --prepare`, .ci/setup).
 
     Numba compiles on one core: the map's kernels compile in a second process while this
-    one compiles the renderer's, loads the embedder and prepares the handshake answers
-    (servers of its own, started one after another on a thread).
+    one compiles the renderer's and the simulator's, loads the embedder and prepares the
+    handshake answers (servers of its own, started one after another on a thread).
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    from glmap_tools.app.background import load_embedder
+    from glmap_tools.app.background import load_embedder, warm_sim_kernels
     from glmap_tools.app.views import warm_up
     from glmap_tools.server.handshake import answers_path, prepare_handshake
 
@@ -377,6 +377,7 @@ def prepare() -> int:
         try:
             handshake = pool.submit(prepare_handshake)
             warm_up()
+            warm_sim_kernels()
             load_embedder("minilm", None).embed(["a chair"])
         finally:
             map_kernels.wait()

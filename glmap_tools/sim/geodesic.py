@@ -62,6 +62,14 @@ def geodesic_distance(navigable: np.ndarray, sources: np.ndarray, cell: float) -
     return _dijkstra(nav, src, _DR, _DC, _COST) * cell
 
 
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the Dijkstra kernel, which every episode's
+    success distance needs (`glmap-mcp --prepare`, the server's warm-up)."""
+    sources = np.zeros((3, 3), dtype=np.bool_)
+    sources[1, 1] = True
+    geodesic_distance(np.ones((3, 3), dtype=np.bool_), sources, 1.0)
+
+
 def geodesic_distance_reference(
     navigable: np.ndarray, sources: np.ndarray, cell: float
 ) -> np.ndarray:
