@@ -3,6 +3,8 @@ from collections.abc import Iterator
 
 import pytest
 
+from glmap_tools.launch_env import set_thread_defaults
+
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 os.environ.setdefault("TRANSFORMERS_OFFLINE", "1")
@@ -13,6 +15,9 @@ os.environ.setdefault("TRANSFORMERS_OFFLINE", "1")
 # user exported is kept; tests that are about BLAS threads set their own (`blas_threads`).
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
+# OpenMP threads of the kernels run in the test processes wait passively when idle, as every
+# launcher makes them: `pytest -n 2` is a busy machine (glmap_tools/launch_env.py).
+set_thread_defaults()
 
 
 @pytest.fixture

@@ -82,7 +82,8 @@ def test_the_sweep_computes_each_pairs_d_to_the_bit():
          CONFIG.lambda_color]
     )  # fmt: skip
     keys, ny, nz = sweep.cell_keys(clusters.mean_cells(means, CONFIG.candidate_radius))
-    pi, pj, d = sweep.sweep_pairs(keys, ny, nz, means, covs, colors, kappa, params, 64)
+    # n_chunks given, as the fit gives it: leaving it out compiles the kernel a second time
+    pi, pj, d = sweep.sweep_pairs(keys, ny, nz, means, covs, colors, kappa, params, 64, 1)
     assert len(d) > 600
     expected = [
         clusters.pair_distance(means, covs, colors, i, j, CONFIG.lambda_cov, CONFIG.lambda_color)
