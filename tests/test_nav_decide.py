@@ -25,7 +25,7 @@ from glmap_tools.nav import (
 )
 from glmap_tools.nav.episode import remember
 from glmap_tools.nav.footprint import GoalMatch, distance_to_cells
-from glmap_tools.nav.grid import structure_walls
+from glmap_tools.nav.grid import dilate_3x3, structure_walls, structure_walls_in_bands
 from glmap_tools.nav.policy import approach
 from glmap_tools.nav.value import unit_cell_array
 from glmap_tools.nav.verify import outvoted
@@ -103,6 +103,29 @@ def test_the_structure_layer_marks_walls_and_not_furniture(built: GLMap) -> None
     assert obstacle[top_wall].sum() > 20 and walls_here[top_wall][obstacle[top_wall]].all()
     assert obstacle[chair].sum() > 10
     assert walls_here[chair][obstacle[chair]].mean() < 0.1
+
+
+def test_the_walls_of_several_bands_are_each_bands_walls(built: GLMap) -> None:
+    occ = decide(built, (0.0, 0.0), 0.0, "a chair", state=NavState(), config=CONFIG).occupancy
+    assert built.floor_z is not None
+    means = built.structure.means()
+    assert np.array_equal(means, built.structure.gaussians().means)  # the same, gathered alone
+    bands = [built.config.obstacle_band, (1.55, 1.95), (5.0, 6.0)]
+    together = structure_walls_in_bands(means, built.floor_z, bands, occ)
+    for band, walls in zip(bands, together, strict=True):
+        assert np.array_equal(walls, structure_walls(means, built.floor_z, band, occ))
+    assert together[0].any() and together[1].any() and not together[2].any()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_3x3_dilation_is_scipys_with_false_beyond_the_edges(seed: int) -> None:
+    from scipy import ndimage
+
+    rng = np.random.default_rng(seed)
+    mask = rng.random((int(rng.integers(1, 40)), int(rng.integers(1, 40)))) < 0.05 * (seed + 1)
+    mask[0, 0] = mask[-1, -1] = bool(seed % 2)  # corners on and off
+    expected = ndimage.binary_dilation(mask, structure=np.ones((3, 3), dtype=bool))
+    assert np.array_equal(dilate_3x3(mask), expected)
 
 
 def test_a_goal_nothing_in_the_map_resembles_sends_the_agent_to_the_nearest_frontier(

@@ -99,6 +99,7 @@ class StructureLayer:
         self.voxel_size = float(voxel_size)
         self.chunks: dict[ChunkKey, StructureChunk] = {}
         self._all: GaussianSet | None = None
+        self._means: np.ndarray | None = None
 
     def __len__(self) -> int:
         return sum(len(c) for c in self.chunks.values())
@@ -108,6 +109,18 @@ class StructureLayer:
         if self._all is None:
             self._all = GaussianSet.concat([self.chunks[k].gaussians for k in sorted(self.chunks)])
         return self._all
+
+    def means(self) -> np.ndarray:  # -> [N, 3] float32
+        """The means of `gaussians()`, in its order, without gathering the rest (cached until
+        `apply`): the walls a step plans with read only these."""
+        if self._all is not None:
+            return self._all.means
+        if self._means is None:
+            self._means = np.concatenate(
+                [self.chunks[k].gaussians.means for k in sorted(self.chunks)]
+                or [GaussianSet.empty().means]
+            )
+        return self._means
 
     def voxel_keys(self, gaussians: GaussianSet) -> np.ndarray:  # -> [N, 3] int64
         """The voxel of each Gaussian's mean."""
@@ -187,6 +200,7 @@ class StructureLayer:
         if chunks:
             self.chunks.update(chunks)
             self._all = None
+            self._means = None
 
     def equals(self, other: StructureLayer) -> bool:
         """Bit-exact equality of voxel size, chunk keys, voxel keys and Gaussians."""

@@ -7,6 +7,7 @@ i.e. row = y cell, column = x cell; world (x, y) of a cell centre = ((i + 0.5) s
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -174,15 +175,44 @@ def structure_walls(
     floor lies in the obstacle `band`. Walls, not furniture: the cells an obstacle of the
     occupancy must also be to block the sight line of `NavConfig.stop_in_sight`. One cell
     of slack covers holes the structure layer's pixel stride leaves in a wall."""
+    return structure_walls_in_bands(means, floor_z, [band], occ)[0]
+
+
+def structure_walls_in_bands(
+    means: np.ndarray,
+    floor_z: float,
+    bands: Sequence[tuple[float, float]],
+    occ: DenseOccupancy,
+) -> list[np.ndarray]:
+    """`structure_walls` for each of `bands`, each mean's height and cell computed once."""
     h, w = occ.state.shape
-    out = np.zeros((h, w), dtype=bool)
     if len(means) == 0:
-        return out
+        return [np.zeros((h, w), dtype=bool) for _ in bands]
     height = means[:, 2].astype(np.float64) - floor_z
-    pts = means[(height >= band[0]) & (height <= band[1])]
-    s = occ.cell_size
-    rows = np.floor(pts[:, 1].astype(np.float64) / s).astype(np.int64) - occ.origin[1]
-    cols = np.floor(pts[:, 0].astype(np.float64) / s).astype(np.int64) - occ.origin[0]
+    in_bands = [(height >= lo) & (height <= hi) for lo, hi in bands]
+    some = np.logical_or.reduce(in_bands)
+    s = occ.cell_size  # columns, not rows of `means`: a boolean pick of [N, 3] rows is ~10x slower
+    rows = np.floor(means[:, 1][some].astype(np.float64) / s).astype(np.int64) - occ.origin[1]
+    cols = np.floor(means[:, 0][some].astype(np.float64) / s).astype(np.int64) - occ.origin[0]
     inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-    out[rows[inside], cols[inside]] = True
-    return ndimage.binary_dilation(out, structure=np.ones((3, 3), dtype=bool))
+    out = []
+    for in_band in in_bands:
+        keep = inside & in_band[some]
+        cells = np.zeros((h, w), dtype=bool)
+        cells[rows[keep], cols[keep]] = True
+        out.append(dilate_3x3(cells))
+    return out
+
+
+def dilate_3x3(mask: np.ndarray) -> np.ndarray:
+    """[H, W] bool: cells with a True cell among their 8 neighbours or themselves (scipy's
+    binary_dilation with a 3 x 3 square, cells beyond the edge False), as 9 shifted ORs:
+    ~10x faster on a map window."""
+    h, w = mask.shape
+    padded = np.pad(mask, 1)
+    out = mask.copy()
+    for dr in range(3):
+        for dc in range(3):
+            if dr != 1 or dc != 1:
+                out |= padded[dr : dr + h, dc : dc + w]
+    return out

@@ -15,7 +15,7 @@ from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
 from glmap_tools.nav.config import GOAL_MAX_BOTTOM, GOAL_MIN_SIZE, SCORE_TIE, NavConfig
 from glmap_tools.nav.footprint import ROOM_WALL, GoalMatch, distances_to_cells
 from glmap_tools.nav.frontiers import Frontier, frontiers
-from glmap_tools.nav.grid import agent_rc, known_window, reframe, structure_walls
+from glmap_tools.nav.grid import agent_rc, known_window, reframe, structure_walls_in_bands
 from glmap_tools.nav.motion import bump_cells, clearance, contact_cell, masks
 from glmap_tools.nav.planner import DistanceField, distance_field
 from glmap_tools.nav.scorers import Scorer, UnitText, map_units
@@ -371,7 +371,8 @@ def walls_of(glmap: GLMap, occ: DenseOccupancy) -> np.ndarray | None:
     cell counts as a wall."""
     if len(glmap.structure) == 0 or glmap.floor_z is None:
         return None
-    means = glmap.structure.gaussians().means
-    levels = structure_walls(means, glmap.floor_z, glmap.config.obstacle_band, occ).astype(np.int8)
-    levels[structure_walls(means, glmap.floor_z, ROOM_WALL_BAND, occ)] = ROOM_WALL
+    bands = [glmap.config.obstacle_band, ROOM_WALL_BAND]
+    walls, room_walls = structure_walls_in_bands(glmap.structure.means(), glmap.floor_z, bands, occ)
+    levels = walls.astype(np.int8)
+    levels[room_walls] = ROOM_WALL
     return levels
