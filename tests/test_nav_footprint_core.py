@@ -68,3 +68,20 @@ def test_a_clean_mask_keeps_most_of_its_cells_and_share_one_keeps_every_cell() -
 def test_a_footprint_core_outside_zero_to_one_is_refused_by_name(share: float) -> None:
     with pytest.raises(InvalidInputError, match="footprint_core"):
         NavConfig(footprint_core=share)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_cells_near_a_unit_are_scipys_dilation_of_the_whole_window(seed: int) -> None:
+    from glmap_tools.nav.footprint import _near_cells
+
+    rng = np.random.default_rng(seed)
+    shape = (int(rng.integers(3, 50)), int(rng.integers(3, 50)))
+    rc = np.unique(rng.integers(0, shape, size=(int(rng.integers(1, 12)), 2)), axis=0)
+    if seed % 2:  # a unit at the window's corner
+        rc = np.vstack([rc, [0, 0], [shape[0] - 1, shape[1] - 1]])
+    cells = np.zeros(shape, dtype=bool)
+    cells[rc[:, 0], rc[:, 1]] = True
+    assert np.array_equal(_near_cells(rc, shape, 0), cells)
+    for steps in (1, 2, 3):
+        expected = ndimage.binary_dilation(cells, iterations=steps)
+        assert np.array_equal(_near_cells(rc, shape, steps), expected)

@@ -76,6 +76,23 @@ WALL, ROOM_WALL = 1, 2  # levels of `nav.perceive.walls_of`: structure, a room's
 ROOM_WALL_TOLERANCE_CELLS = 1
 
 
+def _near_cells(rc: np.ndarray, shape: tuple[int, int], steps: int) -> np.ndarray:
+    """[H, W] bool: the cells within `steps` 4-neighbour moves of the cells `rc` [K, 2]
+    (inside the grid), as `ndimage.binary_dilation(cells, iterations=steps)` for steps >= 1.
+    They all lie in the cells' bounding box grown by `steps`: the dilation runs on that box,
+    not on the whole window."""
+    out = np.zeros(shape, dtype=bool)
+    if steps < 1:
+        out[rc[:, 0], rc[:, 1]] = True
+        return out
+    lo = np.maximum(rc.min(axis=0) - steps, 0)
+    hi = np.minimum(rc.max(axis=0) + steps + 1, shape)
+    box = np.zeros(tuple(hi - lo), dtype=bool)
+    box[rc[:, 0] - lo[0], rc[:, 1] - lo[1]] = True
+    out[lo[0] : hi[0], lo[1] : hi[1]] = ndimage.binary_dilation(box, iterations=steps)
+    return out
+
+
 def in_clear_sight(
     match: GoalMatch,
     occ: DenseOccupancy,
@@ -101,14 +118,12 @@ def in_clear_sight(
     rc = rc[(rc[:, 0] >= 0) & (rc[:, 0] < h) & (rc[:, 1] >= 0) & (rc[:, 1] < w)]
     if len(rc) == 0:
         return np.zeros(len(points_rc), dtype=bool)
-    unit = np.zeros((h, w), dtype=bool)
-    unit[rc[:, 0], rc[:, 1]] = True
-    near_unit = ndimage.binary_dilation(unit, iterations=tolerance)
+    near_unit = _near_cells(rc, (h, w), tolerance)
     blocking = (occ.state == OBSTACLE) & ~near_unit
     if walls is not None:
         room = walls >= ROOM_WALL
         tol = min(tolerance, ROOM_WALL_TOLERANCE_CELLS)
-        near_room = ndimage.binary_dilation(unit, iterations=tol) if tol else unit
+        near_room = _near_cells(rc, (h, w), tol)
         blocking = (occ.state == OBSTACLE) & ((walls > 0) & ~near_unit | room & ~near_room)
     # The nearest unit cell of each point (Euclidean, in cells).
     d2 = ((points_rc[:, None, :] - rc[None, :, :]) ** 2).sum(axis=2)
