@@ -191,7 +191,8 @@ def structure_walls_in_bands(
     height = means[:, 2].astype(np.float64) - floor_z
     in_bands = [(height >= lo) & (height <= hi) for lo, hi in bands]
     some = np.logical_or.reduce(in_bands)
-    s = occ.cell_size  # columns, not rows of `means`: a boolean pick of [N, 3] rows is ~10x slower
+    s = occ.cell_size
+    # Columns of `means` picked, not its rows: a boolean pick of [N, 3] rows is ~10x slower.
     rows = np.floor(means[:, 1][some].astype(np.float64) / s).astype(np.int64) - occ.origin[1]
     cols = np.floor(means[:, 0][some].astype(np.float64) / s).astype(np.int64) - occ.origin[0]
     inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
@@ -206,8 +207,8 @@ def structure_walls_in_bands(
 
 def dilate_3x3(mask: np.ndarray) -> np.ndarray:
     """[H, W] bool: cells with a True cell among their 8 neighbours or themselves (scipy's
-    binary_dilation with a 3 x 3 square, cells beyond the edge False), as 9 shifted ORs:
-    ~10x faster on a map window."""
+    binary_dilation with a 3 x 3 square, cells beyond the edge False), as the OR of the 8
+    shifted copies: ~10x faster on a map window."""
     h, w = mask.shape
     padded = np.pad(mask, 1)
     out = mask.copy()
