@@ -181,19 +181,19 @@ def warm_kernels() -> float:
 
     Each kernel is compiled, or loaded from numba's cache when `.ci/setup` filled it.
     """
-    from glmap_tools.app.views import warm_up
-
     start = time.perf_counter()
     warm_map_kernels()
-    warm_up()
-    warm_sim_kernels()
+    warm_view_and_sim_kernels()
     return time.perf_counter() - start
 
 
-def warm_sim_kernels() -> None:
-    """Run the simulator's kernel once (the Dijkstra of every episode's success distance)."""
+def warm_view_and_sim_kernels() -> None:
+    """Run every kernel but the map's once: the renderer's (splatting, with depth) and the
+    simulator's (the Dijkstra of every episode's success distance)."""
+    from glmap_tools.app.views import warm_up
     from glmap_tools.sim import geodesic
 
+    warm_up()
     geodesic.warm_up()
 
 

@@ -123,7 +123,7 @@ def in_clear_sight(
     if walls is not None:
         room = walls >= ROOM_WALL
         tol = min(tolerance, ROOM_WALL_TOLERANCE_CELLS)
-        near_room = _near_cells(rc, (h, w), tol)
+        near_room = near_unit if tol == tolerance else _near_cells(rc, (h, w), tol)
         blocking = (occ.state == OBSTACLE) & ((walls > 0) & ~near_unit | room & ~near_room)
     # The nearest unit cell of each point (Euclidean, in cells).
     d2 = ((points_rc[:, None, :] - rc[None, :, :]) ** 2).sum(axis=2)

@@ -367,8 +367,7 @@ def prepare() -> int:
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    from glmap_tools.app.background import load_embedder, warm_sim_kernels
-    from glmap_tools.app.views import warm_up
+    from glmap_tools.app.background import load_embedder, warm_view_and_sim_kernels
     from glmap_tools.server.handshake import answers_path, prepare_handshake
 
     start = time.perf_counter()
@@ -376,8 +375,7 @@ def prepare() -> int:
     with ThreadPoolExecutor(1) as pool:
         try:
             handshake = pool.submit(prepare_handshake)
-            warm_up()
-            warm_sim_kernels()
+            warm_view_and_sim_kernels()
             load_embedder("minilm", None).embed(["a chair"])
         finally:
             map_kernels.wait()
