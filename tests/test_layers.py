@@ -21,8 +21,17 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors",),
     # glmap_tools: the root's __version__; orphans, ray_cluster: the worker processes and the
     # Ray connection that batch builds (ingest) and evaluations (eval) share; launch_env: what
-    # every launcher sets first
-    ("glmap_tools", "lazy", "atomic", "cli_format", "orphans", "ray_cluster", "launch_env"),
+    # every launcher sets first; limits: bounds the settings check without numpy
+    (
+        "glmap_tools",
+        "lazy",
+        "atomic",
+        "cli_format",
+        "orphans",
+        "ray_cluster",
+        "launch_env",
+        "limits",
+    ),
     ("geometry",),
     ("gaussians",),
     ("language",),

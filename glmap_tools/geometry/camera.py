@@ -13,18 +13,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.limits import MAX_COORDINATE
 
 RIGID_TOLERANCE = 1e-4
 MAX_IMAGE_SIDE = 8192
 # Sane cameras only: a field of view up to MAX_FOV_DEG on either axis (wider pinhole views
 # stretch pixels towards infinity), focal lengths at most MAX_FOCAL_RATIO image sides, the
 # principal point within PRINCIPAL_MARGIN image sizes of the image, and camera centres
-# within MAX_COORDINATE metres of the origin (a map bounds its own world more tightly:
-# MapConfig.world_limit).
+# within MAX_COORDINATE metres of the origin (glmap_tools.limits).
 MAX_FOV_DEG = 170.0
 MAX_FOCAL_RATIO = 100.0
 PRINCIPAL_MARGIN = 0.5
-MAX_COORDINATE = 1e6
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.geometry.camera import MAX_COORDINATE
+from glmap_tools.limits import MAX_COORDINATE
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,7 @@ from glmap_tools.errors import GLMapError, InvalidInputError
 from glmap_tools.language.backends import add_llm_arguments, settings_from_args
 from glmap_tools.launch_env import set_thread_defaults
 from glmap_tools.map import MapConfig
+from glmap_tools.server.linger import SERVE_FLAG, relay_calls, serve_socket
 
 # Imports inside functions stay there: anyio, cv2, gaussians, gymnasium, h11, mcp, numba, scipy,
 # sim.episodes, trimesh, uvicorn, worlds.scene_dirs load on first use: `glmap-mcp` answers the
@@ -102,6 +103,14 @@ def _add_map_arguments(p: argparse.ArgumentParser) -> None:
         "episode in it, so processes started one per call share both; for clients that start "
         "a server per call (docs/mcp.md)",
     )
+    p.add_argument(
+        "--linger",
+        type=float,
+        metavar="SECONDS",
+        help="with --map: keep one server running in the background until no call has come "
+        "for SECONDS; each process a client starts per call relays to it (docs/mcp.md)",
+    )
+    p.add_argument(SERVE_FLAG, type=Path, help=argparse.SUPPRESS)
     p.add_argument(
         "--map-wait",
         type=float,
@@ -394,16 +403,36 @@ def prepare() -> int:
 MAP_KERNELS_SCRIPT = "from glmap_tools.app.background import warm_map_kernels; warm_map_kernels()"
 
 
+def linger_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with `--linger` on this command line, if anything."""
+    if args.linger is None:
+        return f"{SERVE_FLAG} is glmap-mcp's own flag; use --linger." if args.serve_socket else None
+    if not args.linger > 0:
+        return f"--linger {args.linger:g}: give the seconds the server waits for a call, > 0."
+    if args.map is None:
+        return "--linger needs --map NAME: the map the calls share."
+    if args.transport != "stdio":
+        return "--linger is for stdio clients that start a server per call; an HTTP server lingers."
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     set_thread_defaults()
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(argv)
 
     logging.basicConfig(level=args.log_level, stream=sys.stderr)
     if args.prepare:
         return prepare()
+    problem = linger_problem(args)
+    if problem is not None:
+        print(f"glmap-mcp: error: {problem}", file=sys.stderr)
+        return 2
     try:
         token = read_token(args)
         config = config_from_args(args)
+        if args.linger is not None and args.serve_socket is None:
+            return relay_calls(argv)  # the client's process: a relay to the lingering server
         check_pinned_map(config)
         perception = perception_from_args(args)
     except GLMapError as exc:
@@ -416,10 +445,13 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 2
-        from glmap_tools.server.handshake import start_relay
+        if args.serve_socket is not None:  # the lingering server, started by a relay
+            serve_socket(build(config, perception), args.serve_socket, args.linger)
+        else:
+            from glmap_tools.server.handshake import start_relay
 
-        relay = start_relay()  # answers the handshake while the SDK imports
-        relay.serve(build(config, perception))
+            relay = start_relay()  # answers the handshake while the SDK imports
+            relay.serve(build(config, perception))
         # Stdin closed and every session closed (maps committed): leave without tearing
         # down torch and the numba/GL libraries, which took ~3-5 s; clients that launch a
         # server per call wait 2 s before killing it.

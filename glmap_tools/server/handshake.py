@@ -23,10 +23,11 @@ import json
 import logging
 import os
 import queue
+import socket
 import sys
 import threading
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from importlib.util import find_spec
 from pathlib import Path
 from typing import Any, BinaryIO, cast
@@ -336,6 +337,36 @@ class StdioRelay:
         try:
             anyio.run(run)
         finally:
+            self.close()
+
+    def forward(self, sock: socket.socket, first_line: Callable[[], None]) -> None:
+        """Pass the client's lines to a server behind `sock` (`glmap-mcp --linger`) and its
+        lines back, until it closes; `first_line()` runs when its first line (or its end)
+        arrives."""
+
+        def pump() -> None:
+            try:
+                while (line := self.lines.get()) is not None:
+                    sock.sendall(line)
+            except OSError:
+                pass
+            finally:
+                with contextlib.suppress(OSError):
+                    sock.shutdown(socket.SHUT_WR)  # the client is done: so is its session
+
+        self._handed_over.set()
+        threading.Thread(target=pump, name="glmap-linger", daemon=True).start()
+        told = False
+        try:
+            with sock, sock.makefile("rb") as answers:
+                for line in iter(answers.readline, b""):
+                    if not told:
+                        told = True
+                        first_line()
+                    self._sdk_line(line.decode("utf-8", errors="replace"))
+        finally:
+            if not told:
+                first_line()
             self.close()
 
     def close(self) -> None:

@@ -1,0 +1,203 @@
+"""`glmap-mcp --map NAME --linger SECONDS`: the processes a client starts per call relay to one
+server that keeps running in the background.
+
+Real processes over stdio with the SDK's own client, compared with one long-lived in-memory
+server given the same calls; the relay's imports; the server's exit when idle; refusals.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import anyio
+import pytest
+from mcp import Client, ClientSession
+from mcp.client.stdio import StdioServerParameters, stdio_client
+
+from glmap_tools.server import build_server
+from glmap_tools.server.cli import main
+from glmap_tools.server.linger import SERVE_FLAG
+from tests.test_server_fixtures import config
+from tests.test_server_persist import CALLS, RESET, answer
+
+pytestmark = pytest.mark.anyio
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    return "asyncio"
+
+
+def lingering_servers(marker: str) -> list[int]:
+    """The pids of lingering servers whose command line holds `marker`."""
+    pids = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            argv = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if SERVE_FLAG.encode() in argv and any(marker.encode() in a for a in argv):
+            pids.append(int(entry.name))
+    return pids
+
+
+@pytest.fixture
+def run_dir() -> Iterator[Path]:
+    """A short XDG_RUNTIME_DIR (a socket path holds ~100 bytes); its servers are stopped after."""
+    folder = Path(tempfile.mkdtemp(prefix="glr"))
+    yield folder
+    for pid in lingering_servers(str(folder)):
+        os.kill(pid, signal.SIGTERM)
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def relay(maps: Path, run: Path, *extra: str) -> StdioServerParameters:
+    """`glmap-mcp --map ep --linger 30` as a client that starts one per call would launch it."""
+    return StdioServerParameters(
+        command=sys.executable,
+        args=[
+            "-m",
+            "glmap_tools.server",
+            "--map",
+            "ep",
+            "--maps-dir",
+            str(maps),
+            "--embedder",
+            "hashing",
+            "--voxel-size",
+            "0.04",
+            "--no-warm-up",
+            "--linger",
+            "30",
+            *extra,
+        ],
+        env={
+            **{k: v for k, v in os.environ.items() if k in ("PYTHONPATH", "PYOPENGL_PLATFORM")},
+            "XDG_RUNTIME_DIR": str(run),
+        },
+    )
+
+
+async def test_per_call_relays_continue_the_episode_one_long_lived_server_would(tmp_path, run_dir):
+    long_lived = build_server(config(tmp_path / "one"))
+    expected = []
+    async with Client(long_lived) as client:
+        for batch in CALLS:
+            for name, args in batch:
+                expected.append(answer(await client.call_tool(name, args)))
+    maps = tmp_path / "maps"
+    got = []
+    for batch in CALLS:  # a fresh process for each batch
+        async with Client(relay(maps, run_dir)) as client:
+            for name, args in batch:
+                got.append(answer(await client.call_tool(name, args)))
+    assert got == expected
+    assert got[-1]["steps"] == 6 and got[3]["summary"]["frames"] == 5
+    assert len(lingering_servers(str(run_dir))) == 1  # every call after the first found it
+    assert (maps / "ep.glmap").exists()  # each frame is committed to the map, as without it
+
+
+async def test_a_later_call_imports_neither_numpy_nor_the_mcp_sdk(tmp_path, run_dir):
+    maps = tmp_path / "maps"
+    async with Client(relay(maps, run_dir)) as client:  # starts the server
+        answer(await client.call_tool("sim_reset", RESET))
+    params = relay(maps, run_dir)
+    params.env = {**(params.env or {}), "PYTHONPROFILEIMPORTTIME": "1"}
+    log = tmp_path / "imports.txt"
+    with open(log, "w") as errlog:
+        async with (
+            stdio_client(params, errlog=errlog) as (read, write),
+            ClientSession(read, write) as session,
+        ):
+            await session.initialize()
+            step = answer(await session.call_tool("sim_step", {"action": "turn_left"}))
+    assert step["steps"] == 1
+    imported = {
+        line.split("|")[-1].strip()
+        for line in log.read_text().splitlines()
+        if line.startswith("import time:")
+    }
+    assert "glmap_tools.server.linger" in imported  # the relay's own imports were logged
+    assert not imported & {"numpy", "mcp", "anyio", "pydantic", "numba", "scipy"}
+
+
+async def test_the_server_leaves_once_no_call_came_for_its_linger_and_the_map_keeps_the_episode(
+    tmp_path, run_dir
+):
+    maps = tmp_path / "maps"
+    async with Client(relay(maps, run_dir, "--linger", "1")) as client:
+        answer(await client.call_tool("sim_reset", RESET))
+        answer(await client.call_tool("sim_step", {"action": "turn_left"}))
+    deadline = time.monotonic() + 30
+    while lingering_servers(str(run_dir)) and time.monotonic() < deadline:
+        await anyio.sleep(0.2)
+    assert lingering_servers(str(run_dir)) == []
+    assert list((run_dir / "glmap").glob("*.sock")) == []  # it removed its socket
+    async with Client(relay(maps, run_dir)) as client:  # a new server reads the file
+        assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 2
+
+
+async def test_two_calls_at_once_start_one_server_and_settings_that_differ_get_their_own(
+    tmp_path, run_dir
+):
+    maps = tmp_path / "maps"
+    summaries: list[Any] = []
+
+    async def call(*extra: str) -> None:
+        async with Client(relay(maps, run_dir, *extra)) as client:
+            summary = await client.call_tool("map_summary", {"include_image": False})
+            summaries.append(answer(summary))
+
+    async with anyio.create_task_group() as group:
+        group.start_soon(call)
+        group.start_soon(call)
+    assert len(summaries) == 2 and len(lingering_servers(str(run_dir))) == 1
+    await call("--map-wait", "5")
+    assert len(lingering_servers(str(run_dir))) == 2
+
+
+async def test_a_map_made_with_other_settings_is_refused_with_the_servers_message(
+    tmp_path, run_dir
+):
+    maps = tmp_path / "maps"
+    params = relay(maps, run_dir)
+    async with Client(params) as client:  # makes the map, voxel 0.04
+        answer(await client.call_tool("map_summary", {"include_image": False}))
+    for pid in lingering_servers(str(run_dir)):
+        os.kill(pid, signal.SIGTERM)
+    before = (maps / "ep.glmap").read_bytes()
+    args = [a if a != "0.04" else "0.05" for a in params.args]
+    refused = subprocess.run(
+        [params.command, *args], input=b"", env=params.env, capture_output=True
+    )
+    assert refused.returncode == 2
+    said = refused.stderr.decode()
+    assert "--map 'ep'" in said and "voxel" in said, said
+    assert (maps / "ep.glmap").read_bytes() == before
+    assert lingering_servers(str(run_dir)) == []
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["--linger", "30"], "--linger needs --map NAME"),
+        (["--map", "ep", "--linger", "0"], "> 0"),
+        (["--map", "ep", "--linger", "30", "--transport", "streamable-http"], "for stdio"),
+        (["--map", "ep", SERVE_FLAG, "/tmp/x.sock"], "use --linger"),
+    ],
+)
+def test_linger_asks_for_a_map_stdio_and_seconds(argv, said, capsys, tmp_path):
+    assert main([*argv, "--maps-dir", str(tmp_path)]) == 2
+    assert said in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
