@@ -33,14 +33,18 @@ import json
 import os
 import re
 import shlex
+import shutil
+import signal
 import subprocess
 import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
 from glmap_tools import cli
+from glmap_tools.server.linger import lingering_servers
 
 REPO = Path(__file__).resolve().parents[1]
 DOCS = [REPO / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
@@ -209,9 +213,17 @@ def run_python(block: Block, cwd: Path) -> None:
         paths = env.get("PATH", "").split(os.pathsep)
         env["PATH"] = os.pathsep.join(p for p in paths if p and Path(p).resolve() != here.resolve())
         env["GLMAP_MCP"] = str(here / "glmap-mcp")
-    done = subprocess.run(
-        [python, str(script)], cwd=cwd, env=env, capture_output=True, text=True, timeout=900
-    )
+    # The block's temporary folders (its maps) go under one of ours, so the servers it left
+    # lingering (`--linger`, started with its maps folder) are found and stopped.
+    env["TMPDIR"] = temporary = tempfile.mkdtemp(prefix="gld")
+    try:
+        done = subprocess.run(
+            [python, str(script)], cwd=cwd, env=env, capture_output=True, text=True, timeout=900
+        )
+    finally:
+        for pid in lingering_servers(temporary):
+            os.kill(pid, signal.SIGTERM)
+        shutil.rmtree(temporary, ignore_errors=True)
     assert done.returncode == 0, f"{block} failed:\n{done.stdout[-2000:]}\n{done.stderr[-3000:]}"
 
 

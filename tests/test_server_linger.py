@@ -25,7 +25,7 @@ from mcp.client.stdio import StdioServerParameters, stdio_client
 
 from glmap_tools.server import build_server
 from glmap_tools.server.cli import main
-from glmap_tools.server.linger import SERVE_FLAG
+from glmap_tools.server.linger import SERVE_FLAG, lingering_servers
 from tests.test_server_fixtures import config
 from tests.test_server_persist import CALLS, RESET, answer
 
@@ -35,21 +35,6 @@ pytestmark = pytest.mark.anyio
 @pytest.fixture
 def anyio_backend() -> str:
     return "asyncio"
-
-
-def lingering_servers(marker: str) -> list[int]:
-    """The pids of lingering servers whose command line holds `marker`."""
-    pids = []
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            argv = (entry / "cmdline").read_bytes().split(b"\0")
-        except OSError:
-            continue
-        if SERVE_FLAG.encode() in argv and any(marker.encode() in a for a in argv):
-            pids.append(int(entry.name))
-    return pids
 
 
 @pytest.fixture
@@ -201,3 +186,22 @@ def test_linger_asks_for_a_map_stdio_and_seconds(argv, said, capsys, tmp_path):
     assert main([*argv, "--maps-dir", str(tmp_path)]) == 2
     assert said in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+async def test_a_server_that_died_is_replaced_and_the_episode_goes_on_from_the_file(
+    tmp_path, run_dir
+):
+    maps = tmp_path / "maps"
+    async with Client(relay(maps, run_dir)) as client:
+        answer(await client.call_tool("sim_reset", RESET))
+        answer(await client.call_tool("sim_step", {"action": "turn_left"}))
+    (dead,) = lingering_servers(str(run_dir))
+    os.kill(dead, signal.SIGKILL)  # no clean exit: its socket file stays behind
+    deadline = time.monotonic() + 10
+    while dead in lingering_servers(str(run_dir)) and time.monotonic() < deadline:
+        await anyio.sleep(0.05)
+    assert len(list((run_dir / "glmap").glob("*.sock"))) == 1
+    async with Client(relay(maps, run_dir)) as client:
+        assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 2
+    (alive,) = lingering_servers(str(run_dir))
+    assert alive != dead

@@ -321,3 +321,21 @@ def serve_socket(server: Any, path: Path, linger_s: float) -> None:
                 path.unlink()
 
     anyio.run(run)
+
+
+def lingering_servers(marker: str = "") -> list[int]:
+    """The pids of this user's lingering servers whose command line holds `marker` (Linux)."""
+    pids = []
+    proc = Path("/proc")
+    for entry in proc.iterdir() if proc.is_dir() else ():
+        if not entry.name.isdigit():
+            continue
+        try:
+            if entry.stat().st_uid != os.getuid():
+                continue
+            argv = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if SERVE_FLAG.encode() in argv and any(marker.encode() in a for a in argv):
+            pids.append(int(entry.name))
+    return pids

@@ -3,10 +3,11 @@
     python tests/frameworks/run_langchain.py per-call|session|no-map GLMAP_MCP MAPS_DIR
 
 per-call: the default `MultiServerMCPClient(...).get_tools()`, which starts a fresh server for
-every tool call; the server is launched with `--map` so those processes share one map and
-episode. session: one server for the whole episode through `client.session(...)` and
-`load_mcp_tools`. no-map: `get_tools()` on a server launched without `--map`: `sim_reset`,
-then the `sim_step` that finds no episode in its new process; prints its reply (the error).
+every tool call; it is launched with `--map --linger` so those processes relay to one
+background server that keeps the map and episode. session: one server for the whole episode
+through `client.session(...)` and `load_mcp_tools`. no-map: `get_tools()` on a server launched
+without `--map`: `sim_reset`, then the `sim_step` that finds no episode in its new process;
+prints its reply (the error).
 The loop and its model (langchain-core's GenericFakeChatModel, whose
 messages come from tests/frameworks/episode.py) are in langchain_loop.py. Prints one JSON
 object: the replies, how many image blocks each tool's reply carried, the tool names and
@@ -32,7 +33,7 @@ from tests.frameworks.langchain_loop import play  # noqa: E402
 async def main(mode: str, command: str, maps_dir: str) -> dict[str, Any]:
     args = ["--maps-dir", maps_dir, "--embedder", "hashing"]
     if mode == "per-call":
-        args += ["--map", "langchain-test"]
+        args += ["--map", "langchain-test", "--linger", "20"]
     client = MultiServerMCPClient(
         {"glmap": {"transport": "stdio", "command": command, "args": args}}
     )

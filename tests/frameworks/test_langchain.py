@@ -6,8 +6,12 @@ to this venv's glmap-mcp over stdio.
 
 from __future__ import annotations
 
+import os
+import signal
+
 import pytest
 
+from glmap_tools.server.linger import lingering_servers
 from tests.frameworks import episode
 from tests.frameworks.venvs import GLMAP_MCP, run_json
 
@@ -21,11 +25,17 @@ def played(mode: str, maps_dir: str) -> dict:  # type: ignore[type-arg]
     return out
 
 
-@pytest.mark.slow  # a fresh glmap-mcp for each of the seven calls
-def test_langchain_default_get_tools_keeps_the_episode_with_the_map_option(tmp_path):
-    out = played("per-call", str(tmp_path))
+@pytest.mark.slow  # a fresh glmap-mcp for each of the seven calls, relaying to one server
+def test_langchain_default_get_tools_keeps_the_episode_with_map_and_linger(tmp_path):
+    try:
+        out = played("per-call", str(tmp_path))
+    finally:
+        servers = lingering_servers(str(tmp_path))
+        for pid in servers:
+            os.kill(pid, signal.SIGTERM)
     assert episode.problems([tuple(r) for r in out["replies"]]) == []
     assert (tmp_path / "langchain-test.glmap").exists()
+    assert len(servers) == 1  # the seven calls' processes relayed to one
 
 
 @pytest.mark.slow  # a fresh glmap-mcp for each of the two calls
