@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from glmap_tools.errors import GLMapError
+from glmap_tools.server.handshake import PreparedAnswers, StdioRelay, answers_path, source_stamp
 
 # Imports inside functions stay there: anyio, mcp load on first use: the relay (the launch
 # path of every call) imports neither.
@@ -180,13 +181,6 @@ def relay_calls(argv: list[str]) -> int:
     Returns:
         The exit status: 0, or the server's when it could not start.
     """
-    from glmap_tools.server.handshake import (
-        PreparedAnswers,
-        StdioRelay,
-        answers_path,
-        source_stamp,
-    )
-
     stamp = source_stamp()
     relay = StdioRelay(PreparedAnswers(answers_path(), stamp))  # answers the handshake now
     try:
