@@ -91,46 +91,30 @@ async def test_per_call_relays_continue_the_episode_one_long_lived_server_would(
     assert got[-1]["steps"] == 6 and got[3]["summary"]["frames"] == 5
     assert len(lingering_servers(str(run_dir))) == 1  # every call after the first found it
     assert (maps / "ep.glmap").exists()  # each frame is committed to the map, as without it
+    assert await imported_by_a_later_call(maps, run_dir, tmp_path / "imports.txt") & HEAVY == set()
 
 
-async def test_a_later_call_imports_neither_numpy_nor_the_mcp_sdk(tmp_path, run_dir):
-    maps = tmp_path / "maps"
-    async with Client(relay(maps, run_dir)) as client:  # starts the server
-        answer(await client.call_tool("sim_reset", RESET))
+HEAVY = {"numpy", "mcp", "anyio", "pydantic", "numba", "scipy"}
+
+
+async def imported_by_a_later_call(maps: Path, run_dir: Path, log: Path) -> set[str]:
+    """The modules a relay process imports for one `sim_step` (PYTHONPROFILEIMPORTTIME)."""
     params = relay(maps, run_dir)
     params.env = {**(params.env or {}), "PYTHONPROFILEIMPORTTIME": "1"}
-    log = tmp_path / "imports.txt"
     with open(log, "w") as errlog:
         async with (
             stdio_client(params, errlog=errlog) as (read, write),
             ClientSession(read, write) as session,
         ):
             await session.initialize()
-            step = answer(await session.call_tool("sim_step", {"action": "turn_left"}))
-    assert step["steps"] == 1
+            answer(await session.call_tool("sim_step", {"action": "turn_left"}))
     imported = {
         line.split("|")[-1].strip()
         for line in log.read_text().splitlines()
         if line.startswith("import time:")
     }
     assert "glmap_tools.server.linger" in imported  # the relay's own imports were logged
-    assert not imported & {"numpy", "mcp", "anyio", "pydantic", "numba", "scipy"}
-
-
-async def test_the_server_leaves_once_no_call_came_for_its_linger_and_the_map_keeps_the_episode(
-    tmp_path, run_dir
-):
-    maps = tmp_path / "maps"
-    async with Client(relay(maps, run_dir, "--linger", "1")) as client:
-        answer(await client.call_tool("sim_reset", RESET))
-        answer(await client.call_tool("sim_step", {"action": "turn_left"}))
-    deadline = time.monotonic() + 30
-    while lingering_servers(str(run_dir)) and time.monotonic() < deadline:
-        await anyio.sleep(0.2)
-    assert lingering_servers(str(run_dir)) == []
-    assert list((run_dir / "glmap").glob("*.sock")) == []  # it removed its socket
-    async with Client(relay(maps, run_dir)) as client:  # a new server reads the file
-        assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 2
+    return imported
 
 
 async def test_two_calls_at_once_start_one_server_and_settings_that_differ_get_their_own(
@@ -188,20 +172,32 @@ def test_linger_asks_for_a_map_stdio_and_seconds(argv, said, capsys, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-async def test_a_server_that_died_is_replaced_and_the_episode_goes_on_from_the_file(
+async def test_a_server_leaves_when_idle_one_that_died_is_replaced_and_the_map_keeps_the_episode(
     tmp_path, run_dir
 ):
     maps = tmp_path / "maps"
-    async with Client(relay(maps, run_dir)) as client:
+    async with Client(relay(maps, run_dir, "--linger", "1")) as client:
         answer(await client.call_tool("sim_reset", RESET))
         answer(await client.call_tool("sim_step", {"action": "turn_left"}))
-    (dead,) = lingering_servers(str(run_dir))
-    os.kill(dead, signal.SIGKILL)  # no clean exit: its socket file stays behind
+    deadline = time.monotonic() + 30
+    while lingering_servers(str(run_dir)) and time.monotonic() < deadline:
+        await anyio.sleep(0.1)
+    assert lingering_servers(str(run_dir)) == []  # idle for its second: it left
+    assert list((run_dir / "glmap").glob("*.sock")) == []  # and removed its socket
+    async with Client(relay(maps, run_dir)) as client:  # a new server reads the file
+        assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 2
+    # A server killed outright leaves its socket behind: the next call starts another.
+    ep = set(lingering_servers(str(run_dir)))
+    summary = {"include_image": False}
+    async with Client(relay(maps, run_dir, "--map", "other")) as client:
+        assert not (await client.call_tool("map_summary", summary)).is_error
+    (dead,) = set(lingering_servers(str(run_dir))) - ep
+    os.kill(dead, signal.SIGKILL)
     deadline = time.monotonic() + 10
     while dead in lingering_servers(str(run_dir)) and time.monotonic() < deadline:
         await anyio.sleep(0.05)
-    assert len(list((run_dir / "glmap").glob("*.sock"))) == 1
-    async with Client(relay(maps, run_dir)) as client:
-        assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 2
-    (alive,) = lingering_servers(str(run_dir))
+    assert len(list((run_dir / "glmap").glob("*.sock"))) == 2  # ep's, and the dead one's
+    async with Client(relay(maps, run_dir, "--map", "other")) as client:
+        assert not (await client.call_tool("map_summary", summary)).is_error
+    (alive,) = set(lingering_servers(str(run_dir))) - ep
     assert alive != dead
