@@ -117,22 +117,27 @@ async def imported_by_a_later_call(maps: Path, run_dir: Path, log: Path) -> set[
     return imported
 
 
-async def test_two_calls_at_once_start_one_server_and_settings_that_differ_get_their_own(
+async def test_calls_at_once_start_one_server_take_turns_and_other_settings_get_their_own(
     tmp_path, run_dir
 ):
     maps = tmp_path / "maps"
-    summaries: list[Any] = []
+    got: list[Any] = []
 
-    async def call(*extra: str) -> None:
+    async def call(tool: str, args: dict[str, Any], *extra: str) -> None:
         async with Client(relay(maps, run_dir, *extra)) as client:
-            summary = await client.call_tool("map_summary", {"include_image": False})
-            summaries.append(answer(summary))
+            got.append(answer(await client.call_tool(tool, args)))
 
-    async with anyio.create_task_group() as group:
-        group.start_soon(call)
-        group.start_soon(call)
-    assert len(summaries) == 2 and len(lingering_servers(str(run_dir))) == 1
-    await call("--map-wait", "5")
+    async with anyio.create_task_group() as group:  # no server yet: both start one?
+        group.start_soon(call, "map_summary", {"include_image": False})
+        group.start_soon(call, "map_summary", {"include_image": False})
+    assert len(got) == 2 and len(lingering_servers(str(run_dir))) == 1
+    await call("sim_reset", RESET)
+    got.clear()
+    async with anyio.create_task_group() as group:  # one episode, two steps at once
+        group.start_soon(call, "sim_step", {"action": "turn_left", "repeat": 2})
+        group.start_soon(call, "sim_step", {"action": "turn_left", "repeat": 2})
+    assert sorted(step["steps"] for step in got) == [2, 4]  # one after the other
+    await call("map_summary", {"include_image": False}, "--map-wait", "5")
     assert len(lingering_servers(str(run_dir))) == 2
 
 

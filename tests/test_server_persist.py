@@ -331,3 +331,28 @@ def test_a_map_another_process_wrote_to_refuses_a_stale_frame_until_read_again(t
     assert len(GLMap.open(path, embedder=HashingEmbedder()).trajectory) == 2
     first.close()
     second.close()
+
+
+async def test_calls_of_one_pinned_server_take_turns_and_one_that_waits_too_long_says_so(tmp_path):
+    server = build_server(config(tmp_path, map_name="ep", map_wait_s=0.2))
+    async with Client(server) as client:
+        answer(await client.call_tool("sim_reset", RESET))
+        before = (tmp_path / "maps" / "ep.glmap").read_bytes()
+        turns, taken, done = server._turns, anyio.Event(), anyio.Event()
+        assert turns is not None
+
+        async def long_call() -> None:  # holds the turn as another client's long call would
+            async with turns:
+                taken.set()
+                await done.wait()
+
+        async with anyio.create_task_group() as group:
+            group.start_soon(long_call)
+            await taken.wait()
+            busy = await client.call_tool("sim_step", {"action": "turn_left"})
+            done.set()
+        assert busy.is_error
+        text = busy.content[0].text
+        assert "'ep' is in use by another call to this server" in text and "--map-wait" in text
+        assert (tmp_path / "maps" / "ep.glmap").read_bytes() == before
+        assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 1

@@ -69,6 +69,7 @@ class GLMapServer(MCPServer[AppState]):
     background: Background
     pinned: bool = False  # --map: every call holds the saved map's lock (guard_calls)
     state: AppState | None = None  # the lifespan's state while it runs
+    _turns: anyio.Lock | None = None  # --map: this process's calls, one at a time
 
     def streamable_http_app(self, **kwargs: Any) -> Any:
         """The SDK's streamable HTTP app, whose ended sessions (DELETE, idle timeout) end
@@ -150,14 +151,31 @@ class GLMapServer(MCPServer[AppState]):
         pin = app_state(context).registry.pin if self.pinned and context is not None else None
         if pin is None:
             return await self._call(name, arguments, context)
+        # The calls of one process take turns on the map as those of two processes do (the
+        # file lock), so two at once never interleave their steps (`--linger` serves every
+        # client's calls in one process).
+        if self._turns is None:
+            self._turns = anyio.Lock()
         try:
-            await anyio.to_thread.run_sync(pin.enter)
-        except GLMapError as exc:
-            raise ToolError(str(exc)) from exc
+            with anyio.fail_after(pin.lock.wait_s):
+                await self._turns.acquire()
+        except TimeoutError:
+            raise ToolError(
+                f"map {pin.name!r} is in use by another call to this server and stayed busy "
+                f"for {pin.lock.wait_s:g} s; try the call again when it is done, or start the "
+                "server with a longer --map-wait."
+            ) from None
         try:
-            return await self._call(name, arguments, context)
+            try:
+                await anyio.to_thread.run_sync(pin.enter)
+            except GLMapError as exc:
+                raise ToolError(str(exc)) from exc
+            try:
+                return await self._call(name, arguments, context)
+            finally:
+                await anyio.to_thread.run_sync(pin.exit)
         finally:
-            await anyio.to_thread.run_sync(pin.exit)
+            self._turns.release()
 
     async def _call(
         self, name: str, arguments: dict[str, Any], context: Context[AppState, Any] | None
