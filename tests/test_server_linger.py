@@ -11,7 +11,6 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import tempfile
 import time
 from collections.abc import Iterator
@@ -27,7 +26,7 @@ from glmap_tools.server import build_server
 from glmap_tools.server.cli import main
 from glmap_tools.server.linger import SERVE_FLAG, lingering_servers
 from tests.test_server_fixtures import config
-from tests.test_server_persist import CALLS, RESET, answer
+from tests.test_server_persist import RESET, answer, calls_answered, process
 
 pytestmark = pytest.mark.anyio
 
@@ -49,44 +48,15 @@ def run_dir() -> Iterator[Path]:
 
 def relay(maps: Path, run: Path, *extra: str) -> StdioServerParameters:
     """`glmap-mcp --map ep --linger 30` as a client that starts one per call would launch it."""
-    return StdioServerParameters(
-        command=sys.executable,
-        args=[
-            "-m",
-            "glmap_tools.server",
-            "--map",
-            "ep",
-            "--maps-dir",
-            str(maps),
-            "--embedder",
-            "hashing",
-            "--voxel-size",
-            "0.04",
-            "--no-warm-up",
-            "--linger",
-            "30",
-            *extra,
-        ],
-        env={
-            **{k: v for k, v in os.environ.items() if k in ("PYTHONPATH", "PYOPENGL_PLATFORM")},
-            "XDG_RUNTIME_DIR": str(run),
-        },
-    )
+    params = process(maps, "--linger", "30", *extra)
+    params.env = {**(params.env or {}), "XDG_RUNTIME_DIR": str(run)}
+    return params
 
 
 async def test_per_call_relays_continue_the_episode_one_long_lived_server_would(tmp_path, run_dir):
     long_lived = build_server(config(tmp_path / "one"))
-    expected = []
-    async with Client(long_lived) as client:
-        for batch in CALLS:
-            for name, args in batch:
-                expected.append(answer(await client.call_tool(name, args)))
     maps = tmp_path / "maps"
-    got = []
-    for batch in CALLS:  # a fresh process for each batch
-        async with Client(relay(maps, run_dir)) as client:
-            for name, args in batch:
-                got.append(answer(await client.call_tool(name, args)))
+    expected, got = await calls_answered(long_lived, lambda: relay(maps, run_dir))
     assert got == expected
     assert got[-1]["steps"] == 6 and got[3]["summary"]["frames"] == 5
     assert len(lingering_servers(str(run_dir))) == 1  # every call after the first found it

@@ -12,6 +12,7 @@ import json
 import os
 import sqlite3
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -78,18 +79,25 @@ def answer(result: Any) -> Any:
     return data
 
 
-async def test_per_call_processes_continue_the_episode_one_long_lived_server_would(tmp_path):
-    long_lived = build_server(config(tmp_path / "one"))
+async def calls_answered(one_long_lived: Any, per_batch: Callable[[], Any]) -> tuple[list, list]:
+    """The answers to CALLS from one long-lived server, and from a fresh process (or relay)
+    `per_batch()` for each batch."""
     expected = []
-    async with Client(long_lived) as client:
+    async with Client(one_long_lived) as client:
         for batch in CALLS:
             for name, args in batch:
                 expected.append(answer(await client.call_tool(name, args)))
     got = []
-    for batch in CALLS:  # a fresh process for each batch
-        async with Client(process(tmp_path / "maps")) as client:
+    for batch in CALLS:
+        async with Client(per_batch()) as client:
             for name, args in batch:
                 got.append(answer(await client.call_tool(name, args)))
+    return expected, got
+
+
+async def test_per_call_processes_continue_the_episode_one_long_lived_server_would(tmp_path):
+    long_lived = build_server(config(tmp_path / "one"))
+    expected, got = await calls_answered(long_lived, lambda: process(tmp_path / "maps"))
     assert got == expected
     last = got[-1]
     assert last["steps"] == 6 and last["status"] == "running"
