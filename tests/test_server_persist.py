@@ -104,26 +104,6 @@ async def test_per_call_processes_continue_the_episode_one_long_lived_server_wou
     assert got[3]["summary"]["frames"] == 5  # the third process sees every frame so far
 
 
-async def test_a_second_process_waits_for_the_lock_then_says_the_map_is_busy(tmp_path):
-    maps = tmp_path / "maps"
-    async with Client(process(maps)) as client:
-        answer(await client.call_tool("sim_reset", RESET))
-    before = (maps / "ep.glmap").read_bytes()
-    fd = os.open(maps / ".ep.glmap.lock", os.O_RDWR)
-    fcntl.flock(fd, fcntl.LOCK_EX)  # as another glmap-mcp --map ep in a long call would
-    try:
-        async with Client(process(maps, "--map-wait", "0.3")) as client:
-            busy = await client.call_tool("sim_step", {"action": "turn_left"})
-    finally:
-        os.close(fd)
-    assert busy.is_error
-    text = busy.content[0].text
-    assert "'ep' is in use" in text and "--map-wait" in text
-    assert (maps / "ep.glmap").read_bytes() == before
-    async with Client(process(maps)) as client:  # free again: the episode goes on
-        assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 1
-
-
 async def test_two_processes_at_once_take_turns_and_lose_no_step(tmp_path):
     maps = tmp_path / "maps"
     async with Client(process(maps)) as client:
@@ -198,13 +178,13 @@ async def test_a_map_made_with_another_embedder_or_voxel_size_is_refused(tmp_pat
 
 
 async def test_sim_reset_without_keep_map_starts_the_saved_map_anew(tmp_path):
-    maps = tmp_path / "maps"
+    pinned = config(tmp_path, map_name="ep")  # a fresh server each time, on the saved map
     for _ in range(2):
-        async with Client(process(maps)) as client:
+        async with Client(build_server(pinned)) as client:
             answer(await client.call_tool("sim_reset", {**RESET, "seed": 4}))
             summary = answer(await client.call_tool("map_summary", {"include_image": False}))
             assert summary["summary"]["frames"] == 1
-    async with Client(process(maps)) as client:
+    async with Client(build_server(pinned)) as client:
         answer(await client.call_tool("sim_reset", {**RESET, "keep_map": True}))
         summary = answer(await client.call_tool("map_summary", {"include_image": False}))
         assert summary["summary"]["frames"] == 2
@@ -247,8 +227,8 @@ async def test_a_benchmark_episode_and_the_navigator_memory_go_on_in_the_next_se
     assert kept["actions"] and kept["nav"]["steps"] >= 3 and kept["nav"]["last_waypoint"]
 
 
-async def test_a_server_built_in_process_also_waits_for_the_map_lock(tmp_path):
-    # A server built in process (no CLI) on a --map map respects another process's lock.
+async def test_a_server_waits_for_another_process_holding_the_map_then_says_it_is_busy(tmp_path):
+    # A server on a --map map (built in process here) respects another process's lock.
     maps = tmp_path / "maps"
     async with Client(build_server(config(tmp_path, map_name="ep"))) as client:
         answer(await client.call_tool("sim_reset", RESET))
@@ -260,8 +240,12 @@ async def test_a_server_built_in_process_also_waits_for_the_map_lock(tmp_path):
             busy = await c.call_tool("sim_step", {"action": "turn_left"})
     finally:
         os.close(fd)
-    assert busy.is_error and "'ep' is in use" in busy.content[0].text
+    assert busy.is_error
+    text = busy.content[0].text
+    assert "'ep' is in use" in text and "--map-wait" in text
     assert (maps / "ep.glmap").read_bytes() == before
+    async with Client(build_server(config(tmp_path, map_name="ep"))) as client:  # free again
+        assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 1
 
 
 def test_the_navigator_memory_survives_its_json_form():
