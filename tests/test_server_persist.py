@@ -348,3 +348,19 @@ async def test_calls_of_one_pinned_server_take_turns_and_one_that_waits_too_long
         assert "'ep' is in use by another call to this server" in text and "--map-wait" in text
         assert (tmp_path / "maps" / "ep.glmap").read_bytes() == before
         assert answer(await client.call_tool("sim_step", {"action": "turn_left"}))["steps"] == 1
+
+
+async def test_a_map_file_removed_under_a_running_server_starts_anew_as_a_new_process_would(
+    tmp_path,
+):
+    pinned = config(tmp_path, map_name="ep")
+    path = tmp_path / "maps" / "ep.glmap"
+    async with Client(build_server(pinned)) as client:  # one server (a lingering one, say)
+        answer(await client.call_tool("sim_reset", RESET))
+        path.unlink()  # the user removes the map between two calls
+        summary = answer(await client.call_tool("map_summary", {"include_image": False}))
+        step = await client.call_tool("sim_step", {"action": "turn_left"})
+    assert summary["summary"]["frames"] == 0
+    assert step.is_error and "no simulator episode" in step.content[0].text
+    async with Client(build_server(pinned)) as client:  # the new file has this server's settings
+        assert answer(await client.call_tool("map_summary", {"include_image": False}))

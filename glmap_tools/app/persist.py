@@ -310,7 +310,13 @@ class PinnedMap:
             store = self.live.glmap.store
             if store is None or not store.changed_elsewhere():
                 return
-            self._reload()
+            if self.path.exists():
+                self._reload()
+            else:  # removed since: a fresh map and no episode, as a new process would start
+                log.info("map %r was removed: starting it anew", self.name)
+                self.clear()
+                session.close()
+                session.sim = session.nav = None
         store = self.live.glmap.store
         assert store is not None
         store.mark_seen()
