@@ -7,7 +7,7 @@ import pkgutil
 import sys
 
 import glmap_tools.bench as bench_pkg
-from glmap_tools.errors import did_you_mean
+from glmap_tools.errors import GLMapError, did_you_mean
 from glmap_tools.launch_env import set_thread_defaults
 
 
@@ -26,7 +26,11 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
     module = importlib.import_module(f"glmap_tools.bench.{name}")
-    return int(module.main(argv[1:]) or 0)
+    try:
+        return int(module.main(argv[1:]) or 0)
+    except GLMapError as exc:  # bad arguments or inputs: the message, not a traceback
+        print(f"bench {name}: error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -245,7 +245,12 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m glmap_tools.bench nav", description=__doc__)
     p.add_argument("--split", default="tune", help="split of the speed figures")
     p.add_argument("--steps", type=int, default=60, help="agent steps per timed episode")
-    p.add_argument("--throughput-episodes", type=int, default=1, help="episodes per agent")
+    p.add_argument(
+        "--throughput-episodes",
+        type=int,
+        default=1,
+        help="episodes per agent of the episodes-per-hour figure (0: skip that figure)",
+    )
     p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
     p.add_argument("--skip-speed", action="store_true", help="only the table")
     p.add_argument("--table", action="store_true", help="also run the SR/SPL table")
@@ -257,12 +262,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--agents", default=",".join(ALL_AGENTS), help="table: comma-separated")
     p.add_argument("--out", type=Path, help="table results (default out/eval/SPLIT-TASK)")
     args = p.parse_args(argv)
+    if args.throughput_episodes < 0:
+        p.error(f"--throughput-episodes {args.throughput_episodes}: give 0 (skip) or more")
     args.out = args.out or Path("out/eval") / f"{args.table_split}-{args.task}"
 
     report = Report("bench nav")
     if not args.skip_speed:
         anyio.run(_speed, report, args)
-        _throughput(report, args)
+        if args.throughput_episodes > 0:
+            _throughput(report, args)
     if args.table:
         _table(report, args)
     return report.finish()
