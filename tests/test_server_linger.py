@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import tempfile
 import time
@@ -108,7 +109,14 @@ async def test_calls_at_once_start_one_server_take_turns_and_other_settings_get_
         group.start_soon(call, "sim_step", {"action": "turn_left", "repeat": 2})
     assert sorted(step["steps"] for step in got) == [2, 4]  # one after the other
     await call("map_summary", {"include_image": False}, "--map-wait", "5")
-    assert len(lingering_servers(str(run_dir))) == 2
+    servers = sorted(lingering_servers(str(run_dir)))
+    assert len(servers) == 2
+    for path in (run_dir / "glmap").glob("*.sock"):  # a client that sends garbage and leaves
+        with socket.socket(socket.AF_UNIX) as raw:
+            raw.connect(str(path))
+            raw.sendall(b'\xff\xfe not json\n{"jsonrpc": "2.0", "id": 1}\n[1, 2\n')
+    await call("map_summary", {"include_image": False})
+    assert sorted(lingering_servers(str(run_dir))) == servers  # both serve on
 
 
 async def test_a_map_made_with_other_settings_is_refused_with_the_servers_message(

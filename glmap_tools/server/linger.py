@@ -25,6 +25,7 @@ import contextlib
 import fcntl
 import hashlib
 import json
+import logging
 import os
 import socket
 import stat
@@ -40,6 +41,8 @@ from glmap_tools.server.handshake import PreparedAnswers, StdioRelay, answers_pa
 
 # Imports inside functions stay there: anyio, mcp load on first use: the relay (the launch
 # path of every call) imports neither.
+
+logger = logging.getLogger(__name__)
 
 SERVE_FLAG = "--serve-socket"  # the background server's own flag (hidden from --help)
 ENV_PREFIXES = ("GLMAP_", "OLLAMA_", "PYOPENGL_", "HF_", "NUMBA_", "OMP_", "OPENBLAS_", "MKL_")
@@ -300,6 +303,8 @@ def serve_socket(server: Any, path: Path, linger_s: float) -> None:
                         )
                 except (anyio.BrokenResourceError, anyio.ClosedResourceError, OSError):
                     pass  # the relay went away mid-answer
+                except Exception:  # one client's broken session must not end the others'
+                    logger.exception("glmap-mcp: a lingering server's session failed")
                 finally:
                     idle.closed()
 
