@@ -27,6 +27,7 @@ import hashlib
 import json
 import logging
 import os
+import signal
 import socket
 import stat
 import subprocess
@@ -319,6 +320,12 @@ def serve_socket(server: Any, path: Path, linger_s: float) -> None:
             with contextlib.suppress(FileNotFoundError):
                 path.unlink()
 
+    def stop(signum: int, _frame: Any) -> None:  # `kill`: leave at once, without the socket
+        with contextlib.suppress(OSError):
+            path.unlink()
+        os._exit(128 + signum)
+
+    signal.signal(signal.SIGTERM, stop)
     anyio.run(run)
 
 
