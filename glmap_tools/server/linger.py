@@ -128,9 +128,8 @@ def _connect(path: Path) -> socket.socket | None:
 
 
 def _start(argv: list[str], files: ServerFiles) -> socket.socket:
-    """Start the background server and wait until it listens (the caller holds the lock)."""
-    with contextlib.suppress(FileNotFoundError):
-        files.socket.unlink()  # a server that died without removing it
+    """Start the background server and wait until it listens (the caller holds the lock;
+    the server replaces the socket a dead one left)."""
     with open(files.log, "wb") as log:
         child = subprocess.Popen(
             [sys.executable, "-m", "glmap_tools.server", *argv, SERVE_FLAG, str(files.socket)],
