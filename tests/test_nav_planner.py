@@ -113,6 +113,50 @@ def test_fmm_with_the_clearance_cost_agrees_with_dijkstra_on_the_same_cost(
     assert ratio.max() <= HIGH, ratio.max()
 
 
+@pytest.mark.parametrize(
+    ("seed", "h", "w", "with_speed"), [(0, 40, 40, True), (1, 60, 90, True), (2, 80, 50, False)]
+)
+def test_a_march_stopped_at_a_band_gives_the_whole_marchs_values_inside_it(
+    seed: int, h: int, w: int, with_speed: bool
+) -> None:
+    ok = random_plannable(seed, h, w)
+    state = np.where(ok, FREE, OBSTACLE).astype(np.int8)
+    occ = occ_of(state)
+    clear = clearance(occ)
+    rows, cols = np.nonzero(ok)
+    src = (int(rows[len(rows) // 3]), int(cols[len(rows) // 3]))
+    speed = masks(occ, clear, src, NavConfig())[2] if with_speed else None
+    whole = geodesic(ok, src, CELL, speed)
+    for band in (0.3, 1.0, 2.5):
+        part = geodesic(ok, src, CELL, speed, band)
+        inside = np.isfinite(part)
+        assert np.array_equal(part[inside], whole[inside])  # the same bits
+        assert (whole[~inside] >= band).all()  # every cell costing less is inside
+        assert inside.sum() < np.isfinite(whole).sum()
+
+
+@pytest.mark.parametrize("estimate_scale", [0.2, 1.0, 5.0])
+def test_the_cost_to_go_is_the_whole_march_wherever_the_agent_reads_it(
+    estimate_scale: float,
+) -> None:
+    from glmap_tools.nav.planner import cost_to_go
+
+    ok = random_plannable(1, 60, 90)
+    state = np.where(ok, FREE, OBSTACLE).astype(np.int8)
+    occ = occ_of(state)
+    clear = clearance(occ)
+    rows, cols = np.nonzero(ok)
+    end, agent = (int(rows[10]), int(cols[10])), (int(rows[-10]), int(cols[-10]))
+    speed = masks(occ, clear, agent, NavConfig())[2]
+    whole = geodesic(ok, end, CELL, speed)
+    reach = 7
+    got = cost_to_go(ok, end, agent, CELL, speed, estimate_scale * whole[agent], reach)
+    r, c = agent
+    window = (slice(r - reach, r + reach + 1), slice(c - reach, c + reach + 1))
+    assert np.array_equal(got[window], whole[window])  # a band too narrow: the whole march
+    assert np.array_equal(got[got <= whole[agent]], whole[whole <= whole[agent]])
+
+
 @pytest.mark.parametrize("stride", [1, 2])
 def test_a_plan_runs_from_agent_to_goal_through_the_middle_of_a_gap(stride: int) -> None:
     """A wall with a 1.0 m gap and the goal past its top end: the path keeps the body radius
