@@ -315,8 +315,7 @@ class PinnedMap:
             else:  # removed since: a fresh map and no episode, as a new process would start
                 log.info("map %r was removed: starting it anew", self.name)
                 self.clear()
-                session.close()
-                session.sim = session.nav = None
+                session.end_episode()
         store = self.live.glmap.store
         assert store is not None
         store.mark_seen()
@@ -326,8 +325,7 @@ class PinnedMap:
             try:
                 restore_episode(session, text, registry.config, registry.embedder)
             except GLMapError as exc:  # the map is fine; the episode must start anew
-                session.close()
-                session.sim = session.nav = None
+                session.end_episode()
                 log.warning("glmap-mcp: %s", exc)
         self.record = text
 

@@ -85,6 +85,11 @@ class Session:
         if self.sim is not None:
             self.sim.close()
 
+    def end_episode(self) -> None:
+        """Close the simulator episode and forget it and its navigation state."""
+        self.close()
+        self.sim = self.nav = None
+
 
 def check_map_name(name: str, suffix: str = MAP_SUFFIX, what: str = "map name") -> str:
     """Return `name` (less `suffix`) if it is a bare file name, else raise naming the fix.

@@ -35,12 +35,6 @@ EPISODE_ENDED = (
 )
 
 
-def _end_episode(session: Session) -> None:
-    if session.sim is not None:
-        session.sim.close()
-    session.sim = session.nav = None
-
-
 def _info(session: Session) -> MapInfo:
     with locked(session) as glmap:
         return MapInfo(
@@ -104,7 +98,7 @@ async def load_map(name: MapName, call: Call, session: SessionArg = "") -> MapIn
             registry.load_map(target, name)
             ended = target.sim is not None and target.live is not before
             if ended:
-                _end_episode(target)
+                target.end_episode()
         info = _info(target)
         if ended:
             info.simulator = EPISODE_ENDED
