@@ -118,24 +118,56 @@ def _random_structure(rng: np.random.Generator, n: int, centre: float) -> Gaussi
     return GaussianSet(means, covs, colors, np.full(n, 0.8), rng.integers(5, 50, n))
 
 
-@pytest.mark.parametrize("centre", [0.0, 1e5])  # 1e5 m: beyond the packed keys' reach
+def _assert_same_chunks(fast: dict, slow: dict) -> None:
+    assert list(fast) == list(slow)  # the same chunks, in the same order
+    for key, chunk in fast.items():
+        np.testing.assert_array_equal(chunk.keys, slow[key].keys)
+        assert chunk.gaussians.equals(slow[key].gaussians), key  # to the bit
+
+
+@pytest.mark.parametrize("centre", [0.0, 1e5])  # 1e5 m: keys of 2 million voxels
 def test_the_fast_per_voxel_merge_equals_the_plain_reference(centre):
     rng = np.random.default_rng(7)
     layer = StructureLayer(0.05)
     for _ in range(3):
         fitted = _random_structure(rng, 500, centre)
         fast, slow = layer.compute_update(fitted), layer.compute_update_reference(fitted)
-        assert sorted(fast) == sorted(slow)
-        for key, chunk in fast.items():
-            other = slow[key]
-            np.testing.assert_array_equal(chunk.keys, other.keys)
-            np.testing.assert_array_equal(chunk.gaussians.counts, other.gaussians.counts)
-            for name in ("means", "covs", "colors", "opacities"):
-                np.testing.assert_allclose(
-                    getattr(chunk.gaussians, name), getattr(other.gaussians, name), atol=1e-5
-                )
+        _assert_same_chunks(fast, slow)
         layer.apply(fast)
     assert len(layer) == len({tuple(k) for c in layer.chunks.values() for k in c.keys.tolist()})
+
+
+@pytest.mark.parametrize("members", [9, 40, 128, 129, 200])
+def test_a_crowded_voxel_sums_as_merge_combine_does(members):
+    """Many Gaussians in one voxel: numpy's pairwise sums (>= 8 terms), the kernel's limit
+    (129) and beyond it (the plain path takes over)."""
+    rng = np.random.default_rng(members)
+    layer = StructureLayer(0.05)
+    layer.apply(layer.compute_update(_random_structure(rng, 300, 0.0)))
+    crowd = _random_structure(rng, members, 0.0)
+    crowd = GaussianSet(
+        np.full((members, 3), 0.1) + rng.uniform(0, 0.04, (members, 3)),
+        crowd.covs, crowd.colors, crowd.opacities, crowd.counts,
+    )  # fmt: skip
+    fitted = GaussianSet.concat([crowd, _random_structure(rng, 50, 0.0)])
+    fast = layer.compute_update(fitted)
+    _assert_same_chunks(fast, layer.compute_update_reference(fitted))
+    merged = fast[(0, 0)]
+    assert merged.gaussians.counts[(merged.keys == (2, 2, 2)).all(axis=1)].item() >= sum(
+        crowd.counts
+    )
+
+
+def test_stored_keys_out_of_order_are_merged_as_well():
+    """A chunk whose keys are not in order (not written by this layer) still merges right."""
+    rng = np.random.default_rng(3)
+    layer = StructureLayer(0.05)
+    layer.apply(layer.compute_update(_random_structure(rng, 400, 0.0)))
+    key, chunk = next(iter(layer.chunks.items()))
+    shuffled = rng.permutation(len(chunk))
+    layer.chunks[key] = type(chunk)(chunk.keys[shuffled], chunk.gaussians.subset(shuffled))
+    fitted = _random_structure(rng, 400, 0.0)
+    _assert_same_chunks(layer.compute_update(fitted), layer.compute_update_reference(fitted))
 
 
 def test_a_ply_export_holds_the_structure_only_when_asked(glmap, tmp_path):

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from glmap_tools.gaussians.merge import combine
-from glmap_tools.gaussians.types import GaussianSet
+from glmap_tools.gaussians.types import COVARIANCE_EPSILON, GaussianSet
 
 CHUNK = 16  # voxels per chunk side (x, y): 0.8 m at 5 cm; fixed by store schema 2
 ChunkKey = tuple[int, int]
@@ -50,30 +50,6 @@ class StructureChunk:
 def chunk_of_keys(keys: np.ndarray) -> np.ndarray:  # [K, 3] -> [K, 2]
     """The chunk (ci, cj) of each voxel key."""
     return np.floor_divide(keys[:, :2], CHUNK)
-
-
-KEY_BITS = 21  # bits per axis of a packed voxel key: +-1M voxels, 52 km at 5 cm
-_OFFSET = 1 << (KEY_BITS - 1)
-
-
-def pack_keys(keys: np.ndarray) -> np.ndarray | None:  # [N, 3] -> [N] int64
-    """One int64 per voxel key, ordered as the keys are lexicographically; None when a key
-    lies beyond +-2**20 voxels on some axis."""
-    shifted = keys + _OFFSET
-    if len(keys) and (shifted.min() < 0 or shifted.max() >= 1 << KEY_BITS):
-        return None
-    return (shifted[:, 0] << (2 * KEY_BITS)) | (shifted[:, 1] << KEY_BITS) | shifted[:, 2]
-
-
-def _lexical_rank(keys: np.ndarray) -> np.ndarray:  # [N, 3] -> [N] int64
-    """Dense rank of each key in lexicographic order (equal keys, equal rank): a slower
-    stand-in for `pack_keys` that works for any key."""
-    order = np.lexsort((keys[:, 2], keys[:, 1], keys[:, 0]))
-    new = np.ones(len(keys), dtype=bool)
-    new[1:] = np.any(np.diff(keys[order], axis=0) != 0, axis=1)
-    rank = np.empty(len(keys), dtype=np.int64)
-    rank[order] = np.cumsum(new) - 1
-    return rank
 
 
 def _distinct_chunks(chunks: np.ndarray) -> set[ChunkKey]:  # [K, 2] -> {(ci, cj)}
@@ -130,69 +106,82 @@ class StructureLayer:
         """New chunks for the chunks that one frame's structure Gaussians touch.
 
         Gaussians sharing a voxel (stored or new) are combined into one by their counts and
-        moments; stored Gaussians in voxels the frame did not see are kept as they are. The
-        layer itself is not changed (see `apply`).
+        moments, as `merge.combine` combines them (the stored one first); stored Gaussians
+        in voxels the frame did not see are kept as they are. The layer itself is not
+        changed (see `apply`).
 
         Args:
             fitted: the frame's structure Gaussians (one per coarse voxel, merge off).
         """
         if len(fitted) == 0:
             return {}
+        from glmap_tools.map._structure_numba import merge_voxels
+
         new_keys = self.voxel_keys(fitted)
-        new_chunks = chunk_of_keys(new_keys)
-        touched = _distinct_chunks(new_chunks)
-        old = [self.chunks[c] for c in sorted(touched) if c in self.chunks]
+        new_rows = np.concatenate([chunk_of_keys(new_keys), new_keys], axis=1)
+        touched = sorted(_distinct_chunks(new_rows[:, :2]))
+        old = [self.chunks[c] for c in touched if c in self.chunks]
         old_keys = np.concatenate([c.keys for c in old]) if old else np.zeros((0, 3), np.int64)
-        old_g = GaussianSet.concat([c.gaussians for c in old])
-        keys = np.concatenate([old_keys, new_keys])
-        rank = pack_keys(keys)
-        if rank is None:
-            rank = _lexical_rank(keys)
-        # Only stored voxels the frame saw again are combined; the rest pass through.
-        seen = np.isin(rank[: len(old_keys)], rank[len(old_keys) :])
-        parts = np.concatenate([np.flatnonzero(seen), len(old_keys) + np.arange(len(new_keys))])
-        labels, first, inverse = np.unique(rank[parts], return_index=True, return_inverse=True)
-        combined = combine(GaussianSet.concat([old_g.subset(seen), fitted]), inverse.reshape(-1))
-        kept = np.flatnonzero(~seen)
-        all_keys = np.concatenate([old_keys[kept], keys[parts[first]]])
-        all_g = GaussianSet.concat([old_g.subset(kept), combined])
-        all_rank = np.concatenate([rank[kept], labels])
-        chunk = chunk_of_keys(all_keys)
-        order = np.lexsort((all_rank, chunk[:, 1], chunk[:, 0]))  # by chunk, then by key
-        chunk = chunk[order]
-        bounds = np.flatnonzero(np.r_[True, np.any(np.diff(chunk, axis=0) != 0, axis=1), True])
-        out: dict[ChunkKey, StructureChunk] = {}
+        old_rows = np.concatenate([chunk_of_keys(old_keys), old_keys], axis=1)
+        stacked = GaussianSet.concat([c.gaussians for c in old] + [fitted])
+        new_order = np.lexsort(new_rows.T[::-1])  # stable: a voxel's Gaussians in frame order
+        total = len(stacked)
+        f32 = np.float32
+        means, covs = np.empty((total, 3), f32), np.empty((total, 3, 3), f32)
+        colors, opacities = np.empty((total, 3), f32), np.empty(total, f32)
+        counts, source = np.empty(total, np.uint32), np.empty(total, np.int64)
+        args = (means, covs, colors, opacities, counts, source)
+        g = stacked
+        n = merge_voxels(old_rows, new_rows, new_order, g.means, g.covs, g.colors,
+                         g.opacities, g.counts, COVARIANCE_EPSILON, *args)  # fmt: skip
+        if n == -1:  # stored keys out of order (a chunk not written by this layer)
+            order = np.lexsort(old_rows.T[::-1])
+            old_rows = old_rows[order]
+            g = GaussianSet.concat([stacked.subset(order), fitted])
+            n = merge_voxels(old_rows, new_rows, new_order, g.means, g.covs, g.colors,
+                             g.opacities, g.counts, COVARIANCE_EPSILON, *args)  # fmt: skip
+        if n < 0:  # more Gaussians in one voxel than the kernel sums (not from a fit)
+            return self.compute_update_reference(fitted)
+        rows = np.concatenate([old_rows, new_rows])[source[:n]]
+        bounds = np.flatnonzero(np.r_[True, np.any(rows[1:, :2] != rows[:-1, :2], axis=1), True])
+        chunks: dict[ChunkKey, StructureChunk] = {}
         for start, stop in zip(bounds[:-1], bounds[1:], strict=True):
-            key = (int(chunk[start, 0]), int(chunk[start, 1]))
-            rows = order[start:stop]  # one copy per chunk, straight from the unsorted rows
-            out[key] = StructureChunk(all_keys[rows], all_g.subset(rows))
-        return out
+            part = slice(int(start), int(stop))  # each chunk its own arrays, not a view
+            chunks[(int(rows[start, 0]), int(rows[start, 1]))] = StructureChunk(
+                rows[part, 2:].copy(),
+                GaussianSet(
+                    means[part].copy(), covs[part].copy(), colors[part].copy(),
+                    opacities[part].copy(), counts[part].copy(),
+                ),
+            )  # fmt: skip
+        return chunks
 
     def compute_update_reference(self, fitted: GaussianSet) -> dict[ChunkKey, StructureChunk]:
-        """`compute_update` the slow, plain way (a dict of voxels); for tests.
-
-        Every voxel of a touched chunk is combined on its own, also voxels holding one
-        Gaussian, so values may differ from the fast path in the last float32 bit.
-        """
-        voxels: dict[tuple[int, int, int], list[GaussianSet]] = {}
+        """`compute_update` the slow, plain way (a dict of voxels); for tests."""
+        voxels: dict[tuple[int, int, int], tuple[list[GaussianSet], list[GaussianSet]]] = {}
         new_keys = self.voxel_keys(fitted)
         touched = {(int(k[0]) // CHUNK, int(k[1]) // CHUNK) for k in new_keys}
         for c in touched & set(self.chunks):
             chunk = self.chunks[c]
             for row, k in enumerate(chunk.keys.tolist()):
-                voxels.setdefault(tuple(k), []).append(chunk.gaussians.subset(np.array([row])))
+                one = chunk.gaussians.subset(np.array([row]))
+                voxels.setdefault(tuple(k), ([], []))[0].append(one)
         for row, k in enumerate(new_keys.tolist()):
-            voxels.setdefault(tuple(k), []).append(fitted.subset(np.array([row])))
+            voxels.setdefault(tuple(k), ([], []))[1].append(fitted.subset(np.array([row])))
         out: dict[ChunkKey, tuple[list[tuple[int, int, int]], list[GaussianSet]]] = {}
         for k in sorted(voxels):
-            members = GaussianSet.concat(voxels[k])
-            one = combine(members, np.zeros(len(members), dtype=np.int64))
+            stored, new = voxels[k]
             keys, sets = out.setdefault((k[0] // CHUNK, k[1] // CHUNK), ([], []))
+            if not new:  # not seen by this frame: kept as stored
+                keys += [k] * len(stored)
+                sets += stored
+                continue
+            members = GaussianSet.concat(stored + new)
             keys.append(k)
-            sets.append(one)
+            sets.append(combine(members, np.zeros(len(members), dtype=np.int64)))
         return {
             c: StructureChunk(np.array(keys, dtype=np.int64), GaussianSet.concat(sets))
-            for c, (keys, sets) in out.items()
+            for c, (keys, sets) in sorted(out.items())
         }
 
     def apply(self, chunks: dict[ChunkKey, StructureChunk]) -> None:
