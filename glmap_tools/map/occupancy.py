@@ -13,8 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glmap_tools.map.grid import cells_of_points
-
 UNKNOWN, FREE, OBSTACLE = 0, 1, 2
 CHUNK = 64
 # An obstacle cell stays an obstacle unless free observations outnumber it this many times.
@@ -62,29 +60,6 @@ class OccupancyGrid:
         other.chunks = {k: v.copy() for k, v in self.chunks.items()}
         return other
 
-    def _added(self, cells: np.ndarray, layer: int, out: dict[tuple[int, int], np.ndarray]) -> None:
-        """Count one observation in `layer` (0 free, 1 obstacle) per [N, 2] cell into `out`.
-
-        `out` holds updated copies of chunks; the grid itself is not touched.
-        """
-        if len(cells) == 0:
-            return
-        keys = np.floor_divide(cells, CHUNK)
-        local = cells - keys * CHUNK
-        order = np.lexsort((keys[:, 1], keys[:, 0]))
-        keys, local = keys[order], local[order]
-        split = np.flatnonzero(np.any(np.diff(keys, axis=0) != 0, axis=1)) + 1
-        for start, end in zip(
-            np.concatenate([[0], split]), np.concatenate([split, [len(keys)]]), strict=True
-        ):
-            key = (int(keys[start, 0]), int(keys[start, 1]))
-            chunk = out.get(key)
-            if chunk is None:
-                old = self.chunks.get(key)
-                chunk = np.zeros((2, CHUNK, CHUNK), dtype=np.int32) if old is None else old.copy()
-                out[key] = chunk
-            np.add.at(chunk[layer], (local[start:end, 1], local[start:end, 0]), 1)
-
     def compute_update(
         self,
         camera_xy: np.ndarray,
@@ -102,21 +77,46 @@ class OccupancyGrid:
 
         Each cell counts at most one observation per frame, obstacle before free.
         """
-        s = self.cell_size
+        from glmap_tools.map._occupancy_numba import MARK_BLOCKED, MARK_FREE, mark_cells
+
         out: dict[tuple[int, int], np.ndarray] = {}
         if len(points) == 0:
             return out
         h = points[:, 2] - floor_z
         obstacle = (h >= obstacle_band[0]) & (h <= obstacle_band[1])
         floor = np.abs(h) < obstacle_band[0]
-        free_parts = [points[floor, :2], _carve(camera_xy, points[:, :2], obstacle, s)]
-        free = cells_of_points(np.concatenate(free_parts), s)
-        blocked = cells_of_points(points[obstacle, :2], s)
-        # Within one frame an obstacle hit wins: a 2D ray passing over a table top is no
-        # evidence that the table's cells are free.
-        free = free[~_rows_in(free, blocked)]
-        self._added(free, 0, out)
-        self._added(blocked, 1, out)
+        xy = np.ascontiguousarray(points[:, :2], dtype=np.float64)
+        delta = xy - camera_xy[None, :]
+        dist = np.hypot(delta[:, 0], delta[:, 1])
+        bearing = np.floor(np.arctan2(delta[:, 1], delta[:, 0]) / BEARING_BIN).astype(np.int64)
+        b0 = bearing.min()
+        angle = (np.arange(int(bearing.max() - b0 + 1)) + b0 + 0.5) * BEARING_BIN
+        marks, x0, y0 = mark_cells(
+            np.asarray(camera_xy, np.float64), xy, floor, obstacle, dist, bearing - b0,
+            np.cos(angle), np.sin(angle), self.cell_size,
+        )  # fmt: skip
+        x0, y0 = int(x0), int(y0)
+        x1, y1 = x0 + marks.shape[1], y0 + marks.shape[0]  # past the last marked cell
+        parts = {}  # chunk -> (its rows and columns the marks cover, those marks)
+        for kx in range(x0 // CHUNK, (x1 - 1) // CHUNK + 1):
+            cx = slice(max(kx * CHUNK, x0), min((kx + 1) * CHUNK, x1))
+            for ky in range(y0 // CHUNK, (y1 - 1) // CHUNK + 1):
+                cy = slice(max(ky * CHUNK, y0), min((ky + 1) * CHUNK, y1))
+                part = marks[cy.start - y0 : cy.stop - y0, cx.start - x0 : cx.stop - x0]
+                if part.any():
+                    local = (slice(cy.start - ky * CHUNK, cy.stop - ky * CHUNK),
+                             slice(cx.start - kx * CHUNK, cx.stop - kx * CHUNK))  # fmt: skip
+                    parts[(kx, ky)] = (local, part)
+        # Chunks in key order, those with free cells first (as the grid always added them).
+        for layer, value in ((0, MARK_FREE), (1, MARK_BLOCKED)):
+            for key, (local, part) in parts.items():
+                hit = part == value
+                if not hit.any():
+                    continue
+                if key not in out:
+                    old = self.chunks.get(key)
+                    out[key] = np.zeros((2, CHUNK, CHUNK), np.int32) if old is None else old.copy()
+                out[key][(layer, *local)] += hit
         return out
 
     def apply(self, chunks: dict[tuple[int, int], np.ndarray]) -> None:
@@ -163,46 +163,4 @@ class OccupancyGrid:
         return all(np.array_equal(v, other.chunks[k]) for k, v in self.chunks.items())
 
 
-def _rows_in(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """[len(a)] bool: which integer rows of a [N, 2] appear in b [M, 2]."""
-    if len(a) == 0 or len(b) == 0:
-        return np.zeros(len(a), dtype=bool)
-    ka = (a[:, 0] << 32) + (a[:, 1] & 0xFFFFFFFF)
-    kb = (b[:, 0] << 32) + (b[:, 1] & 0xFFFFFFFF)
-    return np.isin(ka, kb)
-
-
 BEARING_BIN = np.radians(0.5)
-
-
-def _carve(
-    camera_xy: np.ndarray, xy: np.ndarray, obstacle: np.ndarray, cell_size: float
-) -> np.ndarray:
-    """Sample points [K, 2] on free 2D rays: per 0.5 degree bearing, from the camera to one
-    cell short of the nearest obstacle point, or of the farthest point if none.
-
-    Args:
-        camera_xy: [2] camera position.
-        xy: [N, 2] points of the frame.
-        obstacle: [N] bool, which points are obstacles.
-        cell_size: metres.
-    """
-    delta = xy - camera_xy[None, :]
-    dist = np.hypot(delta[:, 0], delta[:, 1])
-    bearing = np.floor(np.arctan2(delta[:, 1], delta[:, 0]) / BEARING_BIN).astype(np.int64)
-    b0 = bearing.min()
-    n_bins = int(bearing.max() - b0 + 1)
-    reach = np.zeros(n_bins)
-    np.maximum.at(reach, bearing - b0, dist)
-    blocked = np.full(n_bins, np.inf)
-    np.minimum.at(blocked, bearing[obstacle] - b0, dist[obstacle])
-    length = np.minimum(reach, blocked) - cell_size
-    bins = np.flatnonzero(length > 0)
-    if len(bins) == 0:
-        return np.zeros((0, 2))
-    step = cell_size / 2.0
-    n_steps = (length[bins] / step).astype(np.int64) + 1
-    ray = np.repeat(bins, n_steps)
-    t = (np.arange(n_steps.sum()) - np.repeat(np.cumsum(n_steps) - n_steps, n_steps)) * step
-    angle = (ray + b0 + 0.5) * BEARING_BIN
-    return camera_xy[None, :] + t[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
