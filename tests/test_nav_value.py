@@ -114,6 +114,29 @@ def test_the_egocentric_map_fills_the_view_cone_and_fuses_by_confidence() -> Non
     assert ego.confidence.max() <= 1.0 + 1e-9
 
 
+@pytest.mark.parametrize("heading", [0.0, 0.5, math.pi / 2, 2.8, math.pi, -2.0, -math.pi / 2])
+def test_the_view_cone_is_the_same_from_the_sector_as_from_the_whole_square(
+    heading: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """view_cone looks only at the cells of the view's sector; those of the whole square
+    around the camera give the same cells and confidences, in the same order."""
+    from glmap_tools.nav import egocentric
+
+    boxes = scenes.floor(12.0)
+    for x, y in ((4.0, 0.0), (0.0, 4.0), (-4.0, 0.0), (0.0, -4.0)):
+        boxes.append(scenes.Box((x - 0.3, y - 0.3, 0.0), (x + 0.3, y + 0.3, 2.0), (0.6,) * 3, 0))
+    eye = (0.3, -0.2, 0.9)
+    look = (eye[0] + math.cos(heading), eye[1] + math.sin(heading), 0.9)
+    frame, _ = scenes.view(boxes, eye, look, 80, 60)
+    ego = EgocentricValueMap(0.05)
+    cells, conf = ego.view_cone(frame)
+    monkeypatch.setattr(egocentric, "_within", lambda *_: True)  # every axis: the square
+    all_cells, all_conf = ego.view_cone(frame)
+    assert len(cells) > 100
+    np.testing.assert_array_equal(cells, all_cells)
+    np.testing.assert_array_equal(conf, all_conf)
+
+
 def test_per_unit_mass_gives_every_unit_its_score_in_total_whatever_its_area() -> None:
     from glmap_tools.nav import NavConfig
     from glmap_tools.nav.value import per_unit_mass, score_image

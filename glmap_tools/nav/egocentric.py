@@ -24,6 +24,11 @@ DEPTH_STRIDE = 4
 GROW = 64  # cells added on each side when the accumulator grows
 
 
+def _within(angle: float, heading: float, half_fov: float) -> bool:
+    """Whether `angle` lies within `half_fov` of `heading` (radians; a hair wider)."""
+    return abs((angle - heading + math.pi) % (2 * math.pi) - math.pi) <= half_fov + 1e-9
+
+
 class EgocentricValueMap:
     """Accumulates per-frame goal scores over the cells each frame's view cone covered.
 
@@ -85,8 +90,14 @@ class EgocentricValueMap:
         reach = planar.max(axis=0)  # [W]
         s = self.cell_size
         r_max = float(reach.max())
-        i_lo, i_hi = math.floor((cam[0] - r_max) / s), math.floor((cam[0] + r_max) / s)
-        j_lo, j_hi = math.floor((cam[1] - r_max) / s), math.floor((cam[1] + r_max) / s)
+        # Cells of the view's sector only: its bounding box (the camera, the arc's ends and
+        # the axis directions the arc crosses), a cell wider for the cells' centres.
+        arc = [heading - half_fov, heading + half_fov]
+        arc += [k * math.pi / 2 for k in range(4) if _within(k * math.pi / 2, heading, half_fov)]
+        xs = [cam[0]] + [cam[0] + r_max * math.cos(a) for a in arc]
+        ys = [cam[1]] + [cam[1] + r_max * math.sin(a) for a in arc]
+        i_lo, i_hi = math.floor(min(xs) / s) - 1, math.floor(max(xs) / s) + 1
+        j_lo, j_hi = math.floor(min(ys) / s) - 1, math.floor(max(ys) / s) + 1
         jj, ii = np.mgrid[j_lo : j_hi + 1, i_lo : i_hi + 1]
         cx, cy = (ii + 0.5) * s - cam[0], (jj + 0.5) * s - cam[1]
         dist = np.hypot(cx, cy)
