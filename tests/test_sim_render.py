@@ -69,6 +69,28 @@ def test_rendering_the_same_pose_twice_gives_identical_images() -> None:
     np.testing.assert_array_equal(a.instance_mask, b.instance_mask)
 
 
+def test_the_colour_pass_reads_the_image_pyrender_reads() -> None:
+    """The colour pass skips pyrender's depth read-back; its image is pyrender's own."""
+    import pyrender
+
+    from glmap_tools.sim import render as sim_render
+
+    renderer = SceneRenderer(_scene(), CameraSpec(160, 120))
+    pose = Pose.looking_at(np.array([1.5, 2.0, 0.88]), np.array([4.5, 1.0, 0.5]))
+    passes = renderer._renderer._renderer  # type: ignore[union-attr]
+    assert isinstance(passes, sim_render._ColourPassRenderer)
+    fast = renderer.render(pose)
+    passes.__class__ = pyrender.Renderer  # pyrender's own read-back of colour and depth
+    try:
+        plain = renderer.render(pose)
+    finally:
+        passes.__class__ = sim_render._ColourPassRenderer
+    assert fast.rgb.std() > 10
+    np.testing.assert_array_equal(fast.rgb, plain.rgb)
+    np.testing.assert_array_equal(fast.depth, plain.depth)
+    np.testing.assert_array_equal(fast.instance_mask, plain.instance_mask)
+
+
 def test_surfaces_that_tie_in_depth_go_to_the_object_listed_first() -> None:
     # Two boxes in the same place tie in depth on every pixel. pyrender drew its mesh nodes in
     # the order of a set (memory addresses), so which id won differed between renderers.

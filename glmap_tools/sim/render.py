@@ -73,6 +73,30 @@ class RenderedView:
 _OFFSCREEN: dict[tuple[int, int], pyrender.OffscreenRenderer] = {}
 
 
+class _ColourPassRenderer(pyrender.Renderer):
+    """pyrender's renderer, whose pass reads back only its colour image while `colour_only`
+    is set: pyrender always resolves and reads depth too, a quarter of the colour pass here.
+    The colour image is read exactly as pyrender reads it (RGB bytes, rows flipped)."""
+
+    colour_only = False
+
+    def _read_main_framebuffer(self, scene: pyrender.Scene, flags: int) -> tuple:
+        if not self.colour_only:
+            return super()._read_main_framebuffer(scene, flags)
+        from OpenGL import GL
+
+        width, height = self._main_fb_dims
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+        GL.glBlitFramebuffer(
+            0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR
+        )
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+        data = GL.glReadPixels(0, 0, width, height, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+        rgb = np.frombuffer(data, dtype=np.uint8).reshape((height, width, 3))
+        return np.flip(rgb, axis=0), None
+
+
 def shared_offscreen_renderer(width: int, height: int) -> pyrender.OffscreenRenderer:
     """One process-wide `OffscreenRenderer` per image size.
 
@@ -81,7 +105,10 @@ def shared_offscreen_renderer(width: int, height: int) -> pyrender.OffscreenRend
     """
     key = (int(width), int(height))
     if key not in _OFFSCREEN:
-        _OFFSCREEN[key] = pyrender.OffscreenRenderer(key[0], key[1])
+        renderer = pyrender.OffscreenRenderer(key[0], key[1])
+        if type(renderer._renderer) is pyrender.Renderer:  # pyrender's own: add colour_only
+            renderer._renderer.__class__ = _ColourPassRenderer
+        _OFFSCREEN[key] = renderer
     return _OFFSCREEN[key]
 
 
@@ -221,7 +248,12 @@ class SceneRenderer:
             )
         self.scene.set_pose(self.camera_node, to_opengl(pose))
         self._show(color=True)
-        rgb, _ = self._renderer.render(self.scene, flags=pyrender.RenderFlags.FLAT)
+        passes = self._renderer._renderer
+        passes.colour_only = isinstance(passes, _ColourPassRenderer)
+        try:
+            rgb, _ = self._renderer.render(self.scene, flags=pyrender.RenderFlags.FLAT)
+        finally:
+            passes.colour_only = False
         self._show(color=False, ids=self._in_view(pose))
         seg, depth = self._renderer.render(
             self.scene, flags=pyrender.RenderFlags.SEG, seg_node_map=self.seg_node_map
