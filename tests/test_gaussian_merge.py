@@ -148,6 +148,29 @@ def test_combine_of_two_direct_fits_equals_the_direct_fit_of_the_concatenation()
     np.testing.assert_array_equal(combined.counts, [65, 10])
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_combine_gives_the_numpy_formulas_bits(seed):
+    """The numba kernel sums each group in numpy's order: groups of 1 to 129 members (the
+    pairwise sum's 8 accumulators from 9 on), with -0.0 and colours outside [0, 1]."""
+    rng = np.random.default_rng(seed)
+    sizes = np.r_[1, 2, 3, 8, 9, 16, 17, 128, 129, rng.integers(1, 40, 30)]
+    n = int(sizes.sum())
+    g = random_set(n, seed)
+    colors = rng.uniform(-0.2, 1.2, (n, 3))
+    colors[::7] = -0.0
+    g = GaussianSet(g.means, g.covs, colors, g.opacities, rng.integers(1, 10**6, n))
+    groups = rng.permutation(np.repeat(rng.permutation(len(sizes)) * 3 - 20, sizes))
+    labels, inverse = np.unique(groups, return_inverse=True)
+    order = np.argsort(inverse, kind="stable")
+    starts = np.searchsorted(inverse[order], np.arange(len(labels)))
+    expected = merge._combine_by_numpy(g, inverse, order, starts, 1e-6)
+    assert merge.combine(g, groups).equals(expected)
+    big = np.zeros(n, np.int64)  # one group of them all: the numpy path itself
+    assert merge.combine(g, big).equals(
+        merge._combine_by_numpy(g, big, np.arange(n), np.zeros(1, np.int64), 1e-6)
+    )
+
+
 def test_combine_refuses_bad_labels_and_zero_counts():
     g = random_set(3, 8)
     with pytest.raises(InvalidInputError, match="groups has shape"):

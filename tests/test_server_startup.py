@@ -291,3 +291,26 @@ def test_the_tools_common_calls_need_no_kernel_the_warm_up_left_out():
     )
     assert done.returncode == 0, done.stderr[-3000:]
     assert json.loads(done.stdout.splitlines()[-1]) == []
+
+
+def test_the_layer_warm_up_compiles_what_a_frame_update_calls():
+    # `glmap-mcp --prepare` compiles the layers' kernels in its second process while the
+    # map's process compiles the estimator; a type the warm-up missed would compile again.
+    from glmap_tools import synthetic
+    from glmap_tools.app.background import warm_layer_kernels
+    from glmap_tools.gaussians._combine_numba import combine_groups
+    from glmap_tools.language.embed import HashingEmbedder
+    from glmap_tools.map import GLMap, MapConfig
+    from glmap_tools.map._occupancy_numba import mark_cells
+    from glmap_tools.map._structure_numba import merge_voxels
+
+    kernels = (mark_cells, merge_voxels, combine_groups)
+    warm_layer_kernels()
+    warmed = [list(k.signatures) for k in kernels]
+    boxes = synthetic.floor(2.0) + synthetic.chair(0.0, 0.0, object_id=1)
+    glmap = GLMap(MapConfig(), embedder=HashingEmbedder())
+    for shift in (0.0, 0.05):
+        frame, ids = synthetic.view(boxes, (shift, -1.2, 1.1), (0.0, 0.0, 0.4), 128, 96)
+        glmap.integrate(frame, synthetic.semantics(ids, {1: ("chair", "a red chair")}))
+    assert len(glmap.structure) > 0 and len(glmap.instances) == 1
+    assert [list(k.signatures) for k in kernels] == warmed

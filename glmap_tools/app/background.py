@@ -183,6 +183,7 @@ def warm_kernels() -> float:
     """
     start = time.perf_counter()
     warm_map_kernels()
+    warm_layer_kernels()
     warm_view_and_sim_kernels()
     return time.perf_counter() - start
 
@@ -197,6 +198,24 @@ def warm_view_and_sim_kernels() -> None:
     geodesic.warm_up()
 
 
+def warm_layer_kernels() -> None:
+    """Run the map layers' own kernels once, as a frame's update calls them: the occupancy
+    marks, the structure voxels' merge and `merge.combine`."""
+    from glmap_tools.gaussians.merge import combine
+    from glmap_tools.gaussians.types import GaussianSet
+    from glmap_tools.map.occupancy import OccupancyGrid
+    from glmap_tools.map.structure import StructureLayer
+
+    points = np.array([[1.0, 0.0, 0.0], [1.0, 0.1, 0.5], [1.1, 0.0, 0.02]])
+    OccupancyGrid(0.05).compute_update(np.zeros(2), points, 0.0, (0.1, 1.5))
+    g = GaussianSet(points, np.tile(np.eye(3) * 1e-4, (3, 1, 1)), np.full((3, 3), 0.5),
+                    np.full(3, 0.8), np.array([5, 6, 7]))  # fmt: skip
+    layer = StructureLayer(0.05)
+    layer.apply(layer.compute_update(g))
+    layer.compute_update(g)
+    combine(g, np.array([0, 0, 1]))
+
+
 def warm_map_kernels() -> float:
     """Run the map's kernels once (the estimator, its merge, fusion); seconds.
 
@@ -204,6 +223,7 @@ def warm_map_kernels() -> float:
     are enough for merged Gaussians (the fit's pair sweep, capped union and cluster sums),
     and its second and third observations fuse with the unit (`remerge`).
     """
+    from glmap_tools.geometry import backproject
     from glmap_tools.language.embed import HashingEmbedder
     from glmap_tools.map import GLMap, MapConfig
 
@@ -211,6 +231,11 @@ def warm_map_kernels() -> float:
     boxes = synthetic.floor(2.0) + synthetic.chair(0.0, 0.0, object_id=1)
     texts = {1: ("chair", "a red chair")}
     glmap = GLMap(MapConfig(), embedder=HashingEmbedder())
+    # The estimator first, most of the compile: `glmap-mcp --prepare` warms the layers'
+    # kernels in its other process meanwhile, so the frames below find them compiled.
+    frame, ids = synthetic.view(boxes, (0.0, -1.2, 1.1), (0.0, 0.0, 0.4), *WARM_VIEW)
+    chair = backproject(frame.depth, frame.intrinsics, frame.pose, frame.rgb, ids == 1)
+    glmap.estimator.fit(chair.points, chair.colors)
     for shift in (0.0, 0.05, 0.0):
         frame, ids = synthetic.view(boxes, (shift, -1.2, 1.1), (0.0, 0.0, 0.4), *WARM_VIEW)
         glmap.integrate(frame, synthetic.semantics(ids, texts))

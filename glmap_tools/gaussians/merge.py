@@ -252,17 +252,39 @@ def combine(g: GaussianSet, groups: np.ndarray, epsilon: float = COVARIANCE_EPSI
             f"Gaussian {k} has count 0, so it cannot be weighted; set counts to the number "
             "of points behind each Gaussian (1 when unknown)."
         )
+    from glmap_tools.gaussians._combine_numba import MAX_MEMBERS, combine_groups
+
     labels, inverse = np.unique(groups, return_inverse=True)
     inverse = inverse.reshape(-1)
     order = np.argsort(inverse, kind="stable")
     starts = np.searchsorted(inverse[order], np.arange(len(labels)))
-    w = g.counts.astype(np.float64)
-    n = np.add.reduceat(w[order], starts)
+    n = np.add.reduceat(g.counts.astype(np.float64)[order], starts)
     if n.max() > np.iinfo(np.uint32).max:
         raise InvalidInputError(
             f"a combined Gaussian would hold {int(n.max())} points, more than uint32 counts "
             "can store; combine fewer Gaussians at once."
         )
+    bounds = np.append(starts, len(order))
+    if np.diff(bounds).max() > MAX_MEMBERS:
+        return _combine_by_numpy(g, inverse, order, starts, epsilon)
+    m = len(labels)  # the numba kernel: the same operations in the same order, ~5x faster
+    out = GaussianSet(
+        np.empty((m, 3), np.float32), np.empty((m, 3, 3), np.float32),
+        np.empty((m, 3), np.float32), np.empty(m, np.float32), np.empty(m, np.uint32),
+    )  # fmt: skip
+    combine_groups(
+        order, bounds, g.means, g.covs, g.colors, g.opacities, g.counts, epsilon,
+        out.means, out.covs, out.colors, out.opacities, out.counts,
+    )  # fmt: skip
+    return out
+
+
+def _combine_by_numpy(
+    g: GaussianSet, inverse: np.ndarray, order: np.ndarray, starts: np.ndarray, epsilon: float
+) -> GaussianSet:
+    """`combine`'s formula in numpy (group k: rows order[starts[k]:starts[k + 1]])."""
+    w = g.counts.astype(np.float64)
+    n = np.add.reduceat(w[order], starts)
 
     def weighted_mean(x: np.ndarray) -> np.ndarray:  # [N, ...] -> [M, ...]
         flat = x.reshape(len(x), -1).astype(np.float64)[order] * w[order, None]

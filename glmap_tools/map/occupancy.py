@@ -92,7 +92,7 @@ class OccupancyGrid:
         b0 = bearing.min()
         angle = (np.arange(int(bearing.max() - b0 + 1)) + b0 + 0.5) * BEARING_BIN
         marks, x0, y0 = mark_cells(
-            np.asarray(camera_xy, np.float64), xy, floor, obstacle, dist, bearing - b0,
+            np.ascontiguousarray(camera_xy, np.float64), xy, floor, obstacle, dist, bearing - b0,
             np.cos(angle), np.sin(angle), self.cell_size,
         )  # fmt: skip
         x0, y0 = int(x0), int(y0)

@@ -371,12 +371,17 @@ def prepare() -> int:
     (`glmap-mcp --prepare`, .ci/setup).
 
     Numba compiles on one core: the map's kernels compile in a second process while this
-    one compiles the renderer's and the simulator's, loads the embedder and prepares the
-    handshake answers (servers of its own, started one after another on a thread).
+    one compiles the map layers' own, the renderer's and the simulator's, loads the embedder
+    and prepares the handshake answers (servers of its own, started one after another on a
+    thread).
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    from glmap_tools.app.background import load_embedder, warm_view_and_sim_kernels
+    from glmap_tools.app.background import (
+        load_embedder,
+        warm_layer_kernels,
+        warm_view_and_sim_kernels,
+    )
     from glmap_tools.server.handshake import answers_path, prepare_handshake
 
     start = time.perf_counter()
@@ -384,6 +389,7 @@ def prepare() -> int:
     with ThreadPoolExecutor(1) as pool:
         try:
             handshake = pool.submit(prepare_handshake)
+            warm_layer_kernels()  # first: the map's process meets them after its estimator
             warm_view_and_sim_kernels()
             load_embedder("minilm", None).embed(["a chair"])
         finally:
