@@ -314,3 +314,19 @@ def test_the_layer_warm_up_compiles_what_a_frame_update_calls():
         glmap.integrate(frame, synthetic.semantics(ids, {1: ("chair", "a red chair")}))
     assert len(glmap.structure) > 0 and len(glmap.instances) == 1
     assert [list(k.signatures) for k in kernels] == warmed
+
+
+def test_the_wide_cloud_warm_up_takes_the_hashed_grids_path(monkeypatch):
+    from glmap_tools.app.background import warm_wide_cloud_kernels
+    from glmap_tools.gaussians import _estimator_fast
+
+    calls: list[int] = []
+    real = _estimator_fast.grid_pairs
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(_estimator_fast, "grid_pairs", counted)
+    warm_wide_cloud_kernels()
+    assert calls

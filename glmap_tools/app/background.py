@@ -216,6 +216,19 @@ def warm_layer_kernels() -> None:
     combine(g, np.array([0, 0, 1]))
 
 
+def warm_wide_cloud_kernels() -> None:
+    """Run the estimator's kernels for a cloud too wide for the sorted sweep's cell keys
+    (~2 million radii along every axis): the candidate Gaussians apart and the hashed block
+    grid's pair search (`_estimator_fast.grid_pairs`). Servers meet it rarely; the tests do,
+    so `glmap-mcp --prepare` fills numba's cache with it too."""
+    from glmap_tools.gaussians.estimator import GaussianEstimator
+
+    rng = np.random.default_rng(0)
+    blob = rng.normal(0.0, 0.01, (400, 3))
+    colours = rng.uniform(0.0, 1.0, (800, 3)).astype(np.float32)
+    GaussianEstimator().fit(np.concatenate([blob, blob + 40_000.0]), colours)
+
+
 def warm_map_kernels() -> float:
     """Run the map's kernels once (the estimator, its merge, fusion); seconds.
 

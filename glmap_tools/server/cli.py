@@ -371,9 +371,9 @@ def prepare() -> int:
     (`glmap-mcp --prepare`, .ci/setup).
 
     Numba compiles on one core: the map's kernels compile in a second process while this
-    one compiles the map layers' own, the renderer's and the simulator's, loads the embedder
-    and prepares the handshake answers (servers of its own, started one after another on a
-    thread).
+    one compiles the map layers' own, the renderer's and the simulator's, loads the embedder,
+    compiles the estimator's path for very wide clouds and prepares the handshake answers
+    (servers of its own, started one after another on a thread).
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -381,6 +381,7 @@ def prepare() -> int:
         load_embedder,
         warm_layer_kernels,
         warm_view_and_sim_kernels,
+        warm_wide_cloud_kernels,
     )
     from glmap_tools.server.handshake import answers_path, prepare_handshake
 
@@ -392,6 +393,7 @@ def prepare() -> int:
             warm_layer_kernels()  # first: the map's process meets them after its estimator
             warm_view_and_sim_kernels()
             load_embedder("minilm", None).embed(["a chair"])
+            warm_wide_cloud_kernels()  # while the map's process still compiles
         finally:
             map_kernels.wait()
         versions = handshake.result()
