@@ -53,28 +53,20 @@ def _reduce(v: np.ndarray, n: int) -> float:  # pragma: no cover - numba
 
 
 @numba.njit(cache=True, nogil=True)
+def combine_scratch() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover
+    """Work arrays of `combine_into`: (w, v, mu, dev)."""
+    return np.empty(MAX_MEMBERS), np.empty(MAX_MEMBERS), np.empty(3), np.empty((MAX_MEMBERS, 3))
+
+
+@numba.njit(cache=True, nogil=True)
 def combine_into(  # pragma: no cover - numba
-    members: np.ndarray,
-    m: int,
-    w: np.ndarray,
-    v: np.ndarray,
-    mu: np.ndarray,
-    dev: np.ndarray,
-    means: np.ndarray,
-    covs: np.ndarray,
-    colors: np.ndarray,
-    opacities: np.ndarray,
-    counts: np.ndarray,
-    eps: float,
-    o: int,
-    out_means: np.ndarray,
-    out_covs: np.ndarray,
-    out_colors: np.ndarray,
-    out_opacities: np.ndarray,
-    out_counts: np.ndarray,
+    members: np.ndarray, m: int, scratch: tuple, g: tuple, eps: float, out: tuple, o: int
 ) -> None:
-    """Write `merge.combine` of rows members[:m] (of the stacked stored and new arrays);
-    w, v, mu, dev: scratch."""
+    """Write `merge.combine` of rows members[:m] of the Gaussians g (means, covs, colors,
+    opacities, counts) into row o of out (the same five arrays); scratch: `combine_scratch`."""
+    w, v, mu, dev = scratch
+    means, covs, colors, opacities, counts = g
+    out_means, out_covs, out_colors, out_opacities, out_counts = out
     if m == 1:  # the same operations, in registers
         r = members[0]
         n = np.float64(counts[r])
@@ -130,28 +122,11 @@ def combine_into(  # pragma: no cover - numba
 
 @numba.njit(cache=True, nogil=True)
 def combine_groups(  # pragma: no cover - numba
-    order: np.ndarray,
-    starts: np.ndarray,
-    means: np.ndarray,
-    covs: np.ndarray,
-    colors: np.ndarray,
-    opacities: np.ndarray,
-    counts: np.ndarray,
-    eps: float,
-    out_means: np.ndarray,
-    out_covs: np.ndarray,
-    out_colors: np.ndarray,
-    out_opacities: np.ndarray,
-    out_counts: np.ndarray,
+    order: np.ndarray, starts: np.ndarray, g: tuple, eps: float, out: tuple
 ) -> None:
-    """Group g is rows order[starts[g] : starts[g + 1]] (at most MAX_MEMBERS, in order)."""
-    w = np.empty(MAX_MEMBERS)
-    v = np.empty(MAX_MEMBERS)
-    mu = np.empty(3)
-    dev = np.empty((MAX_MEMBERS, 3))
-    for g in range(starts.shape[0] - 1):
-        members = order[starts[g] : starts[g + 1]]
-        combine_into(
-            members, members.shape[0], w, v, mu, dev, means, covs, colors, opacities, counts,
-            eps, g, out_means, out_covs, out_colors, out_opacities, out_counts,
-        )  # fmt: skip
+    """Group k is rows order[starts[k] : starts[k + 1]] (at most MAX_MEMBERS, in order) of the
+    Gaussians g; its combination goes to row k of out (see `combine_into`)."""
+    scratch = combine_scratch()
+    for k in range(starts.shape[0] - 1):
+        members = order[starts[k] : starts[k + 1]]
+        combine_into(members, members.shape[0], scratch, g, eps, out, k)

@@ -267,15 +267,8 @@ def combine(g: GaussianSet, groups: np.ndarray, epsilon: float = COVARIANCE_EPSI
     bounds = np.append(starts, len(order))
     if np.diff(bounds).max() > MAX_MEMBERS:
         return _combine_by_numpy(g, inverse, order, starts, epsilon)
-    m = len(labels)  # the numba kernel: the same operations in the same order
-    out = GaussianSet(
-        np.empty((m, 3), np.float32), np.empty((m, 3, 3), np.float32),
-        np.empty((m, 3), np.float32), np.empty(m, np.float32), np.empty(m, np.uint32),
-    )  # fmt: skip
-    combine_groups(
-        order, bounds, g.means, g.covs, g.colors, g.opacities, g.counts, epsilon,
-        out.means, out.covs, out.colors, out.opacities, out.counts,
-    )  # fmt: skip
+    out = GaussianSet.allocate(len(labels))  # the numba kernel: the same operations, in order
+    combine_groups(order, bounds, g.arrays(), epsilon, out.arrays())
     return out
 
 

@@ -86,6 +86,19 @@ class GaussianSet:
             self.counts[index],
         )
 
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(means, covs, colors, opacities, counts), as numba kernels take a set."""
+        return self.means, self.covs, self.colors, self.opacities, self.counts
+
+    @classmethod
+    def allocate(cls, n: int) -> GaussianSet:
+        """N Gaussians of uninitialised memory, for a kernel to fill before anyone reads them."""
+        f32 = np.float32
+        return cls(
+            np.empty((n, 3), f32), np.empty((n, 3, 3), f32), np.empty((n, 3), f32),
+            np.empty(n, f32), np.empty(n, np.uint32),
+        )  # fmt: skip
+
     @property
     def nbytes(self) -> int:
         return int(

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from glmap_tools.gaussians._combine_numba import MAX_MEMBERS, combine_into
+from glmap_tools.gaussians._combine_numba import MAX_MEMBERS, combine_into, combine_scratch
 
 
 @numba.njit(cache=True, nogil=True)
@@ -38,34 +38,26 @@ def merge_voxels(  # pragma: no cover - numba
     old_rows: np.ndarray,
     new_rows: np.ndarray,
     new_order: np.ndarray,
-    means: np.ndarray,
-    covs: np.ndarray,
-    colors: np.ndarray,
-    opacities: np.ndarray,
-    counts: np.ndarray,
+    g: tuple,
     eps: float,
-    out_means: np.ndarray,
-    out_covs: np.ndarray,
-    out_colors: np.ndarray,
-    out_opacities: np.ndarray,
-    out_counts: np.ndarray,
+    out: tuple,
     out_source: np.ndarray,
 ) -> int:
     """Merge the stored voxels (rows 0..K-1 of the stacked arrays, `old_rows` their [K, 5]
     (chunk, key) rows, in order) with the new ones (rows K.., `new_rows` [M, 5], visited in
     `new_order`, a stable sort). A voxel the frame saw combines its stored rows, then its new
-    ones. Returns the number of output rows (in order, `out_source` the stacked row each
-    was keyed by), -1 when the stored rows are out of order, -2 when a voxel gathers more
-    than MAX_MEMBERS Gaussians."""
+    ones. g: the stacked Gaussians (means, covs, colors, opacities, counts); out: the same
+    five arrays for the result. Returns the number of output rows (in order, `out_source`
+    the stacked row each was keyed by), -1 when the stored rows are out of order, -2 when a
+    voxel gathers more than MAX_MEMBERS Gaussians."""
     k = old_rows.shape[0]
     for i in range(1, k):
         if _key_less(old_rows, i, old_rows, i - 1):
             return -1
     members = np.empty(MAX_MEMBERS, np.int64)
-    w = np.empty(MAX_MEMBERS)
-    v = np.empty(MAX_MEMBERS)
-    mu = np.empty(3)
-    dev = np.empty((MAX_MEMBERS, 3))
+    scratch = combine_scratch()
+    means, covs, colors, opacities, counts = g
+    out_means, out_covs, out_colors, out_opacities, out_counts = out
     i = 0
     j = 0
     o = 0
@@ -98,9 +90,6 @@ def merge_voxels(  # pragma: no cover - numba
             m += 1
             j += 1
         out_source[o] = members[0]
-        combine_into(
-            members, m, w, v, mu, dev, means, covs, colors, opacities, counts, eps, o,
-            out_means, out_covs, out_colors, out_opacities, out_counts,
-        )  # fmt: skip
+        combine_into(members, m, scratch, g, eps, out, o)
         o += 1
     return o

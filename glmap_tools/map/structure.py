@@ -125,21 +125,14 @@ class StructureLayer:
         old_rows = np.concatenate([chunk_of_keys(old_keys), old_keys], axis=1)
         stacked = GaussianSet.concat([c.gaussians for c in old] + [fitted])
         new_order = np.lexsort(new_rows.T[::-1])  # stable: a voxel's Gaussians in frame order
-        total = len(stacked)
-        f32 = np.float32
-        means, covs = np.empty((total, 3), f32), np.empty((total, 3, 3), f32)
-        colors, opacities = np.empty((total, 3), f32), np.empty(total, f32)
-        counts, source = np.empty(total, np.uint32), np.empty(total, np.int64)
-        args = (means, covs, colors, opacities, counts, source)
-        g = stacked
-        n = merge_voxels(old_rows, new_rows, new_order, g.means, g.covs, g.colors,
-                         g.opacities, g.counts, COVARIANCE_EPSILON, *args)  # fmt: skip
+        out, source = GaussianSet.allocate(len(stacked)), np.empty(len(stacked), np.int64)
+        args = (COVARIANCE_EPSILON, out.arrays(), source)
+        n = merge_voxels(old_rows, new_rows, new_order, stacked.arrays(), *args)
         if n == -1:  # stored keys out of order (a chunk not written by this layer)
             order = np.lexsort(old_rows.T[::-1])
             old_rows = old_rows[order]
-            g = GaussianSet.concat([stacked.subset(order), fitted])
-            n = merge_voxels(old_rows, new_rows, new_order, g.means, g.covs, g.colors,
-                             g.opacities, g.counts, COVARIANCE_EPSILON, *args)  # fmt: skip
+            again = GaussianSet.concat([stacked.subset(order), fitted])
+            n = merge_voxels(old_rows, new_rows, new_order, again.arrays(), *args)
         if n < 0:  # more Gaussians in one voxel than the kernel sums (not from a fit)
             return self.compute_update_reference(fitted)
         rows = np.concatenate([old_rows, new_rows])[source[:n]]
@@ -149,11 +142,8 @@ class StructureLayer:
             part = slice(int(start), int(stop))  # each chunk its own arrays, not a view
             chunks[(int(rows[start, 0]), int(rows[start, 1]))] = StructureChunk(
                 rows[part, 2:].copy(),
-                GaussianSet(
-                    means[part].copy(), covs[part].copy(), colors[part].copy(),
-                    opacities[part].copy(), counts[part].copy(),
-                ),
-            )  # fmt: skip
+                GaussianSet(*(a[part].copy() for a in out.arrays())),
+            )
         return chunks
 
     def compute_update_reference(self, fitted: GaussianSet) -> dict[ChunkKey, StructureChunk]:
