@@ -1,9 +1,9 @@
 """Numba kernel of `OccupancyGrid.compute_update`: the cells one frame sees free or blocked,
-marked on a grid over the frame's extent (each cell once, an obstacle hit before free).
+marked on a grid over the frame's extent (each cell once, an obstacle hit before free: a 2D
+ray passing over a table top is no evidence that the table's cells are free).
 
-The trigonometry (distances, bearings, each bearing bin's direction) stays in numpy, so
-every free-ray sample is the same float64 as `occupancy._carve` computed before this
-kernel; the rest is exact (min, max, products, sums and floors in the same order).
+The trigonometry (distances, bearings, each bearing bin's direction) comes from numpy; the
+rest is min, max, products, sums and floors, the same in numba as in numpy.
 """
 
 from __future__ import annotations
