@@ -67,31 +67,6 @@ def combine_into(  # pragma: no cover - numba
     w, v, mu, dev = scratch
     means, covs, colors, opacities, counts = g
     out_means, out_covs, out_colors, out_opacities, out_counts = out
-    if m == 1:  # the same operations, in registers
-        r = members[0]
-        n = np.float64(counts[r])
-        m0 = (np.float64(means[r, 0]) * n) / n
-        m1 = (np.float64(means[r, 1]) * n) / n
-        m2 = (np.float64(means[r, 2]) * n) / n
-        d0 = np.float64(means[r, 0]) - m0
-        d1 = np.float64(means[r, 1]) - m1
-        d2 = np.float64(means[r, 2]) - m2
-        out_means[o, 0] = np.float32(m0)
-        out_means[o, 1] = np.float32(m1)
-        out_means[o, 2] = np.float32(m2)
-        for a in range(3):
-            da = d0 if a == 0 else (d1 if a == 1 else d2)
-            for b in range(3):
-                db = d0 if b == 0 else (d1 if b == 1 else d2)
-                e = eps if a == b else 0.0
-                c = (((np.float64(covs[r, a, b]) - e) + da * db) * n) / n
-                out_covs[o, a, b] = np.float32(c + e)
-        for d in range(3):
-            c = (np.float64(colors[r, d]) * n) / n
-            out_colors[o, d] = np.float32(min(max(c, 0.0), 1.0))
-        out_opacities[o] = np.float32((np.float64(opacities[r]) * n) / n)
-        out_counts[o] = np.uint32(n)
-        return
     for t in range(m):
         w[t] = np.float64(counts[members[t]])
     total = _reduce(w, m)

@@ -126,14 +126,9 @@ class StructureLayer:
         stacked = GaussianSet.concat([c.gaussians for c in old] + [fitted])
         new_order = np.lexsort(new_rows.T[::-1])  # stable: a voxel's Gaussians in frame order
         out, source = GaussianSet.allocate(len(stacked)), np.empty(len(stacked), np.int64)
-        args = (COVARIANCE_EPSILON, out.arrays(), source)
-        n = merge_voxels(old_rows, new_rows, new_order, stacked.arrays(), *args)
-        if n == -1:  # stored keys out of order (a chunk not written by this layer)
-            order = np.lexsort(old_rows.T[::-1])
-            old_rows = old_rows[order]
-            again = GaussianSet.concat([stacked.subset(order), fitted])
-            n = merge_voxels(old_rows, new_rows, new_order, again.arrays(), *args)
-        if n < 0:  # more Gaussians in one voxel than the kernel sums (not from a fit)
+        args = (stacked.arrays(), COVARIANCE_EPSILON, out.arrays(), source)
+        n = merge_voxels(old_rows, new_rows, new_order, *args)
+        if n < 0:  # stored keys out of order or a crowded voxel: never from this layer's fits
             return self.compute_update_reference(fitted)
         rows = np.concatenate([old_rows, new_rows])[source[:n]]
         bounds = np.flatnonzero(np.r_[True, np.any(rows[1:, :2] != rows[:-1, :2], axis=1), True])
