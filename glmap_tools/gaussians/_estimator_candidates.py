@@ -126,7 +126,7 @@ def packed_candidates(
     rest = np.empty((g, 11))
     kappa = np.empty(g)
     if n_chunks == 1:
-        _packed_range(0, g, sums, rows, order, epsilon, near, rest, kappa)
+        _packed_range(np.int64(0), g, sums, rows, order, epsilon, near, rest, kappa)
     else:
         _packed_parallel(n_chunks, sums, rows, order, epsilon, near, rest, kappa)
     return near, rest

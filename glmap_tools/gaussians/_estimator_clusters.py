@@ -182,8 +182,8 @@ def pairs_by_chunk(
     found = np.zeros(n_chunks, dtype=np.int64)
     if n_chunks == 1:  # no thread team at all: small inputs
         found[0] = _pairs_of_range(
-            0, g, cells, block, block_nbrs, head, nxt, means, covs, colors, kappa, params,
-            buf_i, buf_j, buf_d, 0, room,
+            np.int64(0), g, cells, block, block_nbrs, head, nxt, means, covs, colors, kappa,
+            params, buf_i, buf_j, buf_d, np.int64(0), room,
         )  # fmt: skip
     else:
         _pairs_parallel(
@@ -194,7 +194,7 @@ def pairs_by_chunk(
     out_i = np.empty(total, dtype=np.int64)
     out_j = np.empty(total, dtype=np.int64)
     out_d = np.empty(total)
-    offset = 0
+    offset = np.int64(0)
     for c in range(n_chunks):
         lo, hi = c * g // n_chunks, (c + 1) * g // n_chunks
         if found[c] <= room:
@@ -365,7 +365,7 @@ def cluster_moments(
     """
     g = labels.shape[0]
     rank = np.full(g, -1, dtype=np.int64)
-    n_clusters = 0
+    n_clusters = np.int64(0)
     for e in range(g):
         if labels[e] == e:
             rank[e] = n_clusters
@@ -384,7 +384,7 @@ def cluster_moments(
     out = np.empty((n_clusters, N_MOMENTS))
     if n_chunks == 1:
         _clusters_range(
-            0, n_clusters, start, members, emitted, neighbours, first, n_neighbours, sums,
+            np.int64(0), n_clusters, start, members, emitted, neighbours, first, n_neighbours, sums,
             moments, out,
         )  # fmt: skip
     else:

@@ -242,7 +242,7 @@ def _sweep_runs(
     out_i = np.empty(room, dtype=np.int64)
     out_j = np.empty(room, dtype=np.int64)
     out_d = np.empty(room)
-    found = 0
+    found = np.int64(0)
     r = r0
     while r < r1:  # the buffer fills, the pairs in it that merge are kept, and so on
         r_next, n_buf = _near_pairs(r, r1, run_key, start, near, offsets, cursors, near_sq, buf)
@@ -275,8 +275,8 @@ def _sweep_parallel(
 ) -> None:
     """Chunk c (runs bounds[c]..bounds[c + 1]-1) writes its pairs at c * room, if they fit."""
     for c in numba.prange(bounds.shape[0] - 1):  # nothing else here: array code spawns parfors
-        _sweep_chunk(c, bounds, run_key, start, near, rest, offsets, params, buffer, room,
-                     all_i, all_j, all_d, found)  # fmt: skip
+        _sweep_chunk(np.int64(c), bounds, run_key, start, near, rest, offsets, params, buffer,
+                     room, all_i, all_j, all_d, found)  # fmt: skip
 
 
 @numba.njit(cache=True)
@@ -370,7 +370,7 @@ def sweep_packed(
     )
     if n_chunks <= 1:
         out_i, out_j, out_d, found = _sweep_runs(
-            0, n_runs, run_key, start, near, rest, offsets, params, buffer, g + 16
+            np.int64(0), n_runs, run_key, start, near, rest, offsets, params, buffer, g + 16
         )
     else:
         bounds = np.empty(n_chunks + 1, dtype=np.int64)  # runs of about g / n_chunks Gaussians

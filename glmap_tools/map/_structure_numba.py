@@ -58,9 +58,9 @@ def merge_voxels(  # pragma: no cover - numba
     scratch = combine_scratch()
     means, covs, colors, opacities, counts = g
     out_means, out_covs, out_colors, out_opacities, out_counts = out
-    i = 0
-    j = 0
-    o = 0
+    i = np.int64(0)
+    j = np.int64(0)
+    o = np.int64(0)
     m_new = new_order.shape[0]
     while i < k or j < m_new:
         if j == m_new or (i < k and _key_less(old_rows, i, new_rows, new_order[j])):
