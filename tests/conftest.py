@@ -31,3 +31,24 @@ def blas_threads() -> Iterator[int]:
         blas = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
         assert blas and set(blas) == {threads}, f"BLAS runs {blas} threads, not {threads}"
         yield threads
+
+
+@pytest.fixture(scope="session")
+def running_ray() -> Iterator[object]:
+    """A Ray instance on this machine (2 CPUs), started once per test process and shared by
+    the tests that run on Ray: a start costs ~6 s of CPU (GCS, raylet and five Python
+    helpers). It starts without the LLM settings (`agents.runner.LLM_ENV`) in the
+    environment, so its workers cannot inherit them, as on a cluster that was already
+    running. `--ray-address local` uses an instance running in the process as it is.
+    """
+    ray = pytest.importorskip("ray")
+    from agents.runner import LLM_ENV
+
+    if not ray.is_initialized():
+        kept = {var: os.environ.pop(var) for var in LLM_ENV.values() if var in os.environ}
+        try:
+            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+        finally:
+            os.environ.update(kept)
+    yield ray
+    ray.shutdown()

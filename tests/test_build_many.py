@@ -186,10 +186,15 @@ def test_bad_inputs_are_refused_by_name_and_nothing_is_written(scans, tmp_path, 
 def test_a_local_ray_instance_builds_each_scan_as_the_single_folder_build_does(
     scans, single_maps, tmp_path, capsys
 ) -> None:
-    pytest.importorskip("ray")
+    # Not `running_ray`: with no instance in the process, `--ray-address local` starts one
+    # and stops it after the build; with one (a test before it started `running_ray`), it
+    # builds on that one and leaves it running.
+    ray = pytest.importorskip("ray")
+    running = ray.is_initialized()
     out = tmp_path / "maps"
     args = [str(scans), "--out", str(out), "--ray-address", "local", "--workers", "2", *FAST]
     assert glmap_main(["build", *args]) == 0
+    assert ray.is_initialized() == running
     assert "built 2, skipped 0, failed 0" in capsys.readouterr().out
     _assert_maps_equal(out, single_maps)
     assert glmap_main(["build", *args]) == 0  # resuming needs no Ray start at all

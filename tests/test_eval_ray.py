@@ -1,8 +1,8 @@
-"""`glmap eval --ray-address local`: a Ray instance on this machine (1 CPU) plays episodes.
+"""`glmap eval --ray-address local`: a Ray instance on this machine plays episodes.
 
-Ray is the engine here, not a stand-in: the test starts a real local Ray instance, one
-actor holds an in-memory MCP session, and its results must equal those of the same seeded
-episodes played in this process.
+Ray is the engine here, not a stand-in: a real local Ray instance (the tests' shared
+`running_ray`, which `--ray-address local` uses as it is), one actor holds an in-memory MCP
+session, and its results must equal those of the same seeded episodes played in this process.
 """
 
 from __future__ import annotations
@@ -20,8 +20,10 @@ from tests import llm_scenarios as sc
 KEYS = ("success", "spl", "distance_to_goal", "steps", "path_length", "collisions", "seed")
 
 
-@pytest.mark.slow  # Ray start + 4 episodes: 41 s at load 10 on 2 cores
-def test_a_local_ray_instance_plays_episodes_as_the_local_workers_do(tmp_path: Path) -> None:
+@pytest.mark.slow  # 4 episodes (and the Ray start when first)
+def test_a_local_ray_instance_plays_episodes_as_the_local_workers_do(
+    running_ray: object, tmp_path: Path
+) -> None:
     spec = EvalSpec("objectnav", "tune", 1, 1, ("glmap", "random"), max_steps=3, embedder="hashing")
     on_ray = run_eval(spec, tmp_path / "ray", workers=1, ray_address="local", progress=False)
     assert on_ray.failures == [] and (on_ray.ran, on_ray.skipped) == (2, 0)
@@ -38,29 +40,24 @@ def test_a_local_ray_instance_plays_episodes_as_the_local_workers_do(tmp_path: P
     assert (again.ran, again.skipped) == (0, 2)  # resuming needs no Ray start at all
 
 
-@pytest.mark.slow  # Ray start + 1 episode
+@pytest.mark.slow  # 1 episode (and the Ray start when first)
 def test_actors_of_a_running_ray_instance_get_the_llm_settings_of_the_driver(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    running_ray: object, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    # Ray starts before the settings exist, so its workers cannot inherit them (as on a
-    # cluster that was already running): only what run_ray hands each actor gets there.
-    import ray
-
+    # Ray started before the settings exist (`running_ray`), so its workers cannot inherit
+    # them (as on a cluster that was already running): only what run_ray hands each actor
+    # gets there.
     for var in LLM_ENV.values():
         monkeypatch.delenv(var, raising=False)
-    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
-    try:
-        with ScriptedOllama(sc.keyword_scores) as model:
-            monkeypatch.setenv(LLM_ENV["scorer"], "llm")
-            monkeypatch.setenv(LLM_ENV["model"], sc.MODEL)
-            monkeypatch.setenv(LLM_ENV["host"], model.host)
-            spec = EvalSpec(
-                "objectnav", "tune", 1, 1, ("glmap",), max_steps=4, embedder="hashing",
-                scorer="llm", llm_model=sc.MODEL,
-            )  # fmt: skip
-            run = run_eval(spec, tmp_path, workers=1, ray_address="local", progress=False)
-    finally:
-        ray.shutdown()
+    with ScriptedOllama(sc.keyword_scores) as model:
+        monkeypatch.setenv(LLM_ENV["scorer"], "llm")
+        monkeypatch.setenv(LLM_ENV["model"], sc.MODEL)
+        monkeypatch.setenv(LLM_ENV["host"], model.host)
+        spec = EvalSpec(
+            "objectnav", "tune", 1, 1, ("glmap",), max_steps=4, embedder="hashing",
+            scorer="llm", llm_model=sc.MODEL,
+        )  # fmt: skip
+        run = run_eval(spec, tmp_path, workers=1, ray_address="local", progress=False)
     assert run.failures == [] and run.ran == 1
     assert any(path == "/api/chat" for _, path, _ in model.requests)
     (record,) = run.records["glmap"].values()

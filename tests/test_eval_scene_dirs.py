@@ -195,9 +195,9 @@ def test_eval_plays_a_scene_folder_on_a_worker_and_splits_the_table_by_difficult
     assert "played 0 episodes" in capsys.readouterr().out
 
 
-@pytest.mark.slow  # starts a local Ray instance
+@pytest.mark.slow  # 3 episodes on Ray (and the Ray start when first)
 def test_a_local_ray_instance_plays_the_scene_folder_as_the_workers_do(
-    scenes: Path, tmp_path: Path
+    running_ray: object, scenes: Path, tmp_path: Path
 ) -> None:
     from glmap_tools.eval.run import run_eval
 
