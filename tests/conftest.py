@@ -33,13 +33,14 @@ def blas_threads() -> Iterator[int]:
         yield threads
 
 
-@pytest.fixture(scope="session")
-def running_ray() -> Iterator[object]:
-    """A Ray instance on this machine (2 CPUs), started once per test process and shared by
-    the tests that run on Ray: a start costs ~6 s of CPU (GCS, raylet and five Python
-    helpers). It starts without the LLM settings (`agents.runner.LLM_ENV`) in the
-    environment, so its workers cannot inherit them, as on a cluster that was already
-    running. `--ray-address local` uses an instance running in the process as it is.
+@pytest.fixture
+def running_ray() -> object:
+    """A Ray instance on this machine (2 CPUs), shared by consecutive tests that run on Ray
+    (a start costs ~6 s of CPU: GCS, raylet and five Python helpers) and stopped after the
+    last of them (`pytest_runtest_teardown`: idle, it takes ~4 % of a core). It starts
+    without the LLM settings (`agents.runner.LLM_ENV`) in the environment, so its workers
+    cannot inherit them, as on a cluster that was already running. `--ray-address local`
+    uses an instance running in the process as it is.
     """
     ray = pytest.importorskip("ray")
     from agents.runner import LLM_ENV
@@ -50,5 +51,13 @@ def running_ray() -> Iterator[object]:
             ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
         finally:
             os.environ.update(kept)
-    yield ray
-    ray.shutdown()
+    return ray
+
+
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> None:
+    """Stop `running_ray`'s instance once the next test does not use it."""
+    uses = "running_ray" in getattr(item, "fixturenames", ())
+    if uses and (nextitem is None or "running_ray" not in getattr(nextitem, "fixturenames", ())):
+        import ray
+
+        ray.shutdown()

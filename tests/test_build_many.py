@@ -187,8 +187,7 @@ def test_a_local_ray_instance_builds_each_scan_as_the_single_folder_build_does(
     scans, single_maps, tmp_path, capsys
 ) -> None:
     # Not `running_ray`: with no instance in the process, `--ray-address local` starts one
-    # and stops it after the build; with one (a test before it started `running_ray`), it
-    # builds on that one and leaves it running.
+    # and stops it after the build; with one running, it builds on that and leaves it running.
     ray = pytest.importorskip("ray")
     running = ray.is_initialized()
     out = tmp_path / "maps"

@@ -88,6 +88,27 @@ def two_room_scan(yaw_deg: float = 27.0) -> dict:
             "objects": objects}  # fmt: skip
 
 
+# First in the module: collected right after tests/test_eval_ray.py, whose Ray instance it
+# then shares (`running_ray`).
+@pytest.mark.slow  # 3 episodes on Ray (and the Ray start when first)
+def test_a_local_ray_instance_plays_the_scene_folder_as_the_workers_do(
+    running_ray: object, scenes: Path, tmp_path: Path
+) -> None:
+    from glmap_tools.eval.run import run_eval
+
+    spec = EvalSpec(
+        "objectnav", "mine", None, 1, ("frontier",), max_steps=4, embedder="hashing",
+        scenes_dir=scenes,
+    )  # fmt: skip
+    on_ray = run_eval(spec, tmp_path / "ray", workers=1, ray_address="local", progress=False)
+    here = run_eval(spec, tmp_path / "here", workers=0, progress=False)
+    assert on_ray.failures == [] and on_ray.ran == 3  # one episode of each of the 3 scenes
+    keys = ("success", "steps", "path_length", "collisions")
+    for eid, record in on_ray.records["frontier"].items():
+        assert {k: record[k] for k in keys} == {k: here.records["frontier"][eid][k] for k in keys}
+    assert any("two-rooms" in eid for eid in on_ray.records["frontier"])
+
+
 def test_a_turned_two_room_scan_of_bounding_boxes_becomes_rooms_with_furniture_square_to_them(
     tmp_path: Path,
 ) -> None:
@@ -193,25 +214,6 @@ def test_eval_plays_a_scene_folder_on_a_worker_and_splits_the_table_by_difficult
     # Resumable: the same command plays nothing again.
     assert cli.main(argv) == 0
     assert "played 0 episodes" in capsys.readouterr().out
-
-
-@pytest.mark.slow  # 3 episodes on Ray (and the Ray start when first)
-def test_a_local_ray_instance_plays_the_scene_folder_as_the_workers_do(
-    running_ray: object, scenes: Path, tmp_path: Path
-) -> None:
-    from glmap_tools.eval.run import run_eval
-
-    spec = EvalSpec(
-        "objectnav", "mine", None, 1, ("frontier",), max_steps=4, embedder="hashing",
-        scenes_dir=scenes,
-    )  # fmt: skip
-    on_ray = run_eval(spec, tmp_path / "ray", workers=1, ray_address="local", progress=False)
-    here = run_eval(spec, tmp_path / "here", workers=0, progress=False)
-    assert on_ray.failures == [] and on_ray.ran == 3  # one episode of each of the 3 scenes
-    keys = ("success", "steps", "path_length", "collisions")
-    for eid, record in on_ray.records["frontier"].items():
-        assert {k: record[k] for k in keys} == {k: here.records["frontier"][eid][k] for k in keys}
-    assert any("two-rooms" in eid for eid in on_ray.records["frontier"])
 
 
 @pytest.mark.slow  # builds one scene's map from a tour
