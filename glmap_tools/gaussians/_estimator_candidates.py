@@ -16,6 +16,7 @@ import numpy as np
 
 from glmap_tools.gaussians._estimator_numba import curvatures_into
 from glmap_tools.gaussians._estimator_voxels import CELL_MARGIN
+from glmap_tools.gaussians._int64 import ZERO
 
 
 @numba.njit(cache=True)
@@ -126,7 +127,7 @@ def packed_candidates(
     rest = np.empty((g, 11))
     kappa = np.empty(g)
     if n_chunks == 1:
-        _packed_range(np.int64(0), g, sums, rows, order, epsilon, near, rest, kappa)
+        _packed_range(ZERO, g, sums, rows, order, epsilon, near, rest, kappa)
     else:
         _packed_parallel(n_chunks, sums, rows, order, epsilon, near, rest, kappa)
     return near, rest

@@ -17,6 +17,7 @@ import numpy as np
 from glmap_tools.gaussians._estimator_grid import SLOTS, neighbour_tables, slot_of
 from glmap_tools.gaussians._estimator_numba import N_MOMENTS
 from glmap_tools.gaussians._estimator_voxels import CELL_MARGIN
+from glmap_tools.gaussians._int64 import ZERO
 
 PAIRS_PER_GAUSSIAN = 16  # output room per Gaussian before a chunk is redone with more
 CROWDED_BUCKET = 32  # pairs in a D bucket past which it is sorted by stable sorts
@@ -182,8 +183,8 @@ def pairs_by_chunk(
     found = np.zeros(n_chunks, dtype=np.int64)
     if n_chunks == 1:  # no thread team at all: small inputs
         found[0] = _pairs_of_range(
-            np.int64(0), g, cells, block, block_nbrs, head, nxt, means, covs, colors, kappa,
-            params, buf_i, buf_j, buf_d, np.int64(0), room,
+            ZERO, g, cells, block, block_nbrs, head, nxt, means, covs, colors, kappa,
+            params, buf_i, buf_j, buf_d, ZERO, room,
         )  # fmt: skip
     else:
         _pairs_parallel(
@@ -194,7 +195,7 @@ def pairs_by_chunk(
     out_i = np.empty(total, dtype=np.int64)
     out_j = np.empty(total, dtype=np.int64)
     out_d = np.empty(total)
-    offset = np.int64(0)
+    offset = ZERO
     for c in range(n_chunks):
         lo, hi = c * g // n_chunks, (c + 1) * g // n_chunks
         if found[c] <= room:
@@ -365,7 +366,7 @@ def cluster_moments(
     """
     g = labels.shape[0]
     rank = np.full(g, -1, dtype=np.int64)
-    n_clusters = np.int64(0)
+    n_clusters = ZERO
     for e in range(g):
         if labels[e] == e:
             rank[e] = n_clusters
@@ -384,7 +385,7 @@ def cluster_moments(
     out = np.empty((n_clusters, N_MOMENTS))
     if n_chunks == 1:
         _clusters_range(
-            np.int64(0), n_clusters, start, members, emitted, neighbours, first, n_neighbours, sums,
+            ZERO, n_clusters, start, members, emitted, neighbours, first, n_neighbours, sums,
             moments, out,
         )  # fmt: skip
     else:

@@ -12,6 +12,7 @@ import numba
 import numpy as np
 
 from glmap_tools.gaussians._estimator_grid import SLOTS, neighbour_tables
+from glmap_tools.gaussians._int64 import ZERO
 
 N_MOMENTS = 13
 NEWTON_STEPS = 6  # for the smallest eigenvalue; past this the closed form takes over
@@ -140,7 +141,7 @@ def neighbourhood_moments(
     sums = np.empty((v_count, N_MOMENTS))
     if n_chunks == 1:
         _neighbourhood_range(
-            np.int64(0), v_count, voxel_block, voxel_slot, slot_voxel, block_nbrs, moments,
+            ZERO, v_count, voxel_block, voxel_slot, slot_voxel, block_nbrs, moments,
             neighbours, first, n_neighbours, sums,
         )  # fmt: skip
     else:
@@ -243,7 +244,7 @@ def curvatures_into(covs: np.ndarray, lo: int, hi: int, kappa: np.ndarray) -> No
 def curvatures(covs: np.ndarray) -> np.ndarray:
     """[G] kappa = lambda_min / trace of covariance rows [G, 6] (xx xy xz yy yz zz)."""
     out = np.empty(covs.shape[0])
-    curvatures_into(covs, np.int64(0), covs.shape[0], out)
+    curvatures_into(covs, ZERO, covs.shape[0], out)
     return out
 
 
@@ -311,7 +312,7 @@ def candidate_gaussians(
     colors = np.empty((g, 3))
     kappa = np.empty(g)
     if n_chunks == 1:
-        _candidates_range(np.int64(0), g, sums, rows, epsilon, means, covs, colors, kappa)
+        _candidates_range(ZERO, g, sums, rows, epsilon, means, covs, colors, kappa)
     else:
         _candidates_parallel(n_chunks, sums, rows, epsilon, means, covs, colors, kappa)
     return means, covs, colors, kappa

@@ -20,6 +20,7 @@ import numba
 import numpy as np
 
 from glmap_tools.gaussians._estimator_candidates import pack_in_key_order
+from glmap_tools.gaussians._int64 import ZERO
 
 RADIX_BITS = 11
 MAX_KEY = 1 << 62  # cells x * y * z must stay below this for the mixed-radix keys
@@ -242,7 +243,7 @@ def _sweep_runs(
     out_i = np.empty(room, dtype=np.int64)
     out_j = np.empty(room, dtype=np.int64)
     out_d = np.empty(room)
-    found = np.int64(0)
+    found = ZERO
     r = r0
     while r < r1:  # the buffer fills, the pairs in it that merge are kept, and so on
         r_next, n_buf = _near_pairs(r, r1, run_key, start, near, offsets, cursors, near_sq, buf)
@@ -281,7 +282,7 @@ def _sweep_parallel(
 
 @numba.njit(cache=True)
 def _sweep_chunk(
-    c: int,
+    c: np.int64,  # int64 in both of the parfor's typings (one types c uint64): one compile
     bounds: np.ndarray,
     run_key: np.ndarray,
     start: np.ndarray,
@@ -370,7 +371,7 @@ def sweep_packed(
     )
     if n_chunks <= 1:
         out_i, out_j, out_d, found = _sweep_runs(
-            np.int64(0), n_runs, run_key, start, near, rest, offsets, params, buffer, g + 16
+            ZERO, n_runs, run_key, start, near, rest, offsets, params, buffer, g + 16
         )
     else:
         bounds = np.empty(n_chunks + 1, dtype=np.int64)  # runs of about g / n_chunks Gaussians

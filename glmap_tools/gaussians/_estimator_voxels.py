@@ -11,6 +11,7 @@ import numba
 import numpy as np
 
 from glmap_tools.gaussians._estimator_grid import SLOTS, block_key, hash_slot, slot_of
+from glmap_tools.gaussians._int64 import ZERO
 
 CELL_MARGIN = 4  # one block of empty cells below the smallest coordinate
 EXPONENT_BITS = 0x7FF0000000000000  # of a float64: all set for inf and NaN
@@ -170,7 +171,7 @@ def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
     cap = 1024
     while cap < n // 8:
         cap *= 2
-    table_keys, table_ids = _rehash(np.empty(0, dtype=np.int64), np.int64(0), cap)
+    table_keys, table_ids = _rehash(np.empty(0, dtype=np.int64), ZERO, cap)
     cells = voxel_cells(points, voxel, lo)
     keys = np.empty(cap // 2, dtype=np.int64)
     # A block's slots are set to -1 when the block is created: no memset of the whole store.
@@ -179,7 +180,7 @@ def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
     voxel_block = np.empty(n, dtype=np.int32)
     voxel_slot = np.empty(n, dtype=np.int32)
     state = np.array([0, 0, -1, -1], dtype=np.int64)
-    i = np.int64(0)
+    i = ZERO
     while True:
         i = _voxelize_until_full(
             cells, i, state, table_keys, table_ids, keys, slot_voxel,

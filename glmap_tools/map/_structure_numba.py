@@ -14,6 +14,7 @@ import numba
 import numpy as np
 
 from glmap_tools.gaussians._combine_numba import MAX_MEMBERS, combine_into, combine_scratch
+from glmap_tools.gaussians._int64 import ZERO
 
 
 @numba.njit(cache=True, nogil=True)
@@ -58,9 +59,9 @@ def merge_voxels(  # pragma: no cover - numba
     scratch = combine_scratch()
     means, covs, colors, opacities, counts = g
     out_means, out_covs, out_colors, out_opacities, out_counts = out
-    i = np.int64(0)
-    j = np.int64(0)
-    o = np.int64(0)
+    i = ZERO
+    j = ZERO
+    o = ZERO
     m_new = new_order.shape[0]
     while i < k or j < m_new:
         if j == m_new or (i < k and _key_less(old_rows, i, new_rows, new_order[j])):
