@@ -12,7 +12,7 @@ from glmap_tools import synthetic as scenes
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, MapConfig
-from glmap_tools.map.occupancy import OBSTACLE
+from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
 from glmap_tools.nav import (
     ACTIONS,
     POLICIES,
@@ -25,7 +25,7 @@ from glmap_tools.nav import (
 )
 from glmap_tools.nav.episode import remember
 from glmap_tools.nav.footprint import GoalMatch, distance_to_cells
-from glmap_tools.nav.grid import dilate_3x3, structure_walls, structure_walls_in_bands
+from glmap_tools.nav.grid import structure_walls, structure_walls_in_bands
 from glmap_tools.nav.policy import approach
 from glmap_tools.nav.value import unit_cell_array
 from glmap_tools.nav.verify import outvoted
@@ -117,15 +117,48 @@ def test_the_walls_of_several_bands_are_each_bands_walls(built: GLMap) -> None:
     assert together[0].any() and together[1].any() and not together[2].any()
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_the_3x3_dilation_is_scipys_with_false_beyond_the_edges(seed: int) -> None:
+def plain_walls(
+    means: np.ndarray, floor_z: float, bands: list[tuple[float, float]], occ: DenseOccupancy
+) -> list[np.ndarray]:
+    """`structure_walls_in_bands` in plain numpy and scipy: each mean's cell, then a 3 x 3
+    binary dilation (False beyond the window) of each band's cells."""
     from scipy import ndimage
 
+    h, w = occ.state.shape
+    height = means[:, 2].astype(np.float64) - floor_z
+    rows = np.floor(means[:, 1].astype(np.float64) / occ.cell_size).astype(np.int64)
+    cols = np.floor(means[:, 0].astype(np.float64) / occ.cell_size).astype(np.int64)
+    rows, cols = rows - occ.origin[1], cols - occ.origin[0]
+    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+    out = []
+    for lo, hi in bands:
+        keep = inside & (height >= lo) & (height <= hi)
+        cells = np.zeros((h, w), dtype=bool)
+        cells[rows[keep], cols[keep]] = True
+        out.append(ndimage.binary_dilation(cells, structure=np.ones((3, 3), dtype=bool)))
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_walls_kernel_marks_the_cells_plain_numpy_and_scipy_mark(seed: int) -> None:
     rng = np.random.default_rng(seed)
-    mask = rng.random((int(rng.integers(1, 40)), int(rng.integers(1, 40)))) < 0.05 * (seed + 1)
-    mask[0, 0] = mask[-1, -1] = bool(seed % 2)  # corners on and off
-    expected = ndimage.binary_dilation(mask, structure=np.ones((3, 3), dtype=bool))
-    assert np.array_equal(dilate_3x3(mask), expected)
+    h, w = int(rng.integers(1, 40)), int(rng.integers(1, 40))
+    occ = DenseOccupancy(np.zeros((h, w), np.int8), (int(rng.integers(-9, 9)), -3), 0.05)
+    n = int(rng.integers(0, 400))
+    means = np.column_stack(
+        [
+            (occ.origin[0] + rng.uniform(-2, w + 2, n)) * 0.05,  # some beyond the window
+            (occ.origin[1] + rng.uniform(-2, h + 2, n)) * 0.05,
+            rng.uniform(-0.5, 2.5, n),
+        ]
+    ).astype(np.float32)
+    bands = [(0.125, 1.5), (1.5625, 1.9375), (5.0, 6.0)]  # dyadic: the edges hit exactly
+    floor_z = [0.0, 0.0625, -0.125, 0.25][seed]
+    edges = [floor_z + 0.125, floor_z + 1.5625, floor_z + 1.9375, floor_z + 1.5]
+    means[: min(n, 4), 2] = edges[: min(n, 4)]  # on the bands' edges (inclusive)
+    got = structure_walls_in_bands(means, floor_z, bands, occ)
+    for kernel, plain in zip(got, plain_walls(means, floor_z, bands, occ), strict=True):
+        assert np.array_equal(kernel, plain)
 
 
 def test_a_goal_nothing_in_the_map_resembles_sends_the_agent_to_the_nearest_frontier(

@@ -200,11 +200,13 @@ def warm_view_and_sim_kernels() -> None:
 
 def warm_layer_kernels() -> None:
     """Run the map layers' own kernels once, as a frame's update calls them: the occupancy
-    marks, the structure voxels' merge and `merge.combine`."""
+    marks, the structure voxels' merge and `merge.combine`; and the walls a navigation step
+    reads from the structure layer."""
     from glmap_tools.gaussians.merge import combine
     from glmap_tools.gaussians.types import GaussianSet
-    from glmap_tools.map.occupancy import OccupancyGrid
+    from glmap_tools.map.occupancy import DenseOccupancy, OccupancyGrid
     from glmap_tools.map.structure import StructureLayer
+    from glmap_tools.nav.grid import structure_walls_in_bands
 
     points = np.array([[1.0, 0.0, 0.0], [1.0, 0.1, 0.5], [1.1, 0.0, 0.02]])
     OccupancyGrid(0.05).compute_update(np.zeros(2), points, 0.0, (0.1, 1.5))
@@ -214,6 +216,8 @@ def warm_layer_kernels() -> None:
     layer.apply(layer.compute_update(g))
     layer.compute_update(g)
     combine(g, np.array([0, 0, 1]))
+    window = DenseOccupancy(np.zeros((4, 4), np.int8), (0, 0), 0.05)
+    structure_walls_in_bands(layer.means(), 0.0, [(0.1, 1.5), (1.5, 2.0)], window)
 
 
 def warm_wide_cloud_kernels() -> None:
