@@ -1,4 +1,5 @@
 import os
+import sys
 from collections.abc import Iterator
 
 import pytest
@@ -58,6 +59,6 @@ def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> 
     """Stop `running_ray`'s instance once the next test does not use it."""
     uses = "running_ray" in getattr(item, "fixturenames", ())
     if uses and (nextitem is None or "running_ray" not in getattr(nextitem, "fixturenames", ())):
-        import ray
-
-        ray.shutdown()
+        ray = sys.modules.get("ray")  # absent: Ray is not installed and the test was skipped
+        if ray is not None and ray.is_initialized():
+            ray.shutdown()
