@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from glmap_tools import synthetic as scenes
 from glmap_tools.errors import InvalidInputError
@@ -25,10 +26,11 @@ from glmap_tools.nav import (
 )
 from glmap_tools.nav.episode import remember
 from glmap_tools.nav.footprint import GoalMatch, distance_to_cells
-from glmap_tools.nav.grid import structure_walls, structure_walls_in_bands
+from glmap_tools.nav.grid import distance_to_zero, structure_walls, structure_walls_in_bands
 from glmap_tools.nav.policy import approach
 from glmap_tools.nav.value import unit_cell_array
 from glmap_tools.nav.verify import outvoted
+from glmap_tools.nav.waypoint import _arrival_within_stop
 
 TEXTS = {
     1: ("chair", "a red chair with a wooden frame"),
@@ -122,8 +124,6 @@ def plain_walls(
 ) -> list[np.ndarray]:
     """`structure_walls_in_bands` in plain numpy and scipy: each mean's cell, then a 3 x 3
     binary dilation (False beyond the window) of each band's cells."""
-    from scipy import ndimage
-
     h, w = occ.state.shape
     height = means[:, 2].astype(np.float64) - floor_z
     rows = np.floor(means[:, 1].astype(np.float64) / occ.cell_size).astype(np.int64)
@@ -159,6 +159,54 @@ def test_the_walls_kernel_marks_the_cells_plain_numpy_and_scipy_mark(seed: int) 
     got = structure_walls_in_bands(means, floor_z, bands, occ)
     for kernel, plain in zip(got, plain_walls(means, floor_z, bands, occ), strict=True):
         assert np.array_equal(kernel, plain)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_opencv_distance_transform_gives_scipys_distances_to_the_bit(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    for _ in range(60):
+        h, w = (int(v) for v in rng.integers(1, 260, 2))
+        free = rng.uniform(size=(h, w)) >= rng.choice([0.0005, 0.01, 0.2, 0.8])
+        free[rng.integers(h), rng.integers(w)] = False
+        expected = ndimage.distance_transform_edt(free)
+        assert np.array_equal(distance_to_zero(free), expected)
+        assert np.array_equal(distance_to_zero(free.T), expected.T)  # not contiguous
+    far = np.ones((1100, 1300), dtype=bool)  # distances up to the largest exact ones
+    far[3, 2] = False
+    assert np.array_equal(distance_to_zero(far), ndimage.distance_transform_edt(far))
+    wide = np.ones((5, 2100), dtype=bool)  # past them: scipy's transform itself
+    wide[0, 0] = False
+    assert np.array_equal(distance_to_zero(wide), ndimage.distance_transform_edt(wide))
+
+
+def arrival_within_stop_on_the_window(near, unit_d, seen, occ, config) -> np.ndarray:
+    """`_arrival_within_stop` with its dilation over the whole window."""
+    s = occ.cell_size
+    arrive = config.forward_step / 2
+    ok = unit_d <= config.stop_distance - s / 2 - arrive
+    if seen is None or seen.all():
+        return ok
+    unseen = np.zeros(occ.state.shape, dtype=bool)
+    unseen[near[~seen, 0], near[~seen, 1]] = True
+    k = int(np.ceil(arrive / s))
+    disc = np.hypot(*np.mgrid[-k : k + 1, -k : k + 1]) <= arrive / s + 0.5
+    beside = ndimage.binary_dilation(unseen, structure=disc)
+    return ok & ~beside[near[:, 0], near[:, 1]]
+
+
+def test_the_arrival_test_dilates_its_near_cells_box_as_the_whole_window() -> None:
+    rng = np.random.default_rng(3)
+    config = NavConfig()
+    for _ in range(200):
+        h, w = (int(v) for v in rng.integers(3, 80, 2))
+        occ = DenseOccupancy(np.zeros((h, w), np.int8), (0, 0), 0.05)
+        k = int(rng.integers(1, 60))
+        near = np.stack([rng.integers(0, h, k), rng.integers(0, w, k)], axis=1)
+        unit_d = rng.uniform(0.0, 1.2, k)
+        seen = rng.uniform(size=k) < rng.uniform(0.3, 1.0)
+        ours = _arrival_within_stop(near, unit_d, seen, occ, config)
+        expected = arrival_within_stop_on_the_window(near, unit_d, seen, occ, config)
+        assert np.array_equal(ours, expected)
 
 
 def test_a_goal_nothing_in_the_map_resembles_sends_the_agent_to_the_nearest_frontier(

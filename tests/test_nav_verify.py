@@ -12,7 +12,19 @@ from glmap_tools import synthetic as scenes
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, MapConfig
 from glmap_tools.nav import NavConfig, NavState, decide
-from glmap_tools.nav.verify import covered_share, note_missed, outvoted, same_place, seen_share
+from glmap_tools.nav.value import unit_cell_array, unit_core_cells
+from glmap_tools.nav.verify import (
+    CORE,
+    COVER,
+    _covered_shares,
+    _grown,
+    covered_share,
+    note_missed,
+    outvoted,
+    outvoted_units,
+    same_place,
+    seen_share,
+)
 
 TABLE = ("table", "a large oak dining table")
 DESK = ("desk", "a desk")
@@ -149,3 +161,55 @@ def test_a_sink_between_two_cabinets_of_one_unit_is_not_outvoted_by_their_box() 
     assert same_place(lo, hi, *glmap.instances[cabinet].bounds())  # the box rule alone would
     assert glmap.instances[cabinet].observations > glmap.instances[sink].observations
     assert not outvoted(glmap, sink)
+
+
+def outvoted_pair_by_pair(glmap: GLMap, unit_id: int) -> bool:
+    """`outvoted` as the rule reads: every other instance's box tested on its own."""
+    unit = glmap.instances[unit_id]
+    if len(unit.gaussians) == 0:
+        return False
+    core = {tuple(c) for c in unit_core_cells(glmap, unit_id, CORE).tolist()}
+    votes = 0
+    for other_id, other in glmap.instances.items():
+        if other_id == unit_id or other.label == unit.label or len(other.gaussians) == 0:
+            continue
+        if not same_place(*unit.bounds(), *other.bounds()):
+            continue
+        theirs = {tuple(c) for c in unit_cell_array(glmap.grid, other_id).tolist()}
+        if core and len(core & theirs) >= COVER * len(core):
+            votes += other.observations
+    return votes > unit.observations
+
+
+def test_the_place_shares_of_all_boxes_at_once_equal_each_pairs_to_the_bit() -> None:
+    rng = np.random.default_rng(5)
+    lo = rng.uniform(-2.0, 2.0, (300, 3))
+    hi = lo + rng.uniform(0.0, 1.5, (300, 3)) * (rng.uniform(size=(300, 3)) > 0.2)  # flat sides
+    glo, ghi = _grown(lo, hi)
+    for k in range(0, 300, 7):
+        ours = _covered_shares(glo[k], ghi[k], glo, ghi)
+        back = _covered_shares(glo, ghi, glo[k], ghi[k])
+        for j in range(300):
+            assert ours[j] == covered_share(lo[k], hi[k], lo[j], hi[j])
+            assert back[j] == covered_share(lo[j], hi[j], lo[k], hi[k])
+
+
+def test_outvoted_units_answers_as_each_instance_tested_pair_by_pair() -> None:
+    boxes = (
+        scenes.floor(6.0)
+        + scenes.table(1.5, 0.0, object_id=2)
+        + scenes.chair(1.5, 0.9, object_id=3)
+    )
+    glmap = GLMap(MapConfig(floor_z=0.0), embedder=HashingEmbedder())
+    views = [{2: TABLE, 3: ("chair", "a chair")}, {2: DESK, 3: ("stool", "a stool")}]
+    for k in range(8):
+        a = math.radians(-10 + 20 * k / 7)
+        frame, ids = scenes.view(boxes, (0.0, 0.0, 0.88), (math.cos(a), math.sin(a), 0.88), 96, 72)
+        glmap.integrate(frame, scenes.semantics(ids, views[k in (1, 4, 5)]))
+    ids = list(glmap.instances)
+    assert len(ids) >= 4
+    expected = {u for u in ids if outvoted_pair_by_pair(glmap, u)}
+    assert expected  # the desk is outvoted by the table
+    assert outvoted_units(glmap, ids) == expected
+    assert all(outvoted(glmap, u) == (u in expected) for u in ids)
+    assert outvoted_units(glmap, [10_000]) == set()  # no such instance

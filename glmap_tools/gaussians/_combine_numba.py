@@ -4,6 +4,8 @@ numpy formula computes them.
 numpy sums a group's rows with `add.reduceat`: the first row plus numpy's pairwise sum of
 the rest (eight accumulators from eight terms on, blocks of up to 128). `_reduce` sums in
 that order, so a group of up to MAX_MEMBERS rows gives the same bits as the numpy path.
+`_reduce` and `_pairwise` are inlined where they are called (numba IR): called, each sum paid
+a call with an array argument, ~50 ns, most of a combine (0.7 -> 0.1 us for one member).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import numpy as np
 MAX_MEMBERS = 129  # numpy sums up to 128 terms (+ the first) in one block
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _pairwise(v: np.ndarray, start: int, n: int) -> float:  # pragma: no cover - numba
     """numpy's pairwise sum of v[start : start + n] for n <= 128 (its order, to the bit)."""
     if n < 8:
@@ -44,7 +46,7 @@ def _pairwise(v: np.ndarray, start: int, n: int) -> float:  # pragma: no cover -
     return res
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _reduce(v: np.ndarray, n: int) -> float:  # pragma: no cover - numba
     """np.add.reduceat's sum of one segment v[:n]: v[0] + pairwise(v[1:n])."""
     if n == 1:

@@ -4,8 +4,9 @@ the touched chunks and the frame's new ones, both in (chunk, voxel key) order.
 A voxel the frame saw is the count-weighted combination of its stored Gaussian (first) and
 the frame's Gaussians there (in the frame's order), computed as `merge.combine` computes
 it, to the bit: its sums are numpy's `add.reduceat` over the members, i.e. the first
-member plus numpy's pairwise sum of the rest. Stored voxels the frame did not see pass
-through unchanged.
+member plus numpy's pairwise sum of the rest (`_combine_numba`'s sums, inlined into this
+kernel: numba's cache of it holds them, so it is recompiled when this file changes, not
+when that one does). Stored voxels the frame did not see pass through unchanged.
 """
 
 from __future__ import annotations

@@ -108,6 +108,24 @@ def inflate(mask: np.ndarray, radius_cells: float) -> np.ndarray:
     return out
 
 
+def distance_to_zero(mask: np.ndarray) -> np.ndarray:
+    """[H, W] float64 cells from each True cell's centre to the nearest False one's (0 on
+    False cells): `ndimage.distance_transform_edt(mask)` to the bit, 4x faster on a
+    house-sized window. OpenCV's exact transform (its precise mask) gives each distance in
+    float32; its square, rounded, is the integer squared distance, whose float64 root is
+    scipy's value (exact while H^2 + W^2 < 2^22, i.e. windows up to ~1400 cells a side;
+    larger ones go to scipy). The mask needs a False cell."""
+    mask = np.asarray(mask, dtype=bool)
+    h, w = mask.shape
+    if h * h + w * w >= 1 << 22:
+        return np.asarray(ndimage.distance_transform_edt(mask), dtype=np.float64)
+    import cv2
+
+    cells = np.ascontiguousarray(mask).view(np.uint8)
+    d = cv2.distanceTransform(cells, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return np.sqrt(np.rint(np.square(d, dtype=np.float64)))
+
+
 def inflate_reference(mask: np.ndarray, radius_cells: float) -> np.ndarray:
     """Slow reference of `inflate`: binary dilation with the disk structuring element."""
     offsets = disk_offsets(radius_cells)

@@ -28,10 +28,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
 from glmap_tools.nav.config import NavConfig
+from glmap_tools.nav.grid import distance_to_zero
 
 # Imports inside functions stay there: circle: nav.grid import this module.
 
@@ -54,7 +54,7 @@ def clearance(occ: DenseOccupancy) -> np.ndarray:
     obstacle = occ.state == OBSTACLE
     if not obstacle.any():
         return np.full(occ.state.shape, np.inf)
-    return np.asarray(ndimage.distance_transform_edt(~obstacle)) * occ.cell_size
+    return distance_to_zero(~obstacle) * occ.cell_size
 
 
 def cell_cost(clear: np.ndarray, config: NavConfig, cell_size: float) -> np.ndarray:

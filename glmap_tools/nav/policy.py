@@ -50,7 +50,7 @@ from glmap_tools.nav.planner import Plan
 from glmap_tools.nav.scorers import EmbeddingScorer, Scorer, UnitText, check_goal, map_units
 from glmap_tools.nav.state import NavState
 from glmap_tools.nav.value import ValueMap, evidence_scores, value_map_from_scores
-from glmap_tools.nav.verify import outvoted, seen_share
+from glmap_tools.nav.verify import outvoted, outvoted_units, seen_share
 from glmap_tools.nav.waypoint import Waypoint
 
 if TYPE_CHECKING:
@@ -182,14 +182,14 @@ def _score_units(
     ruled_out = set(rejected) | unfit
     if policy in POLICY_UNITS:
         least = config.min_instance_score
-        ruled_out |= {
-            u.unit_id
-            for u in units
-            if u.kind == "instance"
-            and by_id[u.unit_id] >= least
-            and u.unit_id not in ruled_out
-            and outvoted(glmap, u.unit_id)
-        }
+        ruled_out |= outvoted_units(
+            glmap,
+            [
+                u.unit_id
+                for u in units
+                if u.kind == "instance" and by_id[u.unit_id] >= least and u.unit_id not in ruled_out
+            ],
+        )
     return Scored(units, by_id, match, frozenset(ruled_out))
 
 

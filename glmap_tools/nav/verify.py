@@ -18,6 +18,7 @@ InstNav s07-002, where the sink was outvoted for 200 steps).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -61,24 +62,62 @@ def same_place(lo: np.ndarray, hi: np.ndarray, other_lo: np.ndarray, other_hi: n
 def outvoted(glmap: GLMap, unit_id: int) -> bool:
     """Whether instances of other labels at the place of instance `unit_id` were observed
     more often than it."""
-    unit = glmap.instances[unit_id]
-    if len(unit.gaussians) == 0:
-        return False
-    lo, hi = unit.bounds()
-    votes = 0
-    core: set[tuple[int, int]] | None = None
-    for other_id, other in glmap.instances.items():
-        if other_id == unit_id or other.label == unit.label or len(other.gaussians) == 0:
+    return unit_id in outvoted_units(glmap, [unit_id])
+
+
+def outvoted_units(glmap: GLMap, unit_ids: Iterable[int]) -> set[int]:
+    """The instances of `unit_ids` that are outvoted (`outvoted`). Every instance's box is
+    read once and the place tests run against all instances at a time."""
+    ids, labels, observations, lo, hi = _instance_boxes(glmap)
+    row = {uid: k for k, uid in enumerate(ids.tolist())}
+    out: set[int] = set()
+    for unit_id in unit_ids:
+        k = row.get(unit_id)
+        if k is None:  # not an instance, or one without Gaussians
             continue
-        other_lo, other_hi = other.bounds()
-        if not same_place(lo, hi, other_lo, other_hi):
+        places = np.flatnonzero(
+            (labels != labels[k])
+            & (_covered_shares(lo[k], hi[k], lo, hi) >= COVER)
+            & (_covered_shares(lo, hi, lo[k], hi[k]) >= COVER_BACK)
+        )
+        if len(places) == 0:
             continue
-        if core is None:
-            core = {(int(i), int(j)) for i, j in unit_core_cells(glmap, unit_id, CORE)}
-        theirs = {(int(i), int(j)) for i, j in unit_cell_array(glmap.grid, other_id)}
-        if core and len(core & theirs) >= COVER * len(core):
-            votes += other.observations
-    return votes > unit.observations
+        core = {(int(i), int(j)) for i, j in unit_core_cells(glmap, unit_id, CORE)}
+        votes = 0
+        for p in places.tolist():
+            theirs = {(int(i), int(j)) for i, j in unit_cell_array(glmap.grid, int(ids[p]))}
+            if core and len(core & theirs) >= COVER * len(core):
+                votes += int(observations[p])
+        if votes > observations[k]:
+            out.add(unit_id)
+    return out
+
+
+def _instance_boxes(
+    glmap: GLMap,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Instances with Gaussians: ids [N], labels [N] (object), observations [N] and their
+    boxes grown as `covered_share` grows them ([N, 3] min, [N, 3] max)."""
+    units = [(uid, u) for uid, u in glmap.instances.items() if len(u.gaussians)]
+    lo, hi = np.zeros((len(units), 3)), np.zeros((len(units), 3))
+    for k, (_, u) in enumerate(units):
+        lo[k], hi[k] = u.bounds()
+    labels = np.empty(len(units), dtype=object)
+    labels[:] = [u.label for _, u in units]
+    return (
+        np.array([uid for uid, _ in units], dtype=np.int64),
+        labels,
+        np.array([u.observations for _, u in units], dtype=np.int64),
+        *_grown(lo, hi),
+    )
+
+
+def _covered_shares(
+    lo: np.ndarray, hi: np.ndarray, other_lo: np.ndarray, other_hi: np.ndarray
+) -> np.ndarray:
+    """`covered_share` of boxes already grown, broadcast over rows ([3] or [N, 3] each)."""
+    inter = np.clip(np.minimum(hi, other_hi) - np.maximum(lo, other_lo), 0.0, None)
+    return np.prod(inter, axis=-1) / np.prod(hi - lo, axis=-1)
 
 
 MISS_RANGE_M = 3.0  # a unit's centre nearer than this, in view and not hidden, should be seen

@@ -211,12 +211,15 @@ def _arrival_within_stop(
     ok = unit_d <= config.stop_distance - s / 2 - arrive
     if seen is None or seen.all():
         return ok
-    unseen = np.zeros(occ.state.shape, dtype=bool)
-    unseen[near[~seen, 0], near[~seen, 1]] = True
+    # The dilation runs on the near cells' bounding box: the unseen ones lie in it, and the
+    # disc reaches no near cell from outside it.
+    lo, hi = near.min(axis=0), near.max(axis=0) + 1
+    unseen = np.zeros(tuple(hi - lo), dtype=bool)
+    unseen[near[~seen, 0] - lo[0], near[~seen, 1] - lo[1]] = True
     k = int(np.ceil(arrive / s))
     disc = np.hypot(*np.mgrid[-k : k + 1, -k : k + 1]) <= arrive / s + 0.5
     beside = ndimage.binary_dilation(unseen, structure=disc)
-    return ok & ~beside[near[:, 0], near[:, 1]]
+    return ok & ~beside[near[:, 0] - lo[0], near[:, 1] - lo[1]]
 
 
 def _usable_frontiers(
