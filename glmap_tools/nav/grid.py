@@ -123,7 +123,8 @@ def distance_to_zero(mask: np.ndarray) -> np.ndarray:
 
     cells = np.ascontiguousarray(mask).view(np.uint8)
     d = cv2.distanceTransform(cells, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    return np.sqrt(np.rint(np.square(d, dtype=np.float64)))
+    out = np.square(d, dtype=np.float64)
+    return np.sqrt(np.rint(out, out=out), out=out)
 
 
 def inflate_reference(mask: np.ndarray, radius_cells: float) -> np.ndarray:
