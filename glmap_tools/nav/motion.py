@@ -31,9 +31,7 @@ import numpy as np
 
 from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
 from glmap_tools.nav.config import NavConfig
-from glmap_tools.nav.grid import distance_to_zero
-
-# Imports inside functions stay there: circle: nav.grid import this module.
+from glmap_tools.nav.grid import clear_footprint, distance_to_zero
 
 EXPLAINED_CELLS = 2  # a map obstacle this close to the contact point explains a bump
 UNSEEN_EDGE = 0.3  # metres each side of the contact an unexplained bump marks
@@ -289,8 +287,6 @@ def forget_marks_near(
 
 def footprint(shape: tuple[int, int], rc: tuple[int, int], radius_cells: float) -> np.ndarray:
     """[H, W] bool: the cells under a disk of `radius_cells` around (row, col) `rc`."""
-    from glmap_tools.nav.grid import clear_footprint
-
     return clear_footprint(np.zeros(shape, dtype=bool), rc, radius_cells)
 
 
