@@ -5,7 +5,7 @@ numpy sums a group's rows with `add.reduceat`: the first row plus numpy's pairwi
 the rest (eight accumulators from eight terms on, blocks of up to 128). `_reduce` sums in
 that order, so a group of up to MAX_MEMBERS rows gives the same bits as the numpy path.
 `_reduce` and `_pairwise` are inlined where they are called (numba IR): called, each sum paid
-a call with an array argument, ~50 ns, most of a combine (0.7 -> 0.1 us for one member).
+a call with an array argument, ~50 ns: a combine of one member took 0.7 us, inlined 0.35 us.
 """
 
 from __future__ import annotations
