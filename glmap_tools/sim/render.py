@@ -4,15 +4,13 @@ Lighting is baked into per-vertex colours (`face_shade`) and drawn with pyrender
 pass: software (llvmpipe) rendering stays fast and colours do not depend on the view.
 `SceneRenderer`s share one pyrender `OffscreenRenderer` per image size (creating one is
 slow; deleting one breaks the others, see `shared_offscreen_renderer`).
-The colour pass draws everything as one merged mesh with per-vertex colours; the id pass
-draws one node per object in its id colour and one node (colour 0) for walls, floors and
-ceilings. The id mask comes from pyrender's flat SEG pass
-(multisampling off), so every pixel is exactly one object id or 0; depth is read from the same
-pass so depth and mask agree pixel for pixel. Meshes draw in the order they were added
-(`_DrawOrderScene`), so where two surfaces tie in depth the same one wins in every process.
-The id pass skips the objects whose bounding box
-lies wholly outside a frustum a little wider than the camera's (they would draw no pixel, and
-each draw call costs pyrender ~0.1 ms of Python): the same images, fewer calls.
+Each pass draws one merged mesh in one draw call (a draw call costs pyrender ~0.1 ms of
+Python): the colour pass its per-vertex colours, the id pass each object's id colour per
+vertex (walls, floors and ceilings 0), through pyrender's SEG pass (multisampling off) with
+this package's segmentation shaders (`shaders/`), so every pixel is exactly one object id
+or 0; depth is read from the same pass so depth and mask agree pixel for pixel. Both meshes
+hold the objects in layout order, then the architecture, and triangles draw in that order,
+so where two surfaces tie in depth the same one wins in every process.
 """
 
 from __future__ import annotations
@@ -22,9 +20,11 @@ import os
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 from dataclasses import dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
+from pyrender.shader_program import ShaderProgramCache  # noqa: E402
 
 from glmap_tools.errors import InvalidInputError  # noqa: E402
 from glmap_tools.geometry import Intrinsics, Pose  # noqa: E402
@@ -38,7 +38,7 @@ from glmap_tools.sim.meshes import PlacedPart, object_parts  # noqa: E402
 
 Z_NEAR = 0.05  # metres
 Z_FAR = 40.0  # metres
-CULL_MARGIN = 0.05  # tangent of the angle the culling frustum reaches past the image edge
+SHADER_DIR = Path(__file__).with_name("shaders")  # the id pass's segmentation shaders
 
 
 @dataclass(frozen=True)
@@ -75,10 +75,23 @@ _OFFSCREEN: dict[tuple[int, int], pyrender.OffscreenRenderer] = {}
 
 class _ColourPassRenderer(pyrender.Renderer):
     """pyrender's renderer, whose pass reads back only its colour image while `colour_only`
-    is set: pyrender always resolves and reads depth too, a quarter of the colour pass here.
-    The colour image is read exactly as pyrender reads it (RGB bytes, rows flipped)."""
+    is set (pyrender always resolves and reads depth too, a quarter of the colour pass here;
+    the colour image is read exactly as pyrender reads it: RGB bytes, rows flipped), and
+    whose SEG pass draws with `id_programs` (this package's segmentation shaders: each
+    vertex's `color_0` times the node's colour, the clip position as pyrender's)."""
 
     colour_only = False
+    id_programs: ShaderProgramCache
+    _program_cache: ShaderProgramCache  # pyrender's own
+
+    def _get_primitive_program(self, primitive: object, flags: int, program_flags: int) -> object:
+        if not flags & pyrender.RenderFlags.SEG:
+            return super()._get_primitive_program(primitive, flags, program_flags)
+        own, self._program_cache = self._program_cache, self.id_programs
+        try:
+            return super()._get_primitive_program(primitive, flags, program_flags)
+        finally:
+            self._program_cache = own
 
     def _read_main_framebuffer(self, scene: pyrender.Scene, flags: int) -> tuple:
         if not self.colour_only:
@@ -106,8 +119,13 @@ def shared_offscreen_renderer(width: int, height: int) -> pyrender.OffscreenRend
     key = (int(width), int(height))
     if key not in _OFFSCREEN:
         renderer = pyrender.OffscreenRenderer(key[0], key[1])
-        if type(renderer._renderer) is pyrender.Renderer:  # pyrender's own: add colour_only
-            renderer._renderer.__class__ = _ColourPassRenderer
+        if type(renderer._renderer) is not pyrender.Renderer:
+            raise RuntimeError(
+                f"pyrender made a {type(renderer._renderer).__name__}, not its Renderer; "
+                "install the pyrender version pyproject.toml names."
+            )
+        renderer._renderer.__class__ = _ColourPassRenderer  # add colour_only and id_programs
+        renderer._renderer.id_programs = ShaderProgramCache(str(SHADER_DIR))
         _OFFSCREEN[key] = renderer
     return _OFFSCREEN[key]
 
@@ -156,35 +174,20 @@ def _primitive(parts: list[PlacedPart]) -> pyrender.Primitive:
     )
 
 
-def _box_corners(parts: list[PlacedPart]) -> np.ndarray:
-    """[8, 3] corners of the world bounding box of some parts (a point for none)."""
-    if not parts:
-        return np.zeros((8, 3))
-    pts = np.concatenate([part.vertices for part in parts])
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    pick = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-    return np.where(pick == 1, hi, lo)
-
-
-class _DrawOrderScene(pyrender.Scene):
-    """A pyrender scene that draws its meshes in the order they were added.
-
-    pyrender keeps mesh nodes in a set and sorts them by distance from the camera to the
-    node's origin, which is the same for every node here; ties in depth then went to the
-    mesh first in the set's order, which follows memory addresses and differs by process.
-    """
-
-    def __init__(self, **kwargs: object) -> None:
-        self._added: dict[pyrender.Node, int] = {}
-        super().__init__(**kwargs)  # type: ignore[arg-type]
-
-    def add_node(self, node: pyrender.Node, parent_node: pyrender.Node | None = None) -> None:
-        super().add_node(node, parent_node)
-        self._added.setdefault(node, len(self._added))
-
-    @property
-    def mesh_nodes(self) -> list[pyrender.Node]:  # type: ignore[override]
-        return sorted(self._mesh_nodes, key=self._added.__getitem__)
+def _id_primitive(parts: list[PlacedPart], ids: list[int]) -> pyrender.Primitive:
+    """One primitive of the same triangles as `_primitive(parts)`, each vertex coloured with
+    its part's id colour (`id_color(ids[k]) / 255`)."""
+    positions, colors = [], []
+    for part, object_id in zip(parts, ids, strict=True):
+        tri = part.vertices[part.faces]  # [M, 3, 3]
+        rgba = np.array([*id_color(object_id), 255]) / 255.0
+        positions.append(tri.reshape(-1, 3))
+        colors.append(np.broadcast_to(rgba, (3 * len(tri), 4)))
+    return pyrender.Primitive(
+        positions=np.concatenate(positions).astype(np.float32),
+        color_0=np.concatenate(colors).astype(np.float32),
+        material=pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0)),
+    )
 
 
 class SceneRenderer:
@@ -198,40 +201,25 @@ class SceneRenderer:
     def __init__(self, layout: Layout, camera: CameraSpec | None = None) -> None:
         self.camera = camera or CameraSpec()
         self.intrinsics = self.camera.intrinsics
-        self.scene = _DrawOrderScene(bg_color=(0.0, 0.0, 0.0, 1.0), ambient_light=(1.0,) * 3)
+        self.scene = pyrender.Scene(bg_color=(0.0, 0.0, 0.0, 1.0), ambient_light=(1.0,) * 3)
         self.seg_node_map: dict[pyrender.Node, tuple[int, int, int]] = {}
-        # The colour pass draws one merged mesh (one draw call); the id pass draws one node per
-        # object with its id colour. Each pass shows only its own meshes.
+        # One merged mesh per pass, the same triangles in the same order; each pass shows only
+        # its own.
         object_parts_all = [object_parts(obj) for obj in layout.objects]
         shell = list(room_walls(layout).values())
         for room in layout.rooms:
             shell.extend(floor_and_ceiling(room))
         merged = [part for parts in object_parts_all for part in parts] + shell
+        ids = [obj.id for obj, parts in zip(layout.objects, object_parts_all, strict=True)
+               for _ in parts] + [0] * len(shell)  # fmt: skip
         self._color_mesh = pyrender.Mesh([_primitive(merged)])
         self.scene.add(self._color_mesh, name="color")
-        self._id_meshes = []
-        self._id_boxes = np.array(
-            [_box_corners(parts) for parts in object_parts_all], dtype=np.float64
-        ).reshape(-1, 8, 3)
-        for obj, parts in zip(layout.objects, object_parts_all, strict=True):
-            mesh = pyrender.Mesh([_primitive(parts)])
-            node = self.scene.add(mesh, name=str(obj.id))
-            self.seg_node_map[node] = id_color(obj.id)
-            self._id_meshes.append(mesh)
-        shell_mesh = pyrender.Mesh([_primitive(shell)])
-        self.seg_node_map[self.scene.add(shell_mesh, name="architecture")] = (0, 0, 0)
-        self._id_meshes.append(shell_mesh)
+        self._id_mesh = pyrender.Mesh([_id_primitive(merged, ids)])
+        self.seg_node_map[self.scene.add(self._id_mesh, name="ids")] = (255, 255, 255)
         k = self.intrinsics
         # pyrender puts pixel centres at +0.5 where OpenCV intrinsics put them at integers.
         cam = pyrender.IntrinsicsCamera(
             k.fx, k.fy, k.cx + 0.5, k.cy + 0.5, znear=Z_NEAR, zfar=Z_FAR
-        )
-        # Tangents of the culling frustum (image edges at -0.5 and W - 0.5, plus a margin).
-        self._cull_tangents = (
-            (k.cx + 1.0) / k.fx + CULL_MARGIN,
-            (k.width - k.cx) / k.fx + CULL_MARGIN,
-            (k.cy + 1.0) / k.fy + CULL_MARGIN,
-            (k.height - k.cy) / k.fy + CULL_MARGIN,
         )
         self.camera_node = self.scene.add(cam, pose=np.eye(4))
         self._renderer: pyrender.OffscreenRenderer | None = shared_offscreen_renderer(
@@ -254,7 +242,7 @@ class SceneRenderer:
             rgb, _ = self._renderer.render(self.scene, flags=pyrender.RenderFlags.FLAT)
         finally:
             passes.colour_only = False
-        self._show(color=False, ids=self._in_view(pose))
+        self._show(color=False)
         seg, depth = self._renderer.render(
             self.scene, flags=pyrender.RenderFlags.SEG, seg_node_map=self.seg_node_map
         )
@@ -266,28 +254,10 @@ class SceneRenderer:
             np.ascontiguousarray(rgb), np.ascontiguousarray(depth, dtype=np.float32), mask
         )
 
-    def _show(self, color: bool, ids: np.ndarray | None = None) -> None:
-        """Show the colour mesh, or the id meshes (those flagged in `ids` [objects] and the
-        architecture)."""
+    def _show(self, color: bool) -> None:
+        """Show the colour mesh, or the id mesh."""
         self._color_mesh.is_visible = color
-        for k, mesh in enumerate(self._id_meshes):
-            mesh.is_visible = not color and (ids is None or k >= len(ids) or bool(ids[k]))
-
-    def _in_view(self, pose: Pose) -> np.ndarray:
-        """[objects] bool: the bounding box is not wholly outside the culling frustum."""
-        if len(self._id_boxes) == 0:
-            return np.zeros(0, dtype=bool)
-        cam = (self._id_boxes - pose.translation) @ pose.rotation  # OpenCV camera coordinates
-        x, y, z = cam[..., 0], cam[..., 1], cam[..., 2]
-        left, right, top, bottom = self._cull_tangents
-        outside = (
-            (z < 0.5 * Z_NEAR).all(axis=1)
-            | (x < -left * z).all(axis=1)
-            | (x > right * z).all(axis=1)
-            | (y < -top * z).all(axis=1)
-            | (y > bottom * z).all(axis=1)
-        )
-        return ~outside
+        self._id_mesh.is_visible = not color
 
     def close(self) -> None:
         """Stop using the shared OpenGL context (it stays alive for other renderers).
