@@ -1,5 +1,6 @@
 """Shortcuts of the agent's step that must not change a bit: cached Gaussian bounds, the
-structure update's chunk set, any_mergeable's early exit, block pooling."""
+structure update's chunk set, any_mergeable's early exit and grid pair search, block
+pooling."""
 
 from __future__ import annotations
 
@@ -64,6 +65,32 @@ def test_any_mergeable_answers_as_the_full_pair_filter(tau: float) -> None:
         assert any_mergeable(a, b, config) == (len(pairs) > 0)
         answers.add(len(pairs) > 0)
     assert answers == {True, False}
+
+
+def test_the_grid_pair_search_finds_the_pairs_cKDTree_finds() -> None:
+    from scipy.spatial import cKDTree
+
+    from glmap_tools.gaussians.merge import _pairs_within
+
+    rng = np.random.default_rng(5)
+    radius = 0.02
+    lattice = np.stack(np.meshgrid(*[np.arange(6) * radius] * 3), axis=-1).reshape(-1, 3)
+    cases = [(lattice, lattice + [radius, 0.0, 0.0]), (lattice[:1], lattice[1:2])]  # exactly r
+    for _ in range(200):
+        n, m = (int(v) for v in rng.integers(1, 600, 2))
+        scale = rng.choice([0.05, 0.3, 2.0, 20.0])  # dense to sparse; the widest go to cKDTree
+        a = rng.uniform(-scale, scale, (n, 3)) + rng.uniform(-50, 50, 3)
+        b = a[rng.integers(0, n, m)] + rng.normal(0, radius, (m, 3)) if rng.random() < 0.7 else (
+            rng.uniform(-scale, scale, (m, 3)) + a.mean(axis=0))  # fmt: skip
+        cases.append((a.astype(np.float32).astype(np.float64), b))
+    total = 0
+    for a, b in cases:
+        ia, ib = _pairs_within(a, b, radius)
+        found = cKDTree(a).sparse_distance_matrix(cKDTree(b), radius, output_type="ndarray")
+        expected = sorted(zip(found["i"].tolist(), found["j"].tolist(), strict=True))
+        assert sorted(zip(ia.tolist(), ib.tolist(), strict=True)) == expected
+        total += len(expected)
+    assert total > 10_000
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (5, 3), (61, 47)])

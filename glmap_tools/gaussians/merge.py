@@ -24,6 +24,7 @@ if TYPE_CHECKING:
 
 ANY_MERGEABLE_CHUNK = 4096  # Gaussians per early-exit step of `any_mergeable`
 ANY_MERGEABLE_FIRST = 32  # pairs whose curvature `any_mergeable` computes first (then 4x more)
+ANY_MERGEABLE_PROBE = 256  # pairs whose D `any_mergeable` computes first (then 4x more)
 MAX_GRID_SPAN = 1 << 22  # candidate radii across a set that the numba grid search can key
 
 
@@ -179,19 +180,25 @@ def any_mergeable(a: GaussianSet, b: GaussianSet, config: EstimatorConfig) -> bo
         return False
     if len(a) < len(b):
         a, b = b, a
-    tree_a = cKDTree(a.means.astype(np.float64))
+    a_means = a.means.astype(np.float64)
     for start in range(0, len(b), ANY_MERGEABLE_CHUNK):
-        chunk = b.subset(np.arange(start, min(start + ANY_MERGEABLE_CHUNK, len(b))))
-        found = tree_a.sparse_distance_matrix(
-            cKDTree(chunk.means.astype(np.float64)), r, output_type="ndarray"
-        )
-        if len(found) == 0:
-            continue
-        ia = found["i"].astype(np.int64)
-        ib = found["j"].astype(np.int64)
-        if _some_pair_merges(a, ia, chunk, ib, config):
+        chunk = b.subset(slice(start, start + ANY_MERGEABLE_CHUNK))
+        ia, ib = _pairs_within(a_means, chunk.means.astype(np.float64), r)
+        if len(ia) and _some_pair_merges(a, ia, chunk, ib, config):
             return True
     return False
+
+
+def _pairs_within(a: np.ndarray, b: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """([K] ia, [K] ib): every pair of float64 points with ||a[ia] - b[ib]|| <= radius, by the
+    numba grid (`_pairs_numba`), or by cKDTree when the grid would be too large."""
+    from glmap_tools.gaussians._pairs_numba import pairs_within
+
+    done, ia, ib = pairs_within(a, b, radius)
+    if done:
+        return ia, ib
+    found = cKDTree(a).sparse_distance_matrix(cKDTree(b), radius, output_type="ndarray")
+    return found["i"].astype(np.int64), found["j"].astype(np.int64)
 
 
 def _some_pair_merges(
@@ -199,12 +206,26 @@ def _some_pair_merges(
 ) -> bool:
     """Whether any pair (a[ia[k]], b[ib[k]]) has D < its merge threshold.
 
-    The curvatures (an eigvalsh per Gaussian, the cost) are computed for the pairs in
-    increasing D, in batches, until one pair merges. With tau <= 0 the threshold is at most
-    2 * voxel, so pairs with D >= 2 * voxel are dropped before any curvature. The answer is
-    that of `_filter_mergeable(...)[0].any()`: the same D and kappa per pair (eigvalsh gives
-    the same bits for a matrix in any batch), only fewer of them.
+    The pairs are tested in slices (ANY_MERGEABLE_PROBE of them, then 4x more each time),
+    each as `_slice_merges` tests it, until one merges. The answer is that of
+    `_filter_mergeable(...)[0].any()`: the same D and kappa per pair (eigvalsh gives the
+    same bits for a matrix in any batch), only fewer of them.
     """
+    lo, size = 0, ANY_MERGEABLE_PROBE
+    while lo < len(ia):
+        if _slice_merges(a, ia[lo : lo + size], b, ib[lo : lo + size], config):
+            return True
+        lo, size = lo + size, 4 * size
+    return False
+
+
+def _slice_merges(
+    a: GaussianSet, ia: np.ndarray, b: GaussianSet, ib: np.ndarray, config: EstimatorConfig
+) -> bool:
+    """`_some_pair_merges` of one slice of pairs: D for every pair, then the curvatures (an
+    eigvalsh per Gaussian, the cost) in increasing D, in batches, until one pair merges.
+    With tau <= 0 the threshold is at most 2 * voxel, so pairs with D >= 2 * voxel are
+    dropped before any curvature."""
     d = gaussian_distance(a, ia, b, ib, config)
     bound = 2.0 * config.voxel_size if config.tau <= 0 else np.inf
     near = np.flatnonzero(d < bound)

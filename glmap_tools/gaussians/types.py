@@ -76,8 +76,8 @@ class GaussianSet:
             np.concatenate([s.counts for s in sets]),
         )
 
-    def subset(self, index: np.ndarray) -> GaussianSet:
-        """The Gaussians selected by an integer or boolean index."""
+    def subset(self, index: np.ndarray | slice) -> GaussianSet:
+        """The Gaussians selected by an integer or boolean index, or a slice (views)."""
         return GaussianSet(
             self.means[index],
             self.covs[index],
