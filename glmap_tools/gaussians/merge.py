@@ -267,6 +267,14 @@ def combine(g: GaussianSet, groups: np.ndarray, epsilon: float = COVARIANCE_EPSI
         )
     if len(g) == 0:
         return GaussianSet.empty()
+    labels, inverse = np.unique(groups, return_inverse=True)
+    return _combine_groups(g, inverse.reshape(-1), len(labels), epsilon)
+
+
+def _combine_groups(
+    g: GaussianSet, inverse: np.ndarray, n_groups: int, epsilon: float
+) -> GaussianSet:
+    """`combine` of N > 0 Gaussians into groups 0..n_groups - 1 (`inverse` [N]: each one's)."""
     if np.any(g.counts == 0):
         k = int(np.argmax(g.counts == 0))
         raise InvalidInputError(
@@ -275,10 +283,8 @@ def combine(g: GaussianSet, groups: np.ndarray, epsilon: float = COVARIANCE_EPSI
         )
     from glmap_tools.gaussians._combine_numba import MAX_MEMBERS, combine_groups
 
-    labels, inverse = np.unique(groups, return_inverse=True)
-    inverse = inverse.reshape(-1)
     order = np.argsort(inverse, kind="stable")
-    starts = np.searchsorted(inverse[order], np.arange(len(labels)))
+    starts = np.searchsorted(inverse[order], np.arange(n_groups))
     n = np.add.reduceat(g.counts.astype(np.float64)[order], starts)
     if n.max() > np.iinfo(np.uint32).max:
         raise InvalidInputError(
@@ -288,7 +294,7 @@ def combine(g: GaussianSet, groups: np.ndarray, epsilon: float = COVARIANCE_EPSI
     bounds = np.append(starts, len(order))
     if np.diff(bounds).max() > MAX_MEMBERS:
         return _combine_by_numpy(g, inverse, order, starts, epsilon)
-    out = GaussianSet.allocate(len(labels))  # the numba kernel: the same operations, in order
+    out = GaussianSet.allocate(n_groups)  # the numba kernel: the same operations, in order
     combine_groups(order, bounds, g.arrays(), epsilon, out.arrays())
     return out
 
@@ -373,6 +379,8 @@ def remerge(g: GaussianSet, config: EstimatorConfig) -> GaussianSet:
     if not config.merge or len(g) < 2:
         return g
     labels = remerge_groups(g, config)
-    if len(np.unique(labels)) == len(g):
+    roots = labels == np.arange(len(g))  # a label is its group's smallest member
+    if roots.all():
         return g
-    return combine(g, labels, config.epsilon)
+    # combine's np.unique, read off the roots: a label's rank among them
+    return _combine_groups(g, np.cumsum(roots)[labels] - 1, int(roots.sum()), config.epsilon)
