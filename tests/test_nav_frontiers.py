@@ -283,3 +283,40 @@ def test_no_frontier_no_match_and_no_value_means_no_waypoint() -> None:
     # With a value map the agent heads for its best navigable cell instead.
     wp = choose_waypoint(value_peak_at(occ, 45, 45), [], trav, here, None, NavConfig(), occ=occ)
     assert wp.kind == "explore" and math.dist(wp.xy, occ.index_to_world(45, 45)) < 0.2  # type: ignore[arg-type]
+
+
+def test_opencv_components_and_dilation_give_ndimages_frontiers(monkeypatch) -> None:
+    import importlib
+
+    fr = importlib.import_module("glmap_tools.nav.frontiers")  # `nav.frontiers` is the function
+
+    def ndimage_components(mask: np.ndarray, connectivity: int) -> tuple[np.ndarray, int]:
+        structure = None if connectivity == 4 else np.ones((3, 3), dtype=bool)
+        labels, n = ndimage.label(mask, structure=structure)
+        return labels, int(n)
+
+    def ndimage_mask(occ: DenseOccupancy, trav: np.ndarray) -> np.ndarray:
+        unknown = (occ.state == UNKNOWN).view(np.uint8)
+        return trav & ndimage.maximum_filter(unknown, size=3, mode="constant").astype(bool)
+
+    rng = np.random.default_rng(7)
+    found = 0
+    for _ in range(60):
+        h, w = (int(v) for v in rng.integers(20, 90, 2))
+        state = rng.choice([UNKNOWN, FREE, OBSTACLE], (h, w), p=[0.3, 0.6, 0.1]).astype(np.int8)
+        state = ndimage.median_filter(state, size=3)  # blobs, not salt
+        occ = DenseOccupancy(state, (int(rng.integers(-20, 20)), int(rng.integers(-20, 20))), CELL)
+        xy = occ.index_to_world(int(rng.integers(0, h)), int(rng.integers(0, w)))
+        field = rng.uniform(0, 10, (h, w)) if rng.random() < 0.5 else None
+        fast = frontiers(occ, xy, RADIUS, 3, field)
+        with monkeypatch.context() as m:
+            m.setattr(fr, "_components", ndimage_components)
+            m.setattr(fr, "frontier_mask", ndimage_mask)
+            slow = frontiers(occ, xy, RADIUS, 3, field)
+        assert [(f.centroid, f.size, f.distance, f.target) for f in fast] == [
+            (f.centroid, f.size, f.distance, f.target) for f in slow
+        ]
+        for a, b in zip(fast, slow, strict=True):
+            np.testing.assert_array_equal(a.cells, b.cells)
+        found += len(fast)
+    assert found > 100

@@ -6,12 +6,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from glmap_tools.map.occupancy import UNKNOWN, DenseOccupancy
 from glmap_tools.nav.grid import agent_rc, clear_footprint, traversable
 
-EIGHT = np.ones((3, 3), dtype=bool)
+EIGHT_U8 = np.ones((3, 3), dtype=np.uint8)
 
 
 @dataclass(frozen=True)
@@ -36,9 +35,21 @@ class Frontier:
 
 def frontier_mask(occ: DenseOccupancy, trav: np.ndarray) -> np.ndarray:
     """[H, W] bool: traversable cells with an UNKNOWN cell among their 8 neighbours."""
+    import cv2
+
     unknown = (occ.state == UNKNOWN).view(np.uint8)
-    near_unknown = ndimage.maximum_filter(unknown, size=3, mode="constant").astype(bool)
-    return trav & near_unknown
+    near_unknown = cv2.dilate(unknown, EIGHT_U8, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    return trav & near_unknown.view(bool)
+
+
+def _components(mask: np.ndarray, connectivity: int) -> tuple[np.ndarray, int]:
+    """([H, W] int32 labels, count) of the connected True cells of `mask` (OpenCV; with
+    connectivity 4 the labels are `ndimage.label`'s, in raster order of first cells)."""
+    import cv2
+
+    cells = np.ascontiguousarray(mask, dtype=bool).view(np.uint8)
+    n, labels = cv2.connectedComponents(cells, connectivity=connectivity, ltype=cv2.CV_32S)
+    return labels, int(n) - 1
 
 
 def frontiers(
@@ -69,10 +80,10 @@ def frontiers(
         trav = traversable(occ, agent_radius)
     trav = clear_footprint(trav, rc, agent_radius / occ.cell_size)
     # 4-connected, as the FMM marches: a diagonal pinch is no way through.
-    labels, _ = ndimage.label(trav)
+    labels, _ = _components(trav, 4)
     reach = trav & (labels == labels[rc])
     fmask = frontier_mask(occ, reach)
-    clusters, n = ndimage.label(fmask, structure=EIGHT)
+    clusters, n = _components(fmask, 8)
     if n == 0:
         return []
     rows, cols = np.nonzero(clusters)
@@ -107,5 +118,6 @@ def frontiers(
                 target=target,
             )
         )
-    out.sort(key=lambda f: (f.distance, -f.size, f.centroid))
+    # ties last by the first cell in raster order (the order of ndimage's labels)
+    out.sort(key=lambda f: (f.distance, -f.size, f.centroid, tuple(f.cells[0].tolist())))
     return out
