@@ -43,19 +43,24 @@ def merge_voxels(  # pragma: no cover - numba
     g: tuple,
     eps: float,
     out: tuple,
-    out_source: np.ndarray,
-) -> int:
+    out_rows: np.ndarray,
+    chunk_starts: np.ndarray,
+) -> tuple[int, int]:
     """Merge the stored voxels (rows 0..K-1 of the stacked arrays, `old_rows` their [K, 5]
     (chunk, key) rows, in order) with the new ones (rows K.., `new_rows` [M, 5], visited in
     `new_order`, a stable sort). A voxel the frame saw combines its stored rows, then its new
     ones. g: the stacked Gaussians (means, covs, colors, opacities, counts); out: the same
-    five arrays for the result. Returns the number of output rows (in order, `out_source`
-    the stacked row each was keyed by), -1 when the stored rows are out of order, -2 when a
-    voxel gathers more than MAX_MEMBERS Gaussians."""
+    five arrays for the result, `out_rows` [K + M, 5] their (chunk, key) rows.
+
+    Returns:
+        (n, c): n output rows, in order, and c chunks, chunk k starting at output row
+        chunk_starts[k]; n is -1 when the stored rows are out of order, -2 when a voxel
+        gathers more than MAX_MEMBERS Gaussians.
+    """
     k = old_rows.shape[0]
     for i in range(1, k):
         if _key_less(old_rows, i, old_rows, i - 1):
-            return -1
+            return -1, 0
     members = np.empty(MAX_MEMBERS, np.int64)
     scratch = combine_scratch()
     means, covs, colors, opacities, counts = g
@@ -63,9 +68,17 @@ def merge_voxels(  # pragma: no cover - numba
     i = ZERO
     j = ZERO
     o = ZERO
+    c = ZERO
     m_new = new_order.shape[0]
     while i < k or j < m_new:
-        if j == m_new or (i < k and _key_less(old_rows, i, new_rows, new_order[j])):
+        stored = j == m_new or (i < k and _key_less(old_rows, i, new_rows, new_order[j]))
+        key_rows, r = (old_rows, i) if stored else (new_rows, new_order[j])
+        for a in range(5):
+            out_rows[o, a] = key_rows[r, a]
+        if o == 0 or out_rows[o, 0] != out_rows[o - 1, 0] or out_rows[o, 1] != out_rows[o - 1, 1]:
+            chunk_starts[c] = o
+            c += 1
+        if stored:
             for a in range(3):
                 out_means[o, a] = means[i, a]
                 out_colors[o, a] = colors[i, a]
@@ -73,7 +86,6 @@ def merge_voxels(  # pragma: no cover - numba
                     out_covs[o, a, b] = covs[i, a, b]
             out_opacities[o] = opacities[i]
             out_counts[o] = counts[i]
-            out_source[o] = i
             i += 1
             o += 1
             continue
@@ -81,17 +93,16 @@ def merge_voxels(  # pragma: no cover - numba
         m = 0
         while i < k and _key_equal(old_rows, i, new_rows, first):
             if m == MAX_MEMBERS:
-                return -2
+                return -2, 0
             members[m] = i
             m += 1
             i += 1
         while j < m_new and _key_equal(new_rows, new_order[j], new_rows, first):
             if m == MAX_MEMBERS:
-                return -2
+                return -2, 0
             members[m] = k + new_order[j]
             m += 1
             j += 1
-        out_source[o] = members[0]
         combine_into(members, m, scratch, g, eps, out, o)
         o += 1
-    return o
+    return o, c

@@ -125,18 +125,19 @@ class StructureLayer:
         old_rows = np.concatenate([chunk_of_keys(old_keys), old_keys], axis=1)
         stacked = GaussianSet.concat([c.gaussians for c in old] + [fitted])
         new_order = np.lexsort(new_rows.T[::-1])  # stable: a voxel's Gaussians in frame order
-        out, source = GaussianSet.allocate(len(stacked)), np.empty(len(stacked), np.int64)
-        args = (stacked.arrays(), COVARIANCE_EPSILON, out.arrays(), source)
-        n = merge_voxels(old_rows, new_rows, new_order, *args)
+        out = GaussianSet.allocate(len(stacked))
+        out_rows = np.empty((len(stacked), 5), np.int64)
+        starts = np.empty(len(stacked), np.int64)
+        args = (stacked.arrays(), COVARIANCE_EPSILON, out.arrays(), out_rows, starts)
+        n, c = merge_voxels(old_rows, new_rows, new_order, *args)
         if n < 0:  # stored keys out of order or a crowded voxel: never from this layer's fits
             return self.compute_update_reference(fitted)
-        rows = np.concatenate([old_rows, new_rows])[source[:n]]
-        bounds = np.flatnonzero(np.r_[True, np.any(rows[1:, :2] != rows[:-1, :2], axis=1), True])
+        bounds = np.append(starts[:c], n)
         chunks: dict[ChunkKey, StructureChunk] = {}
-        for start, stop in zip(bounds[:-1], bounds[1:], strict=True):
-            part = slice(int(start), int(stop))  # each chunk its own arrays, not a view
-            chunks[(int(rows[start, 0]), int(rows[start, 1]))] = StructureChunk(
-                rows[part, 2:].copy(),
+        for start, stop in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+            part = slice(start, stop)  # each chunk its own arrays, not a view
+            chunks[(int(out_rows[start, 0]), int(out_rows[start, 1]))] = StructureChunk(
+                out_rows[part, 2:].copy(),
                 GaussianSet(*(a[part].copy() for a in out.arrays())),
             )
         return chunks
