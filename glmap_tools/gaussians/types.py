@@ -78,13 +78,15 @@ class GaussianSet:
 
     def subset(self, index: np.ndarray | slice) -> GaussianSet:
         """The Gaussians selected by an integer or boolean index, or a slice (views)."""
-        return GaussianSet(
-            self.means[index],
-            self.covs[index],
-            self.colors[index],
-            self.opacities[index],
-            self.counts[index],
-        )
+        arrays = (self.means, self.covs, self.colors, self.opacities, self.counts)
+        if isinstance(index, slice):
+            return GaussianSet(*(a[index] for a in arrays))
+        index = np.asarray(index)
+        if index.dtype == bool and index.shape == (len(self),):  # compress: 3x boolean indexing
+            return GaussianSet(*(np.compress(index, a, axis=0) for a in arrays))
+        if index.dtype.kind in "iu" and index.ndim == 1:  # take: 3x integer indexing
+            return GaussianSet(*(np.take(a, index, axis=0) for a in arrays))
+        return GaussianSet(*(a[index] for a in arrays))
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(means, covs, colors, opacities, counts), as numba kernels take a set."""
