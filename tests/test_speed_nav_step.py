@@ -1,6 +1,6 @@
 """Shortcuts of the agent's step that must not change a bit: cached Gaussian bounds, the
-structure update's chunk set, any_mergeable's early exit and grid pair search, block
-pooling."""
+structure update's chunk set and row order, any_mergeable's early exit and grid pair search,
+block pooling."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 from glmap_tools.gaussians.config import EstimatorConfig
 from glmap_tools.gaussians.merge import any_mergeable, mergeable_pairs
 from glmap_tools.gaussians.types import GaussianSet
-from glmap_tools.map.structure import _distinct_chunks
+from glmap_tools.map.structure import _distinct_chunks, _row_order
 from glmap_tools.nav.planner import geodesic, pool_any, pool_max
 
 
@@ -34,6 +34,16 @@ def test_the_touched_chunks_are_the_distinct_chunk_rows() -> None:
         chunks = rng.integers(low, low + 30, (n, 2))
         expected = {(int(i), int(j)) for i, j in chunks.tolist()}
         assert _distinct_chunks(chunks) == expected
+
+
+def test_the_row_order_is_lexsorts() -> None:
+    rng = np.random.default_rng(6)
+    for n, width in ((0, 5), (1, 5), (700, 5), (4000, 5), (300, 3)):
+        rows = rng.integers(-300, 300, (n, width))
+        rows[: n // 3] = rows[n // 3 : 2 * (n // 3)]  # repeated rows: the sort must be stable
+        np.testing.assert_array_equal(_row_order(rows), np.lexsort(rows.T[::-1]))
+    wide = rng.integers(-(1 << 40), 1 << 40, (50, 5))  # a key past int64: lexsort itself
+    np.testing.assert_array_equal(_row_order(wide), np.lexsort(wide.T[::-1]))
 
 
 def _flat_set(rng: np.random.Generator, n: int, lo: float) -> GaussianSet:

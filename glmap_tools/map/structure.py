@@ -17,6 +17,7 @@ frame sees, 1.6 m ones ~4x). It never enters the index grid or any query.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,6 +51,21 @@ class StructureChunk:
 def chunk_of_keys(keys: np.ndarray) -> np.ndarray:  # [K, 3] -> [K, 2]
     """The chunk (ci, cj) of each voxel key."""
     return np.floor_divide(keys[:, :2], CHUNK)
+
+
+def _row_order(rows: np.ndarray) -> np.ndarray:  # [K, C] int64 -> [K]
+    """`np.lexsort(rows.T[::-1])` (rows in lexicographic order, stable), as one stable argsort
+    of a mixed-radix key over the rows' ranges (2x faster), unless that key would overflow."""
+    if len(rows) == 0:
+        return np.zeros(0, np.int64)
+    lo = rows.min(axis=0)
+    span = rows.max(axis=0) - lo + 1
+    if math.prod(int(v) for v in span) >= 1 << 62:
+        return np.lexsort(rows.T[::-1])
+    key = np.zeros(len(rows), np.int64)
+    for c in range(rows.shape[1]):
+        key = key * span[c] + (rows[:, c] - lo[c])
+    return np.argsort(key, kind="stable")
 
 
 def _distinct_chunks(chunks: np.ndarray) -> set[ChunkKey]:  # [K, 2] -> {(ci, cj)}
@@ -124,7 +140,7 @@ class StructureLayer:
         old_keys = np.concatenate([c.keys for c in old]) if old else np.zeros((0, 3), np.int64)
         old_rows = np.concatenate([chunk_of_keys(old_keys), old_keys], axis=1)
         stacked = GaussianSet.concat([c.gaussians for c in old] + [fitted])
-        new_order = np.lexsort(new_rows.T[::-1])  # stable: a voxel's Gaussians in frame order
+        new_order = _row_order(new_rows)  # stable: a voxel's Gaussians in frame order
         out = GaussianSet.allocate(len(stacked))
         out_rows = np.empty((len(stacked), 5), np.int64)
         starts = np.empty(len(stacked), np.int64)
