@@ -46,12 +46,13 @@ def _near_neighbours(valid: np.ndarray, depth: np.ndarray) -> np.ndarray:
     cols = np.nonzero(valid.any(axis=0))[0]
     r0, r1 = max(int(rows[0]) - radius, 0), min(int(rows[-1]) + radius + 1, h)
     c0, c1 = max(int(cols[0]) - radius, 0), min(int(cols[-1]) + radius + 1, w)
-    v = valid[r0:r1, c0:c1].astype(np.float32)
-    d = np.where(valid, depth, 0.0)[r0:r1, c0:c1].astype(np.float32)
+    box = valid[r0:r1, c0:c1]
+    v = box.astype(np.float32)
+    d = np.where(box, depth[r0:r1, c0:c1], 0.0).astype(np.float32)
     k = (2 * radius + 1, 2 * radius + 1)
     weight = cv2.blur(v, k, borderType=cv2.BORDER_CONSTANT)
     mean = cv2.blur(d, k, borderType=cv2.BORDER_CONSTANT) / np.maximum(weight, 1e-9)
     near = np.abs(d - mean) <= EDGE_ABS_M + EDGE_REL * d
     out = np.zeros_like(valid)
-    out[r0:r1, c0:c1] = valid[r0:r1, c0:c1] & near
+    out[r0:r1, c0:c1] = box & near
     return out
