@@ -182,7 +182,7 @@ def any_mergeable(a: GaussianSet, b: GaussianSet, config: EstimatorConfig) -> bo
         a, b = b, a
     a_means = a.means.astype(np.float64)
     for start in range(0, len(b), ANY_MERGEABLE_CHUNK):
-        chunk = b.subset(slice(start, start + ANY_MERGEABLE_CHUNK))
+        chunk = b.subset(np.arange(start, min(start + ANY_MERGEABLE_CHUNK, len(b))))
         ia, ib = _pairs_within(a_means, chunk.means.astype(np.float64), r)
         if len(ia) and _some_pair_merges(a, ia, chunk, ib, config):
             return True

@@ -76,11 +76,9 @@ class GaussianSet:
             np.concatenate([s.counts for s in sets]),
         )
 
-    def subset(self, index: np.ndarray | slice) -> GaussianSet:
-        """The Gaussians selected by an integer or boolean index, or a slice (views)."""
+    def subset(self, index: np.ndarray) -> GaussianSet:
+        """The Gaussians selected by an integer or boolean index (a copy)."""
         arrays = (self.means, self.covs, self.colors, self.opacities, self.counts)
-        if isinstance(index, slice):
-            return GaussianSet(*(a[index] for a in arrays))
         index = np.asarray(index)
         if index.dtype == bool and index.shape == (len(self),):  # compress: 3x boolean indexing
             return GaussianSet(*(np.compress(index, a, axis=0) for a in arrays))
