@@ -1,6 +1,6 @@
 """Shortcuts of the agent's step that must not change a bit: cached Gaussian bounds, the
 structure update's chunk set and row order, any_mergeable's early exit and grid pair search,
-block pooling."""
+the index grid's cell replacement, block pooling."""
 
 from __future__ import annotations
 
@@ -34,6 +34,25 @@ def test_the_touched_chunks_are_the_distinct_chunk_rows() -> None:
         chunks = rng.integers(low, low + 30, (n, 2))
         expected = {(int(i), int(j)) for i, j in chunks.tolist()}
         assert _distinct_chunks(chunks) == expected
+
+
+def test_replacing_a_units_cells_by_their_difference_leaves_the_grid_a_fresh_one_would_be():
+    from glmap_tools.map.grid import IndexGrid
+
+    rng = np.random.default_rng(8)
+    grid, final = IndexGrid(), {}
+    for _ in range(300):
+        uid = int(rng.integers(0, 12))
+        cells = rng.integers(0, 15, (int(rng.integers(0, 40)), 2))
+        if rng.random() < 0.5:  # as the map passes them: a frozenset of int pairs
+            cells = frozenset(map(tuple, cells.tolist()))
+        grid.set_unit(uid, cells)
+        final[uid] = {(int(i), int(j)) for i, j in cells}
+    fresh = IndexGrid()
+    for uid, cells in final.items():
+        fresh.set_unit(uid, cells)
+    assert grid.snapshot() == fresh.snapshot()
+    assert all(grid.cells_of_unit(u) == c for u, c in final.items())
 
 
 def test_the_row_order_is_lexsorts() -> None:

@@ -85,12 +85,20 @@ class IndexGrid:
         return (math.floor(x / self.cell_size), math.floor(y / self.cell_size))
 
     def set_unit(self, unit_id: int, cells: Iterable[Cell]) -> None:
-        """Replace the cells of `unit_id`."""
-        self.remove_unit(unit_id)
-        new = frozenset((int(i), int(j)) for i, j in cells)
-        self._unit_cells[unit_id] = new
-        for c in new:
+        """Replace the cells of `unit_id` (only the cells that change are touched)."""
+        if isinstance(cells, frozenset) and all(type(i) is int for c in cells for i in c):
+            new = cells
+        else:
+            new = frozenset((int(i), int(j)) for i, j in cells)
+        old = self._unit_cells.get(unit_id, frozenset())
+        for c in old - new:
+            ids = self._cells[c]
+            ids.discard(unit_id)
+            if not ids:
+                del self._cells[c]
+        for c in new - old:
             self._cells.setdefault(c, set()).add(unit_id)
+        self._unit_cells[unit_id] = new
 
     def remove_unit(self, unit_id: int) -> None:
         for c in self._unit_cells.pop(unit_id, frozenset()):
