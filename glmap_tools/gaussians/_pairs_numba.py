@@ -1,6 +1,7 @@
-"""Numba kernel of `merge.any_mergeable`'s pair search: every pair of two point sets within a
-radius, as `cKDTree.sparse_distance_matrix` finds them (squared distance, summed x, y, z,
-<= radius squared), by a dense grid of radius-sized cells over both sets' bounding box.
+"""Numba kernel of `merge`'s pair search between two sets (`any_mergeable`,
+`mergeable_pairs`): every pair within a radius, as `cKDTree.sparse_distance_matrix` finds
+them (squared distance, summed x, y, z, <= radius squared), by a dense grid of
+radius-sized cells over both sets' bounding box.
 """
 
 from __future__ import annotations

@@ -133,10 +133,8 @@ def _candidates_between(a: GaussianSet, b: GaussianSet, radius: float) -> np.nda
     """[K, 2] (ia, ib) with ||mu_a - mu_b|| <= radius, sorted."""
     if len(a) == 0 or len(b) == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    ta = cKDTree(a.means.astype(np.float64))
-    tb = cKDTree(b.means.astype(np.float64))
-    found = ta.sparse_distance_matrix(tb, radius, output_type="ndarray")
-    pairs = np.stack([found["i"], found["j"]], axis=1).astype(np.int64).reshape(-1, 2)
+    ia, ib = _pairs_within(a.means.astype(np.float64), b.means.astype(np.float64), radius)
+    pairs = np.stack([ia, ib], axis=1).reshape(-1, 2)
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
 
 

@@ -39,10 +39,7 @@ def covered_share(
 ) -> float:
     """Share of box (lo, hi) inside box (other_lo, other_hi); boxes [3] min / max in metres,
     each side grown to at least 5 cm (a picture's box is flat)."""
-    lo, hi = _grown(lo, hi)
-    other_lo, other_hi = _grown(other_lo, other_hi)
-    inter = np.clip(np.minimum(hi, other_hi) - np.maximum(lo, other_lo), 0.0, None)
-    return float(np.prod(inter) / np.prod(hi - lo))
+    return float(_covered_shares(*_grown(lo, hi), *_grown(other_lo, other_hi)))
 
 
 def _grown(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -155,34 +155,27 @@ def face_shade(normals: np.ndarray) -> np.ndarray:
     )
 
 
+def _shaded_colours(part: PlacedPart) -> np.ndarray:
+    """[M, 4] RGBA of a part's faces: its colour with the lighting baked per face."""
+    tri = part.vertices[part.faces]  # [M, 3, 3]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+    rgb = np.clip(np.asarray(part.color)[None, :] * face_shade(n)[:, None], 0.0, 1.0)
+    return np.concatenate([rgb, np.ones((len(rgb), 1))], axis=1)
+
+
 def _primitive(parts: list[PlacedPart]) -> pyrender.Primitive:
     """One primitive with per-vertex colours (lighting baked per face) from coloured parts."""
-    positions, colors = [], []
-    for part in parts:
-        tri = part.vertices[part.faces]  # [M, 3, 3]
-        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-        rgb = np.clip(np.asarray(part.color)[None, :] * face_shade(n)[:, None], 0.0, 1.0)
-        rgba = np.concatenate([rgb, np.ones((len(rgb), 1))], axis=1)
-        positions.append(tri.reshape(-1, 3))
-        colors.append(np.repeat(rgba, 3, axis=0))
-    material = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0))
-    return pyrender.Primitive(
-        positions=np.concatenate(positions).astype(np.float32),
-        color_0=np.concatenate(colors).astype(np.float32),
-        material=material,
-    )
+    return _coloured_primitive(parts, [_shaded_colours(part) for part in parts])
 
 
-def _id_primitive(parts: list[PlacedPart], ids: list[int]) -> pyrender.Primitive:
-    """One primitive of the same triangles as `_primitive(parts)`, each vertex coloured with
-    its part's id colour (`id_color(ids[k]) / 255`)."""
-    positions, colors = [], []
-    for part, object_id in zip(parts, ids, strict=True):
-        tri = part.vertices[part.faces]  # [M, 3, 3]
-        rgba = np.array([*id_color(object_id), 255]) / 255.0
-        positions.append(tri.reshape(-1, 3))
-        colors.append(np.broadcast_to(rgba, (3 * len(tri), 4)))
+def _coloured_primitive(
+    parts: list[PlacedPart], face_colours: list[np.ndarray]
+) -> pyrender.Primitive:
+    """One primitive of the parts' triangles, in order, each vertex coloured with its face's
+    RGBA (`face_colours[k]`: [M_k, 4] for part k's M_k faces)."""
+    positions = [part.vertices[part.faces].reshape(-1, 3) for part in parts]
+    colors = [np.repeat(rgba, 3, axis=0) for rgba in face_colours]
     return pyrender.Primitive(
         positions=np.concatenate(positions).astype(np.float32),
         color_0=np.concatenate(colors).astype(np.float32),
@@ -214,7 +207,11 @@ class SceneRenderer:
                for _ in parts] + [0] * len(shell)  # fmt: skip
         self._color_mesh = pyrender.Mesh([_primitive(merged)])
         self.scene.add(self._color_mesh, name="color")
-        self._id_mesh = pyrender.Mesh([_id_primitive(merged, ids)])
+        id_rgba = [
+            np.broadcast_to(np.array([*id_color(i), 255]) / 255.0, (len(part.faces), 4))
+            for part, i in zip(merged, ids, strict=True)
+        ]  # each part's faces in its object's id colour
+        self._id_mesh = pyrender.Mesh([_coloured_primitive(merged, id_rgba)])
         self.seg_node_map[self.scene.add(self._id_mesh, name="ids")] = (255, 255, 255)
         k = self.intrinsics
         # pyrender puts pixel centres at +0.5 where OpenCV intrinsics put them at integers.
