@@ -49,6 +49,69 @@ def random_plannable(seed: int, h: int, w: int) -> np.ndarray:
     return ok
 
 
+def _scikit_fmm_geodesic(
+    trav: np.ndarray, goal: tuple[int, int], cell: float, speed: np.ndarray, band: float
+) -> np.ndarray:
+    """`geodesic` through scikit-fmm's `travel_time` (what the planner marched with before
+    its own marcher, and what every recorded episode and table was measured with)."""
+    skfmm = pytest.importorskip("skfmm")
+    mask = ~trav
+    mask[goal] = False
+    phi = np.ones(trav.shape)
+    phi[goal] = -1.0
+    f = np.where(mask | ~(speed > 0), 1.0, speed)
+    t = skfmm.travel_time(np.ma.MaskedArray(phi, mask), f, dx=cell, narrow=band)
+    out = np.ma.getdata(t).astype(np.float64) + 0.5 * cell / float(f[goal])
+    out[np.ma.getmaskarray(t)] = np.inf
+    out[goal] = 0.0
+    return out
+
+
+def random_march(seed: int) -> tuple[np.ndarray, tuple[int, int], float, np.ndarray, float]:
+    """A random march: obstacles (rectangles and scattered cells), a speed field (uniform,
+    so times tie, or varied as the clearance cost varies it), a source (borders included),
+    a cell size and a band (0: the whole grid)."""
+    rng = np.random.default_rng(seed)
+    h, w = int(rng.integers(1, 70)), int(rng.integers(1, 70))
+    trav = rng.random((h, w)) > rng.uniform(0.0, 0.3)
+    for _ in range(int(rng.integers(0, 6))):
+        r, c = int(rng.integers(0, h)), int(rng.integers(0, w))
+        trav[r : r + int(rng.integers(1, 15)), c : c + int(rng.integers(1, 15))] = False
+    kind = seed % 3
+    if kind == 0:
+        speed = np.full((h, w), float(rng.uniform(0.2, 2.0)))
+    elif kind == 1:
+        speed = rng.uniform(0.05, 1.0, (h, w))
+    else:  # smooth, as 1 / clearance cost
+        rows, cols = np.mgrid[0:h, 0:w]
+        speed = 0.6 + 0.4 * np.sin(rows / 4.0 + rng.uniform(0, 6)) * np.cos(cols / 5.0)
+    speed = np.where(trav, speed, 0.0)
+    goal = (int(rng.integers(0, h)), int(rng.integers(0, w)))
+    cell = float(rng.choice([0.05, 0.1, 0.25, 1.0]))
+    band = 0.0 if seed % 2 else float(rng.uniform(0.0, 0.5 * (h + w) * cell))
+    return trav, goal, cell, speed, band
+
+
+@pytest.mark.parametrize("block", range(4))
+def test_the_marcher_gives_scikit_fmms_travel_times_bit_for_bit(block: int) -> None:
+    """Every time and every unreached cell of `geodesic` equals scikit-fmm's `travel_time`
+    on 150 random marches a block: blocked cells, tied times, bands, sources at borders."""
+    marched = 0
+    for seed in range(150 * block, 150 * (block + 1)):
+        trav, goal, cell, speed, band = random_march(seed)
+        field = geodesic(trav, goal, cell, speed, band if band > 0 else None)
+        mask = ~trav
+        mask[goal] = False
+        h, w = trav.shape
+        sides = [(goal[0] + dr, goal[1] + dc) for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1))]
+        if not any(0 <= r < h and 0 <= c < w and not mask[r, c] for r, c in sides):
+            continue  # fenced in: geodesic answers without a march
+        marched += 1
+        expected = _scikit_fmm_geodesic(trav, goal, cell, speed, max(band, 1e-9) if band else 0.0)
+        np.testing.assert_array_equal(field, expected, err_msg=f"seed {seed}")
+    assert marched > 100
+
+
 @pytest.mark.parametrize(("seed", "h", "w"), [(0, 40, 40), (1, 60, 90), (2, 80, 50)])
 def test_fmm_geodesic_agrees_with_dijkstra_within_the_stated_tolerance(
     seed: int, h: int, w: int

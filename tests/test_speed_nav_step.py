@@ -11,7 +11,7 @@ from glmap_tools.gaussians.config import EstimatorConfig
 from glmap_tools.gaussians.merge import any_mergeable, mergeable_pairs
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.map.structure import _distinct_chunks, _row_order
-from glmap_tools.nav.planner import geodesic, pool_any, pool_max
+from glmap_tools.nav.planner import pool_any, pool_max
 
 
 def test_cached_bounds_are_the_means_extremes_and_callers_cannot_spoil_them() -> None:
@@ -135,24 +135,3 @@ def test_block_pooling_by_strided_slices_is_the_block_reduction(shape, stride) -
     np.testing.assert_array_equal(pool_max(values, stride), blocks.max(axis=(1, 3)))
     blocks = np.pad(mask, pad).reshape(hb, stride, wb, stride)
     np.testing.assert_array_equal(pool_any(mask, stride), blocks.any(axis=(1, 3)))
-
-
-def test_geodesic_reads_the_marcher_output_as_before() -> None:
-    import skfmm
-
-    rng = np.random.default_rng(5)
-    trav = rng.random((40, 50)) > 0.25
-    trav[:, 25] = False  # a wall: the far side stays unreachable (masked by skfmm)
-    speed = np.where(trav, rng.uniform(0.2, 1.0, trav.shape), 0.0)
-    goal = (20, 10)
-    trav[goal] = True
-    mask = ~trav
-    phi = np.ones(trav.shape)
-    phi[goal] = -1.0
-    f = np.where(mask | ~(speed > 0), 1.0, speed)
-    dist = skfmm.travel_time(np.ma.MaskedArray(phi, mask), f, dx=0.05)
-    expected = np.ma.filled(dist, np.inf).astype(np.float64) + 0.5 * 0.05 / float(f[goal])
-    expected[goal] = 0.0
-    out = geodesic(trav, goal, 0.05, speed)
-    np.testing.assert_array_equal(out, expected)
-    assert np.isinf(out[:, 26:]).all()

@@ -13,7 +13,7 @@ if TYPE_CHECKING:
     from glmap_tools.map import GLMap
     from glmap_tools.nav.scorers import ClientScores
 
-# Imports inside functions stay there: gaussians, language.embed, scipy, skfmm load on first use:
+# Imports inside functions stay there: gaussians, language.embed, scipy, numba load on first use:
 # the tools load before these do, in the server and the in-process toolset alike.
 
 

@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from glmap_tools.app.session import Session
     from glmap_tools.language.embed import Embedder
 
-# Imports inside functions stay there: gaussians, language.embed, scipy, skfmm load on first use:
+# Imports inside functions stay there: gaussians, language.embed, scipy, numba load on first use:
 # build_server stays light (test_server_startup): the server loads them in the background or on
 # first use; the tools load before these do, in the server and the in-process toolset alike.
 

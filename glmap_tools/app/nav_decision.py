@@ -17,7 +17,7 @@ from glmap_tools.errors import InvalidInputError
 if TYPE_CHECKING:
     from glmap_tools.nav import NavConfig, NavDecision
 
-# Imports inside functions stay there: language.embed, scipy, skfmm load on first use: the tools
+# Imports inside functions stay there: language.embed, scipy, numba load on first use: the tools
 # load before these do, in the server and the in-process toolset alike.
 
 

@@ -10,7 +10,7 @@ if TYPE_CHECKING:
     from glmap_tools.nav.perceive import TextVectors
     from glmap_tools.nav.scorers import ClientScores
 
-# Imports inside functions stay there: gaussians, language.embed, scipy, skfmm load on first use:
+# Imports inside functions stay there: gaussians, language.embed, scipy, numba load on first use:
 # build_server stays light (test_server_startup): the server loads them in the background or on
 # first use; the tools load before these do, in the server and the in-process toolset alike.
 

@@ -31,7 +31,7 @@ if TYPE_CHECKING:
     from glmap_tools.nav import GoalMatch, NavConfig, Scorer
     from glmap_tools.nav.approach import Approach
 
-# Imports inside functions stay there: gaussians, language.embed, scipy, skfmm load on first use:
+# Imports inside functions stay there: gaussians, language.embed, scipy, numba load on first use:
 # build_server stays light (test_server_startup): the server loads them in the background or on
 # first use; the tools load before these do, in the server and the in-process toolset alike.
 

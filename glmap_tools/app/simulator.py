@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from glmap_tools.worlds.scene_dirs import BenchEpisode, SceneDirs
 
 # Imports inside functions stay there: cv2, gaussians, gymnasium, language.embed, numba, pyrender,
-# scipy, sim.episodes, skfmm, trimesh, worlds.scene_dirs load on first use: build_server stays light
+# scipy, sim.episodes, numba, trimesh, worlds.scene_dirs load on first use: build_server stays light
 # (test_server_startup): the server loads them in the background or on first use; the tools load
 # before these do, in the server and the in-process toolset alike.
 

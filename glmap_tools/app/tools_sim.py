@@ -17,7 +17,7 @@ from glmap_tools.app.sim_results import SimResult, sampling_report
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.language.backends import make_scorer
 
-# Imports inside functions stay there: language.embed, scipy, skfmm load on first use: the tools
+# Imports inside functions stay there: language.embed, scipy, numba load on first use: the tools
 # load before these do, in the server and the in-process toolset alike.
 
 Action = Literal["move_forward", "turn_left", "turn_right", "stop"]

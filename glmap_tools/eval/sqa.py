@@ -37,7 +37,7 @@ from glmap_tools.eval.sqa_table import reading_ok, summarize, summarize_forms
 from glmap_tools.orphans import exit_with_parent
 
 # Imports inside functions stay there: cv2, gaussians, gymnasium, language.embed, numba, pyrender,
-# scipy, sim.episodes, skfmm, tqdm, trimesh, worlds.scene_dirs load on first use: `glmap` imports
+# scipy, sim.episodes, numba, tqdm, trimesh, worlds.scene_dirs load on first use: `glmap` imports
 # every command module to build its parser.
 
 SQA_AGENTS = ("glmap", "gt-pose", "random-pose", "text-only")

@@ -24,7 +24,7 @@ from typing import Any
 
 from glmap_tools.errors import InvalidInputError, did_you_mean
 
-# Imports inside functions stay there: gaussians, language.embed, scipy, skfmm load on first use:
+# Imports inside functions stay there: gaussians, language.embed, scipy, numba load on first use:
 # `glmap-mcp` answers the handshake before they load (the launch path); build_server stays light
 # (test_server_startup): the server loads them in the background or on first use.
 

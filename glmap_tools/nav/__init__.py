@@ -1,7 +1,7 @@
 """Navigation with a GLMap (paper 3.2): frontiers, the Eq. 7 value map, the waypoint rule,
 an FMM planner with its discrete next action, goal scorers f_S and the per-step policies.
 
-Pure numpy/scipy/scikit-fmm: no MCP, no model library (scorers receive an embedder).
+Pure numpy/scipy/numba: no MCP, no model library (scorers receive an embedder).
 """
 
 from glmap_tools.nav.config import ACTIONS, POLICIES, STOP_THRESHOLDS, NavConfig

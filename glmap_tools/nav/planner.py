@@ -1,9 +1,10 @@
-"""FMM geodesic distance (scikit-fmm), path by descent, and the next discrete action.
+"""FMM geodesic distance, path by descent, and the next discrete action.
 
 `geodesic` solves the eikonal equation |grad T| = 1 from a source cell over the plannable
-cells (isotropic, second order). `reference_geodesic` is Dijkstra on the 8-connected grid
-(scipy.sparse.csgraph): it can only move in 8 directions, so it overestimates a straight
-line at angle a from an axis by (cos a + (sqrt 2 - 1) sin a), at most 8.24 % at 22.5 deg.
+cells (isotropic, second order; `_fmm_numba`, scikit-fmm's `travel_time` to the bit).
+`reference_geodesic` is Dijkstra on the 8-connected grid (scipy.sparse.csgraph): it can
+only move in 8 directions, so it overestimates a straight line at angle a from an axis by
+(cos a + (sqrt 2 - 1) sin a), at most 8.24 % at 22.5 deg.
 """
 
 from __future__ import annotations
@@ -12,7 +13,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import skfmm
 from scipy import sparse
 from scipy.sparse import csgraph
 
@@ -46,7 +46,7 @@ def geodesic(
         cell_size: metres.
         speed: [H, W] > 0 on `trav` (1 / cost per metre, `nav.motion.masks`); None = 1
             everywhere, so the cost is metres.
-        band: stop the march past this cost (skfmm's `narrow`): every cell costing less
+        band: stop the march past this cost (scikit-fmm's `narrow`): every cell costing less
             holds the whole march's value (FMM settles cells in increasing cost, each from
             cells settled before it), costlier ones may be inf. None: the whole grid.
     """
@@ -58,18 +58,17 @@ def geodesic(
         out = np.full(trav.shape, np.inf)
         out[goal_rc] = 0.0
         return out
-    phi = np.ones(trav.shape)
-    phi[goal_rc] = -1.0
-    if speed is None:
-        dist = skfmm.distance(np.ma.MaskedArray(phi, mask), dx=cell_size, narrow=narrow)
-        source_speed = 1.0
-    else:
-        f = np.where(mask | ~(speed > 0), 1.0, speed)
-        dist = skfmm.travel_time(np.ma.MaskedArray(phi, mask), f, dx=cell_size, narrow=narrow)
-        source_speed = float(f[goal_rc])
-    # The zero level set lies half a cell around the source centre; masked cells: inf.
-    out = np.ma.getdata(dist).astype(np.float64, copy=False) + 0.5 * cell_size / source_speed
-    out[np.ma.getmaskarray(dist)] = np.inf
+    from glmap_tools.nav._fmm_numba import travel_time_from  # numba loads on first use
+
+    f = np.ones(trav.shape) if speed is None else np.where(mask | ~(speed > 0), 1.0, speed)
+    source_speed = float(f[goal_rc])
+    h, w = mask.shape
+    out = travel_time_from(
+        np.ascontiguousarray(mask), np.ascontiguousarray(f, dtype=np.float64), int(goal_rc[0]) % h,
+        int(goal_rc[1]) % w, float(cell_size), narrow,
+    )  # fmt: skip
+    # The zero level set lies half a cell around the source centre; unsettled cells: inf.
+    out += 0.5 * cell_size / source_speed
     out[goal_rc] = 0.0
     return out
 

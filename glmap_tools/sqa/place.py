@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
     from glmap_tools.nav.scorers import UnitText
 
-# Imports inside functions stay there: language.embed, scipy, skfmm load on first use.
+# Imports inside functions stay there: language.embed, scipy, numba load on first use.
 
 STAND_REACH = 0.6  # m from the anchor's cells: where one stands at it ...
 STAND_RADIUS = 1.2  # ... or, when nothing is free that close, at most this far

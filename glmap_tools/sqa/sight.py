@@ -30,7 +30,7 @@ if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
     from glmap_tools.map.occupancy import DenseOccupancy
 
-# Imports inside functions stay there: language.embed, scipy, skfmm load on first use.
+# Imports inside functions stay there: language.embed, scipy, numba load on first use.
 
 SEEN_MIN = 0.05  # share of the stand band: below it, a wall stands between the pair
 OWN_MARGIN = 2  # cells: an object's own cells, grown by this, never hide it

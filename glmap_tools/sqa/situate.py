@@ -64,7 +64,7 @@ if TYPE_CHECKING:
     from glmap_tools.nav.scorers import Scorer, UnitText
     from glmap_tools.nav.value import ValueMap
 
-# Imports inside functions stay there: language.embed, scipy, skfmm load on first use.
+# Imports inside functions stay there: language.embed, scipy, numba load on first use.
 
 SIGMA = 0.5  # m: Eq. 7 bandwidth, the nav default (about a person's reach)
 MIN_SCORE = 0.15  # best p below this on both maps: the text matches nothing

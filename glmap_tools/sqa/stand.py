@@ -40,7 +40,7 @@ from glmap_tools.map.occupancy import FREE
 if TYPE_CHECKING:
     from glmap_tools.map.glmap import GLMap
 
-# Imports inside functions stay there: language.embed, scipy, skfmm load on first use.
+# Imports inside functions stay there: language.embed, scipy, numba load on first use.
 
 BAND = (0.3, 1.0)  # m from the footprint: a step away from the object, within reach
 BACK_STRIP = 0.4  # m beyond a face: where a wall or other furniture shows up

@@ -12,7 +12,7 @@ from pathlib import Path
 from glmap_tools.errors import InvalidInputError
 
 # Imports inside functions stay there: cv2, gaussians, gymnasium, language.embed, numba, pyrender,
-# scipy, sim.episodes, skfmm, trimesh load on first use: `glmap` imports every command module to
+# scipy, sim.episodes, numba, trimesh load on first use: `glmap` imports every command module to
 # build its parser.
 
 

@@ -70,7 +70,7 @@ if TYPE_CHECKING:  # importing env pulls in the renderer
     from glmap_tools.sim.env import NavEnv
     from glmap_tools.sim.render import CameraSpec
 
-# Imports inside functions stay there: cv2, gaussians, language.embed, pyrender, skfmm load on first
+# Imports inside functions stay there: cv2, gaussians, language.embed, pyrender, numba load on first
 # use.
 
 SPLITS = BUILT_IN_SPLITS  # ("tune", "bench", "house-tune", "house-bench")
