@@ -78,20 +78,27 @@ def _solve(r, c, skip_axes, t, inv_speed2, sr, sc, k):  # pragma: no cover - num
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _arrival(r, c, t, inv_speed2, sr, sc, k):  # pragma: no cover - numba
     """The cell's time from its settled neighbours; with a negative discriminant, the
-    smaller of the one-axis solutions (each of which, failing, solves with no axis)."""
+    smaller of the one-axis solutions (each of which, failing, solves with no axis). One
+    `_solve` in the loop, not four: this is inlined where it is called."""
     solved, v = _solve(r, c, 0, t, inv_speed2, sr, sc, k)
     if solved:
         return v
     best = 0.0
     for skip in (1, 2):
-        solved, v = _solve(r, c, skip, t, inv_speed2, sr, sc, k)
-        if not solved:
-            solved, v = _solve(r, c, 3, t, inv_speed2, sr, sc, k)
-            if not solved:
-                v = np.inf
+        v = np.inf
+        for axes in (skip, 3):
+            solved, x = _solve(r, c, axes, t, inv_speed2, sr, sc, k)
+            if solved:
+                v = x
+                break
         if skip == 1 or v < best:
             best = v
     return best
+
+
+# `_arrival` called, not inlined, where cells are rare (the first narrow band, the cell beyond
+# a settled neighbour): fewer inlined copies compile faster.
+_arrival_called = numba.njit(cache=True, nogil=True, error_model="numpy")(_arrival.py_func)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -221,7 +228,7 @@ def travel_time_from(  # pragma: no cover - numba
                 or flag[r, c + 1] == SETTLED
             ):
                 flag[r, c] = NARROW
-                keys[size] = _arrival(r, c, t, inv_speed2, sr, sc, k)
+                keys[size] = _arrival_called(r, c, t, inv_speed2, sr, sc, k)
                 row_of[n_entries] = r
                 col_of[n_entries] = c
                 entries[size] = n_entries
@@ -259,13 +266,13 @@ def travel_time_from(  # pragma: no cover - numba
                     r1 = r + step * dr
                     c1 = c + step * dc
                     state = flag[r1, c1]
-                    if state == NARROW:
+                    if state < SETTLED:  # far or narrow
                         v = _arrival(r1, c1, t, inv_speed2, sr, sc, k)
-                        if v != 0:
+                        if v == 0:
+                            continue
+                        if state == NARROW:
                             _update(keys, entries, slot_of, size, entry_of[r1, c1], v)
-                    elif state == FAR:
-                        v = _arrival(r1, c1, t, inv_speed2, sr, sc, k)
-                        if v != 0:
+                        else:
                             flag[r1, c1] = NARROW
                             keys[size] = v
                             row_of[n_entries] = r1
@@ -280,7 +287,7 @@ def travel_time_from(  # pragma: no cover - numba
                         r2 = r1 + step * dr  # this cell completes
                         c2 = c1 + step * dc
                         if flag[r2, c2] == NARROW:
-                            v = _arrival(r2, c2, t, inv_speed2, sr, sc, k)
+                            v = _arrival_called(r2, c2, t, inv_speed2, sr, sc, k)
                             if v != 0:
                                 _update(keys, entries, slot_of, size, entry_of[r2, c2], v)
     return t[PAD : PAD + h, PAD : PAD + w].copy()
