@@ -156,6 +156,21 @@ def _update(keys, entries, slot_of, size, entry, value):  # pragma: no cover - n
     _rise(keys, entries, slot_of, 0, pos)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _push(keys, entries, slot_of, size, cells, n_entries, r, c, value):  # pragma: no cover
+    """Push cell (r, c) with key `value` as heap entry `n_entries`; cells: (row_of, col_of,
+    entry_of). Returns the heap's new size and the next entry."""
+    row_of, col_of, entry_of = cells
+    keys[size] = value
+    row_of[n_entries] = r
+    col_of[n_entries] = c
+    entries[size] = n_entries
+    slot_of[n_entries] = size
+    entry_of[r, c] = n_entries
+    _rise(keys, entries, slot_of, 0, size)
+    return size + 1, n_entries + 1
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def travel_time_from(  # pragma: no cover - numba
     blocked: np.ndarray,
@@ -213,6 +228,7 @@ def travel_time_from(  # pragma: no cover - numba
     row_of = np.empty(capacity, np.int64)
     col_of = np.empty(capacity, np.int64)
     entry_of = np.empty(flag.shape, np.int64)
+    cells = (row_of, col_of, entry_of)
     n_entries = 0
     size = 0
     # The first narrow band: cells next to a settled one, in address order (all lie within
@@ -228,15 +244,8 @@ def travel_time_from(  # pragma: no cover - numba
                 or flag[r, c + 1] == SETTLED
             ):
                 flag[r, c] = NARROW
-                keys[size] = _arrival_called(r, c, t, inv_speed2, sr, sc, k)
-                row_of[n_entries] = r
-                col_of[n_entries] = c
-                entries[size] = n_entries
-                slot_of[n_entries] = size
-                entry_of[r, c] = n_entries
-                n_entries += 1
-                size += 1
-                _rise(keys, entries, slot_of, 0, size - 1)
+                v = _arrival_called(r, c, t, inv_speed2, sr, sc, k)
+                size, n_entries = _push(keys, entries, slot_of, size, cells, n_entries, r, c, v)
     batch = np.empty(capacity, np.int64)
     while size > 0:
         value = keys[0]
@@ -274,15 +283,9 @@ def travel_time_from(  # pragma: no cover - numba
                             _update(keys, entries, slot_of, size, entry_of[r1, c1], v)
                         else:
                             flag[r1, c1] = NARROW
-                            keys[size] = v
-                            row_of[n_entries] = r1
-                            col_of[n_entries] = c1
-                            entries[size] = n_entries
-                            slot_of[n_entries] = size
-                            entry_of[r1, c1] = n_entries
-                            n_entries += 1
-                            size += 1
-                            _rise(keys, entries, slot_of, 0, size - 1)
+                            size, n_entries = _push(
+                                keys, entries, slot_of, size, cells, n_entries, r1, c1, v
+                            )
                     elif state == SETTLED:  # the cell beyond, whose second-order stencil
                         r2 = r1 + step * dr  # this cell completes
                         c2 = c1 + step * dc
