@@ -135,3 +135,24 @@ def test_block_pooling_by_strided_slices_is_the_block_reduction(shape, stride) -
     np.testing.assert_array_equal(pool_max(values, stride), blocks.max(axis=(1, 3)))
     blocks = np.pad(mask, pad).reshape(hb, stride, wb, stride)
     np.testing.assert_array_equal(pool_any(mask, stride), blocks.any(axis=(1, 3)))
+
+
+def test_the_structure_layers_count_is_its_chunks_count_after_every_update() -> None:
+    """`len(StructureLayer)` is kept by `apply`; it stays the sum over the chunks as frames
+    add voxels, re-observe them and replace chunks."""
+    from glmap_tools.map.structure import StructureLayer
+
+    rng = np.random.default_rng(11)
+    layer = StructureLayer(0.05)
+    for _ in range(25):
+        n = int(rng.integers(1, 400))
+        means = rng.uniform(-1.5, 1.5, (n, 3)).astype(np.float32)
+        g = GaussianSet(
+            means,
+            np.tile(np.eye(3, dtype=np.float32) * 1e-4, (n, 1, 1)),
+            rng.uniform(0, 1, (n, 3)).astype(np.float32),
+            np.full(n, 0.8, np.float32),
+            rng.integers(1, 50, n).astype(np.uint32),
+        )
+        layer.apply(layer.compute_update(g))
+        assert len(layer) == sum(len(c) for c in layer.chunks.values()) == len(layer.means())

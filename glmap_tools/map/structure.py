@@ -92,9 +92,10 @@ class StructureLayer:
         self.chunks: dict[ChunkKey, StructureChunk] = {}
         self._all: GaussianSet | None = None
         self._means: np.ndarray | None = None
+        self._count = 0  # Gaussians in all chunks, kept by `apply` (a house has ~1000 chunks)
 
     def __len__(self) -> int:
-        return sum(len(c) for c in self.chunks.values())
+        return self._count
 
     def gaussians(self) -> GaussianSet:
         """Every structure Gaussian in one set (chunks in key order), cached until `apply`."""
@@ -189,6 +190,9 @@ class StructureLayer:
     def apply(self, chunks: dict[ChunkKey, StructureChunk]) -> None:
         """Make chunks from `compute_update` (or a loaded store) current."""
         if chunks:
+            for key, chunk in chunks.items():
+                stored = self.chunks.get(key)
+                self._count += len(chunk) - (0 if stored is None else len(stored))
             self.chunks.update(chunks)
             self._all = None
             self._means = None
