@@ -302,9 +302,9 @@ def test_the_layer_warm_up_compiles_what_a_frame_update_calls():
     from glmap_tools.language.embed import HashingEmbedder
     from glmap_tools.map import GLMap, MapConfig
     from glmap_tools.map._occupancy_numba import mark_cells
-    from glmap_tools.map._structure_numba import merge_voxels
+    from glmap_tools.map._structure_numba import chunk_runs, frame_rows, merge_chunk, row_order
 
-    kernels = (mark_cells, merge_voxels, combine_groups)
+    kernels = (mark_cells, frame_rows, row_order, chunk_runs, merge_chunk, combine_groups)
     warm_layer_kernels()
     warmed = [list(k.signatures) for k in kernels]
     boxes = synthetic.floor(2.0) + synthetic.chair(0.0, 0.0, object_id=1)

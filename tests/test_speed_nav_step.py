@@ -1,5 +1,5 @@
 """Shortcuts of the agent's step that must not change a bit: cached Gaussian bounds, the
-structure update's chunk set and row order, any_mergeable's early exit and grid pair search,
+structure update's row order, any_mergeable's early exit and grid pair search,
 the index grid's cell replacement, block pooling."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pytest
 from glmap_tools.gaussians.config import EstimatorConfig
 from glmap_tools.gaussians.merge import any_mergeable, mergeable_pairs
 from glmap_tools.gaussians.types import GaussianSet
-from glmap_tools.map.structure import _distinct_chunks, _row_order
+from glmap_tools.map.structure import _row_order
 from glmap_tools.nav.planner import pool_any, pool_max
 
 
@@ -26,14 +26,6 @@ def test_cached_bounds_are_the_means_extremes_and_callers_cannot_spoil_them() ->
     np.testing.assert_array_equal(hi, g.means.max(axis=0))
     lo -= 1.0  # a caller widening its copy
     np.testing.assert_array_equal(g.bounds()[0], g.means.min(axis=0))
-
-
-def test_the_touched_chunks_are_the_distinct_chunk_rows() -> None:
-    rng = np.random.default_rng(2)
-    for n, low in ((0, 0), (1, -3), (500, -40), (5000, 7)):
-        chunks = rng.integers(low, low + 30, (n, 2))
-        expected = {(int(i), int(j)) for i, j in chunks.tolist()}
-        assert _distinct_chunks(chunks) == expected
 
 
 def test_replacing_a_units_cells_by_their_difference_leaves_the_grid_a_fresh_one_would_be():

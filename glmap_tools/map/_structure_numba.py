@@ -1,12 +1,11 @@
-"""Numba kernel of `StructureLayer.compute_update`: one merge pass over the stored voxels of
-the touched chunks and the frame's new ones, both in (chunk, voxel key) order.
+"""Numba kernels of `StructureLayer.compute_update`: the frame's (chunk, voxel key) rows and
+their order, then one merge pass per touched chunk over its stored voxels and the frame's.
 
 A voxel the frame saw is the count-weighted combination of its stored Gaussian (first) and
 the frame's Gaussians there (in the frame's order), computed as `merge.combine` computes
-it, to the bit: its sums are numpy's `add.reduceat` over the members, i.e. the first
-member plus numpy's pairwise sum of the rest (`_combine_numba`'s sums, inlined into this
-kernel: numba's cache of it holds them, so it is recompiled when this file changes, not
-when that one does). Stored voxels the frame did not see pass through unchanged.
+it, to the bit (`_combine_numba.combine_into`: numpy's `add.reduceat` sums). Stored voxels
+the frame did not see pass through unchanged. Each chunk's arrays are written once, at
+their final size: a counting pass first, then the merge.
 """
 
 from __future__ import annotations
@@ -17,92 +16,198 @@ import numpy as np
 from glmap_tools.gaussians._combine_numba import MAX_MEMBERS, combine_into, combine_scratch
 from glmap_tools.gaussians._int64 import ZERO
 
-
-@numba.njit(cache=True, nogil=True)
-def _key_less(a: np.ndarray, i: int, b: np.ndarray, j: int) -> bool:  # pragma: no cover
-    """Row a[i] < row b[j], lexicographically ([N, 5] rows: chunk i, chunk j, key)."""
-    for c in range(5):
-        if a[i, c] != b[j, c]:
-            return a[i, c] < b[j, c]
-    return False
+KEY_LIMIT = 1 << 62  # a mixed-radix row key must stay below this (int64)
 
 
 @numba.njit(cache=True, nogil=True)
-def _key_equal(a: np.ndarray, i: int, b: np.ndarray, j: int) -> bool:  # pragma: no cover
-    for c in range(5):  # noqa: SIM110 (a loop numba compiles, not a generator)
-        if a[i, c] != b[j, c]:
-            return False
-    return True
+def frame_rows(means: np.ndarray, voxel: float, chunk: int) -> np.ndarray:  # pragma: no cover
+    """[M, 5] int64 rows (chunk i, chunk j, key x, y, z) of the Gaussians' means [M, 3]:
+    key = floor(mean / voxel) in float64, chunk = key // chunk (floor) for x and y."""
+    rows = np.empty((means.shape[0], 5), np.int64)
+    for r in range(means.shape[0]):
+        for a in range(3):
+            rows[r, 2 + a] = np.int64(np.floor(np.float64(means[r, a]) / voxel))
+        rows[r, 0] = rows[r, 2] // chunk
+        rows[r, 1] = rows[r, 3] // chunk
+    return rows
 
 
 @numba.njit(cache=True, nogil=True)
-def merge_voxels(  # pragma: no cover - numba
-    old_rows: np.ndarray,
-    new_rows: np.ndarray,
-    new_order: np.ndarray,
-    g: tuple,
-    eps: float,
-    out: tuple,
-    out_rows: np.ndarray,
-    chunk_starts: np.ndarray,
-) -> tuple[int, int]:
-    """Merge the stored voxels (rows 0..K-1 of the stacked arrays, `old_rows` their [K, 5]
-    (chunk, key) rows, in order) with the new ones (rows K.., `new_rows` [M, 5], visited in
-    `new_order`, a stable sort). A voxel the frame saw combines its stored rows, then its new
-    ones. g: the stacked Gaussians (means, covs, colors, opacities, counts); out: the same
-    five arrays for the result, `out_rows` [K + M, 5] their (chunk, key) rows.
+def row_order(rows: np.ndarray) -> np.ndarray:  # pragma: no cover - numba
+    """`np.lexsort(rows.T[::-1])` of [K, C] int64 rows (lexicographic, stable), as one
+    stable argsort of a mixed-radix key over the rows' ranges; an empty array for K > 0
+    when that key would reach KEY_LIMIT (the caller sorts another way)."""
+    k, width = rows.shape
+    if k == 0:
+        return np.zeros(0, np.int64)
+    lo = rows[0].copy()
+    hi = rows[0].copy()
+    for r in range(1, k):
+        for c in range(width):
+            lo[c] = min(lo[c], rows[r, c])
+            hi[c] = max(hi[c], rows[r, c])
+    span = hi - lo + 1
+    limit = np.int64(KEY_LIMIT)
+    product = np.int64(1)
+    for c in range(width):
+        if span[c] <= 0 or product > (limit - 1) // span[c]:  # span past int64, or the key
+            return np.zeros(0, np.int64)
+        product *= span[c]
+    key = np.zeros(k, np.int64)
+    for r in range(k):
+        v = np.int64(0)
+        for c in range(width):
+            v = v * span[c] + (rows[r, c] - lo[c])
+        key[r] = v
+    return np.argsort(key, kind="mergesort")
+
+
+@numba.njit(cache=True, nogil=True)
+def chunk_runs(rows: np.ndarray, order: np.ndarray) -> np.ndarray:  # pragma: no cover
+    """Where each chunk's run starts in `order` (rows in (chunk, key) order), then len(order)."""
+    starts = np.empty(order.shape[0] + 1, np.int64)
+    n = 0
+    for p in range(order.shape[0]):
+        r = order[p]
+        if p == 0 or rows[r, 0] != rows[order[p - 1], 0] or rows[r, 1] != rows[order[p - 1], 1]:
+            starts[n] = p
+            n += 1
+    starts[n] = order.shape[0]
+    return starts[: n + 1].copy()
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _compare(keys: np.ndarray, i: int, rows: np.ndarray, r: int) -> int:  # pragma: no cover
+    """-1, 0 or 1 as keys[i] ([K, 3]) is below, equal to or above rows[r, 2:5]."""
+    for c in range(3):
+        if keys[i, c] != rows[r, 2 + c]:
+            return -1 if keys[i, c] < rows[r, 2 + c] else 1
+    return 0
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _same_key(rows: np.ndarray, r: int, s: int) -> bool:  # pragma: no cover - numba
+    return rows[r, 2] == rows[s, 2] and rows[r, 3] == rows[s, 3] and rows[r, 4] == rows[s, 4]
+
+
+@numba.njit(cache=True, nogil=True)
+def merge_chunk(  # pragma: no cover - numba
+    keys: np.ndarray, stored: tuple, rows: np.ndarray, order: np.ndarray, new: tuple, eps: float
+) -> tuple:
+    """One chunk's update: its stored voxels (`keys` [K, 3] in order, `stored` the five arrays
+    of their Gaussians: means, covs, colors, opacities, counts) merged with the frame's
+    Gaussians `new` at rows[order] (this chunk's rows, in (key, frame) order).
 
     Returns:
-        (n, c): n output rows, in order, and c chunks, chunk k starting at output row
-        chunk_starts[k]; n is -1 when the stored rows are out of order, -2 when a voxel
-        gathers more than MAX_MEMBERS Gaussians.
+        (status, keys, means, covs, colors, opacities, counts) of the updated chunk, in key
+        order; status is -1 (and the arrays empty) when the stored keys are out of order,
+        -2 when a voxel gathers more than MAX_MEMBERS Gaussians, else 0.
     """
-    k = old_rows.shape[0]
+    k = keys.shape[0]
+    m = order.shape[0]
+    s_means, s_covs, s_colors, s_opacities, s_counts = stored
+    n_means, n_covs, n_colors, n_opacities, n_counts = new
     for i in range(1, k):
-        if _key_less(old_rows, i, old_rows, i - 1):
-            return -1, 0
-    members = np.empty(MAX_MEMBERS, np.int64)
+        for c in range(3):
+            if keys[i, c] != keys[i - 1, c]:
+                if keys[i, c] < keys[i - 1, c]:
+                    return _failed(-1)
+                break
+    # Counting pass: the output rows, and whether a voxel is crowded.
+    size = ZERO
+    i = ZERO
+    j = ZERO
+    while i < k or j < m:
+        if j == m or (i < k and _compare(keys, i, rows, order[j]) < 0):
+            i += 1
+            size += 1
+            continue
+        first = order[j]
+        members = 0
+        while i < k and _compare(keys, i, rows, first) == 0:
+            members += 1
+            i += 1
+        while j < m and _same_key(rows, order[j], first):
+            members += 1
+            j += 1
+        if members > MAX_MEMBERS:
+            return _failed(-2)
+        size += 1
+    out_keys = np.empty((size, 3), np.int64)
+    out = (
+        np.empty((size, 3), np.float32),
+        np.empty((size, 3, 3), np.float32),
+        np.empty((size, 3), np.float32),
+        np.empty(size, np.float32),
+        np.empty(size, np.uint32),
+    )
+    o_means, o_covs, o_colors, o_opacities, o_counts = out
+    # A voxel's members are gathered into one small set, so `combine_into` reads one set.
+    group = (
+        np.empty((MAX_MEMBERS, 3), np.float32),
+        np.empty((MAX_MEMBERS, 3, 3), np.float32),
+        np.empty((MAX_MEMBERS, 3), np.float32),
+        np.empty(MAX_MEMBERS, np.float32),
+        np.empty(MAX_MEMBERS, np.uint32),
+    )
+    g_means, g_covs, g_colors, g_opacities, g_counts = group
+    in_order = np.arange(MAX_MEMBERS)
     scratch = combine_scratch()
-    means, covs, colors, opacities, counts = g
-    out_means, out_covs, out_colors, out_opacities, out_counts = out
     i = ZERO
     j = ZERO
     o = ZERO
-    c = ZERO
-    m_new = new_order.shape[0]
-    while i < k or j < m_new:
-        stored = j == m_new or (i < k and _key_less(old_rows, i, new_rows, new_order[j]))
-        key_rows, r = (old_rows, i) if stored else (new_rows, new_order[j])
-        for a in range(5):
-            out_rows[o, a] = key_rows[r, a]
-        if o == 0 or out_rows[o, 0] != out_rows[o - 1, 0] or out_rows[o, 1] != out_rows[o - 1, 1]:
-            chunk_starts[c] = o
-            c += 1
-        if stored:
+    while i < k or j < m:
+        if j == m or (i < k and _compare(keys, i, rows, order[j]) < 0):
             for a in range(3):
-                out_means[o, a] = means[i, a]
-                out_colors[o, a] = colors[i, a]
+                out_keys[o, a] = keys[i, a]
+                o_means[o, a] = s_means[i, a]
+                o_colors[o, a] = s_colors[i, a]
                 for b in range(3):
-                    out_covs[o, a, b] = covs[i, a, b]
-            out_opacities[o] = opacities[i]
-            out_counts[o] = counts[i]
+                    o_covs[o, a, b] = s_covs[i, a, b]
+            o_opacities[o] = s_opacities[i]
+            o_counts[o] = s_counts[i]
             i += 1
             o += 1
             continue
-        first = new_order[j]
-        m = 0
-        while i < k and _key_equal(old_rows, i, new_rows, first):
-            if m == MAX_MEMBERS:
-                return -2, 0
-            members[m] = i
-            m += 1
+        first = order[j]
+        for a in range(3):
+            out_keys[o, a] = rows[first, 2 + a]
+        t = 0
+        while i < k and _compare(keys, i, rows, first) == 0:
+            for a in range(3):
+                g_means[t, a] = s_means[i, a]
+                g_colors[t, a] = s_colors[i, a]
+                for b in range(3):
+                    g_covs[t, a, b] = s_covs[i, a, b]
+            g_opacities[t] = s_opacities[i]
+            g_counts[t] = s_counts[i]
+            t += 1
             i += 1
-        while j < m_new and _key_equal(new_rows, new_order[j], new_rows, first):
-            if m == MAX_MEMBERS:
-                return -2, 0
-            members[m] = k + new_order[j]
-            m += 1
+        while j < m and _same_key(rows, order[j], first):
+            r = order[j]
+            for a in range(3):
+                g_means[t, a] = n_means[r, a]
+                g_colors[t, a] = n_colors[r, a]
+                for b in range(3):
+                    g_covs[t, a, b] = n_covs[r, a, b]
+            g_opacities[t] = n_opacities[r]
+            g_counts[t] = n_counts[r]
+            t += 1
             j += 1
-        combine_into(members, m, scratch, g, eps, out, o)
+        combine_into(in_order, t, scratch, group, eps, out, o)
         o += 1
-    return o, c
+    return 0, out_keys, o_means, o_covs, o_colors, o_opacities, o_counts
+
+
+@numba.njit(cache=True, nogil=True)
+def _failed(status: int) -> tuple:  # pragma: no cover - numba
+    """`merge_chunk`'s answer when it cannot merge: the status and empty arrays."""
+    return (
+        status,
+        np.empty((0, 3), np.int64),
+        np.empty((0, 3), np.float32),
+        np.empty((0, 3, 3), np.float32),
+        np.empty((0, 3), np.float32),
+        np.empty(0, np.float32),
+        np.empty(0, np.uint32),
+    )

@@ -17,7 +17,6 @@ frame sees, 1.6 m ones ~4x). It never enters the index grid or any query.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,30 +53,18 @@ def chunk_of_keys(keys: np.ndarray) -> np.ndarray:  # [K, 3] -> [K, 2]
 
 
 def _row_order(rows: np.ndarray) -> np.ndarray:  # [K, C] int64 -> [K]
-    """`np.lexsort(rows.T[::-1])` (rows in lexicographic order, stable), as one stable argsort
-    of a mixed-radix key over the rows' ranges (2x faster), unless that key would overflow."""
-    if len(rows) == 0:
-        return np.zeros(0, np.int64)
-    lo = rows.min(axis=0)
-    span = rows.max(axis=0) - lo + 1
-    if math.prod(int(v) for v in span) >= 1 << 62:
+    """`np.lexsort(rows.T[::-1])`: rows in lexicographic order, stable (one argsort of a
+    mixed-radix key over the rows' ranges, unless that key would overflow)."""
+    from glmap_tools.map._structure_numba import row_order
+
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    order = row_order(rows)
+    if len(order) != len(rows):
         return np.lexsort(rows.T[::-1])
-    key = np.zeros(len(rows), np.int64)
-    for c in range(rows.shape[1]):
-        key = key * span[c] + (rows[:, c] - lo[c])
-    return np.argsort(key, kind="stable")
+    return order
 
 
-def _distinct_chunks(chunks: np.ndarray) -> set[ChunkKey]:  # [K, 2] -> {(ci, cj)}
-    """The distinct rows of `chunks` (a frame spans few chunks: a flag per chunk in their
-    bounding box, no per-row Python)."""
-    if len(chunks) == 0:
-        return set()
-    lo = chunks.min(axis=0)
-    span = chunks.max(axis=0) - lo + 1
-    flat = (chunks[:, 0] - lo[0]) * span[1] + (chunks[:, 1] - lo[1])
-    present = np.flatnonzero(np.bincount(flat, minlength=int(span[0] * span[1])))
-    return {(int(f // span[1] + lo[0]), int(f % span[1] + lo[1])) for f in present}
+_NO_CHUNK = (np.zeros((0, 3), np.int64), GaussianSet.allocate(0))
 
 
 class StructureLayer:
@@ -132,31 +119,24 @@ class StructureLayer:
         """
         if len(fitted) == 0:
             return {}
-        from glmap_tools.map._structure_numba import merge_voxels
+        from glmap_tools.map._structure_numba import chunk_runs, frame_rows, merge_chunk
 
-        new_keys = self.voxel_keys(fitted)
-        new_rows = np.concatenate([chunk_of_keys(new_keys), new_keys], axis=1)
-        touched = sorted(_distinct_chunks(new_rows[:, :2]))
-        old = [self.chunks[c] for c in touched if c in self.chunks]
-        old_keys = np.concatenate([c.keys for c in old]) if old else np.zeros((0, 3), np.int64)
-        old_rows = np.concatenate([chunk_of_keys(old_keys), old_keys], axis=1)
-        stacked = GaussianSet.concat([c.gaussians for c in old] + [fitted])
-        new_order = _row_order(new_rows)  # stable: a voxel's Gaussians in frame order
-        out = GaussianSet.allocate(len(stacked))
-        out_rows = np.empty((len(stacked), 5), np.int64)
-        starts = np.empty(len(stacked), np.int64)
-        args = (stacked.arrays(), COVARIANCE_EPSILON, out.arrays(), out_rows, starts)
-        n, c = merge_voxels(old_rows, new_rows, new_order, *args)
-        if n < 0:  # stored keys out of order or a crowded voxel: never from this layer's fits
-            return self.compute_update_reference(fitted)
-        bounds = np.append(starts[:c], n)
+        rows = frame_rows(fitted.means, self.voxel_size, CHUNK)
+        order = _row_order(rows)  # stable: a voxel's Gaussians in frame order
+        runs = chunk_runs(rows, order).tolist()
+        new = fitted.arrays()
         chunks: dict[ChunkKey, StructureChunk] = {}
-        for start, stop in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
-            part = slice(start, stop)  # each chunk its own arrays, not a view
-            chunks[(int(out_rows[start, 0]), int(out_rows[start, 1]))] = StructureChunk(
-                out_rows[part, 2:].copy(),
-                GaussianSet(*(a[part].copy() for a in out.arrays())),
+        for start, stop in zip(runs[:-1], runs[1:], strict=True):
+            first = int(order[start])
+            key = (int(rows[first, 0]), int(rows[first, 1]))
+            stored = self.chunks.get(key)
+            keys, gaussians = (stored.keys, stored.gaussians) if stored else _NO_CHUNK
+            status, *merged = merge_chunk(
+                keys, gaussians.arrays(), rows, order[start:stop], new, COVARIANCE_EPSILON
             )
+            if status < 0:  # stored keys out of order or a crowded voxel: not from this layer
+                return self.compute_update_reference(fitted)
+            chunks[key] = StructureChunk(merged[0], GaussianSet(*merged[1:]))
         return chunks
 
     def compute_update_reference(self, fitted: GaussianSet) -> dict[ChunkKey, StructureChunk]:
