@@ -1,5 +1,5 @@
 """The stop rule's footprint of a matched instance: its densest cells, not every cell a mask
-that bled over a depth edge gave it."""
+that bled over a depth edge gave it; and the lines of sight to it."""
 
 from __future__ import annotations
 
@@ -11,7 +11,14 @@ from glmap_tools import synthetic as scenes
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, MapConfig
+from glmap_tools.map.occupancy import FREE, OBSTACLE, UNKNOWN, DenseOccupancy
 from glmap_tools.nav import NavConfig
+from glmap_tools.nav.footprint import (
+    ROOM_WALL,
+    ROOM_WALL_TOLERANCE_CELLS,
+    GoalMatch,
+    in_clear_sight,
+)
 from glmap_tools.nav.value import unit_cell_array, unit_core_cells
 
 PLANT = ("plant", "a potted plant")
@@ -70,18 +77,51 @@ def test_a_footprint_core_outside_zero_to_one_is_refused_by_name(share: float) -
         NavConfig(footprint_core=share)
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_the_cells_near_a_unit_are_scipys_dilation_of_the_whole_window(seed: int) -> None:
-    from glmap_tools.nav.footprint import _near_cells
-
-    rng = np.random.default_rng(seed)
-    shape = (int(rng.integers(3, 50)), int(rng.integers(3, 50)))
-    rc = np.unique(rng.integers(0, shape, size=(int(rng.integers(1, 12)), 2)), axis=0)
-    if seed % 2:  # a unit at the window's corner
-        rc = np.vstack([rc, [0, 0], [shape[0] - 1, shape[1] - 1]])
-    cells = np.zeros(shape, dtype=bool)
+def _clear_sight_on_the_window(match, occ, points_rc, walls=None, tolerance=2):
+    """in_clear_sight as numpy computes it: masks over the whole window, every sample."""
+    points_rc = np.asarray(points_rc, dtype=np.int64).reshape(-1, 2)
+    h, w = occ.state.shape
+    rc = np.stack([match.cells[:, 1] - occ.origin[1], match.cells[:, 0] - occ.origin[0]], 1)
+    rc = rc[(rc[:, 0] >= 0) & (rc[:, 0] < h) & (rc[:, 1] >= 0) & (rc[:, 1] < w)]
+    if len(rc) == 0 or len(points_rc) == 0:
+        return np.zeros(len(points_rc), dtype=bool)
+    cells = np.zeros((h, w), dtype=bool)
     cells[rc[:, 0], rc[:, 1]] = True
-    assert np.array_equal(_near_cells(rc, shape, 0), cells)
-    for steps in (1, 2, 3):
-        expected = ndimage.binary_dilation(cells, iterations=steps)
-        assert np.array_equal(_near_cells(rc, shape, steps), expected)
+
+    def near(steps: int) -> np.ndarray:
+        return ndimage.binary_dilation(cells, iterations=steps) if steps >= 1 else cells
+
+    near_unit = near(tolerance)
+    blocking = (occ.state == OBSTACLE) & ~near_unit
+    if walls is not None:
+        room = walls >= ROOM_WALL
+        near_room = near(min(tolerance, ROOM_WALL_TOLERANCE_CELLS))
+        blocking = (occ.state == OBSTACLE) & ((walls > 0) & ~near_unit | room & ~near_room)
+    d2 = ((points_rc[:, None, :] - rc[None, :, :]) ** 2).sum(axis=2)
+    ends = rc[np.argmin(d2, axis=1)]
+    n = int(np.ceil(np.sqrt(d2.min(axis=1).max()) * 4)) + 2
+    f = np.linspace(0.0, 1.0, n)[None, :, None]
+    samples = points_rc[:, None, :] + f * (ends - points_rc)[:, None, :]
+    cells_on = np.clip(np.rint(samples).astype(np.int64), 0, [h - 1, w - 1])
+    return ~blocking[cells_on[..., 0], cells_on[..., 1]].any(axis=1)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_clear_sight_answers_as_the_masks_over_the_whole_window(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    for trial in range(400):
+        h, w = (int(v) for v in rng.integers(3, 60, 2))
+        origin = (int(rng.integers(-5, 5)), int(rng.integers(-5, 5)))
+        state = rng.choice([UNKNOWN, FREE, OBSTACLE], (h, w), p=[0.2, 0.6, 0.2]).astype(np.int8)
+        occ = DenseOccupancy(state, origin, 0.05)
+        k = int(rng.integers(1, 15))  # some cells may fall outside the window
+        ij = np.stack([rng.integers(-3, w + 3, k), rng.integers(-3, h + 3, k)], 1) + origin
+        if trial % 7 == 0:  # a unit at the window's corners
+            ij = np.vstack([ij, np.array([[0, 0], [w - 1, h - 1]]) + origin])
+        match = GoalMatch(1, 0.9, 3, ij)
+        points = np.stack([rng.integers(0, h, 30), rng.integers(0, w, 30)], 1)
+        walls = [None, rng.integers(0, 3, (h, w)).astype(np.int8), rng.uniform(size=(h, w)) < 0.3]
+        for tolerance in (-1, 0, 1, 2, 3):
+            for wall in walls:
+                expected = _clear_sight_on_the_window(match, occ, points, wall, tolerance)
+                assert np.array_equal(in_clear_sight(match, occ, points, wall, tolerance), expected)

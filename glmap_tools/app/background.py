@@ -201,11 +201,12 @@ def warm_view_and_sim_kernels() -> None:
 def warm_layer_kernels() -> None:
     """Run the map layers' own kernels once, as a frame's update calls them: the occupancy
     marks, the structure voxels' merge and `merge.combine`; and the walls a navigation step
-    reads from the structure layer and its planner's marcher."""
+    reads from the structure layer, its planner's marcher and its lines of sight."""
     from glmap_tools.gaussians.merge import combine
     from glmap_tools.gaussians.types import GaussianSet
     from glmap_tools.map.occupancy import DenseOccupancy, OccupancyGrid
     from glmap_tools.map.structure import StructureLayer
+    from glmap_tools.nav.footprint import GoalMatch, in_clear_sight
     from glmap_tools.nav.grid import structure_walls_in_bands
     from glmap_tools.nav.planner import geodesic
 
@@ -220,6 +221,7 @@ def warm_layer_kernels() -> None:
     window = DenseOccupancy(np.zeros((4, 4), np.int8), (0, 0), 0.05)
     structure_walls_in_bands(layer.means(), 0.0, [(0.1, 1.5), (1.5, 2.0)], window)
     geodesic(np.ones((4, 4), bool), (1, 1), 0.05, np.full((4, 4), 0.5), band=0.2)
+    in_clear_sight(GoalMatch(1, 1.0, 1, np.array([[2, 2]])), window, np.array([[0, 0]]))
 
 
 def warm_wide_cloud_kernels() -> None:

@@ -76,23 +76,6 @@ WALL, ROOM_WALL = 1, 2  # levels of `nav.perceive.walls_of`: structure, a room's
 ROOM_WALL_TOLERANCE_CELLS = 1
 
 
-def _near_cells(rc: np.ndarray, shape: tuple[int, int], steps: int) -> np.ndarray:
-    """[H, W] bool: the cells within `steps` 4-neighbour moves of the cells `rc` [K, 2]
-    (inside the grid), as `ndimage.binary_dilation(cells, iterations=steps)` for steps >= 1.
-    They all lie in the cells' bounding box grown by `steps`: the dilation runs on that box,
-    not on the whole window."""
-    out = np.zeros(shape, dtype=bool)
-    if steps < 1:
-        out[rc[:, 0], rc[:, 1]] = True
-        return out
-    lo = np.maximum(rc.min(axis=0) - steps, 0)
-    hi = np.minimum(rc.max(axis=0) + steps + 1, shape)
-    box = np.zeros(tuple(hi - lo), dtype=bool)
-    box[rc[:, 0] - lo[0], rc[:, 1] - lo[1]] = True
-    out[lo[0] : hi[0], lo[1] : hi[1]] = ndimage.binary_dilation(box, iterations=steps)
-    return out
-
-
 def in_clear_sight(
     match: GoalMatch,
     occ: DenseOccupancy,
@@ -110,29 +93,31 @@ def in_clear_sight(
     given, limits the blocking cells to obstacles that are structure: furniture (a chair's
     own seat in front of the unit that covers its back) does not hide what stands behind it
     from the success rule, walls do; a room's wall from `ROOM_WALL_TOLERANCE_CELLS` on."""
+    from glmap_tools.nav._sight_numba import clear_sight
+
     points_rc = np.asarray(points_rc, dtype=np.int64).reshape(-1, 2)
     if len(points_rc) == 0:
         return np.zeros(0, dtype=bool)
     h, w = occ.state.shape
-    rc = _cells_to_window(match.cells, occ)
+    rc = _cells_to_window(match.cells, occ).astype(np.int64)
     rc = rc[(rc[:, 0] >= 0) & (rc[:, 0] < h) & (rc[:, 1] >= 0) & (rc[:, 1] < w)]
     if len(rc) == 0:
         return np.zeros(len(points_rc), dtype=bool)
-    near_unit = _near_cells(rc, (h, w), tolerance)
-    blocking = (occ.state == OBSTACLE) & ~near_unit
-    if walls is not None:
-        room = walls >= ROOM_WALL
-        tol = min(tolerance, ROOM_WALL_TOLERANCE_CELLS)
-        near_room = near_unit if tol == tolerance else _near_cells(rc, (h, w), tol)
-        blocking = (occ.state == OBSTACLE) & ((walls > 0) & ~near_unit | room & ~near_room)
-    # The nearest unit cell of each point (Euclidean, in cells).
-    d2 = ((points_rc[:, None, :] - rc[None, :, :]) ** 2).sum(axis=2)
-    ends = rc[np.argmin(d2, axis=1)]
-    n = int(np.ceil(np.sqrt(d2.min(axis=1).max()) * 4)) + 2  # quarter-cell samples
-    f = np.linspace(0.0, 1.0, n)[None, :, None]
-    samples = points_rc[:, None, :] + f * (ends - points_rc)[:, None, :]
-    cells = np.clip(np.rint(samples).astype(np.int64), 0, [h - 1, w - 1])
-    return ~blocking[cells[..., 0], cells[..., 1]].any(axis=1)
+    levels = _NO_WALLS if walls is None else np.ascontiguousarray(walls, dtype=np.int8)
+    return clear_sight(
+        rc,
+        np.ascontiguousarray(points_rc),
+        np.ascontiguousarray(occ.state, dtype=np.int8),
+        levels,
+        walls is not None,
+        int(tolerance),
+        min(int(tolerance), ROOM_WALL_TOLERANCE_CELLS),
+        OBSTACLE,
+        ROOM_WALL,
+    )
+
+
+_NO_WALLS = np.zeros((0, 0), np.int8)
 
 
 def cells_xy(occ: DenseOccupancy, rc: np.ndarray) -> np.ndarray:
