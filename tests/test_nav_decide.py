@@ -11,9 +11,11 @@ from scipy import ndimage
 
 from glmap_tools import synthetic as scenes
 from glmap_tools.errors import InvalidInputError
+from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.language.embed import HashingEmbedder
 from glmap_tools.map import GLMap, MapConfig
 from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
+from glmap_tools.map.structure import StructureLayer
 from glmap_tools.nav import (
     ACTIONS,
     POLICIES,
@@ -30,6 +32,7 @@ from glmap_tools.nav.grid import distance_to_zero, structure_walls, structure_wa
 from glmap_tools.nav.policy import approach
 from glmap_tools.nav.value import unit_cell_array
 from glmap_tools.nav.verify import outvoted
+from glmap_tools.nav.wall_counts import structure_walls_kept
 from glmap_tools.nav.waypoint import _arrival_within_stop
 
 TEXTS = {
@@ -159,6 +162,41 @@ def test_the_walls_kernel_marks_the_cells_plain_numpy_and_scipy_mark(seed: int) 
     got = structure_walls_in_bands(means, floor_z, bands, occ)
     for kernel, plain in zip(got, plain_walls(means, floor_z, bands, occ), strict=True):
         assert np.array_equal(kernel, plain)
+
+
+def test_the_walls_kept_across_steps_are_the_walls_of_every_mean_read_again() -> None:
+    """Counts kept with the layer, updated by the chunks each frame replaced, against every
+    mean read again: windows that move and grow past the counts, a floor that drops, other
+    bands, a chunk that leaves the layer, a second layer."""
+    rng = np.random.default_rng(11)
+    layers = [StructureLayer(0.05), StructureLayer(0.05)]
+    bands = [(0.125, 1.5), (1.5625, 1.9375)]
+    floor_z = 0.0
+    for step in range(40):
+        layer = layers[step % 3 == 2]
+        n = int(rng.integers(1, 300))
+        centre = rng.uniform(-3.0, 3.0, 2) * (1 + step // 10)  # later frames reach farther
+        means = np.column_stack([centre + rng.uniform(-1.0, 1.0, (n, 2)),
+                                 rng.uniform(-0.2, 2.2, n)])  # fmt: skip
+        a = rng.normal(0, 0.01, (n, 3, 3))
+        layer.apply(layer.compute_update(GaussianSet(
+            means, a @ a.transpose(0, 2, 1) + 1e-5 * np.eye(3), rng.uniform(0, 1, (n, 3)),
+            np.full(n, 0.8), rng.integers(1, 9, n),
+        )))  # fmt: skip
+        if step == 25:
+            floor_z = -0.05  # the floor seen lower: the counts start afresh
+        if step == 30:
+            bands = [(0.125, 1.5), (1.5625, 1.9375), (0.0, 0.5)]
+        if step == 33:  # a chunk leaves (a layer rebuilt in place)
+            del layer.chunks[next(iter(layer.chunks))]
+        h, w = (int(v) for v in rng.integers(20, 200, 2))
+        origin = (int(rng.integers(-120, 40)), int(rng.integers(-120, 40)))
+        occ = DenseOccupancy(np.zeros((h, w), np.int8), origin, 0.05)
+        kept = structure_walls_kept(layer, floor_z, bands, occ)
+        again = structure_walls_in_bands(layer.means(), floor_z, bands, occ)
+        for band, (got, want) in enumerate(zip(kept, again, strict=True)):
+            assert np.array_equal(got, want), (step, band)
+    assert all(len(layer.chunks) > 10 for layer in layers)
 
 
 @pytest.mark.parametrize("seed", range(4))

@@ -203,13 +203,17 @@ def structure_walls_in_bands(
     bands: Sequence[tuple[float, float]],
     occ: DenseOccupancy,
 ) -> list[np.ndarray]:
-    """`structure_walls` for each of `bands`, each mean read once (`_walls_numba`)."""
-    from glmap_tools.nav._walls_numba import mark_walls  # numba loads on first use
+    """`structure_walls` for each of `bands`, each mean read once (`_walls_numba`; a
+    navigation's steps keep the counts instead: `nav.wall_counts`)."""
+    from glmap_tools.nav._walls_numba import count_means, grow_counted  # numba: on first use
 
     h, w = occ.state.shape
     out = np.zeros((len(bands), h, w), dtype=bool)
     if len(means):
         limits = np.array(bands, dtype=np.float64).reshape(len(bands), 2)
+        counts = np.zeros((len(bands), h, w), np.int32)
         col0, row0 = int(occ.origin[0]), int(occ.origin[1])
-        mark_walls(means, float(floor_z), limits, float(occ.cell_size), col0, row0, out)
+        ones = np.ones(len(means), np.int32)
+        count_means(means, ones, float(floor_z), limits, float(occ.cell_size), row0, col0, counts)
+        grow_counted(counts, 0, 0, out)
     return list(out)

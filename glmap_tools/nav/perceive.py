@@ -15,11 +15,12 @@ from glmap_tools.map.occupancy import OBSTACLE, DenseOccupancy
 from glmap_tools.nav.config import GOAL_MAX_BOTTOM, GOAL_MIN_SIZE, SCORE_TIE, NavConfig
 from glmap_tools.nav.footprint import ROOM_WALL, GoalMatch, distances_to_cells
 from glmap_tools.nav.frontiers import Frontier, frontiers
-from glmap_tools.nav.grid import agent_rc, known_window, reframe, structure_walls_in_bands
+from glmap_tools.nav.grid import agent_rc, known_window, reframe
 from glmap_tools.nav.motion import bump_cells, clearance, contact_cell, masks
 from glmap_tools.nav.planner import DistanceField, distance_field
 from glmap_tools.nav.scorers import Scorer, UnitText, map_units
 from glmap_tools.nav.value import unit_cell_array, unit_core_cells
+from glmap_tools.nav.wall_counts import structure_walls_kept
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
@@ -368,11 +369,12 @@ def walls_of(glmap: GLMap, occ: DenseOccupancy) -> np.ndarray | None:
     """[H, W] int8 over `occ`: `nav.footprint.WALL` on structure obstacle cells
     (`nav.grid.structure_walls` in the obstacle band), `ROOM_WALL` where structure also
     stands in `ROOM_WALL_BAND`, else 0. None: the map keeps no structure, so every obstacle
-    cell counts as a wall."""
+    cell counts as a wall. The counts behind them are kept with the layer
+    (`nav.wall_counts`)."""
     if len(glmap.structure) == 0 or glmap.floor_z is None:
         return None
     bands = [glmap.config.obstacle_band, ROOM_WALL_BAND]
-    walls, room_walls = structure_walls_in_bands(glmap.structure.means(), glmap.floor_z, bands, occ)
+    walls, room_walls = structure_walls_kept(glmap.structure, glmap.floor_z, bands, occ)
     levels = walls.astype(np.int8)
     levels[room_walls] = ROOM_WALL
     return levels
