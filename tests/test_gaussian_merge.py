@@ -171,6 +171,34 @@ def test_combine_gives_the_numpy_formulas_bits(seed):
     )
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_two_member_combine_gives_the_general_kernels_bits(seed):
+    """`combine_two_into` (the structure layer's re-observed voxel) against `combine_into` of
+    the same two rows: means far from the origin, counts up to 10^9, colours outside [0, 1]
+    and -0.0."""
+    from glmap_tools.gaussians._combine_numba import (
+        combine_into,
+        combine_scratch,
+        combine_two_into,
+    )
+
+    rng = np.random.default_rng(seed)
+    n = 2000
+    g = random_set(2 * n, seed)
+    means = g.means + rng.choice([0.0, 1e3, -5e4], (2 * n, 1))
+    colors = rng.uniform(-0.2, 1.2, (2 * n, 3))
+    colors[::5] = -0.0
+    counts = rng.integers(1, 10 ** rng.integers(1, 10, 2 * n), dtype=np.int64)
+    g = GaussianSet(means, g.covs, colors, g.opacities, counts)
+    general, two = GaussianSet.allocate(n), GaussianSet.allocate(n)
+    scratch = combine_scratch()
+    for k in range(n):
+        pair = g.subset(np.array([2 * k, 2 * k + 1]))
+        combine_into(np.arange(2), 2, scratch, pair.arrays(), 1e-6, general.arrays(), k)
+        combine_two_into(pair.arrays(), 1e-6, two.arrays(), k)
+    assert two.equals(general)
+
+
 def test_combine_refuses_bad_labels_and_zero_counts():
     g = random_set(3, 8)
     with pytest.raises(InvalidInputError, match="groups has shape"):

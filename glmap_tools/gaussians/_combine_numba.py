@@ -107,3 +107,35 @@ def combine_groups(  # pragma: no cover - numba
     for k in range(starts.shape[0] - 1):
         members = order[starts[k] : starts[k + 1]]
         combine_into(members, members.shape[0], scratch, g, eps, out, k)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def combine_two_into(g: tuple, eps: float, out: tuple, o: int) -> None:  # pragma: no cover
+    """`combine_into` of rows 0 and 1 of g (a re-observed voxel: its stored Gaussian and one
+    new), written out with the same expressions in registers: `_reduce` of two terms is
+    v[0] + (-0.0 + v[1])."""
+    means, covs, colors, opacities, counts = g
+    out_means, out_covs, out_colors, out_opacities, out_counts = out
+    w0 = np.float64(counts[0])
+    w1 = np.float64(counts[1])
+    total = w0 + (-0.0 + w1)
+    mu0 = np.empty(3)
+    for d in range(3):
+        mu0[d] = (np.float64(means[0, d]) * w0 + (-0.0 + np.float64(means[1, d]) * w1)) / total
+        out_means[o, d] = np.float32(mu0[d])
+    for a in range(3):
+        da0 = np.float64(means[0, a]) - mu0[a]
+        da1 = np.float64(means[1, a]) - mu0[a]
+        for b in range(3):
+            e = eps if a == b else 0.0
+            db0 = np.float64(means[0, b]) - mu0[b]
+            db1 = np.float64(means[1, b]) - mu0[b]
+            v0 = ((np.float64(covs[0, a, b]) - e) + da0 * db0) * w0
+            v1 = ((np.float64(covs[1, a, b]) - e) + da1 * db1) * w1
+            out_covs[o, a, b] = np.float32((v0 + (-0.0 + v1)) / total + e)
+    for d in range(3):
+        c = (np.float64(colors[0, d]) * w0 + (-0.0 + np.float64(colors[1, d]) * w1)) / total
+        out_colors[o, d] = np.float32(min(max(c, 0.0), 1.0))
+    v0 = np.float64(opacities[0]) * w0
+    out_opacities[o] = np.float32((v0 + (-0.0 + np.float64(opacities[1]) * w1)) / total)
+    out_counts[o] = np.uint32(total)

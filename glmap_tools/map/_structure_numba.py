@@ -13,7 +13,12 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from glmap_tools.gaussians._combine_numba import MAX_MEMBERS, combine_into, combine_scratch
+from glmap_tools.gaussians._combine_numba import (
+    MAX_MEMBERS,
+    combine_into,
+    combine_scratch,
+    combine_two_into,
+)
 from glmap_tools.gaussians._int64 import ZERO
 
 KEY_LIMIT = 1 << 62  # a mixed-radix row key must stay below this (int64)
@@ -194,7 +199,10 @@ def merge_chunk(  # pragma: no cover - numba
             g_counts[t] = n_counts[r]
             t += 1
             j += 1
-        combine_into(in_order, t, scratch, group, eps, out, o)
+        if t == 2:  # the common case: the stored Gaussian and one new
+            combine_two_into(group, eps, out, o)
+        else:
+            combine_into(in_order, t, scratch, group, eps, out, o)
         o += 1
     return 0, out_keys, o_means, o_covs, o_colors, o_opacities, o_counts
 
