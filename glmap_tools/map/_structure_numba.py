@@ -110,8 +110,6 @@ def merge_chunk(  # pragma: no cover - numba
     """
     k = keys.shape[0]
     m = order.shape[0]
-    s_means, s_covs, s_colors, s_opacities, s_counts = stored
-    n_means, n_covs, n_colors, n_opacities, n_counts = new
     for i in range(1, k):
         for c in range(3):
             if keys[i, c] != keys[i - 1, c]:
@@ -139,23 +137,9 @@ def merge_chunk(  # pragma: no cover - numba
             return _failed(-2)
         size += 1
     out_keys = np.empty((size, 3), np.int64)
-    out = (
-        np.empty((size, 3), np.float32),
-        np.empty((size, 3, 3), np.float32),
-        np.empty((size, 3), np.float32),
-        np.empty(size, np.float32),
-        np.empty(size, np.uint32),
-    )
-    o_means, o_covs, o_colors, o_opacities, o_counts = out
+    out = _gaussian_arrays(size)
     # A voxel's members are gathered into one small set, so `combine_into` reads one set.
-    group = (
-        np.empty((MAX_MEMBERS, 3), np.float32),
-        np.empty((MAX_MEMBERS, 3, 3), np.float32),
-        np.empty((MAX_MEMBERS, 3), np.float32),
-        np.empty(MAX_MEMBERS, np.float32),
-        np.empty(MAX_MEMBERS, np.uint32),
-    )
-    g_means, g_covs, g_colors, g_opacities, g_counts = group
+    group = _gaussian_arrays(MAX_MEMBERS)
     in_order = np.arange(MAX_MEMBERS)
     scratch = combine_scratch()
     i = ZERO
@@ -165,12 +149,7 @@ def merge_chunk(  # pragma: no cover - numba
         if j == m or (i < k and _compare(keys, i, rows, order[j]) < 0):
             for a in range(3):
                 out_keys[o, a] = keys[i, a]
-                o_means[o, a] = s_means[i, a]
-                o_colors[o, a] = s_colors[i, a]
-                for b in range(3):
-                    o_covs[o, a, b] = s_covs[i, a, b]
-            o_opacities[o] = s_opacities[i]
-            o_counts[o] = s_counts[i]
+            _copy_row(stored, i, out, o)
             i += 1
             o += 1
             continue
@@ -179,24 +158,11 @@ def merge_chunk(  # pragma: no cover - numba
             out_keys[o, a] = rows[first, 2 + a]
         t = 0
         while i < k and _compare(keys, i, rows, first) == 0:
-            for a in range(3):
-                g_means[t, a] = s_means[i, a]
-                g_colors[t, a] = s_colors[i, a]
-                for b in range(3):
-                    g_covs[t, a, b] = s_covs[i, a, b]
-            g_opacities[t] = s_opacities[i]
-            g_counts[t] = s_counts[i]
+            _copy_row(stored, i, group, t)
             t += 1
             i += 1
         while j < m and _same_key(rows, order[j], first):
-            r = order[j]
-            for a in range(3):
-                g_means[t, a] = n_means[r, a]
-                g_colors[t, a] = n_colors[r, a]
-                for b in range(3):
-                    g_covs[t, a, b] = n_covs[r, a, b]
-            g_opacities[t] = n_opacities[r]
-            g_counts[t] = n_counts[r]
+            _copy_row(new, order[j], group, t)
             t += 1
             j += 1
         if t == 2:  # the common case: the stored Gaussian and one new
@@ -204,18 +170,38 @@ def merge_chunk(  # pragma: no cover - numba
         else:
             combine_into(in_order, t, scratch, group, eps, out, o)
         o += 1
-    return 0, out_keys, o_means, o_covs, o_colors, o_opacities, o_counts
+    return 0, out_keys, out[0], out[1], out[2], out[3], out[4]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _copy_row(src: tuple, i: int, dst: tuple, o: int) -> None:  # pragma: no cover - numba
+    """Row i of the Gaussians src (means, covs, colors, opacities, counts) into row o of dst."""
+    s_means, s_covs, s_colors, s_opacities, s_counts = src
+    d_means, d_covs, d_colors, d_opacities, d_counts = dst
+    for a in range(3):
+        d_means[o, a] = s_means[i, a]
+        d_colors[o, a] = s_colors[i, a]
+        for b in range(3):
+            d_covs[o, a, b] = s_covs[i, a, b]
+    d_opacities[o] = s_opacities[i]
+    d_counts[o] = s_counts[i]
 
 
 @numba.njit(cache=True, nogil=True)
 def _failed(status: int) -> tuple:  # pragma: no cover - numba
     """`merge_chunk`'s answer when it cannot merge: the status and empty arrays."""
+    means, covs, colors, opacities, counts = _gaussian_arrays(0)
+    return status, np.empty((0, 3), np.int64), means, covs, colors, opacities, counts
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _gaussian_arrays(n: int) -> tuple:  # pragma: no cover - numba
+    """Uninitialised (means, covs, colors, opacities, counts) of n Gaussians
+    (`GaussianSet.allocate`'s arrays)."""
     return (
-        status,
-        np.empty((0, 3), np.int64),
-        np.empty((0, 3), np.float32),
-        np.empty((0, 3, 3), np.float32),
-        np.empty((0, 3), np.float32),
-        np.empty(0, np.float32),
-        np.empty(0, np.uint32),
+        np.empty((n, 3), np.float32),
+        np.empty((n, 3, 3), np.float32),
+        np.empty((n, 3), np.float32),
+        np.empty(n, np.float32),
+        np.empty(n, np.uint32),
     )
