@@ -199,6 +199,32 @@ def test_the_walls_kept_across_steps_are_the_walls_of_every_mean_read_again() ->
     assert all(len(layer.chunks) > 10 for layer in layers)
 
 
+def test_a_structure_too_wide_to_count_reads_every_mean_as_before() -> None:
+    """Two rooms 200 m apart span 16 M cells at 5 cm: the counts stop growing and every mean
+    is read each step, with the same cells."""
+    from glmap_tools.nav import wall_counts
+
+    rng = np.random.default_rng(4)
+    layer = StructureLayer(0.05)
+    bands = [(0.125, 1.5), (1.5625, 1.9375)]
+    for step, centre in enumerate([(0.0, 0.0), (200.0, 200.0), (0.5, 0.5)]):
+        n = 200
+        means = np.column_stack([np.add(centre, rng.uniform(-1.0, 1.0, (n, 2))),
+                                 rng.uniform(-0.2, 2.2, n)])  # fmt: skip
+        layer.apply(layer.compute_update(GaussianSet(
+            means, np.tile(np.eye(3) * 1e-4, (n, 1, 1)), rng.uniform(0, 1, (n, 3)),
+            np.full(n, 0.8), np.ones(n),
+        )))  # fmt: skip
+        occ = DenseOccupancy(np.zeros((60, 70), np.int8), (-30, -30), 0.05)
+        kept = structure_walls_kept(layer, 0.0, bands, occ)
+        again = structure_walls_in_bands(layer.means(), 0.0, bands, occ)
+        assert all(np.array_equal(a, b) for a, b in zip(kept, again, strict=True))
+        assert kept[0].any()
+        counts = wall_counts._KEPT[layer]
+        assert counts.too_wide == (step > 0)
+        assert counts.counts[0].size <= wall_counts.MAX_CELLS
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_the_opencv_distance_transform_gives_scipys_distances_to_the_bit(seed: int) -> None:
     rng = np.random.default_rng(seed)
