@@ -296,6 +296,8 @@ def test_the_tools_common_calls_need_no_kernel_the_warm_up_left_out():
 def test_the_layer_warm_up_compiles_what_a_frame_update_calls():
     # `glmap-mcp --prepare` compiles the layers' kernels in its second process while the
     # map's process compiles the estimator; a type the warm-up missed would compile again.
+    import numpy as np
+
     from glmap_tools import synthetic
     from glmap_tools.app.background import warm_layer_kernels
     from glmap_tools.gaussians._combine_numba import combine_groups
@@ -303,8 +305,13 @@ def test_the_layer_warm_up_compiles_what_a_frame_update_calls():
     from glmap_tools.map import GLMap, MapConfig
     from glmap_tools.map._occupancy_numba import mark_cells
     from glmap_tools.map._structure_numba import chunk_runs, frame_rows, merge_chunk, row_order
+    from glmap_tools.nav import _sight_numba, _walls_numba
+    from glmap_tools.nav.footprint import GoalMatch, in_clear_sight
+    from glmap_tools.nav.perceive import walls_of
 
-    kernels = (mark_cells, frame_rows, row_order, chunk_runs, merge_chunk, combine_groups)
+    kernels = (mark_cells, frame_rows, row_order, chunk_runs, merge_chunk, combine_groups,
+               _walls_numba.count_means, _walls_numba.cell_extent, _walls_numba.grow_counted,
+               _sight_numba.clear_sight)  # fmt: skip
     warm_layer_kernels()
     warmed = [list(k.signatures) for k in kernels]
     boxes = synthetic.floor(2.0) + synthetic.chair(0.0, 0.0, object_id=1)
@@ -313,6 +320,12 @@ def test_the_layer_warm_up_compiles_what_a_frame_update_calls():
         frame, ids = synthetic.view(boxes, (shift, -1.2, 1.1), (0.0, 0.0, 0.4), 128, 96)
         glmap.integrate(frame, synthetic.semantics(ids, {1: ("chair", "a red chair")}))
     assert len(glmap.structure) > 0 and len(glmap.instances) == 1
+    # and what a decision reads: the walls and a line of sight to the chair
+    occ = glmap.occupancy.to_dense()
+    walls = walls_of(glmap, occ)
+    assert walls is not None  # the floor and a chair: no wall, but the counts were read
+    chair = GoalMatch(1, 1.0, 2, np.array([[0, 0], [1, 1]]) + np.array(occ.origin))
+    in_clear_sight(chair, occ, np.array([[3, 3], [5, 9]]), walls)
     assert [list(k.signatures) for k in kernels] == warmed
 
 

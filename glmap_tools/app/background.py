@@ -207,8 +207,8 @@ def warm_layer_kernels() -> None:
     from glmap_tools.map.occupancy import DenseOccupancy, OccupancyGrid
     from glmap_tools.map.structure import StructureLayer
     from glmap_tools.nav.footprint import GoalMatch, in_clear_sight
-    from glmap_tools.nav.grid import structure_walls_in_bands
     from glmap_tools.nav.planner import geodesic
+    from glmap_tools.nav.wall_counts import structure_walls_kept
 
     points = np.array([[1.0, 0.0, 0.0], [1.0, 0.1, 0.5], [1.1, 0.0, 0.02]])
     OccupancyGrid(0.05).compute_update(np.zeros(2), points, 0.0, (0.1, 1.5))
@@ -219,7 +219,7 @@ def warm_layer_kernels() -> None:
     layer.compute_update(g)
     combine(g, np.array([0, 0, 1]))
     window = DenseOccupancy(np.zeros((4, 4), np.int8), (0, 0), 0.05)
-    structure_walls_in_bands(layer.means(), 0.0, [(0.1, 1.5), (1.5, 2.0)], window)
+    structure_walls_kept(layer, 0.0, [(0.1, 1.5), (1.5, 2.0)], window)
     geodesic(np.ones((4, 4), bool), (1, 1), 0.05, np.full((4, 4), 0.5), band=0.2)
     in_clear_sight(GoalMatch(1, 1.0, 1, np.array([[2, 2]])), window, np.array([[0, 0]]))
 

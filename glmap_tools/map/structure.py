@@ -132,7 +132,12 @@ class StructureLayer:
             stored = self.chunks.get(key)
             keys, gaussians = (stored.keys, stored.gaussians) if stored else _NO_CHUNK
             status, *merged = merge_chunk(
-                keys, gaussians.arrays(), rows, order[start:stop], new, COVARIANCE_EPSILON
+                np.ascontiguousarray(keys, dtype=np.int64),  # one compiled signature
+                gaussians.arrays(),
+                rows,
+                order[start:stop],
+                new,
+                COVARIANCE_EPSILON,
             )
             if status < 0:  # stored keys out of order or a crowded voxel: not from this layer
                 return self.compute_update_reference(fitted)
