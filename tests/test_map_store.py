@@ -271,6 +271,9 @@ CRAFTED = {
     "bad-pose": ("UPDATE frames SET pose = ?", (_npy(np.full((4, 4), 2.0)),)),
     "bad-floor": ("UPDATE meta SET value = 'NaN' WHERE key = 'floor_z'",),
     "structure-keys-elsewhere": ("UPDATE structure SET ci = ci + 1000",),
+    "version-1-with-a-structure-table": (
+        "UPDATE meta SET value = '1' WHERE key = 'schema_version'",
+    ),
 }
 
 

@@ -217,13 +217,17 @@ def read_embedding(refuse: Refuser, blob: object, what: str, dim: int | None) ->
 
 
 def check_tables(refuse: Refuser, conn: sqlite3.Connection, version: int) -> None:
-    """Every table of the schema version exists with exactly its columns."""
+    """Every table of the schema version exists with exactly its columns, and no table of a
+    later version does (an upgrade would create it again)."""
     for table in TABLES_OF_VERSION[version]:
         columns = tuple(row[1] for row in conn.execute(f"PRAGMA table_info({table})"))
         if not columns:
             raise refuse(f"table {table!r} is missing")
         if columns != COLUMNS[table]:
             raise refuse(f"table {table!r} has columns {list(columns)}, not {list(COLUMNS[table])}")
+    for table in sorted(set(COLUMNS) - set(TABLES_OF_VERSION[version])):
+        if conn.execute(f"PRAGMA table_info({table})").fetchone() is not None:
+            raise refuse(f"it holds a {table!r} table, which schema version {version} has not")
 
 
 def parse_version(refuse: Refuser, meta: dict[Any, Any], newest: int) -> int:
