@@ -175,3 +175,24 @@ def test_the_pair_order_does_not_depend_on_the_order_the_pairs_come_in():
     for seed in (0, 1):
         p = np.random.default_rng(seed).permutation(len(pi))
         np.testing.assert_array_equal(clusters.sort_pairs(pi[p], pj[p], d[p]), expected)
+
+
+def test_the_stage_clock_times_every_stage_and_changes_no_output():
+    from glmap_tools.bench.estimator import FIT_STAGES, MERGE_DECISIONS, stage_medians
+    from glmap_tools.gaussians._estimator_fast import StageTimes, fit_fast
+    from glmap_tools.gaussians.estimator import validate_cloud
+
+    rng = np.random.default_rng(3)
+    plane = np.c_[rng.uniform(0, 0.4, (6000, 2)), rng.normal(0, 0.002, 6000)]
+    colours = rng.uniform(0, 1, (6000, 3))
+    pts, cols, lo = validate_cloud(plane, colours, CONFIG.voxel_size)
+    stages = StageTimes()
+    timed = fit_fast(pts, cols, CONFIG, lo, stages)
+    plain = fit_fast(pts, cols, CONFIG, lo)
+    assert len(timed) < 1000  # the plane merged
+    for a, b in zip(timed.arrays(), plain.arrays(), strict=True):
+        assert np.array_equal(a, b)
+    every = [*FIT_STAGES[1:], *MERGE_DECISIONS, "cluster sums", "output"]
+    assert list(stages.seconds) == every
+    assert all(s >= 0.0 for s in stages.seconds.values())
+    assert list(stage_medians(plane, colours, CONFIG.voxel_size, 2)) == ["input checks", *every]

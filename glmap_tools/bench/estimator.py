@@ -9,7 +9,8 @@ bytes per Gaussian, the speed ratio, ms per 50k-point instance and the first-cal
 Then the bundled Redwood frame 0: the fast fit with and without the merge against the
 reference estimator (`backend="reference"`) on the same cloud in the same run, as process
 CPU ms and the ratio (the reference once per case, the fast path the median of
-`--repeats`), and what the merge adds to the fit.
+`--repeats`), what the merge adds to the fit, and where the time goes: each stage's process
+CPU ms, and the fit with the merge's decisions (its pairs and their union) taken as given.
 """
 
 from __future__ import annotations
@@ -30,7 +31,8 @@ import numpy as np
 from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.gaussians import _estimator_fast
-from glmap_tools.gaussians.estimator import EstimatorConfig, GaussianEstimator
+from glmap_tools.gaussians._estimator_fast import StageTimes, fit_fast
+from glmap_tools.gaussians.estimator import EstimatorConfig, GaussianEstimator, validate_cloud
 from glmap_tools.gaussians.merge import remerge
 from glmap_tools.gaussians.types import GaussianSet
 from glmap_tools.geometry import Intrinsics, Pose, backproject, depth_from_uint16
@@ -39,7 +41,8 @@ from glmap_tools.geometry import Intrinsics, Pose, backproject, depth_from_uint1
 # caught where it is used.
 
 REDWOOD_TARGET_MS = 13.0  # fit and merge of the bundled Redwood frame 0 at 1.5 cm
-REFERENCE_RATIO_TARGET = 60.0  # issue 44: fit + merge vs the reference estimator, same cloud
+FIT_STAGES = ("input checks", "voxelise", "block neighbours", "voxel moments", "neighbourhood sums")
+MERGE_DECISIONS = ("mergeable pairs", "capped union")
 ROOM = (2.8, 2.5, 2.5)  # corner walls at x = 2.8 and y = 2.5, ceiling at z = 2.5
 EYE, TARGET = (0.4, 0.3, 1.3), (2.4, 2.0, 0.5)  # camera position and look-at point, metres
 BOXES = [  # (lo, hi, rgb)
@@ -317,8 +320,47 @@ def _redwood_rows(report: Report, repeats: int) -> None:
         print(
             f"  the merge adds {merged_ms - unmerged_ms:.2f} ms to the fit's {unmerged_ms:.2f} ms"
         )
-        name = "fit + merge of Redwood frame 0 at 1.5 cm vs the reference estimator"
-        report.check(name, ratios[True][1] / merged_ms, ">=", REFERENCE_RATIO_TARGET, "x")
+        print(
+            "  (the target of 60x the official estimator is not this ratio: docs/speed.md "
+            "measures it against the earlier code)"
+        )
+        _stage_rows(*real, 0.015, max(repeats, 9))
+
+
+def stage_medians(
+    points: np.ndarray, colors: np.ndarray, voxel: float, repeats: int
+) -> dict[str, float]:
+    """Median process CPU ms of each stage of the merged fit of one cloud, in stage order."""
+    config = EstimatorConfig(voxel_size=voxel)
+    runs = []
+    for _ in range(repeats):
+        stages = StageTimes()
+        pts, cols, lo = validate_cloud(points, colors, voxel)
+        stages.lap("input checks")
+        fit_fast(pts, cols, config, lo, stages)
+        runs.append(stages.seconds)
+    return {k: 1e3 * float(np.median([run[k] for run in runs])) for k in runs[0]}
+
+
+def _stage_rows(points: np.ndarray, colors: np.ndarray, voxel: float, repeats: int) -> None:
+    """Where the merged fit's time goes, stage by stage."""
+    ms = stage_medians(points, colors, voxel, repeats)
+    print(
+        f"\nwhere the time goes: Redwood frame 0 at {voxel * 100:.1f} cm, merged (process CPU ms, "
+        f"median of {repeats} per stage, numba threads {numba.get_num_threads()}):"
+    )
+    names = list(ms)
+    for row in (names[:5], names[5:]):
+        print("  " + "  ".join(f"{k} {ms[k]:.2f}" for k in row))
+    fit = sum(ms[k] for k in FIT_STAGES)
+    decisions = sum(ms[k] for k in MERGE_DECISIONS)
+    total = sum(ms.values())
+    print(
+        f"  the fit {fit:.2f}, the merge's decisions (pairs and union) {decisions:.2f}, its "
+        f"cluster sums {ms['cluster sums']:.2f}, the output {ms['output']:.2f}: {total:.2f} in all"
+    )
+    given = total - decisions
+    print(f"  with the merge's decisions given: {given:.2f} ms, {given / total:.2f} of it all")
 
 
 def main(argv: list[str] | None = None) -> int:

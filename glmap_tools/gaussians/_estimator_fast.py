@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING
 
 import numba
@@ -23,6 +24,21 @@ CHUNKS_PER_THREAD = 4
 PARALLEL_MIN_VOXELS = 10_000  # smaller clouds run on one thread (see design.md)
 
 
+class StageTimes:
+    """Process CPU seconds of each stage of one fit, in the order they ran
+    (`python -m glmap_tools.bench estimator` prints where the time goes)."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self._last = time.process_time()
+
+    def lap(self, stage: str) -> None:
+        """The time since the last lap (or since the clock was made) goes to `stage`."""
+        now = time.process_time()
+        self.seconds[stage] = self.seconds.get(stage, 0.0) + now - self._last
+        self._last = now
+
+
 def scan(points: np.ndarray, colors: np.ndarray) -> tuple[bool, bool, np.ndarray, np.ndarray]:
     """(points all finite, colours all in [0, 1], [3] point min, [3] point max), one pass."""
     stats = voxels.scan_cloud(points, colors)
@@ -30,7 +46,11 @@ def scan(points: np.ndarray, colors: np.ndarray) -> tuple[bool, bool, np.ndarray
 
 
 def fit_fast(
-    points: np.ndarray, colors: np.ndarray, config: EstimatorConfig, lo: np.ndarray
+    points: np.ndarray,
+    colors: np.ndarray,
+    config: EstimatorConfig,
+    lo: np.ndarray,
+    stages: StageTimes | None = None,
 ) -> GaussianSet:
     """Fit and merge Gaussians to a validated, non-empty cloud.
 
@@ -39,39 +59,53 @@ def fit_fast(
         colors: [N, 3] float32 in [0, 1].
         config: estimator settings.
         lo: [3] float64 smallest point coordinate per axis.
+        stages: when given, each stage's process CPU time is added to it.
     """
+    lap = stages.lap if stages is not None else _no_lap
     voxel = float(config.voxel_size)
     lo_cell = np.floor(lo / voxel).astype(np.int64)
     origin = (lo_cell - voxels.CELL_MARGIN).astype(np.float64) * voxel
     point_voxel, slot_voxel, voxel_block, voxel_slot, keys, table_keys, table_ids = voxels.voxelize(
         points, voxel, lo_cell
     )
+    lap("voxelise")
     block_nbrs = grid.block_neighbours(keys, table_keys, table_ids)
+    lap("block neighbours")
     threads = numba.get_num_threads() if len(voxel_block) >= PARALLEL_MIN_VOXELS else 1
     n_chunks = 1 if threads == 1 else CHUNKS_PER_THREAD * threads
     moments = kernels.voxel_moments(points, colors, point_voxel, len(voxel_block), origin)
+    lap("voxel moments")
     neighbours, first, n_neighbours, sums = kernels.neighbourhood_moments(
         voxel_block, voxel_slot, slot_voxel, block_nbrs, moments, n_chunks
     )
     emitted = np.flatnonzero(sums[:, 0] >= config.min_points)
+    lap("neighbourhood sums")
     if len(emitted) == 0:
         return GaussianSet.empty()
     if config.merge and len(emitted) > 1:
         pairs = _fit_pairs(sums, emitted, config, n_chunks)
+        lap("mergeable pairs")
         labels = union_additive(
             clusters.trace_rows(sums, emitted),
             pairs,
             config.merge_cap_trace,
             config.epsilon,
         )
+        lap("capped union")
         sums = clusters.cluster_moments(
             labels, emitted, neighbours, first, n_neighbours, sums, moments, threads
         )
         emitted = np.arange(len(sums))
+        lap("cluster sums")
     means32, covs32, cols32, counts = kernels.output_gaussians(
         sums, emitted, config.epsilon, origin
     )
+    lap("output")
     return GaussianSet(means32, covs32, cols32, np.full(len(means32), config.opacity), counts)
+
+
+def _no_lap(stage: str) -> None:
+    """`StageTimes.lap` when no stage is timed."""
 
 
 def _fit_pairs(
