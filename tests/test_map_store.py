@@ -267,6 +267,14 @@ CRAFTED = {
         "UPDATE instances SET embedding = ? WHERE id = 1",
         (_npy(np.ones(7, np.float32)),),
     ),
+    "long-instance-embedding": (
+        "UPDATE instances SET embedding = ? WHERE id = 1",
+        (_npy(np.full(HashingEmbedder().dim, 1e30, np.float32)),),
+    ),
+    "short-region-embedding": (
+        "UPDATE regions SET embedding = ?",
+        (_npy(np.full(HashingEmbedder().dim, 1e-3, np.float32)),),
+    ),
     "label-is-a-blob": ("UPDATE instances SET label = x'00ff'",),
     "bad-pose": ("UPDATE frames SET pose = ?", (_npy(np.full((4, 4), 2.0)),)),
     "bad-floor": ("UPDATE meta SET value = 'NaN' WHERE key = 'floor_z'",),
@@ -275,6 +283,19 @@ CRAFTED = {
         "UPDATE meta SET value = '1' WHERE key = 'schema_version'",
     ),
 }
+
+
+def test_a_stored_zero_embedding_opens(tmp_path, one_frame_store):
+    path = tmp_path / "room.glmap"
+    shutil.copy(one_frame_store, path)
+    dim = HashingEmbedder().dim
+    _execute(
+        path,
+        ("UPDATE instances SET embedding = ? WHERE id = 1", (_npy(np.zeros(dim, np.float32)),)),
+    )
+    glmap = GLMap.open(path, embedder=HashingEmbedder())
+    assert not glmap.instances[1].embedding.any()
+    glmap.close()
 
 
 @pytest.fixture(scope="module")

@@ -33,6 +33,7 @@ from glmap_tools.map.units import InstanceUnit, RegionUnit
 MAX_ID = 1 << 53  # ids and frame indices stay exact as JSON numbers
 MAX_COORDINATE = 1e6  # m; a Gaussian mean or camera farther out is not a map of a place
 MAX_EMBEDDING_DIM = 65536
+EMBEDDING_LENGTH_TOLERANCE = 1e-3  # float32 unit vectors are within ~1e-6 of length 1
 # Sane ranges of stored settings: (low, high) inclusive. A 1e-9 m cell would make the
 # index grid of a single Gaussian billions of cells.
 CONFIG_RANGES = {
@@ -210,6 +211,10 @@ def read_embedding(refuse: Refuser, blob: object, what: str, dim: int | None) ->
     e = read_array(refuse, blob, what, "<f4", (dim,))
     if not 1 <= len(e) <= MAX_EMBEDDING_DIM or not np.isfinite(e).all():
         raise refuse(f"{what} is not a finite vector of 1..{MAX_EMBEDDING_DIM} numbers")
+    # Units keep unit vectors (or zero ones); a longer one would outscore every unit in a search.
+    length = float(np.sqrt(np.sum(np.square(e, dtype=np.float64))))
+    if length != 0.0 and abs(length - 1.0) > EMBEDDING_LENGTH_TOLERANCE:
+        raise refuse(f"{what} has length {length:.6g}, not 1 (units keep unit vectors)")
     return e
 
 
