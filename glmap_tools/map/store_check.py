@@ -211,7 +211,7 @@ def read_embedding(refuse: Refuser, blob: object, what: str, dim: int | None) ->
     e = read_array(refuse, blob, what, "<f4", (dim,))
     if not 1 <= len(e) <= MAX_EMBEDDING_DIM or not np.isfinite(e).all():
         raise refuse(f"{what} is not a finite vector of 1..{MAX_EMBEDDING_DIM} numbers")
-    # Units keep unit vectors (or zero ones); a longer one would outscore every unit in a search.
+    # Units keep unit vectors (or zero ones); search scores are dot products, so cosines.
     length = float(np.sqrt(np.sum(np.square(e, dtype=np.float64))))
     if length != 0.0 and abs(length - 1.0) > EMBEDDING_LENGTH_TOLERANCE:
         raise refuse(f"{what} has length {length:.6g}, not 1 (units keep unit vectors)")
