@@ -212,7 +212,7 @@ def read_embedding(refuse: Refuser, blob: object, what: str, dim: int | None) ->
     if not 1 <= len(e) <= MAX_EMBEDDING_DIM or not np.isfinite(e).all():
         raise refuse(f"{what} is not a finite vector of 1..{MAX_EMBEDDING_DIM} numbers")
     # Units keep unit vectors (or zero ones); search scores are dot products, so cosines.
-    length = float(np.sqrt(np.sum(np.square(e, dtype=np.float64))))
+    length = float(np.linalg.norm(e.astype(np.float64)))  # float64: squares of 1e30 fit
     if length != 0.0 and abs(length - 1.0) > EMBEDDING_LENGTH_TOLERANCE:
         raise refuse(f"{what} has length {length:.6g}, not 1 (units keep unit vectors)")
     return e

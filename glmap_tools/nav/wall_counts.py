@@ -47,7 +47,7 @@ class WallCounts:
     def update(self, layer: StructureLayer) -> bool:
         """Count the chunks that changed since the last update (their old means out, their
         new ones in, in one pass); False when a chunk the counts hold has left the layer
-        (the caller starts afresh) or the means grew too wide to count."""
+        (the caller starts afresh). Means too wide to count set `too_wide` instead."""
         from glmap_tools.nav._walls_numba import count_means
 
         gone: list[np.ndarray] = []
@@ -67,7 +67,7 @@ class WallCounts:
             if len(means):
                 if not self._cover(means):
                     self.too_wide = True
-                    return False
+                    return True
                 floor_z, _, cell = self.key
                 count_means(means, signs, floor_z, self.limits, cell, self.row0, self.col0,
                             self.counts)  # fmt: skip
@@ -127,7 +127,7 @@ def structure_walls_kept(
         counts = _KEPT.get(layer)
         if counts is None or counts.key != _key(floor_z, bands, occ.cell_size):
             counts = _start(layer, floor_z, bands, occ.cell_size)
-        elif not counts.too_wide and not counts.update(layer) and not counts.too_wide:
+        elif not counts.too_wide and not counts.update(layer):
             counts = _start(layer, floor_z, bands, occ.cell_size)  # a chunk left the layer
         # (A layer only grows: counts too wide stay so until the floor or bands change.)
         if counts.too_wide:
