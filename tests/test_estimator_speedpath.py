@@ -169,8 +169,12 @@ def test_the_pair_order_does_not_depend_on_the_order_the_pairs_come_in():
     pj = pi + rng.integers(1, 500, k)
     keep = np.unique(pi * 1000 + pj, return_index=True)[1]
     pi, pj = pi[keep], pj[keep]
-    d = rng.choice([0.0, 0.25, 0.5, 0.75], len(pi))  # ties, crowded buckets
+    d = rng.choice([0.0, 0.25, 0.5, 0.75], len(pi))  # ties, crowded buckets of one D
     d[::7] = rng.uniform(0, 1, len(d[::7]))
+    # a crowded bucket of two D values one ulp apart (the general path)
+    d[d == 0.5] = rng.choice([0.5, np.nextafter(0.5, 1.0)], int(np.sum(d == 0.5)))
+    assert np.sum(d == 0.0) > clusters.CROWDED_BUCKET
+    assert np.sum(d == np.nextafter(0.5, 1.0)) > 0
     expected = np.stack([pi, pj], axis=1)[np.lexsort((pj, pi, d))]
     for seed in (0, 1):
         p = np.random.default_rng(seed).permutation(len(pi))

@@ -353,7 +353,7 @@ def _official_rows(
     )
     print(
         f"\nRedwood frame 0 at {voxel * 100:.1f} cm against the official estimator "
-        f"({OFFICIAL_URL}, same cloud, process CPU ms, medians of {rounds} alternating "
+        f"({OFFICIAL_URL}, same cloud, wall ms, medians of {rounds} alternating "
         f"rounds, numba threads {numba.get_num_threads()}):"
     )
     print(f"  official estimate(), merge off (its default)  {t.official:8.1f}  "

@@ -220,8 +220,8 @@ def _before(d: float, i: int, j: int, d_other: float, i_other: int, j_other: int
 @numba.njit(cache=True)
 def sort_pairs(pi: np.ndarray, pj: np.ndarray, d: np.ndarray) -> np.ndarray:
     """[K, 2] pairs sorted by (D, i, j), whatever their order: a bucket sort on D, then
-    insertion sort per bucket, or for a crowded bucket (the D = 0 of duplicate Gaussians)
-    stable sorts by (i, j) and then by D."""
+    insertion sort per bucket. A crowded bucket of one D (the D = 0 of duplicate Gaussians)
+    sorts the packed (i, j); one of several D, stable sorts by (i, j) and then by D."""
     k = d.shape[0]
     out = np.empty((k, 2), dtype=np.int64)
     if k == 0:
@@ -247,6 +247,12 @@ def sort_pairs(pi: np.ndarray, pj: np.ndarray, d: np.ndarray) -> np.ndarray:
     for b in range(n_buckets):
         lo, hi = start[b], start[b + 1]
         if hi - lo > CROWDED_BUCKET:
+            if _all_equal(sd, lo, hi):  # one D (the duplicates' 0): the order is (i, j)'s
+                by_pair = out[lo:hi, 0] * g + out[lo:hi, 1]
+                by_pair.sort()
+                for a in range(hi - lo):
+                    out[lo + a, 0], out[lo + a, 1] = by_pair[a] // g, by_pair[a] % g
+                continue
             by_index = np.argsort(out[lo:hi, 0] * g + out[lo:hi, 1], kind="mergesort")
             by_d = by_index[np.argsort(sd[lo:hi][by_index], kind="mergesort")]
             di, oi, oj = sd[lo:hi][by_d], out[lo:hi, 0][by_d], out[lo:hi, 1][by_d]
@@ -261,6 +267,16 @@ def sort_pairs(pi: np.ndarray, pj: np.ndarray, d: np.ndarray) -> np.ndarray:
                 c -= 1
             sd[c + 1], out[c + 1, 0], out[c + 1, 1] = dq, iq, jq
     return out
+
+
+@numba.njit(cache=True)
+def _all_equal(values: np.ndarray, lo: int, hi: int) -> bool:
+    """values[lo:hi] all equal (a range of >= 1)."""
+    first = values[lo]
+    same = True
+    for a in range(lo + 1, hi):
+        same &= values[a] == first
+    return same
 
 
 @numba.njit(cache=True)
