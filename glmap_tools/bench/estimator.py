@@ -356,14 +356,15 @@ def _official_rows(
         f"({OFFICIAL_URL}, same cloud, wall ms, medians of {rounds} alternating "
         f"rounds, numba threads {numba.get_num_threads()}):"
     )
-    print(f"  official estimate(), merge off (its default)  {t.official:8.1f}  "
-          f"{t.official_gaussians[0]} Gaussians")  # fmt: skip
-    print(f"  official estimate(merge=True)                 {t.official_merged:8.1f}  "
-          f"{t.official_gaussians[1]} Gaussians")  # fmt: skip
-    print(f"  ours, fit + merge {t.ours:7.2f}: {t.official / t.ours:5.1f}x the first, "
-          f"{t.official_merged / t.ours:5.1f}x the second")  # fmt: skip
-    print(f"  ours, fit alone   {t.ours_unmerged:7.2f}: {t.official / t.ours_unmerged:5.1f}x the "
-          "first")  # fmt: skip
+    off, merged = t.official_gaussians
+    print(f"  official estimate(), merge off (its default)  {t.official:8.1f}  {off} Gaussians")
+    print(f"  official estimate(merge=True)  {t.official_merged:23.1f}  {merged} Gaussians")
+    print(
+        f"  ours, fit + merge {t.ours:7.2f}: {t.official / t.ours:5.1f}x the first, "
+        f"{t.official_merged / t.ours:5.1f}x the second"
+    )
+    ratio = t.official / t.ours_unmerged
+    print(f"  ours, fit alone   {t.ours_unmerged:7.2f}: {ratio:5.1f}x the first")
     report.check(
         "fit + merge against the official estimate() (merge off)",
         t.official / t.ours,
