@@ -181,6 +181,15 @@ def test_the_pair_order_does_not_depend_on_the_order_the_pairs_come_in():
         np.testing.assert_array_equal(clusters.sort_pairs(pi[p], pj[p], d[p]), expected)
 
 
+@pytest.mark.parametrize("d_max", [5e-324, 1e-310, 2.2e-308])
+def test_pairs_whose_largest_d_is_subnormal_are_sorted(d_max):
+    # n / d_max overflows to inf there: the buckets must not read 0 * inf
+    pi, pj = np.arange(40), np.arange(40) + 1
+    d = np.where(np.arange(40) % 3 == 0, d_max, 0.0)
+    expected = np.stack([pi, pj], axis=1)[np.lexsort((pj, pi, d))]
+    np.testing.assert_array_equal(clusters.sort_pairs(pi[::-1], pj[::-1], d[::-1]), expected)
+
+
 def test_the_stage_clock_times_every_stage_and_changes_no_output():
     from glmap_tools.bench.estimator import FIT_STAGES, MERGE_DECISIONS, stage_medians
     from glmap_tools.gaussians._estimator_fast import StageTimes, fit_fast

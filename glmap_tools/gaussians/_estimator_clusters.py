@@ -21,6 +21,7 @@ from glmap_tools.gaussians._int64 import ZERO
 
 PAIRS_PER_GAUSSIAN = 16  # output room per Gaussian before a chunk is redone with more
 CROWDED_BUCKET = 32  # pairs in a D bucket past which it is sorted by stable sorts
+MAX_FLOAT = 1.7976931348623157e308  # the largest finite float64
 
 
 @numba.njit(cache=True)
@@ -229,6 +230,7 @@ def sort_pairs(pi: np.ndarray, pj: np.ndarray, d: np.ndarray) -> np.ndarray:
     d_max = d.max()
     n_buckets = k
     scale = n_buckets / d_max if d_max > 0 else 0.0
+    scale = min(scale, MAX_FLOAT)  # a subnormal d_max: one bucket, never 0 * inf
     bucket = np.empty(k, dtype=np.int64)
     start = np.zeros(n_buckets + 1, dtype=np.int64)
     for p in range(k):
