@@ -219,6 +219,8 @@ def test_an_empty_cloud_gives_an_empty_set(backend):
         (np.zeros((1, 3)), np.array([[-0.1, 0.0, 0.0]]), r"colors\[0\].*outside \[0, 1\]"),
         (np.zeros((1, 3)), np.array([[np.nan, 0.0, 0.0]]), "outside"),
         (np.array([[0.0, 0.0, 0.0], [1e6, 0.0, 0.0]]), np.zeros((2, 3)), "larger voxel_size"),
+        (np.full((6, 3), 1e300), np.zeros((6, 3)), r"points\[0\].*from the origin"),
+        (np.array([[0.0, 0.0, 1.0], [0.0, -3e10, 0.0]]), np.zeros((2, 3)), r"points\[1\].*2\^40"),
         (np.array([["a", "b", "c"]]), np.zeros((1, 3)), "dtype"),
     ],
 )

@@ -21,6 +21,9 @@ from glmap_tools.gaussians.types import GaussianSet
 Backend = Literal["fast", "reference"]
 BACKENDS: tuple[str, ...] = get_args(Backend)
 MAX_VOXEL_SPAN = (1 << 21) - 3  # voxels per axis the fast path's 21-bit packed keys can hold
+# voxels from the origin: beyond, a coordinate's float64 step passes 1/4096 voxel and the
+# voxel index leaves the int64 the fast path casts it to (at 2 cm, 2.2e10 m)
+MAX_VOXEL_INDEX = float(1 << 40)
 
 
 class GaussianEstimator:
@@ -135,6 +138,14 @@ def validate_cloud(
         raise InvalidInputError(
             f"colors[{k}] = {cols[k].tolist()} is outside [0, 1] ({int(bad.sum())} such rows); "
             f"pass finite RGB in [0, 1]{hint}."
+        )
+    far = float(max(np.abs(lo).max(), np.abs(hi).max()))
+    if far / voxel_size >= MAX_VOXEL_INDEX:
+        k = int(np.argmax(np.abs(pts).max(axis=1)))
+        raise InvalidInputError(
+            f"points[{k}] = {pts[k].tolist()} lies {far:.4g} m from the origin, "
+            f"{far / voxel_size:.4g} voxels, more than 2^40; shift the cloud near the origin "
+            "first (e.g. points - points.mean(axis=0), and add it back to the Gaussians' means)."
         )
     span = float((hi - lo).max()) / voxel_size
     if span >= MAX_VOXEL_SPAN:
