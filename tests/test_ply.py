@@ -189,3 +189,33 @@ def test_unreadable_files_raise_store_errors_that_say_why(tmp_path):
     (tmp_path / "points.ply").write_bytes((points + "end_header\n").encode() + bytes(4))
     with pytest.raises(StoreError, match="lacks the 3DGS properties"):
         read_ply(tmp_path / "points.ply")
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [("y", np.nan), ("f_dc_1", np.inf), ("scale_0", 400.0), ("rot_2", np.nan), ("opacity", np.nan)],
+)
+def test_a_vertex_that_is_not_finite_is_refused_by_its_index(tmp_path, name, value):
+    path = write_ply(tmp_path / "map.ply", random_gaussians(6))
+    data = path.read_bytes()
+    start = data.index(b"end_header\n") + len(b"end_header\n")
+    v = np.frombuffer(data[start:], dtype=[(p, "<f4") for p in VIEWER_PROPERTIES]).copy()
+    v[name][4] = value
+    path.write_bytes(data[:start] + v.tobytes())
+    with pytest.raises(StoreError, match=r"vertex 4 of 6 has a NaN or infinite .* \(1 such"):
+        read_ply(path)
+
+
+def test_a_zero_or_tiny_quaternion_reads_as_no_rotation(tmp_path):
+    path = write_ply(tmp_path / "map.ply", random_gaussians(6))
+    data = path.read_bytes()
+    start = data.index(b"end_header\n") + len(b"end_header\n")
+    v = np.frombuffer(data[start:], dtype=[(p, "<f4") for p in VIEWER_PROPERTIES]).copy()
+    for k, q in ((2, 0.0), (3, 1e-12)):
+        for i in range(4):
+            v[f"rot_{i}"][k] = q
+    path.write_bytes(data[:start] + v.tobytes())
+    g = read_ply(path)
+    for k in (2, 3):
+        variances = np.exp(2.0 * np.array([v[f"scale_{i}"][k] for i in range(3)], dtype=float))
+        np.testing.assert_allclose(g.covs[k], np.diag(variances), rtol=1e-5)

@@ -220,7 +220,8 @@ def read_ply(path: str | os.PathLike[str]) -> GaussianSet:
     opacities the sigmoid of the stored logit; counts 1.
 
     Raises:
-        StoreError: the file is missing, truncated or lacks the Gaussian properties.
+        StoreError: the file is missing, truncated or lacks the Gaussian properties, or a
+            vertex holds a value that is not finite.
     """
     path = Path(path)
     v = _read_vertices(path)
@@ -247,12 +248,27 @@ def read_ply(path: str | os.PathLike[str]) -> GaussianSet:
         colors = np.stack([col(c) / scale for c in ("red", "green", "blue")], axis=1)
     quats = np.stack([col(f"rot_{i}") for i in range(4)], axis=1)
     norms = np.linalg.norm(quats, axis=1)
-    quats[~(norms > 0)] = (1.0, 0.0, 0.0, 0.0)  # a zero quaternion means no rotation
+    bad_rotation = ~np.isfinite(norms)  # refused below, with the other values
+    # a zero quaternion means no rotation (and one too short to normalise)
+    quats[bad_rotation | (norms <= 1e-9)] = (1.0, 0.0, 0.0, 0.0)
     rot = rotations_from_quaternions(quats)
-    variances = np.exp(2.0 * np.stack([col(f"scale_{i}") for i in range(3)], axis=1))
-    covs = np.einsum("nij,nj,nkj->nik", rot, variances, rot)
-    with np.errstate(over="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):
+        variances = np.exp(2.0 * np.stack([col(f"scale_{i}") for i in range(3)], axis=1))
+        covs = np.einsum("nij,nj,nkj->nik", rot, variances, rot)
         opacities = 1.0 / (1.0 + np.exp(-col("opacity")))
+        bad = bad_rotation | ~(
+            np.isfinite(means).all(axis=1)
+            & np.isfinite(colors).all(axis=1)
+            & np.isfinite(covs).all(axis=(1, 2))
+            & np.isfinite(opacities)
+        )
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise StoreError(
+            f"{path}: vertex {k} of {n} has a NaN or infinite position, colour, rotation or "
+            f"opacity, or a scale past exp's range ({int(bad.sum())} such vertices); drop them "
+            "where the file was made, then read it again."
+        )
     return GaussianSet(
         means,
         covs,
