@@ -210,6 +210,24 @@ def test_combine_refuses_bad_labels_and_zero_counts():
         merge.combine(zero, np.array([0, 0, 1]))
 
 
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_set_with_a_mean_that_is_not_finite_is_refused_by_each_pair_search(bad):
+    g = random_set(6, 9)
+    means = g.means.copy()
+    means[4, 1] = bad
+    bad_set = GaussianSet(means, g.covs, g.colors, g.opacities, g.counts)
+    config = EstimatorConfig()
+    calls = [
+        lambda: merge.remerge(bad_set, config),
+        lambda: merge.any_mergeable(g, bad_set, config),
+        lambda: merge.mergeable_pairs(bad_set, g, config),
+        lambda: merge.candidate_pairs_within(bad_set, 0.02),
+    ]
+    for call in calls:
+        with pytest.raises(InvalidInputError, match=r"means\[4\] = .* is not finite \(1 such"):
+            call()
+
+
 @pytest.mark.parametrize(("n", "seed", "cap"), [(30, 0, 2.0), (200, 1, 4.0), (500, 2, np.inf)])
 def test_the_numba_capped_union_matches_its_python_twin(n, seed, cap):
     g = random_set(n, seed)

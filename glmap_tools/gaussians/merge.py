@@ -138,8 +138,25 @@ def _candidates_between(a: GaussianSet, b: GaussianSet, radius: float) -> np.nda
     return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
 
 
+def check_finite_means(g: GaussianSet) -> None:
+    """Refuse a set with a NaN or infinite mean (the pair searches need coordinates).
+
+    Raises:
+        InvalidInputError: naming the first such Gaussian and the fix.
+    """
+    finite = np.isfinite(g.means).all(axis=1)
+    if not finite.all():
+        k = int(np.argmin(finite))
+        raise InvalidInputError(
+            f"GaussianSet.means[{k}] = {g.means[k].tolist()} is not finite "
+            f"({int((~finite).sum())} such Gaussians); drop them first, e.g. "
+            "g.subset(np.isfinite(g.means).all(axis=1))."
+        )
+
+
 def candidate_pairs_within(g: GaussianSet, radius: float) -> np.ndarray:
     """[K, 2] (i, j), i < j, with ||mu_i - mu_j|| <= radius, sorted."""
+    check_finite_means(g)
     if len(g) < 2:
         return np.zeros((0, 2), dtype=np.int64)
     pairs = cKDTree(g.means.astype(np.float64)).query_pairs(radius, output_type="ndarray")
@@ -157,6 +174,8 @@ def mergeable_pairs(a: GaussianSet, b: GaussianSet, config: EstimatorConfig) -> 
     Returns:
         [K, 2] int64 index pairs into (a, b), sorted lexicographically.
     """
+    check_finite_means(a)
+    check_finite_means(b)
     pairs = _candidates_between(a, b, config.candidate_radius)
     keep, _ = _filter_mergeable(a, pairs[:, 0], b, pairs[:, 1], config)
     return pairs[keep]
@@ -167,6 +186,8 @@ def any_mergeable(a: GaussianSet, b: GaussianSet, config: EstimatorConfig) -> bo
 
     Used to match a newly observed instance against the map's instances.
     """
+    check_finite_means(a)
+    check_finite_means(b)
     if len(a) == 0 or len(b) == 0:
         return False
     r = config.candidate_radius
@@ -334,6 +355,7 @@ def remerge_groups(g: GaussianSet, config: EstimatorConfig) -> np.ndarray:
     from glmap_tools.gaussians._estimator_fast import gaussian_rows, sorted_mergeable_pairs
     from glmap_tools.gaussians._estimator_union import union_additive
 
+    check_finite_means(g)
     if len(g) == 0:
         return np.zeros(0, dtype=np.int64)
     span = float((g.means.max(axis=0) - g.means.min(axis=0)).max()) / config.candidate_radius
