@@ -173,6 +173,23 @@ def test_bad_input_is_refused_and_changes_nothing(glmap, mutate, message):
     _assert_unchanged(glmap, before)
 
 
+def test_a_frame_whose_depth_misses_the_occupancy_lattice_changes_no_cell_and_no_floor():
+    # valid depth only on odd rows and columns (the lattice takes the even ones), inside a
+    # masked chair: the occupancy and the floor have no pixel to read
+    glmap = GLMap(MapConfig(floor_z=None, occupancy_stride=2), embedder=HashingEmbedder())
+    frame, ids, sem = _frame_and_semantics()
+    odd = np.zeros(frame.depth.shape, dtype=bool)
+    odd[1::2, 1::2] = True
+    depth = np.where(odd & (ids == 1), frame.depth, 0.0).astype(np.float32)
+    sparse = type(frame)(frame.rgb, depth, frame.intrinsics, frame.pose)
+    report = glmap.integrate(sparse, sem)
+    assert glmap.floor_z is None and len(glmap.trajectory) == 1
+    assert glmap.occupancy.chunks == {}
+    assert report.instances_added  # the chair's pixels still make an instance
+    glmap.integrate(frame, sem)  # a later full frame sets the floor
+    assert glmap.floor_z is not None
+
+
 def test_an_unknown_unit_id_suggests_the_closest_one(glmap):
     frame, _, sem = _frame_and_semantics()
     glmap.integrate(frame, sem)

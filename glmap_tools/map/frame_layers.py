@@ -72,8 +72,11 @@ def plan_occupancy(
     points: FramePoints,
     config: MapConfig,
     map_floor_z: float | None,
-) -> tuple[float, dict[tuple[int, int], np.ndarray]]:
+) -> tuple[float | None, dict[tuple[int, int], np.ndarray]]:
     """(floor height, updated occupancy chunks) from the frame's valid depth.
+
+    A frame whose valid depth misses the occupancy lattice (only a masked object's pixels,
+    say) changes no cell and leaves the floor as it was (None before any frame set it).
 
     Args:
         occupancy: the map's occupancy grid (not changed).
@@ -84,6 +87,8 @@ def plan_occupancy(
     """
     cloud = points.cloud(stride=config.occupancy_stride)
     floor_z = config.floor_z
+    if len(cloud.points) == 0:
+        return (map_floor_z if floor_z is None else floor_z), {}
     if floor_z is None:
         floor_z = frame_floor(cloud.points, map_floor_z)
     update = occupancy.compute_update(camera_xy, cloud.points, floor_z, config.obstacle_band)
