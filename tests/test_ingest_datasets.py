@@ -309,6 +309,23 @@ def test_a_truncated_trajectory_log_is_refused(redwood_copy):
         open_sequence(redwood_copy)
 
 
+@pytest.mark.parametrize("name", ["trajectory.log", "rgbd.match"])
+def test_a_text_file_that_is_not_utf8_is_refused_naming_it(redwood_copy, name):
+    path = redwood_copy / name
+    path.write_bytes(path.read_bytes().replace(b"0", b"\xff", 1))
+    with pytest.raises(InvalidInputError, match=f"cannot read .*{name}' as text"):
+        open_sequence(redwood_copy)
+
+
+def test_a_tum_list_that_is_not_utf8_is_refused_naming_it(tmp_path):
+    from glmap_tools.ingest.tum import read_file_list
+
+    path = tmp_path / "rgb.txt"
+    path.write_bytes(b"1305031102.175304 rgb/\xff.png\n")
+    with pytest.raises(InvalidInputError, match="rgb.txt' as text"):
+        read_file_list(path)
+
+
 @pytest.mark.parametrize(("value", "match"), [("1.3", "not rigid"), ("nan", "NaN")])
 def test_a_non_rigid_or_non_finite_pose_names_its_frame(redwood_copy, value, match):
     log = redwood_copy / "trajectory.log"

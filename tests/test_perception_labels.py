@@ -106,3 +106,10 @@ def test_points_name_the_segments_under_them_and_a_point_on_nothing_is_reported(
     assert [(lab.segments, lab.label) for lab in labels] == [((1, 2), "sofa"), ((3,), "lamp")]
     assert groups[0].members == (1, 3)
     assert missing == [9]
+
+
+def test_a_labels_file_that_is_not_utf8_json_is_refused_naming_it(tmp_path):
+    path = tmp_path / "labels.json"
+    path.write_bytes(b'{"frames": {"a": "\xff"}}')
+    with pytest.raises(InvalidInputError, match="labels.json' cannot be read as JSON"):
+        load_labels_file(path)

@@ -209,6 +209,9 @@ def test_the_token_comes_from_a_file_or_the_environment_and_on_the_command_line_
     with pytest.raises(InvalidInputError, match="cannot be read") as err:
         cli.read_token(args(token_file=tmp_path / "missing"), {})
     assert str(tmp_path) not in str(err.value)
+    (tmp_path / "binary").write_bytes(b"\xff\xfe\x00secret")
+    with pytest.raises(InvalidInputError, match="cannot be read \\(not UTF-8 text\\)"):
+        cli.read_token(args(token_file=tmp_path / "binary"), {})
 
 
 def test_a_request_head_over_16_kib_is_refused_with_431(guarded_server):

@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from glmap_tools.errors import InvalidInputError
 from glmap_tools.sim import detector as D
 from glmap_tools.sim.annotate import annotate_view
 from glmap_tools.sim.env import ObjectNavEnv
@@ -88,6 +89,23 @@ def test_the_bundled_rates_load_and_a_bad_rate_is_refused_naming_it(tmp_path) ->
     assert text
     with pytest.raises(Exception, match="missing keys"):
         D.load_rates(tmp_path / "r.json")
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [
+        (None, "cannot be read"),
+        (b"\xff\xfe{", "cannot be read .*UTF-8|cannot be read .*utf-8"),
+        (b"{not json", "is not JSON"),
+        (b"[1, 2]", "is not a glmap-detector-rates file"),
+    ],
+)
+def test_an_unreadable_rates_file_is_refused_naming_it(tmp_path, content, match) -> None:
+    path = tmp_path / "rates.json"
+    if content is not None:
+        path.write_bytes(content)
+    with pytest.raises(InvalidInputError, match=match):
+        D.load_rates(path)
 
 
 def test_recall_falls_with_apparent_size_distance_and_occlusion() -> None:

@@ -22,7 +22,7 @@ import numpy as np
 
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Intrinsics
-from glmap_tools.ingest.source import PRIMESENSE, FrameSource, ParsedFolder
+from glmap_tools.ingest.source import PRIMESENSE, FrameSource, ParsedFolder, text_lines
 
 COLOR_DIRS = ("color", "image", "rgb")
 COLOR_SUFFIXES = (".jpg", ".jpeg", ".png")
@@ -42,7 +42,7 @@ def read_trajectory_log(path: Path) -> list[np.ndarray]:
     Raises:
         InvalidInputError: a block is truncated or holds non-numeric values.
     """
-    lines = [(n, ln.split()) for n, ln in enumerate(path.read_text().splitlines(), 1)]
+    lines = [(n, ln.split()) for n, ln in enumerate(text_lines(path), 1)]
     lines = [(n, tokens) for n, tokens in lines if tokens]
     if len(lines) % 5:
         raise InvalidInputError(
@@ -123,7 +123,7 @@ def _image_pairs(folder: Path) -> list[tuple[Path, Path]]:
     match = folder / "rgbd.match"
     if match.is_file():
         pairs = []
-        for n, line in enumerate(match.read_text().splitlines(), 1):
+        for n, line in enumerate(text_lines(match), 1):
             tokens = line.split()
             if not tokens or tokens[0].startswith("#"):
                 continue

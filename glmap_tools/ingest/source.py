@@ -7,10 +7,26 @@ from pathlib import Path
 
 import numpy as np
 
+from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Intrinsics
 
 # PrimeSense / Kinect v1 at 640x480 (Open3D's default camera, the TUM "ROS default").
 PRIMESENSE = Intrinsics(525.0, 525.0, 319.5, 239.5, 640, 480)
+
+
+def text_lines(path: Path) -> list[str]:
+    """The lines of a dataset's text file (trajectory, file list, association).
+
+    Raises:
+        InvalidInputError: the file cannot be read or is not UTF-8 text.
+    """
+    try:
+        return path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as err:
+        raise InvalidInputError(
+            f"cannot read {str(path)!r} as text ({err}); it must be a plain UTF-8 text file "
+            "as the dataset wrote it (re-download or re-export it)."
+        ) from err
 
 
 @dataclass(frozen=True)

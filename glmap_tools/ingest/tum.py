@@ -23,7 +23,7 @@ import numpy as np
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Intrinsics
 from glmap_tools.geometry.rotations import rotations_from_quaternions
-from glmap_tools.ingest.source import PRIMESENSE, FrameSource, ParsedFolder
+from glmap_tools.ingest.source import PRIMESENSE, FrameSource, ParsedFolder, text_lines
 
 MAX_TIME_DIFFERENCE = 0.02  # seconds
 TUM_DEPTH_SCALE = 5000.0
@@ -71,7 +71,7 @@ def quaternion_to_matrix(qx: float, qy: float, qz: float, qw: float) -> np.ndarr
 def _read_table(path: Path, columns: int) -> list[tuple[int, list[str]]]:
     """(line number, tokens) of each data line; '#' lines and blanks are skipped."""
     rows = []
-    for n, line in enumerate(path.read_text().splitlines(), 1):
+    for n, line in enumerate(text_lines(path), 1):
         tokens = line.split()
         if not tokens or tokens[0].startswith("#"):
             continue

@@ -108,8 +108,8 @@ def load_labels_file(path: Path) -> dict[str, FrameLabels]:
         InvalidInputError: an unreadable file or a malformed entry (named).
     """
     try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as exc:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:  # ValueError: not UTF-8, or not JSON
         raise InvalidInputError(f"labels file {str(path)!r} cannot be read as JSON: {exc}") from exc
     if not isinstance(data, Mapping) or not isinstance(data.get("frames"), Mapping):
         raise InvalidInputError(

@@ -324,10 +324,11 @@ def read_token(args: argparse.Namespace, environ: Any = os.environ) -> str | Non
     """
     if args.token_file is not None:
         try:
-            token = args.token_file.read_text().strip()
-        except OSError as exc:
+            token = args.token_file.read_text(encoding="utf-8").strip()
+        except (OSError, UnicodeDecodeError) as exc:
+            why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
             raise InvalidInputError(
-                f"--token-file {args.token_file.name!r} cannot be read ({exc.strerror}); give a "
+                f"--token-file {args.token_file.name!r} cannot be read ({why}); give a "
                 "readable file holding the token."
             ) from None
         if not token:

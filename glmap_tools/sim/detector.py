@@ -88,16 +88,27 @@ def load_rates(path: str | Path | None = None) -> DetectorRates:
     `data/detector_rates.json`.
 
     Raises:
-        InvalidInputError: a missing or unknown key, or a rate outside its range.
+        InvalidInputError: an unreadable file or not JSON, a missing or unknown key, or a rate
+            outside its range.
     """
     path = path or os.environ.get(RATES_ENV) or None
     if path is None:
         text = (resources.files("glmap_tools") / "data" / "detector_rates.json").read_text()
         where = "data/detector_rates.json"
     else:
-        text, where = Path(path).read_text(), str(path)
-    data = json.loads(text)
-    if data.get("format") != RATES_FORMAT:
+        where = str(path)
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InvalidInputError(
+                f"detector rates file {where!r} cannot be read ({exc}); pass a readable JSON "
+                f"file (or unset {RATES_ENV} for the bundled rates)."
+            ) from None
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise InvalidInputError(f"{where} is not JSON ({exc}).") from None
+    if not isinstance(data, dict) or data.get("format") != RATES_FORMAT:
         raise InvalidInputError(f"{where} is not a {RATES_FORMAT} file (its 'format' key).")
     names = [f.name for f in fields(DetectorRates)]
     missing = [n for n in names if n not in data]
