@@ -160,8 +160,29 @@ def _assert_unchanged(glmap, before):
             lambda f, ids, s: (type(f)(f.rgb, np.zeros_like(f.depth), f.intrinsics, f.pose), s),
             "no valid pixel",
         ),
+        (
+            lambda f, ids, s: (
+                f,
+                FrameSemantics([ObjectObservation(1, "chair\ud800", "", ids == 1)]),
+            ),
+            "object 1's label 'chair\\\\ud800' holds a lone surrogate at character 5",
+        ),
+        (
+            lambda f, ids, s: (
+                f,
+                FrameSemantics(s.objects, [GroupObservation(3, "a \udcff corner", (1,))]),
+            ),
+            "group 3's description .* lone surrogate",
+        ),
     ],
-    ids=["empty-mask", "unknown-group-member", "mask-shape", "all-invalid-depth"],
+    ids=[
+        "empty-mask",
+        "unknown-group-member",
+        "mask-shape",
+        "all-invalid-depth",
+        "lone-surrogate-label",
+        "lone-surrogate-group",
+    ],
 )
 def test_bad_input_is_refused_and_changes_nothing(glmap, mutate, message):
     frame, ids, sem = _frame_and_semantics()

@@ -61,6 +61,8 @@ class FrameSemantics:
                 raise InvalidInputError(
                     f"object {obj.local_id} has neither a label nor a description; give it one."
                 )
+            for name, value in (("label", obj.label), ("description", obj.description)):
+                _check_unicode(value, f"object {obj.local_id}'s {name}")
             if obj.mask.shape != (height, width):
                 raise InvalidInputError(
                     f"mask of object {obj.local_id} has shape {obj.mask.shape} but the frame is "
@@ -80,9 +82,21 @@ class FrameSemantics:
             group_ids.add(group.local_id)
             if not group.description.strip():
                 raise InvalidInputError(f"group {group.local_id} has no description; add one.")
+            _check_unicode(group.description, f"group {group.local_id}'s description")
             unknown = sorted(set(group.members) - seen)
             if unknown:
                 raise InvalidInputError(
                     f"group {group.local_id} ({group.description!r}) lists unknown member ids "
                     f"{unknown}; members must be object ids of this frame {sorted(seen)}."
                 )
+
+
+def _check_unicode(text: str, what: str) -> None:
+    """Refuse text that cannot be stored: a lone surrogate has no UTF-8 encoding."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as exc:
+        raise InvalidInputError(
+            f"{what} {text[:40]!r} holds a lone surrogate at character {exc.start}, which is "
+            "not text; decode the source with errors='replace' (or drop it) first."
+        ) from None
