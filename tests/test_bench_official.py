@@ -34,6 +34,7 @@ class GaussianEstimator:
 
 
 def _clone(root):
+    # as in the clone: src/utils has no __init__.py (a namespace package)
     (root / "src" / "gaussian").mkdir(parents=True)
     (root / "src" / "utils").mkdir()
     (root / "src" / "gaussian" / "__init__.py").write_text("raise ImportError('no CUDA here')\n")
@@ -47,7 +48,6 @@ def _clone(root):
             """
         )
     )
-    (root / "src" / "utils" / "__init__.py").write_text("")
     (root / "src" / "utils" / "coordinate_transforms.py").write_text(
         "def to_colmap(p):\n    return p[:, [1, 2, 0]] * [-1, -1, 1]\n"
     )
