@@ -164,3 +164,20 @@ def test_an_invalid_action_is_refused(env) -> None:
     env.reset(seed=0)
     with pytest.raises(InvalidInputError, match="not one of 0 stop"):
         env.step(7)
+
+
+@pytest.mark.parametrize(
+    ("spec", "match"),
+    [
+        ({"width": 0}, "width=0 must be a whole number of pixels in 1..4096"),
+        ({"height": 48.5}, "height=48.5"),
+        ({"camera_height": -1.0}, r"camera_height=-1.0 m must lie above the floor"),
+        ({"camera_height": 9.0}, r"in \(0, 2.5\] m"),
+        ({"camera_height": float("nan")}, "camera_height=nan"),
+        ({"hfov_deg": 179.0}, "hfov_deg=179.0"),
+    ],
+)
+def test_a_camera_outside_the_rooms_or_the_image_limits_is_refused(spec, match) -> None:
+    with pytest.raises(InvalidInputError, match=match):
+        CameraSpec(**{"width": 64, "height": 48, **spec})
+    assert CameraSpec(np.int64(64), np.int64(48), 79.0, np.float32(0.5)).width == 64

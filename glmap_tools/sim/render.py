@@ -15,6 +15,7 @@ so where two surfaces tie in depth the same one wins in every process.
 
 from __future__ import annotations
 
+import numbers
 import os
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
@@ -39,6 +40,8 @@ from glmap_tools.sim.meshes import PlacedPart, object_parts  # noqa: E402
 Z_NEAR = 0.05  # metres
 Z_FAR = 40.0  # metres
 SHADER_DIR = Path(__file__).with_name("shaders")  # the id pass's segmentation shaders
+MAX_IMAGE_SIDE = 4096  # pixels per side of a rendered view
+MAX_CAMERA_HEIGHT = 2.5  # metres above the floor; generated rooms are 2.6 m high
 
 
 @dataclass(frozen=True)
@@ -49,6 +52,22 @@ class CameraSpec:
     height: int = 480
     hfov_deg: float = 79.0
     camera_height: float = 0.88
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            side = getattr(self, name)
+            if not isinstance(side, numbers.Integral) or not 1 <= int(side) <= MAX_IMAGE_SIDE:
+                raise InvalidInputError(
+                    f"CameraSpec {name}={side!r} must be a whole number of pixels in "
+                    f"1..{MAX_IMAGE_SIDE}, e.g. 640 x 480."
+                )
+        h = self.camera_height
+        if not (isinstance(h, numbers.Real) and 0.0 < h <= MAX_CAMERA_HEIGHT):
+            raise InvalidInputError(
+                f"CameraSpec camera_height={h!r} m must lie above the floor and below the "
+                f"rooms' ceiling: in (0, {MAX_CAMERA_HEIGHT:g}] m, e.g. 0.88 (the agent's)."
+            )
+        Intrinsics.from_fov(self.width, self.height, self.hfov_deg)  # checks the field of view
 
     @property
     def intrinsics(self) -> Intrinsics:
