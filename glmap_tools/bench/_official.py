@@ -17,6 +17,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -68,10 +69,11 @@ def load_official_estimator(root: Path) -> type:
     return module.GaussianEstimator  # type: ignore[no-any-return]
 
 
-def _wall_ms(fn: Callable[[], object]) -> float:
+def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
+    """(wall ms, result) of one call."""
     t0 = time.perf_counter()
-    fn()
-    return (time.perf_counter() - t0) * 1e3
+    result = fn()
+    return (time.perf_counter() - t0) * 1e3, result
 
 
 def official_times(
@@ -89,14 +91,13 @@ def official_times(
     official = official_class(voxel_size=voxel)
     runs: dict[str, list[float]] = {"off": [], "off+merge": [], "ours": [], "ours unmerged": []}
     for _ in range(rounds):
-        runs["off"].append(_wall_ms(lambda: official.estimate(points, colors)))
-        runs["off+merge"].append(_wall_ms(lambda: official.estimate(points, colors, merge=True)))
+        ms, off = _timed(lambda: official.estimate(points, colors))
+        runs["off"].append(ms)
+        ms, merged = _timed(lambda: official.estimate(points, colors, merge=True))
+        runs["off+merge"].append(ms)
         for _ in range(ours_per_round):
-            runs["ours"].append(_wall_ms(ours))
-            runs["ours unmerged"].append(_wall_ms(ours_unmerged))
-    counts = (
-        official.estimate(points, colors).num_gaussians,
-        official.estimate(points, colors, merge=True).num_gaussians,
-    )
+            runs["ours"].append(_timed(ours)[0])
+            runs["ours unmerged"].append(_timed(ours_unmerged)[0])
+    counts = (off.num_gaussians, merged.num_gaussians)
     med = {k: float(np.median(v)) for k, v in runs.items()}
     return OfficialTimes(med["off"], med["off+merge"], med["ours"], med["ours unmerged"], counts)

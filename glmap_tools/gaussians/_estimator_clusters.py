@@ -21,7 +21,7 @@ from glmap_tools.gaussians._int64 import ZERO
 
 PAIRS_PER_GAUSSIAN = 16  # output room per Gaussian before a chunk is redone with more
 CROWDED_BUCKET = 32  # pairs in a D bucket past which it is sorted by stable sorts
-MAX_FLOAT = 1.7976931348623157e308  # the largest finite float64
+MAX_FLOAT = np.finfo(np.float64).max
 
 
 @numba.njit(cache=True)
