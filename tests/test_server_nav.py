@@ -220,6 +220,22 @@ async def test_a_benchmark_episode_id_with_a_typo_gets_the_closest_suggestion(tm
     assert unstarted.is_error and "call sim_reset first" in unstarted.content[0].text
 
 
+@pytest.mark.parametrize("new_env", [False, True])
+async def test_a_refused_sim_reset_keeps_the_running_episode(tmp_path, new_env):
+    # new_env: the refused reset asks for another step limit, so it builds a fresh env first
+    async with Client(build_server(config(tmp_path, sim_size=(96, 72)))) as client:
+        ok(await client.call_tool("sim_reset", {"scene": 0, "goal": "sofa", "seed": 2}))
+        ok(await client.call_tool("sim_step", {"action": "turn_right"}))
+        refused = await client.call_tool(
+            "sim_reset", {"goal": "left of the chair", **({"max_steps": 1} if new_env else {})}
+        )
+        walked = ok(await client.call_tool("nav_step", {"actions": 2}))
+        after = ok(await client.call_tool("sim_step", {"action": "turn_left"}))
+    assert refused.is_error and "'left of the chair' is not in scene 0" in refused.content[0].text
+    assert walked["steps"] == 3 and walked["goal"] == "sofa"
+    assert after["steps"] == 4 and after["max_steps"] == 500 and after["status"] == "running"
+
+
 async def test_a_walk_racing_a_reset_of_its_session_finishes_before_the_reset(tmp_path):
     import anyio
 

@@ -78,16 +78,28 @@ async def sim_reset(
             key: tuple[object, ...] = ("bench", str(bench.layout_path), bench.task, wh, steps)
         else:
             key = (task, scene, wh, steps)
+        fresh = None
         if sim is None or sim.key != key:
             if bench is not None:
                 fresh = simulator.open_bench(bench, wh, steps, perception)  # type: ignore[arg-type]
             else:
                 fresh = simulator.open_episode(task, scene, wh, steps, perception)  # type: ignore[arg-type]
+        # The new episode starts before the running one is let go: a refused goal keeps it.
+        playing = fresh or sim
+        assert playing is not None
+        was_bench, playing.bench = playing.bench, bench
+        try:
+            simulator.reset(playing, seed, goal or None)
+        except BaseException:
+            playing.bench = was_bench
+            if fresh is not None:
+                fresh.close()
+            raise
+        if fresh is not None:
             if sim is not None:
                 sim.close()
-            sim = target.sim = fresh
-        sim.bench = bench
-        simulator.reset(sim, seed, goal or None)
+            target.sim = fresh
+        sim = playing
         if not keep_map:
             state.registry.new_map(target, None)
         scorer = None
