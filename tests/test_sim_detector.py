@@ -94,9 +94,9 @@ def test_the_bundled_rates_load_and_a_bad_rate_is_refused_naming_it(tmp_path) ->
 @pytest.mark.parametrize(
     ("content", "match"),
     [
-        (None, "cannot be read"),
-        (b"\xff\xfe{", "cannot be read .*UTF-8|cannot be read .*utf-8"),
-        (b"{not json", "is not JSON"),
+        (None, "rates.json' does not exist; make one with a copy of the bundled"),
+        (b"\xff\xfe{", "cannot read detector rates file .*utf-8"),
+        (b"{not json", "is not valid JSON"),
         (b"[1, 2]", "is not a glmap-detector-rates file"),
     ],
 )
@@ -104,6 +104,31 @@ def test_an_unreadable_rates_file_is_refused_naming_it(tmp_path, content, match)
     path = tmp_path / "rates.json"
     if content is not None:
         path.write_bytes(content)
+    with pytest.raises(InvalidInputError, match=match):
+        D.load_rates(path)
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "match"),
+    [
+        ("recall_max", "0.5", "recall_max=0.5 must be a number in"),
+        ("recall_max", True, "recall_max=True must be a number"),
+        ("recall_half_pixels", [], r"recall_half_pixels=\[\] must be a number"),
+        ("recall_half_pixels", 10**400, "recall_half_pixels=1000000000.* must be a number in"),
+        ("mask_bleed_pixels", {"a": 1}, "mask_bleed_pixels=.* must be a number"),
+        ("confusion_groups", [["sofa", 3]], "confusion_groups must be lists of category names"),
+        ("confusion_groups", "sofa", "confusion_groups must be lists of category names"),
+    ],
+    ids=["string", "bool", "list", "huge int", "dict", "group of a number", "groups a string"],
+)
+def test_a_rate_of_the_wrong_type_is_refused_naming_it(tmp_path, key, value, match) -> None:
+    import json
+    from importlib import resources
+
+    data = json.loads((resources.files("glmap_tools") / "data" / "detector_rates.json").read_text())
+    data[key] = value
+    path = tmp_path / "rates.json"
+    path.write_text(json.dumps(data))
     with pytest.raises(InvalidInputError, match=match):
         D.load_rates(path)
 

@@ -38,6 +38,7 @@ from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry.camera import Intrinsics
 from glmap_tools.sim.annotate import REFERENCE_PIXELS, default_min_pixels, visible_group
 from glmap_tools.sim.describe import object_description
+from glmap_tools.sim.jsonfile import read_json
 from glmap_tools.sim.layout import Layout, SceneObject
 from glmap_tools.sim.palette import COLORS
 
@@ -93,21 +94,14 @@ def load_rates(path: str | Path | None = None) -> DetectorRates:
     """
     path = path or os.environ.get(RATES_ENV) or None
     if path is None:
-        text = (resources.files("glmap_tools") / "data" / "detector_rates.json").read_text()
         where = "data/detector_rates.json"
+        data = json.loads(
+            (resources.files("glmap_tools") / "data" / "detector_rates.json").read_text()
+        )
     else:
         where = str(path)
-        try:
-            text = Path(path).read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InvalidInputError(
-                f"detector rates file {where!r} cannot be read ({exc}); pass a readable JSON "
-                f"file (or unset {RATES_ENV} for the bundled rates)."
-            ) from None
-    try:
-        data = json.loads(text)
-    except ValueError as exc:
-        raise InvalidInputError(f"{where} is not JSON ({exc}).") from None
+        bundled = f"a copy of the bundled data/detector_rates.json (or unset {RATES_ENV})"
+        data = read_json(path, "detector rates file", bundled)
     if not isinstance(data, dict) or data.get("format") != RATES_FORMAT:
         raise InvalidInputError(f"{where} is not a {RATES_FORMAT} file (its 'format' key).")
     names = [f.name for f in fields(DetectorRates)]
@@ -117,17 +111,41 @@ def load_rates(path: str | Path | None = None) -> DetectorRates:
         raise InvalidInputError(
             f"{where}: missing keys {missing}, unknown keys {unknown}; see the bundled file."
         )
-    values: dict[str, Any] = {n: data[n] for n in names}
-    values["confusion_groups"] = tuple(tuple(str(c) for c in g) for g in data["confusion_groups"])
+    values: dict[str, Any] = {
+        "confusion_groups": _confusion_groups(data["confusion_groups"], where)
+    }
     for n in names:
-        if n == "confusion_groups":
-            continue
-        v = float(values[n])
-        upper = 1.0 if n.endswith(("_rate", "_share", "_per_frame", "recall_max")) else math.inf
-        if not (0.0 <= v <= upper):
-            raise InvalidInputError(f"{where}: {n}={v!r} must lie in [0, {upper}].")
-        values[n] = v
+        if n != "confusion_groups":
+            upper = 1.0 if n.endswith(("_rate", "_share", "_per_frame", "recall_max")) else math.inf
+            values[n] = _rate(data[n], n, upper, where)
     return DetectorRates(**values)
+
+
+def _rate(value: Any, name: str, upper: float, where: str) -> float:
+    """A rate file's number, finite and in [0, upper]."""
+    v = math.nan
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        try:
+            v = float(value)
+        except OverflowError:  # an integer past float64
+            v = math.inf
+    if not (math.isfinite(v) and 0.0 <= v <= upper):
+        raise InvalidInputError(
+            f"{where}: {name}={str(value)[:40]} must be a number in [0, {upper}]."
+        )
+    return v
+
+
+def _confusion_groups(groups: Any, where: str) -> tuple[tuple[str, ...], ...]:
+    """A rate file's confusion groups: lists of category names."""
+    if not isinstance(groups, list) or not all(
+        isinstance(g, list) and all(isinstance(c, str) for c in g) for g in groups
+    ):
+        raise InvalidInputError(
+            f"{where}: confusion_groups must be lists of category names, e.g. "
+            f'[["sofa", "armchair"]] (got {str(groups)[:80]}).'
+        )
+    return tuple(tuple(g) for g in groups)
 
 
 @dataclass(frozen=True)
