@@ -113,3 +113,11 @@ def test_a_labels_file_that_is_not_utf8_json_is_refused_naming_it(tmp_path):
     path.write_bytes(b'{"frames": {"a": "\xff"}}')
     with pytest.raises(InvalidInputError, match="labels.json' cannot be read as JSON"):
         load_labels_file(path)
+
+
+@pytest.mark.parametrize("key", ["objects", "groups"])
+def test_a_frame_whose_objects_or_groups_are_not_a_list_is_refused_naming_it(tmp_path, key):
+    path = tmp_path / "labels.json"
+    path.write_text(json.dumps({"frames": {"00000": {key: 3}}}))
+    with pytest.raises(InvalidInputError, match=rf"frames\['00000'\].{key} must be a list, got 3"):
+        load_labels_file(path)

@@ -87,6 +87,30 @@ def test_an_episode_whose_goal_cannot_be_reached_is_refused() -> None:
         episodes_from_dict(data, scene)
 
 
+@pytest.mark.parametrize(
+    ("key", "value", "match"),
+    [
+        ("start_position", [10**400, 2.0], "episodes\\[0\\] is malformed .*OverflowError"),
+        ("start_position", [float("nan"), 2.0], "episodes\\[0\\] is malformed .*finite"),
+        ("start_position", [3.0, 2.0, 1.0], "episodes\\[0\\] is malformed .*2 finite numbers"),
+        ("start_heading", float("inf"), "episodes\\[0\\] is malformed .*finite"),
+        ("success_distance", "x", "success_distance x must be a positive number of metres"),
+        ("success_distance", -1.0, "success_distance -1.0 must be a positive number"),
+    ],
+    ids=["past float64", "nan start", "three numbers", "inf heading", "text", "negative"],
+)
+def test_an_episode_value_of_the_wrong_kind_is_refused_naming_it(key, value, match) -> None:
+    data = {
+        "format": "glmap-sim-episodes", "version": 1, "task": "objectnav", "scene": "",
+        "episodes": [{"episode_id": 0, "start_position": [3.0, 2.0], "start_heading": 0.0,
+                      "goal": {"text": "chair", "object_ids": [1]}}],
+    }  # fmt: skip
+    episodes_from_dict(data)  # as given, it loads
+    (data if key == "success_distance" else data["episodes"][0])[key] = value
+    with pytest.raises(InvalidInputError, match=match):
+        episodes_from_dict(data)
+
+
 def test_an_unknown_task_suggests_the_closest() -> None:
     with pytest.raises(InvalidInputError, match="Did you mean 'objectnav'"):
         generate_episodes(_scene([_chair(1, 1, 1)]), "objnav", 1, seed=0)

@@ -96,6 +96,22 @@ def test_a_negative_size_is_refused() -> None:
         layout_from_dict(_bad(objects__0__size=[2, -1, 1]))
 
 
+@pytest.mark.parametrize(
+    ("changes", "match"),
+    [
+        ({"objects__1": 3}, r"objects\[1\] must be a JSON object, got 3"),
+        ({"objects__1__position": [10**400, 1, 0]}, r"position\[0\] must be a finite number"),
+        ({"regions__0__room": [1]}, r"region.*room must be an integer, got \[1\]"),
+        ({"version": "x"}, "version 'x' is not"),
+        ({"seed": "x"}, "layout seed must be an integer, got 'x'"),
+    ],
+    ids=["object a number", "coordinate past float64", "room a list", "version", "seed"],
+)
+def test_a_value_of_the_wrong_type_is_refused_naming_it(changes, match) -> None:
+    with pytest.raises(InvalidInputError, match=match):
+        layout_from_dict(_bad(**changes))
+
+
 def test_a_clockwise_room_polygon_is_turned_counter_clockwise() -> None:
     layout = layout_from_dict(_bad(rooms__0__polygon=[[0, 0], [0, 3], [4, 3], [4, 0]]))
     assert layout.rooms[0].area == pytest.approx(12.0)

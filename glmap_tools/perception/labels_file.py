@@ -70,6 +70,9 @@ def _ints(value: Any, where: str) -> list[int]:
 def _frame(entry: Any, where: str) -> FrameLabels:
     if not isinstance(entry, Mapping):
         raise _fail(where, "must be an object with 'objects' and 'groups'")
+    for key in ("objects", "groups"):
+        if not isinstance(entry.get(key, []), list):
+            raise _fail(f"{where}.{key}", f"must be a list, got {str(entry[key])[:80]}")
     objects = []
     for i, obj in enumerate(entry.get("objects", [])):
         w = f"{where}.objects[{i}]"

@@ -289,18 +289,21 @@ def _episode(entry: Mapping[str, Any], task: str, where: str) -> Episode:
     try:
         goal = entry["goal"]
         start = [float(v) for v in entry["start_position"]]
+        heading = float(entry.get("start_heading", 0.0))
+        if len(start) != 2 or not all(map(math.isfinite, (*start, heading))):
+            raise ValueError("start_position must be 2 finite numbers, start_heading finite")
         ids = tuple(int(i) for i in goal["object_ids"])
         return Episode(
             episode_id=int(entry["episode_id"]),
             task=task,
             start_position=(start[0], start[1]),
-            start_heading=float(entry.get("start_heading", 0.0)),
+            start_heading=heading,
             goal_text=str(goal["text"]),
             goal_object_ids=ids,
             geodesic_distance=float(entry.get("geodesic_distance", math.nan)),
             difficulty=_difficulty(entry.get("difficulty")),
         )
-    except (KeyError, TypeError, ValueError, IndexError) as exc:
+    except (KeyError, TypeError, ValueError, IndexError, OverflowError) as exc:
         raise InvalidInputError(
             f"{where} is malformed ({exc!r}); each episode needs episode_id, start_position "
             "[x, y], start_heading and goal {text, object_ids}."
@@ -339,12 +342,18 @@ def episodes_from_dict(
     if not isinstance(entries, list) or not entries:
         raise InvalidInputError("an episode set needs a non-empty 'episodes' list.")
     episodes = [_episode(e, task, f"episodes[{i}]") for i, e in enumerate(entries)]
+    success = data.get("success_distance", SUCCESS_DISTANCE)
+    if isinstance(success, bool) or not isinstance(success, int | float) or not 0 < success < 1e3:
+        raise InvalidInputError(
+            f"success_distance {str(success)[:40]} must be a positive number of metres below "
+            f"1000 (the default is {SUCCESS_DISTANCE})."
+        )
     episode_set = EpisodeSet(
         task=task,
         scene=str(data.get("scene", "")),
         scene_seed=data.get("scene_seed"),
         episodes=episodes,
-        success_distance=float(data.get("success_distance", SUCCESS_DISTANCE)),
+        success_distance=float(success),
     )
     if layout is not None:
         validate_episodes(episode_set, layout, grid)

@@ -31,6 +31,8 @@ OPENING_TOLERANCE = 0.15  # metres between an opening's centre and each room's w
 
 
 def _get(entry: Mapping[str, Any], key: str, where: str, default: Any = ...) -> Any:
+    if not isinstance(entry, Mapping):
+        raise InvalidInputError(f"{where} must be a JSON object, got {str(entry)[:80]}.")
     if key in entry:
         return entry[key]
     if default is ...:
@@ -47,7 +49,10 @@ def _int(value: Any, where: str) -> int:
 def _float(value: Any, where: str, positive: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | np.number):
         raise InvalidInputError(f"{where} must be a number, got {value!r}.")
-    out = float(value)
+    try:
+        out = float(value)
+    except OverflowError:  # an integer past float64
+        out = math.inf
     if not math.isfinite(out) or (positive and out <= 0):
         kind = "a positive finite" if positive else "a finite"
         raise InvalidInputError(f"{where} must be {kind} number, got {value!r}.")
@@ -223,7 +228,7 @@ def _parse_region(entry: Mapping[str, Any], where: str, object_ids: set[int]) ->
         name=str(entry.get("name", description.split(":")[0])),
         description=description,
         members=ids,
-        room=int(entry.get("room", 0) or 0),
+        room=_int(entry.get("room", 0) or 0, f"{where}.room"),
     )
 
 
@@ -247,7 +252,7 @@ def layout_from_dict(data: Mapping[str, Any]) -> Layout:
     if not isinstance(data, Mapping):
         raise InvalidInputError(f"a layout is a JSON object, got {type(data).__name__}.")
     fmt = data.get("format", FORMAT)
-    if fmt != FORMAT or int(data.get("version", VERSION)) != VERSION:
+    if fmt != FORMAT or data.get("version", VERSION) != VERSION:
         raise InvalidInputError(
             f"layout format {fmt!r} version {data.get('version')!r} is not {FORMAT!r} "
             f"version {VERSION}; convert it or regenerate it with `glmap sim new`."
@@ -286,7 +291,7 @@ def layout_from_dict(data: Mapping[str, Any]) -> Layout:
         openings=openings,
         objects=objects,
         regions=regions,
-        seed=None if seed is None else int(seed),
+        seed=None if seed is None else _int(seed, "layout seed"),
     )
 
 
