@@ -226,3 +226,30 @@ def test_glmap_eval_sqa_answers_on_a_scene_folder(scenes: Path, tmp_path: Path) 
     summary = (out / "summary.md").read_text(encoding="utf-8")
     assert summary.startswith("# SQA on mine: 1 scenes") and "| glmap |" in summary
     assert [p.stem for p in (out / "scenes").glob("*.json")] == ["a27"]
+
+
+@pytest.mark.parametrize(
+    ("file", "text", "match"),
+    [
+        ("split.json", "{bad", "split file .*split.json' is not valid JSON"),
+        ("split.json", "[1]", "split.json is not a JSON object"),
+        ("split.json", '{"scenes": [3]}', '"scenes" must list objects with a scene folder name'),
+        ("split.json", '{"scenes": [{"x": 1}]}', '"scenes" must list objects with a scene'),
+        ("a27/objectnav.json", "{bad", "episode file .*objectnav.json' is not valid JSON"),
+        ("a27/objectnav.json", "null", "episode file format None version None"),
+    ],
+)
+def test_a_broken_split_or_episode_file_in_a_scene_folder_is_refused_naming_it(
+    scenes: Path, tmp_path: Path, file: str, text: str, match: str
+) -> None:
+    folder = tmp_path / "mine"
+    (folder / "a27").mkdir(parents=True)
+    for name in ("layout.json", "objectnav.json"):
+        (folder / "a27" / name).write_bytes((scenes / "a27" / name).read_bytes())
+    (folder / file).write_text(text, encoding="utf-8")
+    with pytest.raises(InvalidInputError, match=match):
+        load_split(
+            "mine",
+            "objectnav",
+            {"mine": ServerConfig(scene_dirs={"mine": folder}).scene_dirs["mine"]},
+        )

@@ -330,7 +330,12 @@ def episodes_from_dict(
         InvalidInputError: malformed JSON, a start off the navigable floor, an unreachable goal.
         UnknownIdError: a goal object id the layout does not have.
     """
-    if data.get("format") != FORMAT or data.get("version") != VERSION:
+    if (
+        not isinstance(data, Mapping)
+        or data.get("format") != FORMAT
+        or data.get("version") != VERSION
+    ):
+        data = data if isinstance(data, Mapping) else {}
         raise InvalidInputError(
             f"episode file format {data.get('format')!r} version {data.get('version')!r} is not "
             f"{FORMAT!r} version {VERSION}; regenerate it with `glmap sim episodes`."

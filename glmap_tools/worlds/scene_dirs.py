@@ -16,7 +16,6 @@ on a server, `EvalSpec.scenes_dir` on `glmap eval` and its workers.
 from __future__ import annotations
 
 import functools
-import json
 import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ from typing import Any
 
 from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
 from glmap_tools.sim.episodes import TASKS, Episode, episodes_from_dict
+from glmap_tools.sim.jsonfile import read_json
 
 BUILT_IN_SPLITS = ("tune", "bench", "house-tune", "house-bench")
 NAME_PATTERN = re.compile(r"^[a-z0-9][a-z0-9_-]{0,23}$")
@@ -129,8 +129,22 @@ def _split_manifest(folder: Path) -> dict[str, Any]:
     manifest = folder / "split.json"
     if not manifest.is_file():
         return {}
-    data = json.loads(manifest.read_text(encoding="utf-8"))
-    return data if isinstance(data, dict) else {}
+    data = read_json(manifest, "split file", "a JSON object (docs/evaluation.md, Your own scenes)")
+    if not isinstance(data, dict):
+        raise InvalidInputError(
+            f'{manifest} is not a JSON object; write {{"scenes": [{{"scene": "s00"}}]}}, or '
+            "remove it to play every <scene>/layout.json."
+        )
+    scenes = data.get("scenes")
+    if scenes is not None and not (
+        isinstance(scenes, list)
+        and all(isinstance(s, dict) and isinstance(s.get("scene"), str) for s in scenes)
+    ):
+        raise InvalidInputError(
+            f'{manifest}: "scenes" must list objects with a scene folder name, e.g. '
+            f'[{{"scene": "s00"}}], got {str(scenes)[:80]}.'
+        )
+    return data
 
 
 def scene_names(folder: Path) -> tuple[str, ...]:
@@ -170,7 +184,7 @@ def read_scene_episodes(
         path = folder / scene / f"{task}.json"
         if not path.is_file():
             continue
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = read_json(path, "episode file", "`glmap sim episodes`")
         for e in episodes_from_dict(data).episodes:
             out.append(
                 BenchEpisode(
