@@ -159,6 +159,38 @@ def test_a_tilted_scan_box_is_refused() -> None:
         layout_from_scan(scan)
 
 
+SCAN_BOX = {"id": 1, "category": "chair", "center": [1.0, 1.0, 0.45], "size": [0.5, 0.5, 0.9]}
+SQUARE = [[0, 0], [3, 0], [3, 3], [0, 3]]
+
+
+@pytest.mark.parametrize(
+    ("scan", "match"),
+    [
+        ({"room": 3}, "'room' must be a room object, got 3"),
+        ({"room": {"polygon": 5}}, r"room.polygon must list at least 3 \[x, y\] corners"),
+        ({"rooms": [{"polygon": [[0, 0], [3, 0], ["a", 3]]}]}, r"rooms\[0\].polygon must list"),
+        ({"room": {"polygon": [[0, 0], [10**400, 0], [3, 3]]}}, r"room.polygon must list"),
+        ({"objects": [{**SCAN_BOX, "id": [1]}]}, r"objects\[0\].id must be an integer, got \[1\]"),
+        ({"objects": [{**SCAN_BOX, "attributes": [1]}]}, r"objects\[0\].attributes must be"),
+        ({"objects": [{**SCAN_BOX, "yaw": 10**400}]}, r"objects\[0\].yaw must be a finite"),
+        ({"objects": [{**SCAN_BOX, "rotation": [[10**400] * 3] * 3}]}, "finite 3x3 matrix"),
+        ({"objects": [{**SCAN_BOX, "center": [10**400, 1, 0.45]}]}, "needs 'center'"),
+        ({"openings": 3}, "non-empty list|list 'openings'"),
+        ({"room": {"polygon": [[0, 0], [1e6, 0], [1e6, 3], [0, 3]]}}, "spans at most 200 m along x and y"),
+    ],
+    ids=[
+        "room a number", "polygon a number", "corner text", "corner past float64", "id a list",
+        "attributes a list", "yaw past float64", "rotation past float64", "centre past float64",
+        "openings a number", "a million metres",
+    ],
+)  # fmt: skip
+def test_a_scan_value_of_the_wrong_kind_is_refused_naming_it(scan, match) -> None:
+    data = {"room": {"polygon": SQUARE}, "objects": [SCAN_BOX], **scan}
+    layout_from_scan({"room": {"polygon": SQUARE}, "objects": [SCAN_BOX]})  # as given, it loads
+    with pytest.raises(InvalidInputError, match=match):
+        layout_from_scan(data)
+
+
 def test_from_scan_takes_an_alias_file_and_reports_the_shape_each_category_got(
     tmp_path, capsys
 ) -> None:

@@ -27,6 +27,7 @@ from glmap_tools.sim.wallfit import fit_inside_room
 FORMAT = "glmap-sim-layout"
 VERSION = 1
 MAX_OBJECT_ID = 65535  # ids are written into uint16 annotation PNGs
+MAX_SPAN = 200.0  # metres along x and y (the nav grid at 5 cm: 4000 cells a side)
 OPENING_TOLERANCE = 0.15  # metres between an opening's centre and each room's wall
 
 
@@ -259,6 +260,12 @@ def layout_from_dict(data: Mapping[str, Any]) -> Layout:
         )
     room_entries = _list(data, "rooms", required=True)
     rooms = [_parse_room(e, f"rooms[{i}]") for i, e in enumerate(room_entries)]
+    span = np.ptp(np.concatenate([r.polygon for r in rooms]), axis=0)
+    if span.max() > MAX_SPAN:
+        raise InvalidInputError(
+            f"the rooms span {span[0]:.4g} x {span[1]:.4g} m; a layout spans at most "
+            f"{MAX_SPAN:.0f} m along x and y: give coordinates in metres, or split it into scenes."
+        )
     _unique([r.id for r in rooms], "room")
     by_id = {r.id: r for r in rooms}
     openings = [

@@ -60,7 +60,10 @@ def _box_pose(
 ) -> tuple[float, np.ndarray]:
     """(yaw of the box's width axis in the z-up world, size as width, depth, height)."""
     if "rotation" in entry:
-        r = np.asarray(entry["rotation"], dtype=np.float64)
+        try:
+            r = np.asarray(entry["rotation"], dtype=np.float64)
+        except (TypeError, ValueError, OverflowError):
+            r = np.full(1, np.nan)
         if r.shape != (3, 3) or not np.all(np.isfinite(r)):
             raise InvalidInputError(f"{where}.rotation must be a finite 3x3 matrix.")
         r = up_rotation @ r  # columns: the box axes in the z-up world
@@ -74,8 +77,10 @@ def _box_pose(
         a, b = (k for k in range(3) if k != up_axis)
         return math.atan2(r[1, a], r[0, a]), np.array([size[a], size[b], size[up_axis]])
     yaw = entry.get("yaw", entry.get("heading", 0.0))
-    if isinstance(yaw, bool) or not isinstance(yaw, int | float) or not math.isfinite(yaw):
-        raise InvalidInputError(f"{where}.yaw must be a finite number of radians, got {yaw!r}.")
+    if not _finite_number(yaw):
+        raise InvalidInputError(
+            f"{where}.yaw must be a finite number of radians, got {str(yaw)[:40]}."
+        )
     # A yaw about the scan's up axis is the same yaw about z; the extents follow the axes.
     return float(yaw), np.abs(up_rotation) @ size
 
@@ -154,7 +159,10 @@ def _scan_rooms(meta: Mapping[str, Any]) -> list[dict[str, Any]]:
     """The scan's rooms: its "rooms" list, or its one "room" (ids from 1)."""
     raw = meta.get("rooms")
     if raw is None:
-        return [dict(meta.get("room") or {})]
+        room = meta.get("room") or {}
+        if not isinstance(room, Mapping):
+            raise InvalidInputError(f"a scan's 'room' must be a room object, got {str(room)[:80]}.")
+        return [_checked_polygon(dict(room), "room")] if "polygon" in room else [dict(room)]
     if not isinstance(raw, list) or not raw or not all(isinstance(r, Mapping) for r in raw):
         raise InvalidInputError("a scan's 'rooms' must be a non-empty list of room objects.")
     rooms = []
@@ -163,8 +171,33 @@ def _scan_rooms(meta: Mapping[str, Any]) -> list[dict[str, Any]]:
             raise InvalidInputError(
                 f"rooms[{i}] has no 'polygon'; with several rooms each needs its [x, y] corners."
             )
-        rooms.append({"id": i + 1, "type": "room", **dict(room)})
+        rooms.append(_checked_polygon({"id": i + 1, "type": "room", **dict(room)}, f"rooms[{i}]"))
     return rooms
+
+
+def _checked_polygon(room: dict[str, Any], where: str) -> dict[str, Any]:
+    """`room`, its "polygon" checked: at least 3 [x, y] corners of finite numbers."""
+    polygon = room["polygon"]
+    ok = isinstance(polygon, list) and len(polygon) >= 3
+    for corner in polygon if ok else ():
+        ok = ok and isinstance(corner, list) and len(corner) == 2
+        ok = ok and all(_finite_number(v) for v in corner)
+    if not ok:
+        raise InvalidInputError(
+            f"{where}.polygon must list at least 3 [x, y] corners in metres, got "
+            f"{str(polygon)[:80]}."
+        )
+    return room
+
+
+def _finite_number(value: Any) -> bool:
+    """A JSON number (not a bool) that float64 holds finite."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:  # an integer past float64
+        return False
 
 
 def _containing(rooms: list[dict[str, Any]], xy: np.ndarray) -> dict[str, Any] | None:
@@ -254,9 +287,9 @@ def layout_from_scan(
             {
                 "name": name or str(meta.get("name", "scan")),
                 "rooms": rooms,
-                "openings": list(meta.get("openings", [])),
+                "openings": meta.get("openings", []),
                 "objects": objects,
-                "regions": list(meta.get("regions", [])),
+                "regions": meta.get("regions", []),
             }
         )
     except InvalidInputError as exc:
@@ -287,11 +320,19 @@ def _scan_boxes(
         category = str(entry.get("category", entry.get("label", ""))).strip()
         if not category:
             raise InvalidInputError(f"{where} has no 'category'; name the object's class.")
+        oid = entry.get("id", i + 1)
+        if isinstance(oid, bool) or not isinstance(oid, int):
+            raise InvalidInputError(f"{where}.id must be an integer, got {str(oid)[:40]}.")
+        if not isinstance(entry.get("attributes", {}), Mapping):
+            raise InvalidInputError(
+                f'{where}.attributes must be an object like {{"color": "red"}}, got '
+                f"{str(entry['attributes'])[:40]}."
+            )
         try:
             center = up_rotation @ np.asarray(entry["center"], dtype=np.float64).reshape(3)
             size = np.abs(np.asarray(entry.get("size", entry.get("extent")), dtype=np.float64))
             size = size.reshape(3)
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, OverflowError) as exc:
             raise InvalidInputError(
                 f"{where} needs 'center' [x, y, z] and 'size' [sx, sy, sz] in metres."
             ) from exc
