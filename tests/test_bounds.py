@@ -150,6 +150,23 @@ def test_map_config_refuses_world_bounds_that_are_not_positive_finite(bad: dict)
         MapConfig(**bad)
 
 
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"voxel_size": 1e20},  # asked the index grid for 166 PiB
+        {"voxel_size": 1e-300},
+        {"cell_size": 1e-6},
+        {"cell_size": 5.0},
+        {"structure_voxel": 1e-9},
+    ],
+)
+def test_map_config_refuses_a_voxel_or_cell_edge_outside_its_range(bad: dict) -> None:
+    name = next(iter(bad))
+    with pytest.raises(InvalidInputError, match=rf"MapConfig.{name}=.* m must lie in \["):
+        MapConfig(**bad)
+    MapConfig(**{name: 0.05})  # in range
+
+
 def test_world_bounds_are_saved_with_the_config_and_default_for_older_maps() -> None:
     cfg = MapConfig(world_limit=250.0, max_span=80.0)
     assert MapConfig.from_dict(cfg.to_dict()) == cfg

@@ -1,4 +1,5 @@
 import math
+import re
 
 import numpy as np
 import pytest
@@ -79,8 +80,11 @@ def test_mismatched_depth_and_rgb_shapes_name_both_shapes():
 def test_uint16_depth_converts_with_the_stated_scale():
     d = depth_from_uint16(np.array([[1000, 0]], np.uint16), 1000.0)
     np.testing.assert_allclose(d, [[1.0, 0.0]])
-    with pytest.raises(InvalidInputError, match="depth_scale"):
-        depth_from_uint16(np.zeros((1, 1), np.uint16), 0)
+    for bad in (0, -1.0, float("nan"), 1e-300, 1e39, "1000", True):  # 1e-300 was 0 in float32
+        with pytest.raises(
+            InvalidInputError, match=re.escape(f"depth_scale={bad!r} must be a positive")
+        ):
+            depth_from_uint16(np.zeros((1, 1), np.uint16), bad)  # type: ignore[arg-type]
 
 
 def test_opengl_adapter_flips_the_camera_y_and_z_axes():

@@ -35,11 +35,23 @@ def depth_from_uint16(depth: np.ndarray, depth_scale: float) -> np.ndarray:
         depth: [H, W] uint16 raw depth.
         depth_scale: raw units per metre (1000 for Redwood/ScanNet, 5000 for TUM).
     """
-    if not depth_scale > 0:
-        raise InvalidInputError(
-            f"depth_scale={depth_scale!r} must be positive (1000 for millimetres, 5000 for TUM)."
-        )
+    check_depth_scale(depth_scale)
     return (np.asarray(depth).astype(np.float32) / np.float32(depth_scale)).astype(np.float32)
+
+
+def check_depth_scale(depth_scale: float) -> None:
+    """Raise unless `depth_scale` is positive and float32 holds it (normal, finite).
+
+    Raises:
+        InvalidInputError: naming the value and the usual scales.
+    """
+    f32 = np.finfo(np.float32)
+    number = isinstance(depth_scale, int | float) and not isinstance(depth_scale, bool)
+    if not (number and float(f32.tiny) <= depth_scale <= float(f32.max)):
+        raise InvalidInputError(
+            f"depth_scale={depth_scale!r} must be a positive number of raw units per metre "
+            "(1000 for millimetres, 5000 for TUM)."
+        )
 
 
 def valid_depth_mask(depth: np.ndarray, max_range: float = DEFAULT_MAX_RANGE) -> np.ndarray:

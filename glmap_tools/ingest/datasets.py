@@ -9,7 +9,6 @@ Optional per-frame annotations (`annotations/<stem>.png` + `.json`) become `Fram
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +18,7 @@ import numpy as np
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.geometry import Intrinsics, Pose
 from glmap_tools.geometry.adapters import from_dataset, world_zup_from_up_axis
+from glmap_tools.geometry.backproject import check_depth_scale
 from glmap_tools.geometry.frame import RGBDFrame
 from glmap_tools.ingest import redwood, tum
 from glmap_tools.ingest.images import load_depth_png, load_rgb, read_annotation
@@ -184,10 +184,8 @@ def open_sequence(
             malformed pose file, a non-rigid or non-finite pose, bad arguments, or a first
             frame whose images do not match each other or the intrinsics.
     """
-    if depth_scale is not None and not (math.isfinite(depth_scale) and depth_scale > 0):
-        raise InvalidInputError(
-            f"depth_scale={depth_scale!r} must be positive (1000 for millimetres, 5000 for TUM)."
-        )
+    if depth_scale is not None:
+        check_depth_scale(depth_scale)
     if isinstance(stride, bool) or not isinstance(stride, int) or stride < 1:
         raise InvalidInputError(f"stride={stride!r} must be an integer >= 1.")
     if max_frames is not None and (

@@ -9,14 +9,22 @@ from typing import Any
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.limits import MAX_COORDINATE
 
+# metres: a voxel or cell past these makes a meaningless map (a 1e20 m voxel asked for
+# 166 PiB of grid cells), or a grid too fine for memory over `max_span`
+EDGE_RANGES = {
+    "voxel_size": (0.001, 1.0),
+    "cell_size": (0.01, 1.0),
+    "structure_voxel": (0.005, 1.0),
+}
+
 
 @dataclass(frozen=True)
 class MapConfig:
     """Settings of a GLMap.
 
     Attributes:
-        voxel_size: Gaussian Estimator voxel edge (m).
-        cell_size: index-grid and occupancy cell edge (m).
+        voxel_size: Gaussian Estimator voxel edge (m), in [0.001, 1].
+        cell_size: index-grid and occupancy cell edge (m), in [0.01, 1].
         tau_s: text-similarity threshold; None = the embedder's calibrated default.
         max_text_words: text buffer length that triggers the text merger.
         max_range: depth beyond this (m) is ignored.
@@ -24,8 +32,9 @@ class MapConfig:
         obstacle_band: heights above the floor (m) whose points mark obstacles.
         camera_height: agent camera height above the floor (m), for rendered views.
         occupancy_stride: pixel stride for the occupancy update.
-        structure_voxel: voxel edge (m) of the structure background layer (pixels in no
-            object mask); None keeps no structure. See map/structure.py for the 5 cm.
+        structure_voxel: voxel edge (m, in [0.005, 1]) of the structure background layer
+            (pixels in no object mask); None keeps no structure. See map/structure.py for
+            the 5 cm.
         structure_stride: pixel stride for the structure layer's points; 0 = about 160
             columns whatever the image width (stride 2 at 320 x 240, 4 at 640 x 480).
         world_limit: every camera centre and observed point lies within this many metres
@@ -58,6 +67,13 @@ class MapConfig:
             if not (isinstance(value, int | float) and 0 < value < math.inf):
                 raise InvalidInputError(
                     f"MapConfig.{name}={value!r} must be a positive finite number."
+                )
+        for name, (low, high) in EDGE_RANGES.items():
+            value = getattr(self, name)
+            if isinstance(value, int | float) and not low <= value <= high:
+                raise InvalidInputError(
+                    f"MapConfig.{name}={value!r} m must lie in [{low}, {high}] m (the default "
+                    f"is {getattr(MapConfig, name)}); check the units are metres."
                 )
         if self.world_limit > MAX_COORDINATE:
             raise InvalidInputError(
