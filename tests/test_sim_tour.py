@@ -37,6 +37,18 @@ def test_the_tour_visits_every_room_and_stays_on_navigable_floor(layout) -> None
     assert grid.is_navigable(np.array([[s.x, s.y] for s in stops])).all()
 
 
+@pytest.mark.parametrize(
+    ("step", "spin"),
+    [(float("nan"), 8), (1e-300, 8), (1e-4, 8), (float("inf"), 8), (0.4, 10**6), (0.4, -1)],
+)
+def test_a_tour_step_or_spin_outside_its_range_is_refused(layout, step, spin) -> None:
+    # nan and 1e-300 crashed in np.arange; 0.1 mm steps planned for minutes
+    from glmap_tools.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match=r"must lie in \[0.05, 50.0\] m and spin="):
+        plan_tour(layout, step=step, spin=spin)
+
+
 def test_a_tour_folder_reads_back_through_the_ingest_code(layout, tmp_path) -> None:
     n = write_tour(layout, tmp_path, SMALL, step=0.5, spin=2, max_frames=5, preview_every=2)
     assert n == 5

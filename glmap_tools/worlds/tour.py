@@ -132,6 +132,10 @@ def geodesic_path(grid: NavGrid, start: np.ndarray, goal: np.ndarray) -> np.ndar
     return grid.to_world(np.array(cells))
 
 
+MIN_STEP, MAX_STEP = 0.05, 50.0  # metres between walking frames (0.05: the nav grid's cell)
+MAX_SPIN = 72  # headings looked at in a room (5 deg apart)
+
+
 def _resample(path: np.ndarray, step: float) -> np.ndarray:
     if len(path) < 2:
         return path
@@ -147,8 +151,11 @@ def plan_tour(
     layout: Layout, grid: NavGrid | None = None, step: float = 0.4, spin: int = 8
 ) -> list[TourStop]:
     """Poses of a walk through all rooms (deterministic)."""
-    if step <= 0 or spin < 0:
-        raise InvalidInputError(f"step={step} must be > 0 m and spin={spin} >= 0 headings.")
+    if not (MIN_STEP <= step <= MAX_STEP and 0 <= spin <= MAX_SPIN):
+        raise InvalidInputError(
+            f"step={step} m must lie in [{MIN_STEP}, {MAX_STEP}] m and spin={spin} in "
+            f"[0, {MAX_SPIN}] headings (defaults 0.4 m and 8)."
+        )
     grid = grid or build_nav_grid(layout)
     spots: list[tuple[int, np.ndarray]] = []
     for room_id in _room_order(layout):
