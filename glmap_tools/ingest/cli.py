@@ -62,7 +62,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--up-axis", help="the dataset world's up axis (x, y, z, -x, -y, -z)")
     p.add_argument("--max-frames", type=int, help="stop after this many frames")
     p.add_argument("--stride", type=int, default=1, help="use every k-th frame")
-    p.add_argument("--voxel-size", type=float, default=0.02, help="Gaussian voxel (m)")
+    p.add_argument("--voxel-size", type=float, default=0.02, help="Gaussian voxel (m), 0.001-1")
     p.add_argument(
         "--embedder",
         choices=EMBEDDERS,

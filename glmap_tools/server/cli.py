@@ -139,7 +139,7 @@ def _add_runtime_arguments(p: argparse.ArgumentParser) -> None:
         help="folder observe_frame may read files from (repeatable); stdio default: any, "
         "HTTP default: none (base64 only)",
     )
-    p.add_argument("--voxel-size", type=float, default=0.02, help="Gaussian voxel (m)")
+    p.add_argument("--voxel-size", type=float, default=0.02, help="Gaussian voxel (m), 0.001-1")
     p.add_argument(
         "--threads",
         type=int,

@@ -178,9 +178,9 @@ def _scan_rooms(meta: Mapping[str, Any]) -> list[dict[str, Any]]:
 def _checked_polygon(room: dict[str, Any], where: str) -> dict[str, Any]:
     """`room`, its "polygon" checked: at least 3 [x, y] corners of finite numbers."""
     polygon = room["polygon"]
-    ok = isinstance(polygon, list) and len(polygon) >= 3
+    ok = isinstance(polygon, list | tuple) and len(polygon) >= 3
     for corner in polygon if ok else ():
-        ok = ok and isinstance(corner, list) and len(corner) == 2
+        ok = ok and isinstance(corner, list | tuple) and len(corner) == 2
         ok = ok and all(_finite_number(v) for v in corner)
     if not ok:
         raise InvalidInputError(
