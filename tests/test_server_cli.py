@@ -25,6 +25,27 @@ def test_an_unknown_perception_is_refused_naming_the_choices(capsys):
     assert "'magic'" in err and "geometric" in err and "mllm" in err
 
 
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["--max-frame-mb", "inf"], "--max-frame-mb inf: give megabytes"),  # was OverflowError
+        (["--max-frame-mb", "nan"], "--max-frame-mb nan: give megabytes"),
+        (["--llm-timeout", "nan"], "(--llm-timeout) must be in (0, 3600]"),  # was accepted
+        (["--llm-timeout", "-1"], "(--llm-timeout) must be in (0, 3600]"),
+        (["--threads", str(10**23)], "must be an integer in 1..1024"),  # was a ctypes error
+    ],
+)
+def test_an_out_of_range_number_is_refused_naming_the_option(argv, said, tmp_path):
+    from glmap_tools.errors import InvalidInputError
+    from glmap_tools.server.cli import config_from_args
+
+    args = build_parser().parse_args([*argv, "--maps-dir", str(tmp_path)])
+    with pytest.raises(InvalidInputError) as refused:
+        config_from_args(args)  # what main() reports as "glmap-mcp: error: ..."
+    assert said in str(refused.value)
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.slow  # loads MiniLM, whose teardown was what kept the process
 def test_glmap_mcp_exits_within_a_second_of_stdin_closing_after_a_call(tmp_path):
     """Per-call clients (mcp 1.x LangChain, smolagents) wait 2 s, then kill the server."""

@@ -148,7 +148,8 @@ async def test_a_map_made_with_other_settings_is_refused_with_the_servers_messag
     ("argv", "said"),
     [
         (["--linger", "30"], "--linger needs --map NAME"),
-        (["--map", "ep", "--linger", "0"], "> 0"),
+        (["--map", "ep", "--linger", "0"], "in (0, 86400]"),
+        (["--map", "ep", "--linger", "inf"], "in (0, 86400]"),  # would never idle out
         (["--map", "ep", "--linger", "30", "--transport", "streamable-http"], "for stdio"),
         (["--map", "ep", SERVE_FLAG, "/tmp/x.sock"], "use --linger"),
     ],

@@ -27,6 +27,7 @@ SimPerception = Literal["auto", "gt", "detector"]
 EMBEDDERS: tuple[str, ...] = ("minilm", "hashing")
 
 MIB = 1024 * 1024
+MAX_THREADS = 1024  # compute_threads (BLAS and torch take a C int)
 # JSON envelope, pose, intrinsics and annotation labels on top of the base64 payload.
 HTTP_BODY_OVERHEAD = 1 * MIB
 
@@ -139,10 +140,11 @@ class ServerConfig:
         if not (isinstance(self.sim_max_steps, int) and self.sim_max_steps >= 1):
             raise InvalidInputError(f"sim_max_steps={self.sim_max_steps!r} must be >= 1.")
         if self.compute_threads is not None and not (
-            isinstance(self.compute_threads, int) and self.compute_threads >= 1
+            isinstance(self.compute_threads, int) and 1 <= self.compute_threads <= MAX_THREADS
         ):
             raise InvalidInputError(
-                f"compute_threads={self.compute_threads!r} must be an integer >= 1 or None."
+                f"compute_threads={self.compute_threads!r} must be an integer in 1..{MAX_THREADS} "
+                "or None."
             )
         if self.map_name is not None:
             from glmap_tools.app.session import check_map_name

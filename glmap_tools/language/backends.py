@@ -99,6 +99,11 @@ class LLMSettings:
             raise InvalidInputError(
                 f"sampling_timeout={self.sampling_timeout!r} s must be in (0, 3600]."
             )
+        if not 0 < self.timeout <= 3600:
+            raise InvalidInputError(
+                f"timeout={self.timeout!r} s (--llm-timeout) must be in (0, 3600]; the default "
+                "is 120."
+            )
 
     @property
     def uses_llm(self) -> bool:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import hmac
 import logging
+import math
 import os
 import subprocess
 import sys
@@ -40,6 +41,7 @@ from glmap_tools.server.linger import SERVE_FLAG, relay_calls, serve_socket
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 TOKEN_ENV = "GLMAP_MCP_TOKEN"
 MCP_PATH = "/mcp"
+MAX_LINGER_S = 86_400  # a day: a lingering server that never idles out is a leaked process
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -192,7 +194,7 @@ def config_from_args(args: argparse.Namespace) -> ServerConfig:
         maps_dir=args.maps_dir or default_maps_dir(),
         embedder=args.embedder,
         map_config=MapConfig(voxel_size=args.voxel_size),
-        max_frame_bytes=int(args.max_frame_mb * MIB),
+        max_frame_bytes=_frame_bytes(args.max_frame_mb),
         file_roots=roots,
         warm_up=not args.no_warm_up,
         compute_threads=args.threads or None,
@@ -202,6 +204,13 @@ def config_from_args(args: argparse.Namespace) -> ServerConfig:
         scene_dirs=_scene_dirs(args.scenes_dir),
         sim_perception=args.sim_perception,
     )
+
+
+def _frame_bytes(megabytes: float) -> int:
+    """--max-frame-mb in bytes (ServerConfig checks its range)."""
+    if not math.isfinite(megabytes):
+        raise InvalidInputError(f"--max-frame-mb {megabytes}: give megabytes, e.g. 24.")
+    return int(megabytes * MIB)
 
 
 def _scene_dirs(texts: list[str]) -> dict[str, Path]:
@@ -416,8 +425,11 @@ def linger_problem(args: argparse.Namespace) -> str | None:
     """What is wrong with `--linger` on this command line, if anything."""
     if args.linger is None:
         return f"{SERVE_FLAG} is glmap-mcp's own flag; use --linger." if args.serve_socket else None
-    if not args.linger > 0:
-        return f"--linger {args.linger:g}: give the seconds the server waits for a call, > 0."
+    if not 0 < args.linger <= MAX_LINGER_S:
+        return (
+            f"--linger {args.linger:g}: give the seconds the server waits for a call, in "
+            f"(0, {MAX_LINGER_S}]."
+        )
     if args.map is None:
         return "--linger needs --map NAME: the map the calls share."
     if args.transport != "stdio":
