@@ -207,3 +207,9 @@ def test_episodes_leave_out_goals_too_small_or_too_high_for_the_camera(tmp_path,
     every = {e["goal"]["text"] for e in json.loads((tmp_path / "all.json").read_text())["episodes"]}
     assert "object 3 'camera' (0.12 m at most" in listed and "object 4 'candle'" in listed
     assert seen <= {"bed", "chair"} and {"camera", "candle"} & every
+
+
+@pytest.mark.parametrize("cells", [-1, 101, 100_000])  # 100000 asked scipy for a MemoryError
+def test_a_passage_width_outside_its_range_is_refused_before_any_work(layout, cells) -> None:
+    with pytest.raises(InvalidInputError, match=f"min_passage_cells={cells} must be 0"):
+        generate_episodes(layout, "objectnav", 2, seed=0, min_passage_cells=cells)

@@ -30,6 +30,7 @@ FORMAT = "glmap-sim-episodes"
 VERSION = 1
 TASKS = ("objectnav", "instnav")
 SUCCESS_DISTANCE = 1.0  # metres
+MAX_PASSAGE_CELLS = 100  # 5 m of free floor at 5 cm: wider than any passage of a home
 MIN_START_DISTANCE = 1.5  # metres of geodesic distance from start to goal
 
 
@@ -247,6 +248,11 @@ def generate_episodes(
     """
     if isinstance(count, bool) or not isinstance(count, int) or count < 1:
         raise InvalidInputError(f"count={count!r} must be a positive integer.")
+    if not 0 <= min_passage_cells <= MAX_PASSAGE_CELLS:
+        raise InvalidInputError(
+            f"min_passage_cells={min_passage_cells!r} must be 0 (no check) to "
+            f"{MAX_PASSAGE_CELLS} cells."
+        )
     grid = grid or build_nav_grid(layout)
     pool = goal_pool(layout, task, grid, success_distance, min_distance, seeable_only)
     if min_passage_cells > 0:

@@ -264,15 +264,21 @@ def run_tour(args: argparse.Namespace) -> int:
 
 
 def run_episodes(args: argparse.Namespace) -> int:
-    from glmap_tools.sim.episodes import generate_episodes, save_episodes, unseeable
+    from glmap_tools.sim.episodes import (
+        MAX_PASSAGE_CELLS,
+        generate_episodes,
+        save_episodes,
+        unseeable,
+    )
     from glmap_tools.sim.layout_io import load_layout
     from glmap_tools.sim.navgrid import build_nav_grid
     from glmap_tools.worlds.difficulty import with_difficulty
 
     _check_out(args.out, args.overwrite)
-    if args.min_passage_cells < 0:
+    if not 0 <= args.min_passage_cells <= MAX_PASSAGE_CELLS:
         raise InvalidInputError(
-            f"--min-passage-cells {args.min_passage_cells} must be 0 (no check) or more."
+            f"--min-passage-cells {args.min_passage_cells} must be 0 (no check) to "
+            f"{MAX_PASSAGE_CELLS}."
         )
     layout = load_layout(args.layout)
     grid = build_nav_grid(layout)
