@@ -196,3 +196,11 @@ def test_the_selection_is_the_first_scenes_and_their_first_episodes() -> None:
     chosen = [be.episode_id for be in select_episodes("instnav", "tune", 2, 3)]
     assert chosen == expected[0] + expected[1]
     assert chosen == [be.episode_id for be in select_episodes("instnav", "tune", 2, 3)]
+
+
+@pytest.mark.parametrize("resamples", [0, 100_000_000])  # 1e8 ran for minutes after the play
+def test_bootstrap_resamples_out_of_range_are_refused_before_any_episode(tmp_path, resamples):
+    out = tmp_path / "run"
+    with pytest.raises(InvalidInputError, match=f"resamples={resamples} must be 1 to 100,000"):
+        run_eval(spec(scenes=1, episodes_per_scene=1), out, workers=0, resamples=resamples)
+    assert not out.exists()

@@ -28,7 +28,7 @@ from glmap_tools.eval.spec import (
     parse_agents,
     select_episodes,
 )
-from glmap_tools.eval.stats import DEFAULT_RESAMPLES
+from glmap_tools.eval.stats import DEFAULT_RESAMPLES, check_resamples
 from glmap_tools.eval.table import Summary, markdown, summarize
 from glmap_tools.eval.workers import SCORER_USED, Job, Outcome, run_inline, run_local
 
@@ -207,6 +207,7 @@ def run_eval(
     parse_agents(spec.agents)
     if workers < 0:
         raise InvalidInputError(f"--workers {workers} must be 0 (in process) or more.")
+    check_resamples(resamples)
     if ray_address:
         check_address(ray_address)  # fail before anything is written
     selected = select_episodes(

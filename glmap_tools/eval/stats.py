@@ -18,6 +18,7 @@ import numpy as np
 from glmap_tools.errors import InvalidInputError
 
 DEFAULT_RESAMPLES = 2000
+MAX_RESAMPLES = 100_000  # past this the intervals do not move; 1e8 ran for minutes
 DEFAULT_CONFIDENCE = 0.95
 _CHUNK = 256  # resamples drawn at once; bounds memory at 256 x n indices
 
@@ -36,6 +37,14 @@ class Interval:
         return self.low > other.high or other.low > self.high
 
 
+def check_resamples(resamples: int) -> None:
+    """Raise unless 1 <= resamples <= MAX_RESAMPLES (a run checks it before playing)."""
+    if not 1 <= resamples <= MAX_RESAMPLES:
+        raise InvalidInputError(
+            f"resamples={resamples} must be 1 to {MAX_RESAMPLES:,} (2000 is usual)."
+        )
+
+
 def _check(values: np.ndarray, resamples: int, confidence: float) -> np.ndarray:
     v = np.asarray(values, dtype=np.float64)
     if v.ndim != 1 or v.size == 0:
@@ -46,8 +55,7 @@ def _check(values: np.ndarray, resamples: int, confidence: float) -> np.ndarray:
         raise InvalidInputError(
             "bootstrap values contain NaN or inf; drop or clamp non-finite episodes first."
         )
-    if resamples < 1:
-        raise InvalidInputError(f"resamples={resamples} must be at least 1 (2000 is usual).")
+    check_resamples(resamples)
     if not 0.0 < confidence < 1.0:
         raise InvalidInputError(f"confidence={confidence} must lie in (0, 1), e.g. 0.95.")
     return v
