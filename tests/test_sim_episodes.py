@@ -213,3 +213,18 @@ def test_episodes_leave_out_goals_too_small_or_too_high_for_the_camera(tmp_path,
 def test_a_passage_width_outside_its_range_is_refused_before_any_work(layout, cells) -> None:
     with pytest.raises(InvalidInputError, match=f"min_passage_cells={cells} must be 0"):
         generate_episodes(layout, "objectnav", 2, seed=0, min_passage_cells=cells)
+
+
+@pytest.mark.parametrize("command", ["episodes", "qa", "eval"])
+def test_a_negative_seed_is_refused_by_the_command_line(layout, tmp_path, capsys, command):
+    # numpy's generators raised "expected non-negative integer" from inside the command
+    from glmap_tools import cli
+    from glmap_tools.sim.layout_io import save_layout
+
+    save_layout(layout, tmp_path / "layout.json")
+    files = [str(tmp_path / "layout.json")] + (
+        [str(tmp_path / "e.json")] if command == "eval" else []
+    )
+    with pytest.raises(SystemExit):
+        cli.main(["sim", command, *files, "--seed", "-1"])
+    assert "argument --seed: '-1' is not a seed: give an integer >= 0" in capsys.readouterr().err

@@ -51,10 +51,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     _add_qa(sub)
 
 
+def seed(text: str) -> int:
+    """An argparse type: a non-negative integer seed (numpy's generators take no other)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a seed: give an integer >= 0")
+    return value
+
+
 def _add_new(sub: argparse._SubParsersAction) -> None:
     """`glmap sim new`."""
     p = sub.add_parser("new", help="generate a furnished apartment layout (JSON)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same layout)")
+    p.add_argument("--seed", type=seed, default=0, help="random seed (same seed, same layout)")
     p.add_argument(
         "--rooms", type=int, help="furnished rooms, 3..7 (houses 7..11; default: from the seed)"
     )
@@ -110,7 +121,7 @@ def _add_episodes(sub: argparse._SubParsersAction) -> None:
     p.add_argument("layout", type=Path, help="layout JSON")
     p.add_argument("--task", choices=["objectnav", "instnav"], default="objectnav")
     p.add_argument("--count", type=int, default=50, help="number of episodes")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed, default=0)
     p.add_argument("--out", type=Path, required=True, help="episode JSON to write")
     p.add_argument("--overwrite", action="store_true")
     p.add_argument(
@@ -135,7 +146,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("layout", type=Path, help="layout JSON")
     p.add_argument("episodes", type=Path, help="episode JSON (from `glmap sim episodes`)")
     p.add_argument("--agent", choices=["oracle", "random"], default="oracle")
-    p.add_argument("--seed", type=int, default=0, help="seed of the random agent")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the random agent")
     _add_camera(p, 160, 120)
     p.set_defaults(func=run_eval)
 
@@ -169,7 +180,7 @@ def _add_qa(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("qa", help="generate a situated QA set (SQA3D-like JSON)")
     p.add_argument("layout", type=Path, help="layout JSON")
     p.add_argument("--situations", type=int, default=20)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=seed, default=0)
     p.add_argument("--out", type=Path, required=True, help="QA JSON to write")
     p.add_argument("--overwrite", action="store_true")
     p.add_argument(
