@@ -100,6 +100,29 @@ def test_a_request_missing_from_the_recording_names_the_closest_and_how_to_re_re
     assert "tests/test_llm_replay.py -k nav_scores" in message
 
 
+@pytest.mark.parametrize(
+    ("change", "said"),
+    [
+        (lambda lines: lines[1].pop("response"), "line 2 is not a recorded exchange"),
+        (lambda lines: lines[1].update(key=3), "line 2 is not a recorded exchange"),
+        (lambda lines: lines[1]["response"].update(status="x"), "line 2 is not a recorded"),
+        (lambda lines: lines[0].update(version="x"), "has cassette version 'x'; this reads 1..1"),
+        (lambda lines: lines.__setitem__(0, [1]), "is not a glmap-ollama-cassette file"),
+    ],
+    ids=["no response", "key a number", "status text", "version text", "header a list"],
+)
+def test_a_malformed_cassette_is_refused_naming_the_line(tmp_path, change, said):
+    # before: KeyError / TypeError / ValueError at load, or in the server's handler thread
+    from glmap_tools.errors import StoreError
+
+    lines = [json.loads(x) for x in (sc.CASSETTES / "nav_scores.jsonl").read_text().splitlines()]
+    change(lines)
+    path = tmp_path / "c.jsonl"
+    path.write_text("".join(json.dumps(x) + "\n" for x in lines))
+    with pytest.raises(StoreError, match=re.escape(said)):
+        Cassette.load(path)
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

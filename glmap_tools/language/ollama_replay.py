@@ -78,6 +78,7 @@ def _summary(body: Any) -> str:
         return json.dumps(body)[:120]
     last = ""
     messages = body.get("messages") or []
+    messages = messages if isinstance(messages, list) else []
     if messages and isinstance(messages[-1], dict):
         last = str(messages[-1].get("content", ""))[:100]
     return f"model {body.get('model')!r}, {len(messages)} messages, last: {last!r}"
@@ -109,10 +110,17 @@ class Cassette:
             ) from None
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise StoreError(f"{p} is not a JSON Lines cassette: {exc}.") from None
-        if not records or records[0].get("format") != FORMAT:
+        if not records or not isinstance(records[0], dict) or records[0].get("format") != FORMAT:
             raise StoreError(f"{p} is not a {FORMAT} file (its first line is the header).")
-        if int(records[0].get("version", 0)) > VERSION:
-            raise StoreError(f"{p} has cassette version {records[0]['version']} > {VERSION}.")
+        version = records[0].get("version", 0)
+        if isinstance(version, bool) or not isinstance(version, int) or version > VERSION:
+            raise StoreError(f"{p} has cassette version {version!r}; this reads 1..{VERSION}.")
+        for line, ex in enumerate(records[1:], start=2):
+            if not _is_exchange(ex):
+                raise StoreError(
+                    f"{p} line {line} is not a recorded exchange ({{key, request: {{method, "
+                    "path, body}, response: {status, body}}}); re-record the cassette."
+                )
         return cls(p, records[0], records[1:])
 
     def save(self) -> None:
@@ -144,6 +152,23 @@ class Cassette:
                 )
                 best = (i, ratio, diff)
         return best
+
+
+def _is_exchange(ex: Any) -> bool:
+    """Whether a cassette line holds what replaying it reads."""
+    if not isinstance(ex, dict) or not isinstance(ex.get("key"), str):
+        return False
+    req, resp = ex.get("request"), ex.get("response")
+    return (
+        isinstance(req, dict)
+        and isinstance(req.get("method"), str)
+        and isinstance(req.get("path"), str)
+        and "body" in req
+        and isinstance(resp, dict)
+        and isinstance(resp.get("status"), int)
+        and not isinstance(resp.get("status"), bool)
+        and "body" in resp
+    )
 
 
 class _Handler(BaseHTTPRequestHandler):
