@@ -176,7 +176,7 @@ SQUARE = [[0, 0], [3, 0], [3, 3], [0, 3]]
         ({"objects": [{**SCAN_BOX, "rotation": [[10**400] * 3] * 3}]}, "finite 3x3 matrix"),
         ({"objects": [{**SCAN_BOX, "center": [10**400, 1, 0.45]}]}, "needs 'center'"),
         ({"openings": 3}, "non-empty list|list 'openings'"),
-        ({"room": {"polygon": [[0, 0], [1e6, 0], [1e6, 3], [0, 3]]}}, "spans at most 200 m along x and y"),
+        ({"room": {"polygon": [[0, 0], [1e6, 0], [1e6, 3], [0, 3]]}}, "spans at most 200 m"),
     ],
     ids=[
         "room a number", "polygon a number", "corner text", "corner past float64", "id a list",
