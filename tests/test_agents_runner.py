@@ -98,6 +98,15 @@ async def test_unknown_agents_and_episodes_are_refused_with_the_closest_name(tmp
     )
 
 
+def test_a_refused_episode_is_one_error_line_without_a_traceback(tmp_path, capsys):
+    # the server's refusal came out of the task group as an ExceptionGroup traceback
+    argv = [EPISODE, "--embedder", "hashing", "--out", str(tmp_path / "out"), "--seed", "-1"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "error: sim_reset failed: sim_reset: invalid arguments; seed:" in err
+    assert "Traceback" not in err and "ExceptionGroup" not in err
+
+
 async def test_an_instnav_episode_runs_the_instnav_agent_on_a_description(tmp_path):
     episode = load_split("tune", "instnav")[0]
     out = tmp_path / "inst"
