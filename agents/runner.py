@@ -28,7 +28,7 @@ from agents.fs import region_scorer, split_agent
 from agents.instnav import agent_for
 from agents.report import write_report
 from agents.session import AGENT_SIZE, open_session
-from agents.trace import ToolCallError, TracedClient
+from agents.trace import TracedClient, exit_code
 from glmap_tools.errors import InvalidInputError, did_you_mean
 
 # Imports inside functions stay there: the llm-tools agent (asyncio, the LLM client, its
@@ -249,14 +249,6 @@ async def _main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _leaves(group: BaseExceptionGroup[ToolCallError]) -> list[ToolCallError]:
-    """The refusals of an exception group, nested task groups included."""
-    out: list[ToolCallError] = []
-    for exc in group.exceptions:
-        out.extend(_leaves(exc) if isinstance(exc, BaseExceptionGroup) else [exc])
-    return out
-
-
 def main(argv: list[str] | None = None) -> int:
     import anyio
 
@@ -277,14 +269,7 @@ def main(argv: list[str] | None = None) -> int:
     except InvalidInputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    refused: list[ToolCallError] = []
-    try:
-        return int(anyio.run(_main, args) or 0)
-    except* ToolCallError as group:  # the server's refusal says what to fix: no traceback
-        refused.extend(_leaves(group))
-    for refusal in refused:
-        print(f"error: {refusal}", file=sys.stderr)
-    return 2
+    return exit_code(lambda: int(anyio.run(_main, args) or 0))
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from agents.trace import ToolCallError, exit_code
 from glmap_tools.language.llm import LLMClient
 from glmap_tools.language.prompts import PromptSet
 from glmap_tools.sqa.mllm_answer import (  # noqa: F401  (the agent's names since the start)
@@ -58,7 +59,7 @@ async def locate(
     result = await client.call_tool("locate_situation", args)
     texts = [c.text for c in result.content if c.type == "text"]
     if result.is_error:
-        raise RuntimeError(f"locate_situation failed: {' '.join(texts)}")
+        raise ToolCallError(f"locate_situation failed: {' '.join(texts)}")
     images = [base64.b64decode(c.data) for c in result.content if c.type == "image"]
     return json.loads(texts[0]), images
 
@@ -140,7 +141,8 @@ def main(argv: list[str] | None = None) -> int:
         "(GPT4Scene-style), or both",
     )
     p.add_argument("--server-command", default=None)
-    return asyncio.run(_main(p.parse_args(argv)))
+    args = p.parse_args(argv)
+    return exit_code(lambda: asyncio.run(_main(args)))
 
 
 if __name__ == "__main__":

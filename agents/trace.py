@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import base64
 import json
+import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -17,6 +19,27 @@ from typing import Any
 
 class ToolCallError(RuntimeError):
     """A tool call the agent relies on came back as an MCP tool error."""
+
+
+def exit_code(run: Callable[[], int]) -> int:
+    """`run()`'s exit code; a tool's refusal, raised alone or out of task groups, is printed
+    as one error line (it says what to fix) and exits 2, without a traceback."""
+    refused: list[ToolCallError] = []
+    try:
+        return run()
+    except* ToolCallError as group:
+        refused.extend(_leaves(group))
+    for refusal in refused:
+        print(f"error: {refusal}", file=sys.stderr)
+    return 2
+
+
+def _leaves(group: BaseExceptionGroup[ToolCallError]) -> list[ToolCallError]:
+    """The refusals of an exception group, nested task groups included."""
+    out: list[ToolCallError] = []
+    for exc in group.exceptions:
+        out.extend(_leaves(exc) if isinstance(exc, BaseExceptionGroup) else [exc])
+    return out
 
 
 @dataclass

@@ -107,6 +107,21 @@ def test_a_refused_episode_is_one_error_line_without_a_traceback(tmp_path, capsy
     assert "Traceback" not in err and "ExceptionGroup" not in err
 
 
+def test_the_sqa_and_llm_agents_print_a_refusal_as_one_line(tmp_path, capsys):
+    from agents import llm_agent, sqa
+
+    assert (
+        sqa.main(["--situation", "on the bed", "--question", "what?", "--embedder", "hashing"]) == 2
+    )
+    said = capsys.readouterr().err
+    assert "error: locate_situation failed:" in said and "the map is empty" in said
+    argv = [EPISODE[:-1], "--embedder", "hashing", "--out", str(tmp_path), "--max-turns", "1"]
+    assert llm_agent.main(argv) == 2  # refused by the server before any model call
+    said = capsys.readouterr().err
+    assert "error: sim_reset failed:" in said and "Did you mean" in said
+    assert "Traceback" not in said
+
+
 async def test_an_instnav_episode_runs_the_instnav_agent_on_a_description(tmp_path):
     episode = load_split("tune", "instnav")[0]
     out = tmp_path / "inst"
