@@ -124,7 +124,7 @@ def load_rates(path: str | Path | None = None) -> DetectorRates:
 def _rate(value: Any, name: str, upper: float, where: str) -> float:
     """A rate file's number, finite and in [0, upper]."""
     v = math.nan
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
+    if isinstance(value, int | float) and not isinstance(value, bool):
         try:
             v = float(value)
         except OverflowError:  # an integer past float64

@@ -336,15 +336,11 @@ def episodes_from_dict(
         InvalidInputError: malformed JSON, a start off the navigable floor, an unreachable goal.
         UnknownIdError: a goal object id the layout does not have.
     """
-    if (
-        not isinstance(data, Mapping)
-        or data.get("format") != FORMAT
-        or data.get("version") != VERSION
-    ):
-        data = data if isinstance(data, Mapping) else {}
+    header = data if isinstance(data, Mapping) else {}  # null or a list: no format at all
+    if header.get("format") != FORMAT or header.get("version") != VERSION:
         raise InvalidInputError(
-            f"episode file format {data.get('format')!r} version {data.get('version')!r} is not "
-            f"{FORMAT!r} version {VERSION}; regenerate it with `glmap sim episodes`."
+            f"episode file format {header.get('format')!r} version {header.get('version')!r} is "
+            f"not {FORMAT!r} version {VERSION}; regenerate it with `glmap sim episodes`."
         )
     task = str(data.get("task"))
     if task not in TASKS:
