@@ -11,7 +11,7 @@ import pytest
 from mcp import Client
 
 from glmap_tools.errors import InvalidInputError
-from glmap_tools.nav.scorers import ClientScorer, ClientScores, UnitText
+from glmap_tools.nav.scorers import MAX_PRIORS, ClientScorer, ClientScores, UnitText
 from glmap_tools.server import build_server
 from glmap_tools.worlds.splits import load_split
 from tests.test_server_fixtures import config
@@ -131,7 +131,11 @@ async def test_client_scores_steer_value_map_nav_step_and_navigate_to_until_sim_
         unknown = await client.call_tool("value_map", {"scores": {"99999": 0.5}})
         too_big = await client.call_tool("value_map", {"scores": {str(mine): 1.5}})
         empty_kind = await client.call_tool("value_map", {"priors": {" ": 0.5}})
+        kinds = {f"kind {k}": 0.5 for k in range(MAX_PRIORS)}  # with "area": one too many
+        too_many = await client.call_tool("value_map", {"priors": kinds})
+        too_long = await client.call_tool("value_map", {"priors": {"room " * 20: 0.5}})
         kept = ok(await client.call_tool("value_map", {}))
+        full = ok(await client.call_tool("value_map", {"priors": kinds, "clear": True}))
         cleared = ok(await client.call_tool("value_map", {"clear": True}))
         ok(await client.call_tool("value_map", args))
         ok(await client.call_tool("sim_reset", {"episode": EPISODE}))
@@ -156,6 +160,9 @@ async def test_client_scores_steer_value_map_nav_step_and_navigate_to_until_sim_
     assert "99999" in error(unknown) and "Closest id" in error(unknown)
     assert "1.5" in error(too_big) and "[0, 1]" in error(too_big)
     assert "empty" in error(empty_kind)
+    assert f"{MAX_PRIORS + 1} region kinds, more than {MAX_PRIORS}" in error(too_many)
+    assert "100 characters, more than 60" in error(too_long)
+    assert len(full["client"]["priors"]) == MAX_PRIORS
     assert kept["client"] == held  # the refused calls changed nothing
     assert "client" not in cleared and all(r[3] == "scorer" for r in cleared["top_units"])
     assert "client" not in fresh and all(row[3] == "scorer" for row in fresh["top_units"])

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 from glmap_tools.app import nav_steps
 from glmap_tools.app.session import Session, locked
 from glmap_tools.app.sim_results import HeldScores
+from glmap_tools.errors import InvalidInputError
 
 if TYPE_CHECKING:
     from glmap_tools.map import GLMap
@@ -50,11 +51,18 @@ def set_client_scores(
     """Check and keep the client's f_S of the episode's goal; return what is held now
     (scores by unit, priors by region kind, and the fused ids whose scores moved to the
     unit they became). Nothing changes on an error."""
-    from glmap_tools.nav.scorers import ClientScores
+    from glmap_tools.nav.scorers import MAX_PRIORS, ClientScores
 
     _, nav = nav_steps.running(session)
     with locked(session) as glmap:
         units, kinds, followed = check_client_scores(glmap, scores or {}, priors or {})
+        kept = {} if clear or nav.client is None else nav.client.priors
+        held = len(kept.keys() | kinds.keys())
+        if held > MAX_PRIORS:
+            raise InvalidInputError(
+                f"priors would hold {held} region kinds, more than {MAX_PRIORS}; give the "
+                "kinds that matter for this goal (clear: true drops those held)."
+            )
         if clear or nav.client is None:
             nav.client = ClientScores(nav.goal)
         nav.client.units.update(units)

@@ -258,12 +258,21 @@ def check_unit_score(score: object, what: str) -> float:
     return value
 
 
+MAX_PRIORS = 64  # region kinds a client's priors hold at once (each is matched every step)
+MAX_KIND_CHARS = 60
+
+
 def kind_pattern(kind: str) -> re.Pattern[str]:
     """Whole words of `kind` ('kitchen', 'sleeping area') inside a unit's text."""
     words = kind.lower().split()
     if not words:
         raise InvalidInputError(
             f"prior kind {kind!r} is empty; name a kind of room or region, e.g. 'kitchen'."
+        )
+    if len(kind) > MAX_KIND_CHARS:
+        raise InvalidInputError(
+            f"prior kind {kind[:40]!r}... has {len(kind)} characters, more than "
+            f"{MAX_KIND_CHARS}; name a kind of room or region in a few words, e.g. 'kitchen'."
         )
     return re.compile(r"\b" + r"\s+".join(re.escape(w) for w in words) + r"s?\b")
 
