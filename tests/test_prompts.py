@@ -86,6 +86,35 @@ def test_a_prompt_out_of_step_with_its_caller_names_the_placeholders(tmp_path):
         PromptSet(tmp_path).get("text_merge").format(kind="object", max_words=300, descriptions="x")
 
 
+@pytest.mark.parametrize(
+    ("text", "said"),
+    [
+        ('Reply as {"id": <id>} for {goal}', '{"id": <id>}'),  # JSON with single braces
+        ("Score {goal} }", "Single '}' encountered"),
+        ("Score { {goal}", "unexpected '{'"),
+        ("Score {goal.upper} {units}", "{goal.upper}"),
+        ("Score {goal[0]} {units}", "{goal[0]}"),
+        ("Score {goal!r} {units}", "{goal!r}"),
+        ("Score {goal:>40} {units}", "{goal:>40}"),
+        ("Score {} {units}", "placeholder {}"),
+    ],
+)
+def test_a_prompt_file_str_format_cannot_fill_is_refused_when_its_folder_is_given(
+    tmp_path, text, said
+):
+    from glmap_tools.language.backends import LLMSettings
+
+    path = tmp_path / "unit_value_instance.txt"
+    path.write_text(text)
+    fix = r"placeholders are a name in braces, e\.g\. \{goal\}; write literal braces as \{\{"
+    for make in (lambda: PromptSet(tmp_path), lambda: LLMSettings(prompts=tmp_path)):
+        with pytest.raises(InvalidInputError, match=rf"prompt file {path}.*{fix}") as caught:
+            make()
+        assert said in str(caught.value)
+    path.write_text("Score {{literal}} and {goal} over {units}.")  # doubled braces are text
+    assert PromptSet(tmp_path).get("unit_value_instance").fields == {"goal", "units"}
+
+
 def test_an_unknown_prompt_suggests_the_closest_name():
     with pytest.raises(UnknownIdError, match="Did you mean 'text_merge'"):
         PromptSet().get("text_merg")

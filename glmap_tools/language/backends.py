@@ -104,6 +104,10 @@ class LLMSettings:
                 f"timeout={self.timeout!r} s (--llm-timeout) must be in (0, 3600]; the default "
                 "is 120."
             )
+        if self.prompts is not None:  # a missing folder or a bad file is refused now
+            from glmap_tools.language.prompts import PromptSet
+
+            PromptSet(self.prompts)
 
     @property
     def uses_llm(self) -> bool:

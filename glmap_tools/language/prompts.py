@@ -92,7 +92,27 @@ def _read(path: Path, name: str) -> Prompt:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
         raise InvalidInputError(f"prompt file {path} is not UTF-8 text: {exc}.") from None
+    check_template(text, str(path))
     return Prompt(name, text, _digest(text), str(path))
+
+
+def check_template(text: str, source: str) -> None:
+    """Refuse a template `str.format` cannot fill or whose placeholders are more than a name.
+
+    Raises:
+        InvalidInputError: naming the file, what is wrong and how to write it.
+    """
+    fix = "placeholders are a name in braces, e.g. {goal}; write literal braces as {{ and }}"
+    try:
+        parts = list(string.Formatter().parse(text))
+    except ValueError as exc:
+        raise InvalidInputError(f"prompt file {source}: {exc}; {fix}.") from None
+    for _, field, spec, conversion in parts:
+        if field is None:
+            continue
+        if not field.isidentifier() or spec or conversion:
+            shown = field + (f"!{conversion}" if conversion else "") + (f":{spec}" if spec else "")
+            raise InvalidInputError(f"prompt file {source} has the placeholder {{{shown}}}; {fix}.")
 
 
 class PromptSet:
@@ -102,7 +122,8 @@ class PromptSet:
         override: a folder of `<name>.txt` files (the `--prompts DIR` option), or None.
 
     Raises:
-        InvalidInputError: `override` is not a folder.
+        InvalidInputError: `override` is not a folder, or a prompt file in it is too large, not
+            UTF-8, or not a template (`check_template`).
     """
 
     def __init__(self, override: str | os.PathLike[str] | None = None) -> None:
@@ -113,6 +134,10 @@ class PromptSet:
                 f"prompt files (copy {package_prompts_dir()} to start from the defaults)."
             )
         self._cache: dict[str, Prompt] = {}
+        if self.override is not None:  # refuse a bad file now, not at its first use
+            for path in sorted(self.override.glob(f"*{SUFFIX}")):
+                if path.is_file():
+                    _read(path, path.stem)
 
     def names(self) -> list[str]:
         """Every prompt name available (package and override)."""
