@@ -343,9 +343,8 @@ async def run_llm_episode(
     return result
 
 
-async def _main(args: argparse.Namespace) -> int:
+async def _main(args: argparse.Namespace, prompts: PromptSet | None) -> int:
     llm = OllamaClient(args.model, host=args.ollama_host, vision=args.vision)
-    prompts = PromptSet(args.prompts) if args.prompts else None
     config = ServerConfig(embedder=args.embedder, warm_up=False)
     async with open_session(
         config, server_command=args.server_command, server_url=args.server_url
@@ -384,7 +383,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--server-url", default=None, help="streamable-HTTP server URL")
     p.add_argument("--out", type=Path, default=Path("out/llm_agent"))
     args = p.parse_args(argv)
-    return exit_code(lambda: asyncio.run(_main(args)))
+    try:  # a missing folder or a bad prompt file: one error line, exit 2
+        prompts = PromptSet(args.prompts) if args.prompts else None
+    except InvalidInputError as exc:
+        p.error(str(exc))
+    return exit_code(lambda: asyncio.run(_main(args, prompts)))
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from agents.trace import ToolCallError, exit_code
+from glmap_tools.errors import InvalidInputError
 from glmap_tools.language.llm import LLMClient
 from glmap_tools.language.prompts import PromptSet
 from glmap_tools.sqa.mllm_answer import (  # noqa: F401  (the agent's names since the start)
@@ -87,7 +88,7 @@ async def answer(
     return AgentAnswer(reply.answer, reply.confidence, "mllm", True, info)
 
 
-async def _main(args: argparse.Namespace) -> int:
+async def _main(args: argparse.Namespace, prompts: PromptSet | None) -> int:
     from agents.runner import open_session
     from glmap_tools.server import ServerConfig
 
@@ -96,7 +97,6 @@ async def _main(args: argparse.Namespace) -> int:
         from glmap_tools.language.llm import OllamaClient
 
         llm = OllamaClient(args.model, host=args.ollama_host, vision=True)
-    prompts = PromptSet(args.prompts) if args.prompts else None
     config = ServerConfig(embedder=args.embedder, warm_up=False)
     async with open_session(config, server_command=args.server_command) as client:
         if args.map:
@@ -142,7 +142,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--server-command", default=None)
     args = p.parse_args(argv)
-    return exit_code(lambda: asyncio.run(_main(args)))
+    try:  # a missing folder or a bad prompt file: one error line, exit 2
+        prompts = PromptSet(args.prompts) if args.prompts else None
+    except InvalidInputError as exc:
+        p.error(str(exc))
+    return exit_code(lambda: asyncio.run(_main(args, prompts)))
 
 
 if __name__ == "__main__":

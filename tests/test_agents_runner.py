@@ -122,6 +122,23 @@ def test_the_sqa_and_llm_agents_print_a_refusal_as_one_line(tmp_path, capsys):
     assert "Traceback" not in said
 
 
+def test_the_sqa_and_llm_agents_refuse_a_bad_prompts_folder_before_starting(tmp_path, capsys):
+    from agents import llm_agent, sqa
+
+    (tmp_path / "tool_agent_system.txt").write_text('Play {task} in {max_turns}; reply {"a": 1}')
+    for agent_main, argv in (
+        (llm_agent.main, [EPISODE, "--prompts", str(tmp_path)]),
+        (sqa.main, ["--situation", "on the bed", "--question", "?", "--prompts", str(tmp_path)]),
+        (sqa.main, ["--situation", "on the bed", "--question", "?", "--prompts", "nowhere"]),
+    ):
+        with pytest.raises(SystemExit) as stopped:
+            agent_main(argv)
+        assert stopped.value.code == 2
+        said = capsys.readouterr().err.strip().splitlines()[-1]
+        assert "error: prompt file" in said or "'nowhere' is not a folder" in said
+        assert "Traceback" not in said
+
+
 async def test_an_instnav_episode_runs_the_instnav_agent_on_a_description(tmp_path):
     episode = load_split("tune", "instnav")[0]
     out = tmp_path / "inst"
