@@ -112,6 +112,7 @@ def test_a_prompt_file_str_format_cannot_fill_is_refused_when_its_folder_is_give
             make()
         assert said in str(caught.value)
     path.write_text("Score {{literal}} and {goal} over {units}.")  # doubled braces are text
+    (tmp_path / "notes.txt").write_text("not a prompt: {a.b}")  # no prompt's name: not read
     assert PromptSet(tmp_path).get("unit_value_instance").fields == {"goal", "units"}
 
 

@@ -134,9 +134,10 @@ class PromptSet:
                 f"prompt files (copy {package_prompts_dir()} to start from the defaults)."
             )
         self._cache: dict[str, Prompt] = {}
-        if self.override is not None:  # refuse a bad file now, not at its first use
+        if self.override is not None:  # refuse a bad prompt file now, not at its first use
+            known = {p.stem for p in package_prompts_dir().glob(f"*{SUFFIX}")}
             for path in sorted(self.override.glob(f"*{SUFFIX}")):
-                if path.is_file():
+                if path.stem in known and path.is_file():
                     _read(path, path.stem)
 
     def names(self) -> list[str]:
