@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -193,7 +194,14 @@ def test_unreadable_files_raise_store_errors_that_say_why(tmp_path):
 
 @pytest.mark.parametrize(
     ("name", "value"),
-    [("y", np.nan), ("f_dc_1", np.inf), ("scale_0", 400.0), ("rot_2", np.nan), ("opacity", np.nan)],
+    [
+        ("y", np.nan),
+        ("f_dc_1", np.inf),
+        ("scale_0", 400.0),
+        ("scale_1", 50.0),  # exp(100) is finite in float64, not in the float32 a set holds
+        ("rot_2", np.nan),
+        ("opacity", np.nan),
+    ],
 )
 def test_a_vertex_that_is_not_finite_is_refused_by_its_index(tmp_path, name, value):
     path = write_ply(tmp_path / "map.ply", random_gaussians(6))
@@ -203,6 +211,27 @@ def test_a_vertex_that_is_not_finite_is_refused_by_its_index(tmp_path, name, val
     v[name][4] = value
     path.write_bytes(data[:start] + v.tobytes())
     with pytest.raises(StoreError, match=r"vertex 4 of 6 has a NaN or infinite .* \(1 such"):
+        read_ply(path)
+
+
+@pytest.mark.parametrize(
+    ("edit", "said"),
+    [
+        (("element vertex 10", "element vertex 1e3"), "gives no count of 'vertex'"),
+        (("element vertex 10", "element vertex -5"), "gives no count of 'vertex'"),
+        (("property float y", "property float x"), "property 'x' of element 'vertex' is declared"),
+        (("property float y", "property"), "cannot read header line 'property'"),
+        (("end_header\n", "end_header"), "'end_header' line does not end"),
+    ],
+)
+def test_a_malformed_header_is_refused_naming_the_line(tmp_path, edit, said):
+    path = write_ply(tmp_path / "map.ply", random_gaussians(10))
+    data = path.read_bytes()
+    start = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:start].decode().replace(*edit)
+    body = b"" if edit[1] == "end_header" else data[start:]
+    path.write_bytes(header.encode() + body)
+    with pytest.raises(StoreError, match=re.escape(said)):
         read_ply(path)
 
 

@@ -152,7 +152,9 @@ def _parse_header(data: bytes, path: Path) -> tuple[str, list[tuple[str, int, li
     end = data.find(b"end_header")
     if not data.startswith(b"ply") or end < 0:
         raise StoreError(f"{path} is not a PLY file (no 'ply' magic or 'end_header').")
-    body = data.index(b"\n", end) + 1
+    body = data.find(b"\n", end) + 1
+    if body == 0:
+        raise StoreError(f"{path} is truncated: its header's 'end_header' line does not end.")
     fmt = ""
     elements: list[tuple[str, int, list]] = []
     for raw in data[:end].decode("ascii", errors="replace").splitlines():
@@ -162,8 +164,13 @@ def _parse_header(data: bytes, path: Path) -> tuple[str, list[tuple[str, int, li
         if words[0] == "format" and len(words) >= 2:
             fmt = words[1]
         elif words[0] == "element" and len(words) == 3:
+            if not words[2].isdigit():
+                raise StoreError(
+                    f"{path}: header line {raw!r} gives no count of {words[1]!r} elements; "
+                    "a PLY element line is 'element NAME COUNT' with a whole number."
+                )
             elements.append((words[1], int(words[2]), []))
-        elif words[0] == "property" and elements:
+        elif words[0] == "property" and elements and len(words) >= 2:
             if words[1] == "list":
                 raise StoreError(
                     f"{path}: list property {words[-1]!r} in element {elements[-1][0]!r} is not "
@@ -171,6 +178,11 @@ def _parse_header(data: bytes, path: Path) -> tuple[str, list[tuple[str, int, li
                 )
             if len(words) != 3 or words[1] not in _PLY_TYPES:
                 raise StoreError(f"{path}: cannot read header line {raw!r}.")
+            if any(name == words[2] for name, _ in elements[-1][2]):
+                raise StoreError(
+                    f"{path}: property {words[2]!r} of element {elements[-1][0]!r} is declared "
+                    "twice; a PLY element names each property once."
+                )
             elements[-1][2].append((words[2], _PLY_TYPES[words[1]]))
         else:
             raise StoreError(f"{path}: cannot read header line {raw!r}.")
@@ -220,8 +232,9 @@ def read_ply(path: str | os.PathLike[str]) -> GaussianSet:
     opacities the sigmoid of the stored logit; counts 1.
 
     Raises:
-        StoreError: the file is missing, truncated or lacks the Gaussian properties, or a
-            vertex holds a value that is not finite.
+        StoreError: the file is missing, truncated, has a header line it cannot read (a
+            count that is not a whole number, a property declared twice) or lacks the
+            Gaussian properties, or a vertex holds a value that is not finite in float32.
     """
     path = Path(path)
     v = _read_vertices(path)
@@ -237,7 +250,8 @@ def read_ply(path: str | os.PathLike[str]) -> GaussianSet:
         )
 
     def col(name: str) -> np.ndarray:
-        return np.asarray(v[name], dtype=np.float64)
+        with np.errstate(invalid="ignore"):  # a signalling NaN; refused below with the rest
+            return np.asarray(v[name], dtype=np.float64)
 
     n = len(v)
     means = np.stack([col("x"), col("y"), col("z")], axis=1)
@@ -256,18 +270,19 @@ def read_ply(path: str | os.PathLike[str]) -> GaussianSet:
         variances = np.exp(2.0 * np.stack([col(f"scale_{i}") for i in range(3)], axis=1))
         covs = np.einsum("nij,nj,nkj->nik", rot, variances, rot)
         opacities = 1.0 / (1.0 + np.exp(-col("opacity")))
+        # finite in the float32 a GaussianSet holds (a scale of 50 is finite in float64 only)
         bad = bad_rotation | ~(
-            np.isfinite(means).all(axis=1)
+            np.isfinite(means.astype(np.float32)).all(axis=1)
             & np.isfinite(colors).all(axis=1)
-            & np.isfinite(covs).all(axis=(1, 2))
+            & np.isfinite(covs.astype(np.float32)).all(axis=(1, 2))
             & np.isfinite(opacities)
         )
     if bad.any():
         k = int(np.argmax(bad))
         raise StoreError(
             f"{path}: vertex {k} of {n} has a NaN or infinite position, colour, rotation or "
-            f"opacity, or a scale past exp's range ({int(bad.sum())} such vertices); drop them "
-            "where the file was made, then read it again."
+            f"opacity, or a position or scale past float32's range ({int(bad.sum())} such "
+            "vertices); drop them where the file was made, then read it again."
         )
     return GaussianSet(
         means,
