@@ -125,6 +125,66 @@ def test_a_changed_setting_is_refused_unless_mixing_is_asked_for(finished: EvalR
     assert "mixes results run with different settings" in (finished.out / "summary.md").read_text()
 
 
+RECORD = {
+    "episode_id": "tune/objectnav/s00-000",
+    "agent": "glmap",
+    "success": True,
+    "spl": 0.5,
+    "distance_to_goal": None,  # a non-finite float is stored as null
+    "steps": 40,
+    "path_length": 6.0,
+    "collisions": 0,
+    "tool_calls": 42,
+    "wall_s": 3.0,
+    "seed": 7,
+    "outcome": "success",
+}
+
+
+@pytest.mark.parametrize(
+    "edit",
+    [
+        {"spl": {"a": 1}},
+        {"success": "yes"},
+        {"steps": [1]},
+        {"steps": True},
+        {"outcome": {"a": 1}},
+        {"config": 3},
+        {"prompts": []},
+        {"tool_calls": None},
+    ],
+)
+def test_a_stored_record_whose_fields_are_not_an_episodes_is_played_again(
+    tmp_path: Path, edit: dict[str, object]
+) -> None:
+    from glmap_tools.eval.results import ResultsDir, record_problem
+
+    results = ResultsDir(tmp_path / "out", {"task": "objectnav"})
+    results.save(RECORD)
+    assert results.load("glmap", RECORD["episode_id"])["spl"] == 0.5  # type: ignore[index]
+    path = results.episode_path("glmap", str(RECORD["episode_id"]))
+    path.write_text(json.dumps({**json.loads(path.read_text()), **edit}))
+    assert results.load("glmap", str(RECORD["episode_id"])) is None  # as an unreadable file
+    (name,) = edit
+    assert str(record_problem({**RECORD, **edit})).startswith(f"{name} = ")
+
+
+@pytest.mark.parametrize("stored", [{"config": []}, {"history": 5}, {"history": [1, 2]}])
+def test_an_eval_json_of_the_wrong_shape_is_refused_naming_the_file(
+    tmp_path: Path, stored: dict[str, object]
+) -> None:
+    from glmap_tools.eval.results import ResultsDir
+
+    out = tmp_path / "out"
+    ResultsDir(out, {"task": "objectnav"})
+    path = out / "eval.json"
+    path.write_text(json.dumps({**json.loads(path.read_text()), **stored}))
+    before = path.read_bytes()
+    with pytest.raises(InvalidInputError, match=f"{path} has a 'config' that is not an object"):
+        ResultsDir(out, {"task": "objectnav"})
+    assert path.read_bytes() == before
+
+
 def test_an_unknown_agent_name_suggests_the_closest_one(tmp_path: Path) -> None:
     with pytest.raises(InvalidInputError, match="unknown agent 'glmapp'. Did you mean 'glmap'"):
         run_eval(spec(agents=("glmapp",)), tmp_path / "out", progress=False)

@@ -46,6 +46,46 @@ def finite_or_none(x: Any) -> Any:
     return None if isinstance(x, float) and not math.isfinite(x) else x
 
 
+# What the tables read of a stored record: kind -> field names (optional ones may be absent).
+_RECORD_FIELDS = {
+    "bool": ("success",),
+    "int": ("steps", "collisions", "tool_calls", "seed"),
+    "number or null": ("spl", "distance_to_goal", "path_length", "wall_s"),
+}
+_OPTIONAL_FIELDS = {
+    "int": ("tokens", "turns"),
+    "str": ("outcome", "scene", "finished_at"),
+    "str or null": ("episode_key",),
+    "object": ("prompts", "config"),
+}
+
+
+def _is_kind(value: Any, kind: str) -> bool:
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    return {
+        "bool": isinstance(value, bool),
+        "int": isinstance(value, int) and not isinstance(value, bool),
+        "number or null": value is None or number,
+        "str": isinstance(value, str),
+        "str or null": value is None or isinstance(value, str),
+        "object": isinstance(value, dict),
+    }[kind]
+
+
+def record_problem(record: dict[str, Any]) -> str | None:
+    """What makes `record` not a finished episode's record (a field missing or of another
+    kind), or None."""
+    for kind, names in _RECORD_FIELDS.items():
+        for name in names:
+            if name not in record or not _is_kind(record[name], kind):
+                return f"{name} = {record.get(name)!r} is not a {kind}"
+    for kind, names in _OPTIONAL_FIELDS.items():
+        for name in names:
+            if name in record and not _is_kind(record[name], kind):
+                return f"{name} = {record[name]!r} is not a {kind}"
+    return None
+
+
 class ResultsDir:
     """One evaluation's results folder (see the module docstring).
 
@@ -98,6 +138,14 @@ class ResultsDir:
             raise InvalidInputError(
                 f"{path} is not a glmap eval file; choose another --out for the results."
             )
+        history = data.get("history", [])
+        if not isinstance(data.get("config", {}), dict) or not (
+            isinstance(history, list) and all(isinstance(h, dict) for h in history)
+        ):
+            raise InvalidInputError(
+                f"{path} has a 'config' that is not an object or a 'history' that is not a "
+                "list of them; restore the file, or choose another --out for the results."
+            )
         return data
 
     def episode_path(self, agent: str, episode_id: str) -> Path:
@@ -107,14 +155,16 @@ class ResultsDir:
         return self.root / "traces" / agent / _safe(episode_id)
 
     def load(self, agent: str, episode_id: str) -> dict[str, Any] | None:
-        """The stored record of a finished episode, or None (also for an unreadable file)."""
+        """The stored record of a finished episode, or None (also for an unreadable file or
+        one whose fields are not an episode's: the episode is then played again)."""
         path = self.episode_path(agent, episode_id)
         try:
             record = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, ValueError):
             return None
         ok = isinstance(record, dict) and record.get("episode_id") == episode_id
-        return record if ok and record.get("agent") == agent else None
+        ok = ok and record.get("agent") == agent and record_problem(record) is None
+        return record if ok else None
 
     def save(self, record: dict[str, Any]) -> dict[str, Any]:
         """Write one finished episode atomically (a crash leaves the old file or none).
