@@ -52,6 +52,36 @@ def test_a_rerun_reuses_the_scene_results_and_other_settings_are_refused(run):
     assert json.loads(scene_file.read_text())["spec"] == SMALL.key()
 
 
+def test_a_scene_file_cut_short_or_of_the_wrong_shape_is_answered_again(run, tmp_path):
+    from glmap_tools.eval.sqa import _stored_scene
+
+    out, _, records = run
+    scene_file = next((out / "scenes").glob("*.json"))
+    scene = scene_file.stem
+    stored = json.loads(scene_file.read_text())
+    assert _stored_scene(scene_file, scene) == stored
+    first = stored["records"][0]
+    bad_records = [
+        {**first, "em1": "yes"},
+        {**first, "scene": "elsewhere"},
+        {k: v for k, v in first.items() if k != "agent"},
+        {**first, "err_m": None},
+        {**first, "situation_form": "plain"},  # forms in one record of the scene only
+        7,
+    ]
+    path = tmp_path / f"{scene}.json"
+    for record in bad_records:
+        path.write_text(json.dumps({**stored, "records": [record, *stored["records"][1:]]}))
+        assert _stored_scene(path, scene) is None, record
+    for text in ("[]", "null", '{"scene": 3}', scene_file.read_text()[:-40], "\udcff"):
+        path.write_text(text, errors="surrogateescape")
+        assert _stored_scene(path, scene) is None
+    # A run finds the cut file, answers the scene again and writes it whole.
+    scene_file.write_text(scene_file.read_text()[:-40])
+    _, again = run_sqa_eval(SMALL, out, workers=1, progress=False)
+    assert len(again) == len(records) and _stored_scene(scene_file, scene) is not None
+
+
 def test_an_unknown_sqa_agent_suggests_the_closest():
     with pytest.raises(InvalidInputError, match="Did you mean 'gt-pose'"):
         check_agents(["gt-pos"])

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from glmap_tools.atomic import write_atomic
 from glmap_tools.errors import GLMapError, InvalidInputError, did_you_mean
 from glmap_tools.eval.sqa_table import reading_ok, summarize, summarize_forms
 from glmap_tools.orphans import exit_with_parent
@@ -295,8 +296,8 @@ def run_sqa_eval(
     todo, results = [], []
     for scene in scenes:
         path = out / "scenes" / f"{scene}.json"
-        if path.exists():
-            data = json.loads(path.read_text(encoding="utf-8"))
+        data = _stored_scene(path, scene)
+        if data is not None:
             if data["spec"] != spec.key():
                 raise InvalidInputError(
                     f"{path} was written with other settings (spec {data['spec']} vs "
@@ -308,8 +309,9 @@ def run_sqa_eval(
     layouts = {s: str(folder / s / "layout.json") for s in todo}
     bar = tqdm(total=len(todo), unit="scene", disable=not progress)
 
-    def keep(data: dict[str, Any]) -> None:
-        (out / "scenes" / f"{data['scene']}.json").write_text(json.dumps(data) + "\n")
+    def keep(data: dict[str, Any]) -> None:  # atomic: a killed run leaves no half a file
+        path = out / "scenes" / f"{data['scene']}.json"
+        write_atomic(path, [(json.dumps(data) + "\n").encode("utf-8")])
         results.append(data)
         bar.update(1)
 
@@ -335,6 +337,66 @@ def run_sqa_eval(
     )
     (out / "summary.md").write_text(head + table, encoding="utf-8")
     return head + table, records
+
+
+# The fields the tables read of each answer record: name -> kind; the optional ones may be
+# absent, the forms (phrased questions) are in every record of a scene or in none.
+_ANSWER_FIELDS = {
+    "scene": str,
+    "question_id": int,
+    "situation": str,
+    "type": str,
+    "agent": str,
+    "em1": bool,
+    "supported": bool,
+}
+_OPTIONAL_ANSWER_FIELDS = {
+    "stand": list,
+    "err_m": float,
+    "err_deg": float,
+    "reading_ok": bool,
+    "read": str,
+    "round": int,
+    "situation_form": str,
+    "question_form": str,
+}
+
+
+def _is(value: Any, kind: type) -> bool:
+    if kind is float:
+        return isinstance(value, int | float) and not isinstance(value, bool)
+    if kind is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    return isinstance(value, kind)
+
+
+def _stored_scene(path: Path, scene: str) -> dict[str, Any] | None:
+    """A scene's stored answers, or None when there are none or the file is unreadable or
+    not a scene's answers (the scene is then answered again)."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or data.get("scene") != scene:
+        return None
+    records = data.get("records")
+    if not isinstance(data.get("spec"), str) or not isinstance(records, list):
+        return None
+    forms = {isinstance(r, dict) and "situation_form" in r for r in records}
+    for r in records:
+        if not isinstance(r, dict) or r.get("scene") != scene or len(forms) > 1:
+            return None
+        for name, kind in _ANSWER_FIELDS.items():
+            if not _is(r.get(name), kind):
+                return None
+        for name, kind in _OPTIONAL_ANSWER_FIELDS.items():
+            if name in r and not _is(r[name], kind):
+                return None
+        if "situation_form" in r and not _is(r.get("question_form"), str):
+            return None
+        if ("err_m" in r) != ("err_deg" in r):
+            return None
+    return data
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
