@@ -95,6 +95,22 @@ def test_a_rerun_skips_the_finished_maps_and_says_so(scans, built_on_two_workers
     assert all(r["frames"] == 6 for r in rows)  # the figures of the run that built them
 
 
+def test_an_earlier_summary_row_of_the_wrong_shape_is_left_out(tmp_path) -> None:
+    from glmap_tools.ingest.summary import read_summary
+
+    good = {"scan": "s00", "folder": "f", "map": "m", "status": "built", "frames": 3}
+    good |= {"seconds": 1.5, "cpu_s": 2, "host": "h", "error": ""}
+    path = tmp_path / "build-summary.json"
+    rows = [good, [1], "s01", {**good, "scan": "s02", "frames": "x"}]
+    rows += [{**good, "scan": "s03", "cpu_s": {}}, {**good, "scan": "s04", "host": 1}]
+    rows += [{**good, "scan": "s05", "frames": 2.5}, {"scan": "s06"}, {**good, "scan": 7}]
+    path.write_text(json.dumps({"scans": rows}))
+    assert list(read_summary(path)) == ["s00"]
+    for text in ('{"scans": 3}', "[]", "null", '{"scans": [1', "\udcff"):
+        path.write_text(text, errors="surrogateescape")
+        assert read_summary(path) == {}
+
+
 def test_a_list_file_names_scans_and_a_half_written_map_of_a_killed_build_is_removed(
     scans, single_maps, tmp_path, capsys
 ) -> None:

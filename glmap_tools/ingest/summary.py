@@ -51,14 +51,43 @@ class ScanResult:
     error: str = ""
 
 
+_TEXT_FIELDS = ("scan", "folder", "map", "status", "host", "error")
+_COUNT_FIELDS = ("frames", "instances", "regions", "gaussians")
+_FIGURE_FIELDS = ("seconds", "frames_per_s", "cpu_s", "peak_rss_mb")
+
+
+def _row_ok(row: Any) -> bool:
+    """Whether an earlier summary's row holds each field as a ScanResult does."""
+    if not isinstance(row, dict) or not isinstance(row.get("scan"), str):
+        return False
+    for name, value in row.items():
+        if name in _TEXT_FIELDS and not isinstance(value, str):
+            return False
+        if name in _COUNT_FIELDS + _FIGURE_FIELDS and value is not None:
+            whole = isinstance(value, int) and not isinstance(value, bool)
+            if not (whole or (name in _FIGURE_FIELDS and isinstance(value, float))):
+                return False
+    return True
+
+
 def read_summary(path: Path) -> dict[str, ScanResult]:
-    """The rows of an earlier summary JSON by scan name ({} when absent or unreadable)."""
+    """The rows of an earlier summary JSON by scan name ({} when absent or unreadable; a row
+    whose fields are not a summary row's is left out)."""
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-        fields = set(ScanResult.__dataclass_fields__)
-        rows = [ScanResult(**{k: v for k, v in r.items() if k in fields}) for r in data["scans"]]
-    except (OSError, ValueError, KeyError, TypeError):
+    except (OSError, ValueError):
         return {}
+    scans = data.get("scans") if isinstance(data, dict) else None
+    if not isinstance(scans, list):
+        return {}
+    fields = set(ScanResult.__dataclass_fields__)
+    rows = []
+    for r in scans:
+        if _row_ok(r):
+            try:
+                rows.append(ScanResult(**{k: v for k, v in r.items() if k in fields}))
+            except TypeError:  # a field without a default is missing
+                continue
     return {r.scan: r for r in rows}
 
 
