@@ -212,6 +212,13 @@ def test_a_reply_without_json_is_an_output_error_quoting_it():
         extract_json("I cannot help with that.")
 
 
+@pytest.mark.parametrize("text", ["[" * 100_000, '{"a": ' * 50_000, "```json\n" + "[" * 5000])
+def test_a_reply_stuck_repeating_brackets_is_an_output_error(text):
+    with pytest.raises(LLMOutputError, match="nests brackets deeper than JSON is read"):
+        extract_json(text)
+    assert extract_json('Scores: {"scores": []} ' + "[" * 5000) == {"scores": []}
+
+
 def test_structured_output_sends_the_json_schema_as_format():
     with ScriptedOllama(lambda m, p, b: (200, chat_reply(sc.MODEL, '{"scores": []}'))) as server:
         value, _ = chat_structured(

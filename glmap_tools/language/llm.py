@@ -106,21 +106,26 @@ def extract_json(text: str) -> Any:
         LLMOutputError: no JSON object or array can be found.
     """
     text = text.strip()
-    candidates = [text] + [m.group(1).strip() for m in _FENCE.finditer(text)]
-    for candidate in candidates:
-        try:
-            return json.loads(candidate)
-        except json.JSONDecodeError:
-            pass
-    decoder = json.JSONDecoder()
-    for i, ch in enumerate(text):
-        if ch in "{[":
-            try:
-                value, _ = decoder.raw_decode(text, i)
-                return value
-            except json.JSONDecodeError:
-                continue
     shown = text if len(text) <= 200 else text[:200] + "..."
+    candidates = [text] + [m.group(1).strip() for m in _FENCE.finditer(text)]
+    decoder = json.JSONDecoder()
+    try:
+        for candidate in candidates:
+            try:
+                return json.loads(candidate)
+            except json.JSONDecodeError:
+                pass
+        for i, ch in enumerate(text):
+            if ch in "{[":
+                try:
+                    value, _ = decoder.raw_decode(text, i)
+                    return value
+                except json.JSONDecodeError:
+                    continue
+    except RecursionError:  # a reply stuck repeating brackets
+        raise LLMOutputError(
+            f"the model's reply nests brackets deeper than JSON is read: {shown!r}"
+        ) from None
     raise LLMOutputError(f"the model's reply holds no JSON: {shown!r}")
 
 
