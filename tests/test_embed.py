@@ -188,6 +188,48 @@ def test_a_folder_without_a_model_is_rejected(tmp_path: Path) -> None:
         MiniLMEmbedder(model_path=tmp_path)
 
 
+@pytest.mark.parametrize(
+    ("file", "edit", "said"),
+    [
+        ("config.json", {"hidden_size": "x"}, "ValueError invalid literal"),
+        ("config.json", {"hidden_size": 2**70}, "hidden_size 1180591620717411303424 is not"),
+        ("config.json", {"num_attention_heads": 0}, "num_attention_heads 0 does not divide"),
+        ("config.json", {"layer_norm_eps": None}, "TypeError float() argument"),
+        ("config.json", {"num_hidden_layers": 99}, "KeyError 'encoder.layer.6."),
+        ("sentence_bert_config.json", {"max_seq_length": [1]}, "TypeError int() argument"),
+        ("config.json", [], "a config file that is not a JSON object"),
+    ],
+)
+def test_a_bert_folder_with_a_misstated_config_is_refused_naming_it(
+    tmp_path: Path, file: str, edit: object, said: str
+) -> None:
+    import json
+    import shutil
+
+    from glmap_tools.language.bert import BertSentenceEncoder
+
+    folder = tmp_path / "model"
+    shutil.copytree(_bundled_model_path().resolve(), folder)
+    path = folder / file
+    data = json.loads(path.read_text())
+    path.write_text(json.dumps({**data, **edit} if isinstance(edit, dict) else edit))
+    named = "cannot read the BERT model in 'model'|the model in 'model' has a config"
+    with pytest.raises(GLMapError, match=named) as e:
+        BertSentenceEncoder(folder)
+    assert said in str(e.value)
+
+
+def test_a_folder_sentence_transformers_cannot_load_is_refused_naming_it(tmp_path: Path) -> None:
+    import json
+    import shutil
+
+    folder = tmp_path / "model"
+    shutil.copytree(_bundled_model_path().resolve(), folder)
+    (folder / "modules.json").write_text(json.dumps([{"idx": 0, "type": 3}]))  # not a BERT's
+    with pytest.raises(GLMapError, match=r"sentence-transformers cannot load the model in .*"):
+        MiniLMEmbedder(model_path=folder)
+
+
 # ------------------------------------------------------------------ calibration
 
 

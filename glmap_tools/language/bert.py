@@ -27,6 +27,7 @@ import functools
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numba
 import numpy as np
@@ -47,7 +48,10 @@ def is_mean_pooled_bert(path: str | Path) -> bool:
         modules = json.loads((folder / "modules.json").read_text("utf-8"))
     except (OSError, ValueError):
         return False
-    kinds = [m.get("type", "").rsplit(".", 1)[-1] for m in modules]
+    objects = isinstance(config, dict) and isinstance(pooling, dict)
+    if not (objects and isinstance(modules, list) and all(isinstance(m, dict) for m in modules)):
+        return False  # not files sentence-transformers writes; it says what is wrong
+    kinds = [str(m.get("type", "")).rsplit(".", 1)[-1] for m in modules]
     return (
         config.get("model_type") == "bert"
         and bool(pooling.get("pooling_mode_mean_tokens"))
@@ -205,12 +209,30 @@ class BertSentenceEncoder:
             self.tokenizer = Tokenizer.from_file(str(folder / "tokenizer.json"))
         except (OSError, ValueError, ImportError) as exc:
             raise GLMapError(f"cannot read the BERT model in {folder.name!r}: {exc}") from exc
+        if not all(isinstance(c, dict) for c in (config, pooling, st_config)):
+            raise GLMapError(
+                f"the model in {folder.name!r} has a config file that is not a JSON object."
+            )
         if config.get("model_type") != "bert" or not pooling.get("pooling_mode_mean_tokens"):
             raise GLMapError(
                 f"the model in {folder.name!r} is not a mean-pooled BERT; load it with "
                 "sentence-transformers instead."
             )
+        try:
+            self._read(config, st_config, weights)
+        except (KeyError, TypeError, ValueError, OverflowError, IndexError) as exc:
+            raise GLMapError(
+                f"cannot read the BERT model in {folder.name!r}: {type(exc).__name__} {exc} in "
+                "its configs or weights; re-save it with sentence-transformers."
+            ) from None
+
+    def _read(
+        self, config: dict[str, Any], st_config: dict[str, Any], weights: dict[str, np.ndarray]
+    ) -> None:
+        """Sizes from the configs, weights by name (a missing key raises KeyError)."""
         self.max_length = int(st_config.get("max_seq_length", 256))
+        if not 1 <= self.max_length <= 1_000_000:
+            raise ValueError(f"max_seq_length {self.max_length} is not in 1..1000000")
         self.tokenizer.enable_truncation(self.max_length)
         self.tokenizer.no_padding()
         self.heads = int(config["num_attention_heads"])
@@ -219,6 +241,12 @@ class BertSentenceEncoder:
         prefix = "bert." if "bert.embeddings.word_embeddings.weight" in weights else ""
         w = {k[len(prefix) :]: np.ascontiguousarray(v) for k, v in weights.items()}
         self.word = w["embeddings.word_embeddings.weight"]
+        if self.word.ndim != 2 or self.word.shape[1] != self.dim:
+            raise ValueError(f"hidden_size {self.dim} is not the width of the word embeddings")
+        if not (1 <= self.heads <= self.dim and self.dim % self.heads == 0):
+            raise ValueError(f"num_attention_heads {self.heads} does not divide {self.dim}")
+        if not (math.isfinite(self.eps) and self.eps > 0):
+            raise ValueError(f"layer_norm_eps {self.eps} is not a positive number")
         self.position = w["embeddings.position_embeddings.weight"]
         self.token_type = w["embeddings.token_type_embeddings.weight"][0]
         self.embed_norm = (w["embeddings.LayerNorm.weight"], w["embeddings.LayerNorm.bias"])

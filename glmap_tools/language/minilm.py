@@ -100,8 +100,15 @@ def _load_sentence_transformer(path: str, device: str) -> Any:
         raise GLMapError(
             "MiniLMEmbedder needs sentence-transformers: run `pip install sentence-transformers`."
         ) from exc
-    with _quiet_loading():
-        return SentenceTransformer(path, device=device, local_files_only=True)
+    try:
+        with _quiet_loading():
+            return SentenceTransformer(path, device=device, local_files_only=True)
+    except (OSError, ValueError, TypeError, KeyError, AttributeError, IndexError) as exc:
+        raise GLMapError(  # the folder's files are not a model sentence-transformers reads
+            f"sentence-transformers cannot load the model in {path!r}: {type(exc).__name__} "
+            f"{exc}; check its config.json and modules.json, or re-save it with "
+            "sentence-transformers."
+        ) from None
 
 
 class _NumpyBert:
