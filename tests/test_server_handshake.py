@@ -259,3 +259,31 @@ def test_a_first_tools_list_with_a_cursor_is_left_to_the_sdk(tmp_path):
     sent = [json.loads(line) for line in sink.getvalue().splitlines()]
     assert [m["id"] for m in sent] == [1]
     assert relay.answered_early == ["initialize"]
+
+
+def test_a_malformed_line_before_tools_list_leaves_the_relay_reading(tmp_path):
+    """A line nested too deep to parse, or a request whose id is a list or an object, is the
+    SDK's to answer; the relay reads on and still answers the handshake early."""
+    answers = PreparedAnswers(tmp_path / "answers.json", "stamp")
+    answers.put(VERSION, "initialize", {"protocolVersion": VERSION, "capabilities": {}})
+    answers.put(VERSION, "tools/list", {"tools": []})
+    opening = {"jsonrpc": "2.0", "id": 1, "method": "initialize"}
+    lines = [
+        b'{"a":' * 50_000,
+        b"[" * 100_000,
+        json.dumps({**opening, "id": [1], "params": {"protocolVersion": VERSION}}).encode(),
+        json.dumps({**opening, "params": {"protocolVersion": VERSION}}).encode(),
+        json.dumps({"jsonrpc": "2.0", "id": {"a": 1}, "method": "tools/list"}).encode(),
+        json.dumps({"jsonrpc": "2.0", "id": True, "method": "tools/list"}).encode(),
+        json.dumps({"jsonrpc": "2.0", "id": 2, "method": "tools/list"}).encode(),
+    ]
+    source = io.BytesIO(b"".join(line + b"\n" for line in lines))
+    sink = io.BytesIO()
+    relay = StdioRelay(answers, source=source, sink=sink)
+    got = []
+    while (line := relay.lines.get(timeout=10)) is not None:
+        got.append(line)
+    assert len(got) == len(lines)  # every line passed on to the SDK
+    sent = [json.loads(line) for line in sink.getvalue().splitlines()]
+    assert [m["id"] for m in sent] == [1, 2]
+    assert relay.answered_early == ["initialize", "tools/list"]

@@ -165,6 +165,11 @@ def _claim(fd: int, mode: str, diversion: int) -> tuple[BinaryIO, int | None]:
     return cast(BinaryIO, os.fdopen(private, mode, closefd=False)), private
 
 
+def _request_id(value: Any) -> bool:
+    """Whether `value` is a JSON-RPC request id (a string or a number)."""
+    return isinstance(value, str | int | float) and not isinstance(value, bool)
+
+
 class StdioRelay:
     """The process's stdio between the client and the MCP SDK (see the module docstring).
 
@@ -213,7 +218,10 @@ class StdioRelay:
         try:
             for line in iter(self.source.readline, b""):
                 if self._looking():
-                    self._look_at(line)
+                    try:
+                        self._look_at(line)
+                    except Exception:  # the early answer is a shortcut: the SDK answers instead
+                        logger.exception("glmap-mcp: cannot look at a client line; SDK reads it")
                 self.lines.put(line)
         except (OSError, ValueError) as exc:
             logger.info("glmap-mcp: stdin closed: %s", exc)
@@ -231,9 +239,9 @@ class StdioRelay:
         """Answer (or watch for the SDK's answer to) the opening request and tools/list."""
         try:
             message = json.loads(line)
-        except ValueError:
+        except (ValueError, RecursionError):  # the SDK answers a line it cannot parse
             return
-        if not isinstance(message, dict) or "id" not in message:
+        if not isinstance(message, dict) or not _request_id(message.get("id")):
             return
         method = message.get("method")
         params = message.get("params") or {}
