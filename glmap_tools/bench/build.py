@@ -22,6 +22,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from glmap_tools.bench._args import whole
 from glmap_tools.bench.report import Report
 from glmap_tools.cli import main as glmap_main
 from glmap_tools.cli_format import HelpWithDefaults
@@ -110,8 +111,10 @@ def main(argv: list[str] | None = None) -> int:
         prog="python -m glmap_tools.bench build", formatter_class=HelpWithDefaults
     )
     parser.add_argument("--folder", type=Path, help=f"RGB-D folder (default: {DEFAULT_TOUR})")
-    parser.add_argument("--frames", type=int, help="the first N frames (default: all)")
-    parser.add_argument("--repeats", type=int, default=2, help="runs of each variant")
+    parser.add_argument(
+        "--frames", type=whole(1, 100_000), help="the first N frames (default: all)"
+    )
+    parser.add_argument("--repeats", type=whole(1, 1000), default=2, help="runs of each variant")
     parser.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
     parser.add_argument("--steps", action="store_true", help=f"also the steps {list(STEPS)}")
     parser.add_argument("--profile", action="store_true", help="ms per frame per stage")

@@ -27,6 +27,7 @@ os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
 from mcp import Client
 
+from glmap_tools.bench._args import whole
 from glmap_tools.bench.report import Report  # noqa: E402
 from glmap_tools.server import ServerConfig, build_server
 from glmap_tools.worlds.splits import load_split
@@ -97,7 +98,9 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m glmap_tools.bench calls", description=__doc__)
     p.add_argument("--split", choices=["tune", "bench"], default="bench")
     p.add_argument("--task", choices=["objectnav", "instnav"], default="objectnav")
-    p.add_argument("--scenes", type=int, default=12, help="the first N scenes, one episode each")
+    p.add_argument(
+        "--scenes", type=whole(1, 1000), default=12, help="the first N scenes, one episode each"
+    )
     p.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
     args = p.parse_args(argv)
     report = Report("bench calls")

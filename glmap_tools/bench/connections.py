@@ -27,6 +27,7 @@ import httpx2
 from mcp import Client
 from mcp.client.streamable_http import streamable_http_client
 
+from glmap_tools.bench._args import positive_seconds, whole
 from glmap_tools.bench.report import Report
 
 TOKEN = "bench-connections-token"
@@ -67,8 +68,12 @@ def authorised_call(url: str, timeout: float) -> float:
 def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench connections")
-    parser.add_argument("--stalled", type=int, default=300, help="half-sent requests to open")
-    parser.add_argument("--timeout", type=float, default=30.0, help="seconds for the call")
+    parser.add_argument(
+        "--stalled", type=whole(1, 10_000), default=300, help="half-sent requests to open"
+    )
+    parser.add_argument(
+        "--timeout", type=positive_seconds(3600), default=30.0, help="seconds for the call"
+    )
     parser.add_argument(
         "--server-command", default="", help="the server command (default: this Python)"
     )

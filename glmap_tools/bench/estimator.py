@@ -30,6 +30,7 @@ import cv2
 import numba
 import numpy as np
 
+from glmap_tools.bench._args import whole
 from glmap_tools.bench._official import OFFICIAL_URL, load_official_estimator, official_times
 from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
@@ -421,7 +422,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m glmap_tools.bench estimator", formatter_class=HelpWithDefaults
     )
-    parser.add_argument("--repeats", type=int, default=9, help="timed runs per figure")
+    parser.add_argument("--repeats", type=whole(1, 10_000), default=9, help="timed runs per figure")
     parser.add_argument("--no-cold", action="store_true", help="skip the cold-compile probe")
     parser.add_argument("--psnr", action="store_true", help="also print the size-cap PSNR table")
     parser.add_argument(

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from glmap_tools import synthetic
+from glmap_tools.bench._args import whole
 from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.language.embed import Embedder, HashingEmbedder
@@ -48,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m glmap_tools.bench integrate", formatter_class=HelpWithDefaults
     )
-    parser.add_argument("--frames", type=int, default=12)
+    parser.add_argument("--frames", type=whole(1, 10_000), default=12)
     parser.add_argument("--embedder", choices=["hashing", "minilm"], default="hashing")
     args = parser.parse_args(argv)
     report = Report("bench integrate")

@@ -37,6 +37,7 @@ from mcp import Client
 
 from glmap_tools.app.frames import observe_arguments
 from glmap_tools.app.inputs import MAX_GROUPS, MAX_OBJECTS
+from glmap_tools.bench._args import MAX_SIDE, whole
 from glmap_tools.bench.report import Report, load_average
 from glmap_tools.geometry import Intrinsics, Pose
 from glmap_tools.geometry.frame import RGBDFrame
@@ -276,12 +277,14 @@ def run_merge_scaling(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench lock")
-    parser.add_argument("--objects", type=int, default=MAX_OBJECTS)
-    parser.add_argument("--groups", type=int, default=MAX_GROUPS)
-    parser.add_argument("--chars", type=int, default=MAX_DESCRIPTION_CHARS)
-    parser.add_argument("--sightings", type=int, default=3)
-    parser.add_argument("--width", type=int, default=640)
-    parser.add_argument("--height", type=int, default=480)
+    parser.add_argument("--objects", type=whole(1, MAX_OBJECTS), default=MAX_OBJECTS)
+    parser.add_argument("--groups", type=whole(0, MAX_GROUPS), default=MAX_GROUPS)
+    parser.add_argument(
+        "--chars", type=whole(1, MAX_DESCRIPTION_CHARS), default=MAX_DESCRIPTION_CHARS
+    )
+    parser.add_argument("--sightings", type=whole(1, 1000), default=3)
+    parser.add_argument("--width", type=whole(1, MAX_SIDE), default=640)
+    parser.add_argument("--height", type=whole(1, MAX_SIDE), default=480)
     parser.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(

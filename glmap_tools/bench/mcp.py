@@ -31,6 +31,7 @@ from mcp.client.streamable_http import streamable_http_client
 
 from glmap_tools import synthetic
 from glmap_tools.app.frames import observe_arguments
+from glmap_tools.bench._args import whole
 from glmap_tools.bench.integrate import scene_with_ten_objects
 from glmap_tools.bench.report import Report
 from glmap_tools.gaussians.types import COVARIANCE_EPSILON, DEFAULT_OPACITY, GaussianSet
@@ -325,9 +326,11 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench mcp")
     parser.add_argument("--embedder", choices=["minilm", "hashing"], default="minilm")
-    parser.add_argument("--sizes", type=int, nargs="+", default=[1000, 10000])
-    parser.add_argument("--calls", type=int, default=200, help="queries per measurement")
-    parser.add_argument("--frames", type=int, default=12, help="observed frames")
+    parser.add_argument("--sizes", type=whole(1, 1_000_000), nargs="+", default=[1000, 10000])
+    parser.add_argument(
+        "--calls", type=whole(1, 100_000), default=200, help="queries per measurement"
+    )
+    parser.add_argument("--frames", type=whole(1, 10_000), default=12, help="observed frames")
     parser.add_argument("--mode", choices=["legacy", "auto"], default="legacy")
     parser.add_argument(
         "--transport",

@@ -38,6 +38,7 @@ import anyio
 import numpy as np  # noqa: E402
 
 from agents.runner import open_session, play_episode
+from glmap_tools.bench._args import whole
 from glmap_tools.bench.report import Report  # noqa: E402
 from glmap_tools.eval.run import run_eval
 from glmap_tools.eval.spec import EvalSpec, select_episodes
@@ -244,7 +245,9 @@ def main(argv: list[str] | None = None) -> int:
 
     p = argparse.ArgumentParser(prog="python -m glmap_tools.bench nav", description=__doc__)
     p.add_argument("--split", default="tune", help="split of the speed figures")
-    p.add_argument("--steps", type=int, default=60, help="agent steps per timed episode")
+    p.add_argument(
+        "--steps", type=whole(1, 100_000), default=60, help="agent steps per timed episode"
+    )
     p.add_argument(
         "--throughput-episodes",
         type=int,
@@ -258,7 +261,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--table-split", default="bench", choices=["tune", "bench"])
     p.add_argument("--scenes", type=int, help="table: first N scenes (default all)")
     p.add_argument("--episodes-per-scene", type=int, help="table: first K (default all)")
-    p.add_argument("--workers", type=int, default=2, help="table: worker processes")
+    p.add_argument("--workers", type=whole(0, 64), default=2, help="table: worker processes")
     p.add_argument("--agents", default=",".join(ALL_AGENTS), help="table: comma-separated")
     p.add_argument("--out", type=Path, help="table results (default out/eval/SPLIT-TASK)")
     args = p.parse_args(argv)

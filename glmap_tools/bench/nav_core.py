@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from glmap_tools.bench._args import whole
 from glmap_tools.bench._nav_loop import calibrate, closed_loop, run_episode
 from glmap_tools.bench.report import Report
 from glmap_tools.errors import InvalidInputError, did_you_mean
@@ -221,8 +222,10 @@ def config_overrides(pairs: list[str]) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench nav-core")
-    parser.add_argument("--repeat", type=int, default=30, help="timing repetitions")
-    parser.add_argument("--steps", type=int, default=40, help="simulator steps to time")
+    parser.add_argument("--repeat", type=whole(1, 10_000), default=30, help="timing repetitions")
+    parser.add_argument(
+        "--steps", type=whole(1, 100_000), default=40, help="simulator steps to time"
+    )
     parser.add_argument("--no-sim", action="store_true", help="skip the simulator step")
     parser.add_argument("--calibrate", action="store_true", help="stop-threshold calibration")
     parser.add_argument(
@@ -230,9 +233,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--task", default="objectnav", choices=("objectnav", "instnav"))
     parser.add_argument("--policies", default="glmap,frontier", help="comma-separated")
-    parser.add_argument("--workers", type=int, default=1, help="closed loop: processes (<= 2)")
+    parser.add_argument(
+        "--workers", type=whole(1, 2), default=1, help="closed loop: processes (<= 2)"
+    )
     parser.add_argument("--out", default=None, help="closed loop: per-episode JSON file")
-    parser.add_argument("--max-steps", type=int, default=500, help="closed loop: step limit")
+    parser.add_argument(
+        "--max-steps", type=whole(1, 100_000), default=500, help="closed loop: step limit"
+    )
     parser.add_argument(
         "--set",
         action="append",

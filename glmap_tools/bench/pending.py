@@ -33,6 +33,7 @@ from glmap_tools import synthetic as sy
 from glmap_tools.app import memory
 from glmap_tools.app.frames import observe_arguments
 from glmap_tools.app.tools_perception import pending_frames
+from glmap_tools.bench._args import MAX_SIDE, whole
 from glmap_tools.bench.report import Report
 from glmap_tools.perception import pending
 from glmap_tools.server import ServerConfig
@@ -123,11 +124,16 @@ def main(argv: list[str] | None = None) -> int:
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
     """The command line of `python -m glmap_tools.bench pending`."""
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench pending")
-    parser.add_argument("--sessions", type=int, default=32)
-    parser.add_argument("--frames", type=int, default=pending.MAX_PENDING_FRAMES)
-    parser.add_argument("--size", type=int, default=1024, help="frame width and height (px)")
+    parser.add_argument("--sessions", type=whole(1, 1000), default=32)
+    parser.add_argument("--frames", type=whole(1, 10_000), default=pending.MAX_PENDING_FRAMES)
     parser.add_argument(
-        "--in-flight", type=int, default=1, help="observe_frame calls sent at once (threads)"
+        "--size", type=whole(1, MAX_SIDE), default=1024, help="frame width and height (px)"
+    )
+    parser.add_argument(
+        "--in-flight",
+        type=whole(1, 64),
+        default=1,
+        help="observe_frame calls sent at once (threads)",
     )
     return parser.parse_args(argv)
 

@@ -27,6 +27,7 @@ import anyio
 from mcp import Client
 from mcp.client.stdio import StdioServerParameters
 
+from glmap_tools.bench._args import image_size, whole
 from glmap_tools.bench.report import Report
 from glmap_tools.bench.startup import server_command
 from glmap_tools.cli_format import HelpWithDefaults
@@ -72,9 +73,15 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m glmap_tools.bench percall", formatter_class=HelpWithDefaults
     )
-    parser.add_argument("--calls", type=int, default=6, help="sim_step calls after sim_reset")
-    parser.add_argument("--rounds", type=int, default=2, help="episodes per way, alternating")
-    parser.add_argument("--size", default="320x240", help="the episode's image size")
+    parser.add_argument(
+        "--calls", type=whole(1, 10_000), default=6, help="sim_step calls after sim_reset"
+    )
+    parser.add_argument(
+        "--rounds", type=whole(1, 1000), default=2, help="episodes per way, alternating"
+    )
+    parser.add_argument(
+        "--size", type=image_size, default="320x240", help="the episode's image size"
+    )
     parser.add_argument(
         "--server-args",
         default="",

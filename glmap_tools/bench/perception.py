@@ -17,6 +17,7 @@ import time
 
 import numpy as np
 
+from glmap_tools.bench._args import whole
 from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.ingest.cli import bundled_folder
@@ -90,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__.splitlines()[0],
         formatter_class=HelpWithDefaults,
     )
-    parser.add_argument("--frames", type=int, default=40, help="tour frames per scene")
+    parser.add_argument("--frames", type=whole(1, 10_000), default=40, help="tour frames per scene")
     parser.add_argument("--scenes", nargs="+", default=list(SCENES), help="benchmark scenes")
     args = parser.parse_args(argv)
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")

@@ -29,6 +29,7 @@ import cv2
 import numba
 import numpy as np
 
+from glmap_tools.bench._args import image_size, whole
 from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.gaussians._render_numba import render_fast
@@ -106,12 +107,15 @@ def main(argv: list[str] | None = None) -> int:
         formatter_class=HelpWithDefaults,
     )
     parser.add_argument(
-        "--counts", type=int, nargs="+", default=[10_000, 50_000, 100_000, 1_000_000]
+        "--counts",
+        type=whole(1, 10_000_000),
+        nargs="+",
+        default=[10_000, 50_000, 100_000, 1_000_000],
     )
-    parser.add_argument("--sizes", nargs="+", default=["320x240", "640x480"])
-    parser.add_argument("--repeats", type=int, default=10)
-    parser.add_argument("--reference-size", default="32x24")
-    parser.add_argument("--reference-max", type=int, default=1_000_000)
+    parser.add_argument("--sizes", type=image_size, nargs="+", default=["320x240", "640x480"])
+    parser.add_argument("--repeats", type=whole(1, 10_000), default=10)
+    parser.add_argument("--reference-size", type=image_size, default="32x24")
+    parser.add_argument("--reference-max", type=whole(1, 10_000_000), default=1_000_000)
     parser.add_argument("--out", type=Path, default=Path("out/bench_render"))
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)

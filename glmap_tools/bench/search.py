@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import time
 
+from glmap_tools.bench._args import existing_file
 from glmap_tools.bench.report import Report
 from glmap_tools.language.calibration import make_embedder
 from glmap_tools.worlds import search_eval as se
@@ -25,7 +26,12 @@ def main(argv: list[str] | None = None) -> int:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     parser.add_argument("--embedder", choices=("minilm", "hashing"), default="minilm")
-    parser.add_argument("--queries", default=None, help="JSON-lines query set (default: bundled)")
+    parser.add_argument(
+        "--queries",
+        type=existing_file,
+        default=None,
+        help="JSON-lines query set (default: bundled)",
+    )
     args = parser.parse_args(argv)
 
     report = Report("bench search")

@@ -16,6 +16,7 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 import numpy as np  # noqa: E402
 
+from glmap_tools.bench._args import whole
 from glmap_tools.bench.report import Report
 from glmap_tools.sim.env import ObjectNavEnv
 from glmap_tools.sim.render import CameraSpec
@@ -27,7 +28,7 @@ TARGET_RESET_MS = 100.0  # per reset on a benchmark scene: thousands of episodes
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench sim")
-    parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--steps", type=whole(1, 100_000), default=200)
     parser.add_argument(
         "--episode",
         default="bench/objectnav/s03-017",

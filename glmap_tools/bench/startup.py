@@ -26,6 +26,7 @@ from pathlib import Path
 from queue import Empty, Queue
 from typing import Any
 
+from glmap_tools.bench._args import positive_seconds, whole
 from glmap_tools.bench.report import Report
 from glmap_tools.server.handshake import (
     MODERN_VERSIONS,
@@ -241,8 +242,10 @@ def main(argv: list[str] | None = None) -> int:
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
     """The command line of `python -m glmap_tools.bench startup`."""
     parser = argparse.ArgumentParser(prog="python -m glmap_tools.bench startup")
-    parser.add_argument("--runs", type=int, default=3, help="fresh launches to time")
-    parser.add_argument("--timeout", type=float, default=300.0, help="seconds per answer")
+    parser.add_argument("--runs", type=whole(1, 100), default=3, help="fresh launches to time")
+    parser.add_argument(
+        "--timeout", type=positive_seconds(3600), default=300.0, help="seconds per answer"
+    )
     parser.add_argument(
         "--unprepared",
         action="store_true",

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from glmap_tools import synthetic as scenes
+from glmap_tools.bench._args import whole
 from glmap_tools.bench.report import Report
 from glmap_tools.cli_format import HelpWithDefaults
 from glmap_tools.gaussians.estimator import EstimatorConfig
@@ -175,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
         formatter_class=HelpWithDefaults,
     )
     parser.add_argument("--out", type=Path, default=Path("out/views"))
-    parser.add_argument("--chairs", type=int, nargs="+", default=[4, 12])
+    parser.add_argument("--chairs", type=whole(1, 200), nargs="+", default=[4, 12])
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     report = Report("bench views")
