@@ -314,3 +314,25 @@ def test_after_embed_ahead_integrating_long_repeated_descriptions_embeds_nothing
     assert merged >= 10  # the buffers overflowed and were merged under the lock
     # Every buffer was merged (the raw descriptions alone hold 3 x ~200 words).
     assert all(150 < len(u.text.split()) <= 300 for u in glmap.instances.values())
+
+
+@pytest.mark.parametrize(
+    ("call", "said"),
+    [
+        (lambda g: g.find_instances("a chair", k="3"), "k='3' must be a whole number in 1.."),
+        (lambda g: g.find_regions("a kitchen", k=float("inf")), "k=inf must be a whole number"),
+        (lambda g: g.find_instances("a chair", k=True), "k=True must be a whole number"),
+        (lambda g: g.unit({}), "unit id {} is not an integer"),
+        (lambda g: g.unit_details("chair"), "unit id 'chair' is not an integer"),
+        (lambda g: g.regions_of_instance([1]), "unit id [1] is not an integer"),
+        (lambda g: g.units_at(1e308, 0.0), "lies more than 1e+06 m from the map's origin"),
+        (lambda g: g.units_at("x", 0.0), "x='x' is not a number"),
+        (lambda g: g.units_at(0.0, 0.0, -(2**70)), "must be finite|must be in 0..20"),
+    ],
+)
+def test_a_library_query_with_an_argument_of_the_wrong_kind_names_it(call: Any, said: str) -> None:
+    glmap = GLMap(MapConfig(), embedder=HashingEmbedder())
+    with pytest.raises(InvalidInputError) as refused:
+        call(glmap)
+    assert any(part in str(refused.value) for part in said.split("|")), refused.value
+    assert glmap.find_instances("a chair", k=np.int64(3)) == []  # numpy integers are whole

@@ -35,6 +35,8 @@ chair at 0.45 stays `match: false`, i.e. not sure).
 
 from __future__ import annotations
 
+import math
+import numbers
 import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -218,8 +220,9 @@ def find(glmap: MapState, kind: str, text: str, k: int) -> list[UnitInfo]:
     """
     if not isinstance(text, str) or not text.strip():
         raise InvalidInputError("query text is empty; describe what to find, e.g. 'a red chair'.")
-    if not (1 <= int(k) <= MAX_K):
-        raise InvalidInputError(f"k={k!r} must be in 1..{MAX_K}.")
+    whole = isinstance(k, numbers.Integral) and not isinstance(k, bool | np.bool_)
+    if not (whole and 1 <= int(k) <= MAX_K):
+        raise InvalidInputError(f"k={k!r} must be a whole number in 1..{MAX_K}.")
     ids, scores = text_scores(glmap, kind, text)
     if len(ids) == 0:
         return []
@@ -340,12 +343,30 @@ def with_relation(glmap: MapState, ids: np.ndarray, scores: np.ndarray, text: st
     return scores * (1.0 - RELATION_WEIGHT + RELATION_WEIGHT * evidence)
 
 
+MAX_COORDINATE = 1e6  # metres: a position beyond is no place on a map
+
+
+def _finite(value: float) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer past float64
+        return False
+
+
 def units_at(glmap: MapState, x: float, y: float, radius: float) -> list[UnitInfo]:
     """Units whose grid cells lie within `radius` of (x, y), nearest first."""
-    if not all(np.isfinite([x, y, radius])):
+    for name, value in (("x", x), ("y", y), ("radius", radius)):
+        if not isinstance(value, numbers.Real) or isinstance(value, bool | np.bool_):
+            raise InvalidInputError(f"{name}={value!r} is not a number; give metres.")
+    if not all(_finite(v) for v in (x, y, radius)):
         raise InvalidInputError(f"position ({x!r}, {y!r}) and radius {radius!r} must be finite.")
     if not (0 <= radius <= 20):
         raise InvalidInputError(f"radius={radius!r} must be in 0..20 metres.")
+    if max(abs(x), abs(y)) > MAX_COORDINATE:
+        raise InvalidInputError(
+            f"position ({x!r}, {y!r}) lies more than {MAX_COORDINATE:g} m from the map's "
+            "origin; give map coordinates in metres."
+        )
     out = []
     for uid, dist in glmap.grid.units_near(x, y, radius):
         info = details(glmap, glmap.unit(uid))

@@ -4,11 +4,12 @@ store work on a `MapState`; `GLMap` adds integrating, persistence and the querie
 
 from __future__ import annotations
 
+import numbers
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from glmap_tools.errors import UnknownIdError, did_you_mean
+from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
 from glmap_tools.gaussians.config import EstimatorConfig
 from glmap_tools.gaussians.estimator import GaussianEstimator
 from glmap_tools.map.config import MapConfig
@@ -16,6 +17,21 @@ from glmap_tools.map.grid import IndexGrid, unit_cells
 from glmap_tools.map.occupancy import OccupancyGrid
 from glmap_tools.map.structure import StructureLayer
 from glmap_tools.map.units import InstanceUnit, RegionUnit
+
+
+def unit_id_of(value: object) -> int:
+    """`value` as a unit id (an integer, numpy's included).
+
+    Raises:
+        InvalidInputError: anything else (a bool, a float, a string, ...).
+    """
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool | np.bool_):
+        return int(value)
+    raise InvalidInputError(
+        f"unit id {value!r} is not an integer; give the id of an instance or region, as "
+        "find_instances, find_regions or units_at report it."
+    )
+
 
 if TYPE_CHECKING:
     from glmap_tools.language.embed import Embedder
@@ -103,7 +119,7 @@ class MapState:
 
     # ----------------------------------------------------------------- lookups
     def regions_of_instance(self, instance_id: int) -> set[int]:
-        return set(self._regions_by_instance.get(instance_id, ()))
+        return set(self._regions_by_instance.get(unit_id_of(instance_id), ()))
 
     def _matrix(self, kind: str) -> tuple[np.ndarray, np.ndarray]:
         cached = self._matrix_cache.get(kind)
@@ -134,6 +150,7 @@ class MapState:
             UnknownIdError: no such unit; the message names the unit a fused id became, or
                 suggests the closest existing id.
         """
+        unit_id = unit_id_of(unit_id)
         found = self.instances.get(unit_id) or self.regions.get(unit_id)
         if found is None and unit_id in self.fused_into:
             live = unit_id
