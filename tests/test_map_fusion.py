@@ -174,6 +174,30 @@ def _assert_unchanged(glmap, before):
             ),
             "group 3's description .* lone surrogate",
         ),
+        (
+            lambda f, ids, s: (f, FrameSemantics([ObjectObservation("1", "chair", "", ids == 1)])),
+            "object '1': its local_id is not an integer",
+        ),
+        (
+            lambda f, ids, s: (f, FrameSemantics([ObjectObservation(1, "chair", None, ids == 1)])),
+            "object 1: its label and description must be text",
+        ),
+        (
+            lambda f, ids, s: (
+                f,
+                FrameSemantics([ObjectObservation(1, "chair", "", (ids == 1).astype(np.uint8))]),
+            ),
+            r"object 1: its mask is uint8 \[\(.*\)\]; give a boolean \[H, W\] array",
+        ),
+        (
+            lambda f, ids, s: (f, FrameSemantics(s.objects, [GroupObservation(3, "area", 1.5)])),
+            "group 3: its members 1.5 must be a list of object local ids",
+        ),
+        (
+            lambda f, ids, s: (f, FrameSemantics(s.objects, [{"id": 3}])),
+            "groups holds {'id': 3}, not a GroupObservation",
+        ),
+        (lambda f, ids, s: (f, {"objects": []}), "semantics is dict, not FrameSemantics"),
     ],
     ids=[
         "empty-mask",
@@ -182,6 +206,12 @@ def _assert_unchanged(glmap, before):
         "all-invalid-depth",
         "lone-surrogate-label",
         "lone-surrogate-group",
+        "text-id",
+        "none-description",
+        "uint8-mask",
+        "float-members",
+        "dict-group",
+        "dict-semantics",
     ],
 )
 def test_bad_input_is_refused_and_changes_nothing(glmap, mutate, message):

@@ -68,6 +68,11 @@ def checked_points(frame: RGBDFrame, semantics: FrameSemantics, config: MapConfi
         InvalidInputError: semantics that do not fit the frame, or no valid depth at all.
     """
     shape = frame.depth.shape
+    if not isinstance(semantics, FrameSemantics):
+        raise InvalidInputError(
+            f"semantics is {type(semantics).__name__}, not FrameSemantics; build it from the "
+            "frame's ObjectObservation and GroupObservation lists."
+        )
     semantics.validate(*shape)
     points = frame_points(frame, config.max_range, needed_pixels(config, semantics, shape))
     if not points.valid.any():

@@ -49,8 +49,14 @@ class FrameSemantics:
 
     def validate(self, height: int, width: int) -> None:
         """Raise InvalidInputError on duplicate ids, bad masks or unknown group members."""
+        if not isinstance(self.objects, list | tuple) or not isinstance(self.groups, list | tuple):
+            raise InvalidInputError(
+                "FrameSemantics.objects and .groups must be lists of ObjectObservation and "
+                "GroupObservation."
+            )
         seen: set[int] = set()
         for obj in self.objects:
+            _check_object_fields(obj)
             if obj.local_id in seen:
                 raise InvalidInputError(
                     f"object local id {obj.local_id} appears twice; give each object in a "
@@ -75,6 +81,7 @@ class FrameSemantics:
                 )
         group_ids: set[int] = set()
         for group in self.groups:
+            _check_group_fields(group)
             if group.local_id in group_ids:
                 raise InvalidInputError(
                     f"group local id {group.local_id} appears twice; give each group its own id."
@@ -89,6 +96,44 @@ class FrameSemantics:
                     f"group {group.local_id} ({group.description!r}) lists unknown member ids "
                     f"{unknown}; members must be object ids of this frame {sorted(seen)}."
                 )
+
+
+def _is_id(value: object) -> bool:
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def _check_object_fields(obj: object) -> None:
+    """Refuse an object observation whose fields are not of their kinds (a library caller's
+    slip): an integer local id, text label and description, a boolean mask of two axes."""
+    if not isinstance(obj, ObjectObservation):
+        raise InvalidInputError(f"objects holds {obj!r:.60}, not an ObjectObservation.")
+    what = f"object {obj.local_id!r:.40}"
+    if not _is_id(obj.local_id):
+        raise InvalidInputError(f"{what}: its local_id is not an integer; number the objects.")
+    if not isinstance(obj.label, str) or not isinstance(obj.description, str):
+        raise InvalidInputError(f"{what}: its label and description must be text (str).")
+    mask = obj.mask
+    if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.ndim != 2:
+        shown = f"{mask.dtype} [{mask.shape}]" if isinstance(mask, np.ndarray) else type(mask)
+        raise InvalidInputError(
+            f"{what}: its mask is {shown}; give a boolean [H, W] array (e.g. labels == id)."
+        )
+
+
+def _check_group_fields(group: object) -> None:
+    """Refuse a group observation whose fields are not of their kinds."""
+    if not isinstance(group, GroupObservation):
+        raise InvalidInputError(f"groups holds {group!r:.60}, not a GroupObservation.")
+    what = f"group {group.local_id!r:.40}"
+    if not _is_id(group.local_id):
+        raise InvalidInputError(f"{what}: its local_id is not an integer; number the groups.")
+    if not isinstance(group.description, str):
+        raise InvalidInputError(f"{what}: its description must be text (str).")
+    members = group.members
+    if not isinstance(members, list | tuple) or not all(_is_id(m) for m in members):
+        raise InvalidInputError(
+            f"{what}: its members {members!r:.60} must be a list of object local ids."
+        )
 
 
 def _check_unicode(text: str, what: str) -> None:
