@@ -77,6 +77,21 @@ def test_mismatched_depth_and_rgb_shapes_name_both_shapes():
         RGBDFrame(np.zeros((2, 3, 3), np.uint8), np.ones((3, 3), np.float32), k, Pose.identity())
 
 
+@pytest.mark.parametrize(
+    ("field", "value", "said"),
+    [
+        ("intrinsics", None, "intrinsics is NoneType, not Intrinsics"),
+        ("intrinsics", [525.0, 525.0, 1.0, 1.0], "intrinsics is list, not Intrinsics"),
+        ("pose", np.eye(4), "pose is ndarray, not Pose; pass Pose(world_from_camera)"),
+    ],
+)
+def test_a_frame_with_intrinsics_or_a_pose_of_another_kind_is_refused(field, value, said):
+    k = Intrinsics(1.0, 1.0, 1.0, 1.0, 3, 3)
+    parts = {"intrinsics": k, "pose": Pose.identity(), field: value}
+    with pytest.raises(InvalidInputError, match=re.escape(said)):
+        RGBDFrame(np.zeros((3, 3, 3), np.uint8), np.ones((3, 3), np.float32), **parts)
+
+
 def test_uint16_depth_converts_with_the_stated_scale():
     d = depth_from_uint16(np.array([[1000, 0]], np.uint16), 1000.0)
     np.testing.assert_allclose(d, [[1.0, 0.0]])

@@ -28,6 +28,16 @@ class RGBDFrame:
     pose: Pose
 
     def __post_init__(self) -> None:
+        if not isinstance(self.intrinsics, Intrinsics):
+            raise InvalidInputError(
+                f"intrinsics is {type(self.intrinsics).__name__}, not Intrinsics; pass e.g. "
+                "Intrinsics(525.0, 525.0, 319.5, 239.5, 640, 480)."
+            )
+        if not isinstance(self.pose, Pose):
+            raise InvalidInputError(
+                f"pose is {type(self.pose).__name__}, not Pose; pass Pose(world_from_camera) "
+                "with the 4x4 camera-to-world matrix, or Pose.identity()."
+            )
         rgb = np.asarray(self.rgb)
         depth = np.asarray(self.depth)
         if rgb.dtype != np.uint8:
