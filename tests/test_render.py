@@ -277,6 +277,11 @@ def test_a_zero_size_image_or_a_non_rigid_pose_never_reaches_the_renderer():
         ({"background": (1.0, 2.0, 0.0)}, "background"),
         ({"background": (1.0, 1.0)}, "background"),
         ({"backend": "refrence"}, "Did you mean 'reference'"),
+        ({"background": "white"}, "background='white' must be three RGB floats"),
+        ({"background": {}}, "background={} must be three RGB floats"),
+        ({"backend": ["fast"]}, r"backend=\['fast'\] is not one of"),
+        ({"return_depth": "yes"}, "return_depth='yes' must be True or False"),
+        ({"return_alpha": np.ones(3)}, "return_alpha=array"),
     ],
 )
 def test_bad_render_arguments_are_rejected_with_a_fix(kwargs, message):

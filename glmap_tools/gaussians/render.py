@@ -120,14 +120,18 @@ def _check_inputs(
             f"near={near!r}, far={far!r} must be finite with 0 < near < far metres "
             f"(defaults {DEFAULT_NEAR}, {DEFAULT_FAR})."
         )
-    bg = np.asarray(background, dtype=np.float64).reshape(-1)
+    try:
+        bg = np.asarray(background, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        bg = np.zeros(0)  # not numbers: refused below
     if bg.shape != (3,) or not np.all(np.isfinite(bg)) or bg.min() < 0 or bg.max() > 1:
         raise InvalidInputError(
             f"background={background!r} must be three RGB floats in [0, 1], e.g. (1, 1, 1)."
         )
-    if backend not in BACKENDS:
+    if not isinstance(backend, str) or backend not in BACKENDS:
         raise InvalidInputError(
-            f"backend={backend!r} is not one of {BACKENDS}.{did_you_mean(backend, BACKENDS)}"
+            f"backend={backend!r} is not one of {BACKENDS}."
+            + (did_you_mean(backend, BACKENDS) if isinstance(backend, str) else "")
         )
     return float(bg[0]), float(bg[1]), float(bg[2])
 
@@ -172,6 +176,9 @@ def render(
         InvalidInputError: a malformed argument or an image over the size caps.
     """
     bg = _check_inputs(gaussians, pose, intrinsics, background, near, far, backend)
+    for name, flag in (("return_depth", return_depth), ("return_alpha", return_alpha)):
+        if not isinstance(flag, bool | np.bool_):
+            raise InvalidInputError(f"{name}={flag!r:.40} must be True or False.")
     if len(gaussians) == 0:
         h, w = intrinsics.height, intrinsics.width
         rgb = np.empty((h, w, 3), dtype=np.float32)
