@@ -167,6 +167,23 @@ def test_map_config_refuses_a_voxel_or_cell_edge_outside_its_range(bad: dict) ->
     MapConfig(**{name: 0.05})  # in range
 
 
+@pytest.mark.parametrize(
+    ("bad", "said"),
+    [
+        ({"tau_s": "0.5"}, "MapConfig.tau_s='0.5' must be a cosine in [-1, 1]"),
+        ({"obstacle_band": 0.5}, "MapConfig.obstacle_band=0.5 must be (low, high) metres"),
+        ({"obstacle_band": ("a", 1)}, "MapConfig.obstacle_band=('a', 1) must be (low, high)"),
+        ({"obstacle_band": []}, "MapConfig.obstacle_band=[] must be (low, high)"),
+        ({"estimator": 0}, "MapConfig.estimator=0 must be a dict of EstimatorConfig settings"),
+        ({"max_range": True}, "MapConfig.max_range=True must be a positive finite number"),
+    ],
+)
+def test_map_config_refuses_a_setting_of_another_kind(bad: dict, said: str) -> None:
+    with pytest.raises(InvalidInputError) as refused:
+        MapConfig(**bad)
+    assert said in str(refused.value)
+
+
 def test_world_bounds_are_saved_with_the_config_and_default_for_older_maps() -> None:
     cfg = MapConfig(world_limit=250.0, max_span=80.0)
     assert MapConfig.from_dict(cfg.to_dict()) == cfg

@@ -245,11 +245,21 @@ def test_bad_clouds_raise_invalid_input_errors_naming_the_value(points, colors, 
         ("remerge_sigma", -1.0),
         ("tau", float("inf")),
         ("merge", "yes"),
+        ("tau", -(2**70)),  # finite, but no kernel takes it
+        ("epsilon", 2**70),
+        ("voxel_size", 1e308),  # its cap's square leaves float64
+        ("max_merge_sigma", 1e200),
     ],
 )
 def test_a_bad_config_value_is_refused_by_name(field, value):
     with pytest.raises(InvalidInputError, match=f"EstimatorConfig.{field}"):
         EstimatorConfig(**{field: value})
+
+
+def test_numbers_of_other_kinds_are_kept_as_python_numbers():
+    config = EstimatorConfig(voxel_size=np.float32(0.015), tau=np.int64(-5), min_points=np.int64(5))
+    assert type(config.voxel_size) is float and type(config.tau) is float
+    assert type(config.min_points) is int and config.tau == -5.0
 
 
 def test_an_unknown_backend_suggests_the_closest_name():

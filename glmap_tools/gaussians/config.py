@@ -87,6 +87,19 @@ class EstimatorConfig:
                 )
         if not isinstance(self.merge, bool | np.bool_):
             raise InvalidInputError(f"EstimatorConfig.merge={self.merge!r} must be True or False.")
+        for name, high in _HIGHEST.items():
+            value = getattr(self, name)
+            if value is not None and abs(value) > high:
+                raise InvalidInputError(
+                    f"EstimatorConfig.{name}={value!r} is past {high:g}; check its units "
+                    f"(the default is {getattr(EstimatorConfig, name)!r})."
+                )
+        for name in _HIGHEST:  # plain Python numbers from here on (numpy scalars, big ints)
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, float(value))
+        object.__setattr__(self, "min_points", int(self.min_points))
+        object.__setattr__(self, "merge", bool(self.merge))
 
     @property
     def merge_cap_trace(self) -> float:
@@ -102,6 +115,20 @@ class EstimatorConfig:
     def candidate_radius(self) -> float:
         """Means closer than this (m) are candidate merge pairs: one voxel."""
         return float(self.voxel_size)
+
+
+# The largest magnitude each number may have: past these a setting is a units slip, and
+# squares or products of it leave float64.
+_HIGHEST = {
+    "voxel_size": 100.0,
+    "opacity": 1.0,
+    "epsilon": 1.0,
+    "tau": 1e6,
+    "lambda_cov": 1e6,
+    "lambda_color": 1e6,
+    "max_merge_sigma": 1e4,
+    "remerge_sigma": 1e4,
+}
 
 
 def _cap_trace(sigma_voxels: float | None, voxel_size: float) -> float:

@@ -64,7 +64,9 @@ class MapConfig:
         positive = ("voxel_size", "cell_size", "max_range", "camera_height")
         for name in (*positive, "world_limit", "max_span"):
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and 0 < value < math.inf):
+            if isinstance(value, bool) or not (
+                isinstance(value, int | float) and 0 < value < math.inf
+            ):
                 raise InvalidInputError(
                     f"MapConfig.{name}={value!r} must be a positive finite number."
                 )
@@ -79,13 +81,28 @@ class MapConfig:
             raise InvalidInputError(
                 f"MapConfig.world_limit={self.world_limit!r} must be <= {MAX_COORDINATE:g} m."
             )
-        if self.tau_s is not None and not (-1.0 <= self.tau_s <= 1.0):
+        if self.tau_s is not None and not (
+            isinstance(self.tau_s, int | float)
+            and not isinstance(self.tau_s, bool)
+            and -1.0 <= self.tau_s <= 1.0
+        ):
             raise InvalidInputError(f"MapConfig.tau_s={self.tau_s!r} must be a cosine in [-1, 1].")
         if not (isinstance(self.max_text_words, int) and self.max_text_words >= 10):
             raise InvalidInputError(
                 f"MapConfig.max_text_words={self.max_text_words!r} must be an integer >= 10."
             )
-        low, high = self.obstacle_band
+        band = self.obstacle_band
+        numbers_ok = isinstance(band, tuple | list) and len(band) == 2
+        numbers_ok = numbers_ok and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+            for v in band
+        )
+        if not numbers_ok:
+            raise InvalidInputError(
+                f"MapConfig.obstacle_band={band!r} must be (low, high) metres above the floor, "
+                f"e.g. {MapConfig.obstacle_band}."
+            )
+        low, high = band
         if not (0 <= low < high):
             raise InvalidInputError(
                 f"MapConfig.obstacle_band={self.obstacle_band!r} "
@@ -106,6 +123,11 @@ class MapConfig:
             raise InvalidInputError(
                 f"MapConfig.structure_stride={self.structure_stride!r} must be an integer >= 1, "
                 "or 0 for about 160 columns per image."
+            )
+        if not isinstance(self.estimator, dict):
+            raise InvalidInputError(
+                f"MapConfig.estimator={self.estimator!r} must be a dict of EstimatorConfig "
+                'settings, e.g. {"tau": -20}.'
             )
         object.__setattr__(self, "obstacle_band", (float(low), float(high)))
 
