@@ -1,5 +1,7 @@
 """Curvature-aware merging: distance, threshold, pair search, exact combination, remerge."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -285,3 +287,24 @@ def test_remerge_leaves_the_set_alone_when_merging_is_off():
     assert merge.remerge(g, EstimatorConfig(merge=False)) is g
     assert len(merge.remerge(g, CONFIG)) < len(g)
     assert len(merge.remerge(GaussianSet.empty(), CONFIG)) == 0
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "said"),
+    [
+        ("means", None, "GaussianSet.means is of type NoneType"),
+        ("colors", [[0.5, 0.5, 0.5]], "GaussianSet.colors is of type list"),
+        ("opacities", np.array(["a"]), "GaussianSet.opacities is a <U1 array"),
+        ("counts", np.int64(3), "GaussianSet.counts is of type int64"),
+    ],
+)
+def test_a_gaussian_set_of_fields_that_are_not_numeric_arrays_names_the_field(field, value, said):
+    parts = {
+        "means": np.zeros((1, 3)),
+        "covs": np.eye(3)[None] * 1e-4,
+        "colors": np.full((1, 3), 0.5),
+        "opacities": np.full(1, 0.8),
+        "counts": np.ones(1, int),
+    }
+    with pytest.raises(InvalidInputError, match=re.escape(said)):
+        GaussianSet(**{**parts, field: value})

@@ -34,6 +34,18 @@ class GaussianSet:
     counts: np.ndarray  # [N]
 
     def __post_init__(self) -> None:
+        for name in ("means", "covs", "colors", "opacities", "counts"):
+            arr = getattr(self, name)
+            if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "biuf" or arr.ndim == 0:
+                shown = (
+                    f"a {arr.dtype} array"
+                    if isinstance(arr, np.ndarray)
+                    else f"of type {type(arr).__name__}"
+                )
+                raise InvalidInputError(
+                    f"GaussianSet.{name} is {shown}; pass a numeric numpy array "
+                    "(the class docstring gives each shape)."
+                )
         n = self.means.shape[0]
         shapes = {
             "means": (self.means, (n, 3)),
