@@ -166,3 +166,23 @@ def test_a_pose_translated_1e300_m_is_refused_though_finite_and_rigid():
     with pytest.raises(InvalidInputError, match="from the origin"):
         Pose.from_rt(np.eye(3), np.array([1e300, 0.0, 0.0]))
     assert Pose.from_rt(np.eye(3), np.array([1e5, 0.0, 0.0])).translation[0] == 1e5
+
+
+@pytest.mark.parametrize(
+    ("make", "said"),
+    [
+        (lambda: Intrinsics([525.0], 525.0, 1.0, 1.0, 3, 3), "Intrinsics fx=[525.0] is not a"),
+        (lambda: Intrinsics(525.0, 525.0, "1", 1.0, 3, 3), "Intrinsics cx='1' is not a number"),
+        (lambda: Intrinsics.from_fov("640", 480, 79.0), "Intrinsics width='640' must be an int"),
+        (lambda: Intrinsics.from_fov(640, 2**40, 79.0), "Intrinsics height=1099511627776"),
+        (lambda: Intrinsics.from_fov(8, 8, 60).scaled(float("nan"), 4), "width=nan must be"),
+        (lambda: Pose("x"), "pose 'x' is not numbers; pass a 4x4"),
+        (lambda: Pose.from_position_heading(0.0, 0.0, 1.0, heading=None), "heading=None must"),
+        (lambda: Pose.from_position_heading(0.0, 0.0, 1.0, 0.0, pitch=math.nan), "pitch=nan"),
+        (lambda: Pose.looking_at([1e308, 0.0, 1.0], [0.0, 0.0, 0.0]), "must be finite metres"),
+        (lambda: Pose.looking_at([0.0, 1.0], [0.0, 0.0, 0.0]), "three numbers each"),
+    ],
+)
+def test_a_camera_made_from_values_of_another_kind_names_the_value(make, said):
+    with pytest.raises(InvalidInputError, match=re.escape(said)):
+        make()

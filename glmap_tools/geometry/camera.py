@@ -38,6 +38,10 @@ class Intrinsics:
     height: int
 
     def __post_init__(self) -> None:
+        for name in ("fx", "fy", "cx", "cy"):
+            value = getattr(self, name)
+            if not _real(value):
+                raise InvalidInputError(f"Intrinsics {name}={value!r} is not a number of pixels.")
         for name in ("fx", "fy"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -87,6 +91,11 @@ class Intrinsics:
                 f"hfov_deg={hfov_deg!r} must be in (0, {MAX_FOV_DEG:g}] degrees, e.g. 79 for "
                 "the agent camera."
             )
+        for name, side in (("width", width), ("height", height)):
+            if not (isinstance(side, int | np.integer) and 0 < side <= MAX_IMAGE_SIDE):
+                raise InvalidInputError(
+                    f"Intrinsics {name}={side!r} must be an integer in 1..{MAX_IMAGE_SIDE}."
+                )
         fx = width / (2.0 * math.tan(math.radians(hfov_deg) / 2.0))
         return cls(fx, fx, (width - 1) / 2.0, (height - 1) / 2.0, int(width), int(height))
 
@@ -97,6 +106,11 @@ class Intrinsics:
 
     def scaled(self, width: int, height: int) -> Intrinsics:
         """The same camera at another resolution."""
+        for name, side in (("width", width), ("height", height)):
+            if not (isinstance(side, int | np.integer) and 0 < side <= MAX_IMAGE_SIDE):
+                raise InvalidInputError(
+                    f"Intrinsics {name}={side!r} must be an integer in 1..{MAX_IMAGE_SIDE}."
+                )
         sx, sy = width / self.width, height / self.height
         return Intrinsics(
             self.fx * sx,
@@ -119,7 +133,12 @@ class Pose:
     matrix: np.ndarray  # [4, 4]
 
     def __post_init__(self) -> None:
-        m = np.asarray(self.matrix, dtype=np.float64)
+        try:
+            m = np.asarray(self.matrix, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidInputError(
+                f"pose {self.matrix!r:.60} is not numbers; pass a 4x4 world_from_camera matrix."
+            ) from None
         if m.shape != (4, 4):
             raise InvalidInputError(
                 f"pose has shape {m.shape}; pass a 4x4 world_from_camera matrix."
@@ -165,8 +184,18 @@ class Pose:
     @classmethod
     def looking_at(cls, eye: np.ndarray, target: np.ndarray, up: np.ndarray | None = None) -> Pose:
         """An OpenCV camera at `eye` whose optical axis points at `target` (z-up world)."""
-        eye = np.asarray(eye, dtype=np.float64)
-        forward = np.asarray(target, dtype=np.float64) - eye
+        try:
+            eye = np.asarray(eye, dtype=np.float64).reshape(3)
+            forward = np.asarray(target, dtype=np.float64).reshape(3) - eye
+        except (TypeError, ValueError):
+            raise InvalidInputError(
+                f"looking_at needs eye and target as three numbers each, not {eye!r:.40} and "
+                f"{target!r:.40}."
+            ) from None
+        if not (np.abs(eye).max() <= 1e15 and np.abs(forward).max() <= 1e15):  # NaN fails too
+            raise InvalidInputError(
+                f"looking_at: eye {eye} and target must be finite metres (at most 1e15)."
+            )
         norm = np.linalg.norm(forward)
         if norm < 1e-9:
             raise InvalidInputError("looking_at needs target != eye.")
@@ -187,6 +216,10 @@ class Pose:
 
         `pitch` tilts the view, positive down (radians).
         """
+        named = (("x", x), ("y", y), ("height", height), ("heading", heading), ("pitch", pitch))
+        for name, value in named:
+            if not (_real(value) and math.isfinite(value)):
+                raise InvalidInputError(f"{name}={value!r} must be a finite number.")
         forward = np.array(
             [
                 math.cos(heading) * math.cos(pitch),
@@ -221,3 +254,10 @@ class Pose:
     def transform_points(self, points_camera: np.ndarray) -> np.ndarray:
         """Map [N, 3] camera-frame points to the world."""
         return points_camera @ self.rotation.T + self.translation
+
+
+def _real(value: object) -> bool:
+    """Whether `value` is a real number (numpy's included), not a bool."""
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool | np.bool_
+    )
