@@ -162,8 +162,12 @@ def test_the_oracle_succeeds_and_the_random_agent_rarely_does(layout) -> None:
 
 def test_an_invalid_action_is_refused(env) -> None:
     env.reset(seed=0)
-    with pytest.raises(InvalidInputError, match="not one of 0 stop"):
-        env.step(7)
+    for action in (7, 2**70, "1", 1.0, float("nan"), None, True, [1]):
+        with pytest.raises(InvalidInputError, match="not one of 0 stop"):
+            env.step(action)
+    env.step(np.int64(2))  # numpy integers are actions
+    with pytest.raises(InvalidInputError, match=r"options=\['goal'\] must be a dict"):
+        env.reset(options=["goal"])
 
 
 @pytest.mark.parametrize(

@@ -231,6 +231,11 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, Any], dict[str, Any]]:
+        if options is not None and not isinstance(options, dict):
+            raise InvalidInputError(
+                f"options={options!r:.60} must be a dict, e.g. {{'goal': 'a chair'}} or "
+                "{'episode': 'tune/objectnav/s00-000'}."
+            )
         super().reset(seed=seed)
         if seed is not None:
             self._episode_counter = 0  # sampled episodes are numbered from each seeding
@@ -255,7 +260,8 @@ class NavEnv(gym.Env[dict[str, Any], np.int64]):
     ) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
         if self._over or self.episode is None:
             raise InvalidInputError("the episode is over (or never began); call reset() first.")
-        if not self.action_space.contains(np.int64(action)):
+        whole = isinstance(action, int | np.integer) and not isinstance(action, bool | np.bool_)
+        if not (whole and 0 <= int(action) < len(Action)):
             raise InvalidInputError(
                 f"action {action!r} is not one of 0 stop, 1 move_forward, 2 turn_left, "
                 "3 turn_right."
