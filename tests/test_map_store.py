@@ -314,3 +314,14 @@ def test_a_crafted_map_file_is_refused_and_left_unchanged(tmp_path, one_frame_st
     with pytest.raises(InvalidStoreError, match="is not a valid GLMap store: .+"):
         GLMap.open(path, embedder=HashingEmbedder())
     assert _digest(path) == before
+
+
+def test_open_names_a_config_or_embedder_of_another_kind_and_a_nul_in_the_path(tmp_path):
+    path = tmp_path / "m.glmap"
+    with pytest.raises(InvalidInputError, match="config is dict, not MapConfig"):
+        GLMap.open(path, config={"voxel_size": 0.02}, embedder=HashingEmbedder())  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match="embedder is str, not an Embedder"):
+        GLMap.open(path, embedder="minilm")  # type: ignore[arg-type]
+    with pytest.raises(StoreError, match="holds a NUL character"):
+        GLMap.open(tmp_path / "m\x00.glmap", embedder=HashingEmbedder())
+    assert list(tmp_path.iterdir()) == []  # nothing was written

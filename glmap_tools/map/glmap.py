@@ -16,7 +16,7 @@ from glmap_tools.map.config import MapConfig
 from glmap_tools.map.fusion import FramePlan, plan_frame
 from glmap_tools.map.occupancy import OccupancyGrid
 from glmap_tools.map.report import MapSummary, UnitInfo, UpdateReport
-from glmap_tools.map.state import MapState, Unit
+from glmap_tools.map.state import MapState, Unit, check_parts
 from glmap_tools.map.store import MapStore
 from glmap_tools.map.units import InstanceUnit, RegionUnit
 from glmap_tools.perception.semantics import FrameSemantics
@@ -57,6 +57,7 @@ class GLMap(MapState):
             StoreError: the file exists but is not a GLMap store, or is from a newer version.
         """
 
+        check_parts(config, embedder)  # before any file is made
         store = MapStore.open(Path(path), create_with=config or MapConfig())
         try:
             glmap = cls(store.config, embedder, text_merger)

@@ -19,6 +19,23 @@ from glmap_tools.map.structure import StructureLayer
 from glmap_tools.map.units import InstanceUnit, RegionUnit
 
 
+def check_parts(config: object, embedder: object) -> None:
+    """Refuse a config that is not a MapConfig or an embedder that is not an Embedder (None
+    is each one's default)."""
+    if config is not None and not isinstance(config, MapConfig):
+        raise InvalidInputError(
+            f"config is {type(config).__name__}, not MapConfig; pass MapConfig(...) or None "
+            "for the defaults (MapConfig.from_dict reads a dict)."
+        )
+    if embedder is not None and not all(
+        hasattr(embedder, a) for a in ("embed", "dim", "name", "default_tau_s")
+    ):
+        raise InvalidInputError(
+            f"embedder is {type(embedder).__name__}, not an Embedder (embed, dim, name, "
+            "default_tau_s); pass e.g. MiniLMEmbedder() or HashingEmbedder(), or None."
+        )
+
+
 def unit_id_of(value: object) -> int:
     """`value` as a unit id (an integer, numpy's included).
 
@@ -57,6 +74,7 @@ class MapState:
         embedder: Embedder | None = None,
         text_merger: TextMerger | None = None,
     ) -> None:
+        check_parts(config, embedder)
         self.config = config or MapConfig()
         if embedder is None:
             # Imported here so the core does not load a model library unless asked to.

@@ -79,7 +79,7 @@ class MapStore:
         Raises:
             StoreError: not a GLMap store, a newer schema, or the path cannot be used.
         """
-        path = Path(path)
+        path = _checked_path(path)
         if not path.exists():
             if create_with is None:
                 raise StoreError(f"map file {str(path)!r} does not exist; check the path.")
@@ -161,7 +161,7 @@ class MapStore:
     @classmethod
     def create_from(cls, path: Path, glmap: MapState, overwrite: bool = False) -> MapStore:
         """Write all of `glmap` to a new file at `path` (atomically)."""
-        path = Path(path)
+        path = _checked_path(path)
         if path.exists() and not overwrite:
             raise StoreError(
                 f"{str(path)!r} already exists; choose a new path or pass overwrite=True."
@@ -351,3 +351,13 @@ class MapStore:
             state.floor_z,
             state.trajectory,
         )
+
+
+def _checked_path(path: str | os.PathLike[str]) -> Path:
+    """`path` as a Path; a NUL character (no file system takes one) is refused."""
+    out = Path(path)
+    if "\x00" in str(out):
+        raise StoreError(
+            f"map path {str(out)!r} holds a NUL character; give a file name without it."
+        )
+    return out
