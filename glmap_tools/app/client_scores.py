@@ -22,7 +22,7 @@ def check_client_scores(
     glmap: GLMap, scores: dict[int, float], priors: dict[str, float]
 ) -> tuple[dict[int, float], dict[str, float], dict[int, int]]:
     """(scores by live id, priors, {fused id: live id}) or raise before anything changes."""
-    from glmap_tools.nav.scorers import check_unit_score, kind_pattern
+    from glmap_tools.nav.scorers import MAX_KIND_CHARS, check_unit_score, kind_pattern
 
     live: dict[int, float] = {}
     followed: dict[int, int] = {}
@@ -38,6 +38,11 @@ def check_client_scores(
     kinds: dict[str, float] = {}
     for kind, score in priors.items():
         kind_pattern(kind)  # an empty kind raises
+        if len(kind) > MAX_KIND_CHARS:  # checked here, not where held kinds are matched
+            raise InvalidInputError(
+                f"prior kind {kind[:40]!r}... has {len(kind)} characters, more than "
+                f"{MAX_KIND_CHARS}; name a kind of room or region in a few words, e.g. 'kitchen'."
+            )
         kinds[" ".join(kind.lower().split())] = check_unit_score(score, f"kind {kind!r}")
     return live, kinds, followed
 

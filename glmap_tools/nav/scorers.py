@@ -269,11 +269,6 @@ def kind_pattern(kind: str) -> re.Pattern[str]:
         raise InvalidInputError(
             f"prior kind {kind!r} is empty; name a kind of room or region, e.g. 'kitchen'."
         )
-    if len(kind) > MAX_KIND_CHARS:
-        raise InvalidInputError(
-            f"prior kind {kind[:40]!r}... has {len(kind)} characters, more than "
-            f"{MAX_KIND_CHARS}; name a kind of room or region in a few words, e.g. 'kitchen'."
-        )
     return re.compile(r"\b" + r"\s+".join(re.escape(w) for w in words) + r"s?\b")
 
 
