@@ -54,6 +54,15 @@ def test_client_scores_override_the_scorer_and_priors_score_regions_of_that_kind
     assert scorer.sources("a sofa", UNITS) == ["scorer"] * 4
 
 
+def test_held_priors_of_any_length_still_score_regions():
+    """value_map refuses a kind over 60 characters; kinds held already (an episode record
+    kept before that limit) are still matched at every step."""
+    long_kind = "cooking area " + "with a stove " * 8  # 117 characters
+    client = ClientScores("a fridge", {}, {long_kind: 0.7})
+    got = ClientScorer(Fixed(), client, match_at=0.56).score("a fridge", UNITS)
+    assert got.tolist() == [0.2, 0.2, 0.2, 0.2]  # no region holds all its words: no prior
+
+
 def test_a_client_scored_instance_matches_by_its_score_not_the_vocabulary():
     client = ClientScores("fridge", {1: 0.1, 2: 0.9})
     scorer = ClientScorer(Fixed(), client, match_at=0.56)
