@@ -25,7 +25,7 @@ from typing import Any
 
 from agents.objectnav import Play, StepRecord
 from agents.session import AGENT_SIZE, open_session
-from agents.trace import TracedClient, exit_code
+from agents.trace import TracedClient, exit_code, prompt_set
 from glmap_tools.errors import InvalidInputError, did_you_mean
 from glmap_tools.language.llm import LLMClient, OllamaClient
 from glmap_tools.language.prompts import PromptSet, default_prompts
@@ -383,10 +383,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--server-url", default=None, help="streamable-HTTP server URL")
     p.add_argument("--out", type=Path, default=Path("out/llm_agent"))
     args = p.parse_args(argv)
-    try:  # a missing folder or a bad prompt file: one error line, exit 2
-        prompts = PromptSet(args.prompts) if args.prompts else None
-    except InvalidInputError as exc:
-        p.error(str(exc))
+    prompts = prompt_set(p, args.prompts)
     return exit_code(lambda: asyncio.run(_main(args, prompts)))
 
 

@@ -21,8 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from agents.trace import ToolCallError, exit_code
-from glmap_tools.errors import InvalidInputError
+from agents.trace import ToolCallError, exit_code, prompt_set
 from glmap_tools.language.llm import LLMClient
 from glmap_tools.language.prompts import PromptSet
 from glmap_tools.sqa.mllm_answer import (  # noqa: F401  (the agent's names since the start)
@@ -142,10 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--server-command", default=None)
     args = p.parse_args(argv)
-    try:  # a missing folder or a bad prompt file: one error line, exit 2
-        prompts = PromptSet(args.prompts) if args.prompts else None
-    except InvalidInputError as exc:
-        p.error(str(exc))
+    prompts = prompt_set(p, args.prompts)
     return exit_code(lambda: asyncio.run(_main(args, prompts)))
 
 

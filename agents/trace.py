@@ -7,6 +7,7 @@ episode give the same trace less `ms` (the replay test holds this).
 
 from __future__ import annotations
 
+import argparse
 import base64
 import json
 import sys
@@ -15,6 +16,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from glmap_tools.errors import InvalidInputError
+from glmap_tools.language.prompts import PromptSet
 
 
 class ToolCallError(RuntimeError):
@@ -32,6 +36,15 @@ def exit_code(run: Callable[[], int]) -> int:
     for refusal in refused:
         print(f"error: {refusal}", file=sys.stderr)
     return 2
+
+
+def prompt_set(parser: argparse.ArgumentParser, folder: Path | None) -> PromptSet | None:
+    """The `--prompts` folder's prompts (None: the defaults); a missing folder or a bad
+    prompt file is the parser's usage error (one line, exit 2)."""
+    try:
+        return PromptSet(folder) if folder else None
+    except InvalidInputError as exc:
+        parser.error(str(exc))
 
 
 def _leaves(group: BaseExceptionGroup[ToolCallError]) -> list[ToolCallError]:
