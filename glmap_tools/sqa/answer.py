@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 from glmap_tools.sqa.attributes import colour_phrase
 from glmap_tools.sqa.families import NAMES, answer_family, family, in_side, split_side
 from glmap_tools.sqa.records import MapAnswer
+from glmap_tools.sqa.rewording import plain_question
 from glmap_tools.sqa.situation_words import NUMBER_WORDS
 from glmap_tools.sqa.surroundings import Nearby, Surroundings, surroundings
 from glmap_tools.sqa.wording import variants
@@ -194,7 +195,7 @@ def question_type(question: str) -> tuple[str, dict[str, str]]:
     """(type, named parts) of a question; ("unknown", {}) when no rule reads it."""
 
     q = " ".join(question.lower().replace("’", "'").split())
-    q = re.sub(r" (?:in total|altogether|in all)(?=[?.!]*$)", "", q)  # "how many ... in total"
+    q = plain_question(q)
     for text in (q, *variants(q)):  # as written first, then other wordings of it
         found = family(text)
         if found is not None:

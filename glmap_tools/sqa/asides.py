@@ -67,6 +67,20 @@ _LEADING = re.compile(
     r"^(?:after|before|while|whilst|when|once|upon|having|as soon as|since|just after)\b"
 )
 EITHER = re.compile(r"\bon (?:either|both|each) side(?:s)? of me\b")
+# Where another thing is from the one just named: "and the mirror is above it".
+_OF_IT = re.compile(
+    r"^(?:the |a |an |some )?[\w' -]+? (?:is|are|hangs?|sits?|stands?|lies|lie|rests?)"
+    r"(?: right| just| directly)? (?:above|over|below|under|underneath|beneath|next to|beside|"
+    r"on top of|on|behind|in front of|inside|in) (?:it|them)$"
+)
+# A time before "i" with no verb of its own: "after my shower i am drying off ...".
+_LEAD_TIME = re.compile(
+    r"^(?:after|before|during) (?:my |the |a |an |our )?(?:\w+ ){0,2}?\w+,? (?=i\b|i'm\b)"
+)
+# What covers me, not where: "on the bed under the duvet".
+COVERED = re.compile(
+    r"\s+under (?:the|a|an|my) (?:duvet|blanket|quilt|covers|sheets|comforter|throw)s?\b.*$"
+)
 # Verbs that act on a thing where it stands: I am at what I water, wipe or open.
 IN_PLACE = (
     "watering|wiping|cleaning|dusting|polishing|fixing|repairing|opening|closing|adjusting|"
@@ -103,6 +117,17 @@ def side_words(text: str) -> str:
 def negated(clause: str) -> bool:
     """Does the clause deny something ("i cannot see the tv", "the door is not open")?"""
     return bool(NEGATION.search(clause.replace("can't", "can not").replace("n't", " not")))
+
+
+def of_another(clause: str) -> bool:
+    """Does the clause place another thing by the one just named ("the mirror is above
+    it")? It says nothing of where I am."""
+    return bool(_OF_IT.match(clause))
+
+
+def without_lead_time(clause: str) -> str:
+    """The clause without a leading time that has no verb ("before dinner i am ...")."""
+    return _LEAD_TIME.sub("", clause)
 
 
 def leading_adverbial(clause: str, index: int, count: int) -> bool:

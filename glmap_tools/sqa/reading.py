@@ -82,7 +82,7 @@ _PATTERNS: list[tuple[str, re.Pattern[str]]] = [
     ("behind", re.compile(r"^(?:at|behind) my back" + _THERE + r"(?P<x>.+)$")),
     ("behind", re.compile(r"^" + _JUST + r"behind me" + _THERE + r"(?P<x>.+)$")),
     ("behind", re.compile(r"^(?P<x>.+?) " + _IS + _JUST + r"behind (?:me|my back|my head)$")),
-    ("behind", re.compile(r"^(?:i have )?(?P<x>.+?) at my back$")),
+    ("behind", re.compile(r"^(?:i have )?(?P<x>.+?) " + _IS + r"at my back$")),
     (
         "clock",
         re.compile(r"^(?:at|in|on|to) (?:my |the )?" + _NUM + _CLOCK_TAIL + _THERE + r"(?P<x>.+)$"),
@@ -241,6 +241,7 @@ def _anchor(rest: str, out: dict[str, Any]) -> None:
     obj, ego = asides.split_relative(obj)
     obj = object_words(re.sub(r"\s+" + _DOING + r"\b.*$", "", obj))
     obj = _ACTIVITY_TAIL.sub("", obj)  # "the counter chopping onions"
+    obj = asides.COVERED.sub("", obj)  # "the bed under the duvet"
     if ego is not None and obj:
         out.setdefault("ego", []).append((obj, ego))
     # "in the kitchen next to the fridge": the object, not the room, is the anchor.
@@ -275,8 +276,13 @@ def read_situation(text: str) -> SituationReading:
     fronts: list[str] = []
     clauses = split_clauses(text)
     for i, clause in enumerate(clauses):
-        if asides.negated(clause) or asides.leading_adverbial(clause, i, len(clauses)):
-            continue  # "i cannot see the tv", "after entering the room": no place
+        if (
+            asides.negated(clause)
+            or asides.leading_adverbial(clause, i, len(clauses))
+            or asides.of_another(clause)
+        ):
+            continue  # "i cannot see the tv", "after entering the room", "a mirror above it"
+        clause = asides.without_lead_time(clause)
         clause = re.sub(r"^(?:and|while|with|but|so|also|then)\s+", "", clause)
         both = asides.either_side(clause)
         if both is not None:  # "a nightstand on either side of me"

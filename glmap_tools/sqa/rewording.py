@@ -1,10 +1,14 @@
 """Other wordings of the same questions (`glmap_tools.sqa.wording`), tried in turn when a
 question as written falls to no family (`answer.question_type`): contractions, polite
-wrappers and embedded questions, synonyms, and fronted phrases moved to the end."""
+wrappers and embedded questions, synonyms, and fronted phrases moved to the end.
+`plain_question` first takes off what would mislead the families as written: a time tail
+("right now"), "in between", "my eye level", an odd-or-even count asked as "are there",
+a yes/no side asked of "the X", and a turn asked after its question."""
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 
 from glmap_tools.sqa.question_parts import REL
 
@@ -27,7 +31,25 @@ _WRAPPER = re.compile(
 )
 _QWORD = r"(?:what|which|where|how|is|are|can|could|do|does|should|would|will|am|shall|must)\b"
 _BE = r"(?:is|are)"
-_SYNONYMS = (
+# How one feels, before asking where to go: "i am thirsty; which way should i go?"
+FEELINGS = {
+    "hungry": "get something to eat",
+    "thirsty": "get a drink",
+    "tired": "sleep",
+    "sleepy": "sleep",
+}
+_FEELING = (
+    r"^i am (?:so |very |really |quite |a bit |a little |getting )?(?P<feeling>"
+    + "|".join(FEELINGS)
+    + r")(?: now)?[;,.:!] "
+)
+_SYNONYMS: tuple[tuple[str, str | Callable[[re.Match[str]], str]], ...] = (
+    (
+        _FEELING + r"(?:where|which way|which direction) (?:should|do|can|would|must) i "
+        r"(?:go|head|walk|turn)$",
+        lambda m: f"if i want to {FEELINGS[m.group('feeling')]}, which way should i go",
+    ),
+    (_FEELING, ""),  # the question after it says what for
     # "can you count the pillows around me", "please count how many chairs there are"
     (r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?)?count (?=how many\b)", ""),
     (r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?)?(?=count\b)", ""),
@@ -75,6 +97,12 @@ _SYNONYMS = (
         r"\1 are \2 ",
     ),
     (r"^(?:which|what)(?: one| object| thing)? (?:would|will|could|might) be ", "which is "),
+    # "do I go left or right to reach the sink?"
+    (
+        r"^(?:do|would|must|shall|can) i (?:need to |have to )?(?:(go|walk)|head|move|(turn))"
+        r" (left or right|right or left)\b",
+        lambda m: f"should i {m.group(2) or 'go'} {m.group(3)}",
+    ),
     (r"^what(?: one| object| thing)? is (" + REL[len("(?P<rel>") : -1] + r")\b", r"which is \1"),
 )
 # "among / out of / of / between the X and the Y, which ...?": the options go to the end.
@@ -99,6 +127,40 @@ _FRONTED = re.compile(
     r"(?: position| direction)?),? (" + _QWORD + r".+)$"
     r"|^([^,]+), (" + _QWORD + r".+)$"
 )
+
+
+# Said of the question, not of what it asks: "is the window open right now?"
+_TIME_TAIL = re.compile(r",? (?:right now|at the moment|at present|currently|just now)(?=[?.!]*$)")
+_NORMAL = (
+    (r" (?:in total|altogether|in all)(?=[?.!]*$)", ""),  # "how many ... in total"
+    (r"\bin between\b", "between"),
+    (r"\b(above|below|under|over) (?:my )?eye[- ]?(?:level|line)\b", r"\1 my eyes"),
+    # "are there an odd or even number of lamps?"
+    (
+        r"^(?:are|is) there an? (?:odd|even) or (?:an? )?(?:even|odd) number of (.+?)(?=[?.!]*$)",
+        r"is the number of \1 odd or even",
+    ),
+    # "is the bookshelf to my left?": whether one is there
+    (
+        r"^(is|are) (the (?:(?!\bor\b)[a-z -])+?) ((?:on|to|at) my (?:left|right)"
+        r"(?:[- ]hand)?(?: side)?|behind me|in front of me)(?=[?.!]*$)",
+        r"\1 there \2 \3",
+    ),
+    # "what will I see if I turn around?": the turn first, as the turn family reads it
+    (
+        r"^((?:what|which)(?: object| thing)? (?:will|would|do|can|could|might|is|'s)\b[^?]*?)"
+        r",? (if|when|once|after) i (turn(?:ed)?|rotate|spin) ([^?]+?)(?=[?.!]*$)",
+        r"\2 i \3 \4, \1",
+    ),
+)
+
+
+def plain_question(q: str) -> str:
+    """A lower-cased question without what would mislead the families as written."""
+    q = _TIME_TAIL.sub("", q)
+    for pattern, repl in _NORMAL:
+        q = re.sub(pattern, repl, q)
+    return q
 
 
 def _unwrap(q: str) -> str:
@@ -127,8 +189,8 @@ def variants(q: str) -> list[str]:
         q = re.sub(pattern, repl, q)
     q = re.sub(r"\s*,?\s*please$", "", _unwrap(q))
     q = re.sub(r",? or (?=(?:is it|are they|is that|are these) )|, or ", " or ", q)
-    for pattern, repl in _SYNONYMS:
-        q = re.sub(pattern, repl, q)
+    for pattern, rewrite in _SYNONYMS:
+        q = re.sub(pattern, rewrite, q)
     out = [q]
     m = _OPTIONS_FIRST.match(q)
     if m:

@@ -180,7 +180,11 @@ INTENTS: tuple[tuple[str, str], ...] = (
     (r"sleep|go to bed|lie down|take a nap|nap", "bed"),
     (r"watch (?:tv|television|a movie|the news)", "tv"),
     (r"cook|fry|boil", "stove"),
-    (r"get (?:a |some )?(?:drink|milk|juice|food|something cold)|grab a snack", "refrigerator"),
+    (
+        r"get (?:a |some )?(?:drink|milk|juice|food|something cold)|get something to (?:eat|drink)"
+        r"|(?:grab|get|have) a snack|eat|have something to eat",
+        "refrigerator",
+    ),
     (r"take a shower|shower", "shower"),
     (r"take a bath|bathe", "bathtub"),
     (r"use the toilet|go to the toilet|pee", "toilet"),
