@@ -119,6 +119,21 @@ def negated(clause: str) -> bool:
     return bool(NEGATION.search(clause.replace("can't", "can not").replace("n't", " not")))
 
 
+PRONOUNS = ("it", "them", "this", "that", "this one", "that one", "one of them", "one of those")
+_THERE_IS = re.compile(
+    r"^there (?:is|are) (?P<x>(?:a|an|one|some|the|two|three|four|several|a few) .+)$"
+)
+
+
+def introduced(clause: str) -> str | None:
+    """The thing a "there is ..." clause brings in, when it says nothing of me ("there is a
+    sofa against the wall"); a later "it" is that thing."""
+    m = _THERE_IS.match(clause)
+    if m is None or re.search(r"\b(?:i|me|my)\b", clause):
+        return None
+    return m.group("x")
+
+
 def of_another(clause: str) -> bool:
     """Does the clause place another thing by the one just named ("the mirror is above
     it")? It says nothing of where I am."""
@@ -206,4 +221,12 @@ def qualifiers(obj: str) -> str:
         obj,
     )
     obj = re.sub(r"(?<=\w) (?:nearest|closest) (?:the|a|an) ", " near the ", obj)
+    # "the shelf against the wall", "the cupboard above the stove", "the wall opposite the
+    # window": the locator reads them as near
+    obj = re.sub(
+        r"(?<=\w) (?:against|above|over|below|under|underneath|beneath|opposite(?: to)?"
+        r"|across from) (?:the|a|an) ",
+        " near the ",
+        obj,
+    )
     return re.sub(r"(?<=\w) (?:at|by) (?:the|a|an) ", " next to the ", obj)

@@ -14,6 +14,7 @@ def split_clauses(text: str) -> list[str]:
     """The clauses of a situation text, lower-cased, in order."""
     t = " " + " ".join(text.lower().replace("’", "'").replace("`", "'").split()) + " "
     t = re.sub(r"\bi'm\b", "i am", t)
+    t = re.sub(r"\bthere's\b", "there is", t)
     t = re.sub(r"\bi(?:'ve| have) got\b|\bi've\b", "i have", t)
     t = re.sub(r"\bo ?clock\b|\bo' clock\b", "o'clock", t)
     t = asides.hands_to_sides(t)

@@ -108,6 +108,13 @@ FAMILIES: list[tuple[str, re.Pattern[str]]] = [
             r"(?:an )?(?:even or odd|odd or even)(?: number)?\?*$"
         ),
     ),
+    (  # "is the number of lamps odd?": yes or no
+        "parity",
+        re.compile(
+            r"^is the (?:number|amount|count) of " + _OBJ + r"(?: " + _SIDE + r")?"
+            r" (?:an? )?(?P<value>even|odd)(?: number)?\?*$"
+        ),
+    ),
     (
         "count",
         re.compile(
@@ -335,7 +342,10 @@ def _count(
     if kind == "count":
         return MapAnswer(str(count), kind, True, why)
     if kind == "parity":
-        return MapAnswer("even" if count % 2 == 0 else "odd", kind, True, why)
+        word = "even" if count % 2 == 0 else "odd"
+        if "value" in parts:  # "is the number of lamps odd?"
+            return MapAnswer("yes" if parts["value"] == word else "no", kind, True, why)
+        return MapAnswer(word, kind, True, why)
     return MapAnswer("yes" if count else "no", kind, True, why)
 
 

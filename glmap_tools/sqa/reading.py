@@ -37,8 +37,9 @@ _LEAD = re.compile(
     r"^(?:(?:i am|i'm|im|i|am|we are|currently|right now|now|just|here|also|there)\b\s*)+"
 )
 _FACE_VERB = (
-    r"(?:facing away from|facing towards?|facing|face|looking (?:at|towards?|into|out of|out)|"
-    r"look(?:s|ing)? (?:at|towards?|into|out of)|watching|turned (?:to|towards?)|"
+    r"(?:facing away from|facing towards?|facing|face|"
+    r"look(?:s|ing)? (?:up |down |over |across |out )?(?:at|towards?|into|out of)|looking out|"
+    r"watching|turned (?:to|towards?)|"
     r"(?:oriented|orientated|pointed|pointing) (?:to|towards?|at)|staring at|gazing at|"
     r"with my (?:face|eyes) (?:to|towards?)|my face is towards?|i see|i can see)"
 )
@@ -56,9 +57,19 @@ _AHEAD = r"(?:in front of me|ahead of me|before me|straight ahead|ahead)"
 _ING_NOUNS = (
     "dining|washing|living|ceiling|sitting|painting|building|clothing|drawing|reading|sewing|"
     "changing|ironing|serving|baking|railing|landing|seating|heating|lighting|shelving|"
-    "sleeping|dressing|recording|swing|string|ring|king|spring|wing|ceiling|pudding|bedding"
+    "sleeping|dressing|recording|swing|string|ring|king|spring|wing|ceiling|pudding|bedding|"
+    "thing|something|anything|nothing|everything|evening|morning|icing|siding|flooring"
 )
-_ACTIVITY_TAIL = re.compile(r"(?<=\w)\s+(?!(?:" + _ING_NOUNS + r")\b)[a-z]{3,}ing\b.*$")
+_ACTIVITY_TAIL = re.compile(r"(?<=\w)\s+(?!(?:" + _ING_NOUNS + r")\b)[a-z]{2,}ing\b.*$")
+# A part of the anchor is the anchor: "the far end of the bench", "the left side of the bed",
+# "the right of the fridge" (from "to the right of").
+_PART_OF = re.compile(
+    r"^(?:the )?(?:far |near |other |very )?(?:left |right |front |back |upper |lower )?"
+    r"(?:end|top|bottom|edge|side|corner|arm|armrest|back|foot|head|front|middle|center|centre"
+    r"|left|right|left-hand side|right-hand side)( of (?:the |a |an |my )?)(?=\w)"
+)
+# What one stands or sits on before the place: "on the floor next to the coffee table".
+_GROUND = ("floor", "ground", "carpet", "rug")
 _PLACE_TAIL = r"(?: (?:on|by|near|next to|against|under|in) (?:the|a|an) [\w -]+)?"
 _REL_START = r"^(?:" + "|".join(RELATIONS) + r") "
 # A verb before the relation that is no posture: "i stopped next to the bookcase".
@@ -219,7 +230,7 @@ def _activity(rest: str, words: list[str], out: dict[str, Any]) -> str | None:
         out.setdefault("activity", rest)
         obj = object_words(" ".join(words[1:]))
         if obj and not out.get("anchor") and words[1:2] != ["my"]:  # "washing my hands"
-            out["anchor"], out["relation"] = obj, "at"
+            out["anchor"], out["relation"] = asides.qualifiers(obj), "at"
     return loc
 
 
@@ -242,6 +253,9 @@ def _anchor(rest: str, out: dict[str, Any]) -> None:
     obj = object_words(re.sub(r"\s+" + _DOING + r"\b.*$", "", obj))
     obj = _ACTIVITY_TAIL.sub("", obj)  # "the counter chopping onions"
     obj = asides.COVERED.sub("", obj)  # "the bed under the duvet"
+    obj = _PART_OF.sub("", obj)
+    if obj in asides.PRONOUNS and out.get("named"):  # "there is a sofa ...; i sit on it"
+        obj = out["named"]
     if ego is not None and obj:
         out.setdefault("ego", []).append((obj, ego))
     # "in the kitchen next to the fridge": the object, not the room, is the anchor.
@@ -249,6 +263,8 @@ def _anchor(rest: str, out: dict[str, Any]) -> None:
     if sub and object_words(sub.group(1)) in ROOMS:
         room, rel, obj = object_words(sub.group(1)), sub.group(2), object_words(sub.group(3))
         obj = f"{obj} in the {room}"
+    elif sub and rel == "on" and object_words(sub.group(1)) in _GROUND and sub.group(2) != "on":
+        rel, obj = sub.group(2), object_words(sub.group(3))  # the floor is no place
     obj = asides.qualifiers(obj)  # "a stool at the kitchen island": stool next to the island
     if obj and (not out.get("anchor") or out.get("relation") == "in" and obj not in ROOMS):
         if out.get("anchor") and out.get("relation") == "in":
@@ -284,6 +300,10 @@ def read_situation(text: str) -> SituationReading:
             continue  # "i cannot see the tv", "after entering the room", "a mirror above it"
         clause = asides.without_lead_time(clause)
         clause = re.sub(r"^(?:and|while|with|but|so|also|then)\s+", "", clause)
+        named = asides.introduced(clause)
+        if named is not None:  # "there is a sofa against the wall (and i sit on it)"
+            out["named"] = asides.qualifiers(object_words(named))
+            continue
         both = asides.either_side(clause)
         if both is not None:  # "a nightstand on either side of me"
             obj = object_words(both)

@@ -50,6 +50,8 @@ _SYNONYMS: tuple[tuple[str, str | Callable[[re.Match[str]], str]], ...] = (
         lambda m: f"if i want to {FEELINGS[m.group('feeling')]}, which way should i go",
     ),
     (_FEELING, ""),  # the question after it says what for
+    # "could I touch the lamp without getting up?"
+    (r"^(?:could|would) i (?=(?:touch|reach|grab|pick up|put my hand on|get to)\b)", "can i "),
     # "can you count the pillows around me", "please count how many chairs there are"
     (r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?)?count (?=how many\b)", ""),
     (r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?)?(?=count\b)", ""),

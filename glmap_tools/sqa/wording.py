@@ -41,7 +41,8 @@ EARLY: list[tuple[str, re.Pattern[str]]] = [
     (
         "on_exists",
         re.compile(
-            r"^(?:is|are) there (?:anything|something|any objects?|an object|things) (?:on top of"
+            r"^(?:is|are) there (?:anything|something|any objects?|an object|things)"
+            r"(?: (?:lying|sitting|standing|placed|resting|kept|left|put|set))? (?:on top of"
             r"|on|upon) (?:the |a |an )?(?P<base>[a-z][a-z -]*?)(?: " + EGO + r")?$"
         ),
     ),
@@ -198,8 +199,8 @@ INTENTS: tuple[tuple[str, str], ...] = (
 )
 
 _INTENT_ASK = (
-    r"(?:which|what) (?:way|direction|side) (?:should|do|would|must|can|will) i (?:go|turn|walk"
-    r"|head|move)(?: to)?"
+    r"(?:(?:which|what) (?:way|direction|side)|where) (?:should|do|would|must|can|will) i "
+    r"(?:go|turn|walk|head|move)(?: to)?"
 )
 LATE: list[tuple[str, re.Pattern[str]]] = [
     (
