@@ -325,3 +325,14 @@ def test_open_names_a_config_or_embedder_of_another_kind_and_a_nul_in_the_path(t
     with pytest.raises(StoreError, match="holds a NUL character"):
         GLMap.open(tmp_path / "m\x00.glmap", embedder=HashingEmbedder())
     assert list(tmp_path.iterdir()) == []  # nothing was written
+
+
+@pytest.mark.parametrize("bad", [3, None, 2.5, b"m.glmap"])
+def test_a_map_path_that_is_no_file_name_is_refused_naming_its_type(tmp_path, monkeypatch, bad):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(StoreError, match=rf"map path .+ \({type(bad).__name__}\) is no file name"):
+        GLMap.open(bad, embedder=HashingEmbedder())
+    glmap = GLMap(embedder=HashingEmbedder())
+    with pytest.raises(StoreError, match="is no file name; give a str or a Path"):
+        glmap.save_as(bad)
+    assert glmap.store is None and list(tmp_path.iterdir()) == []

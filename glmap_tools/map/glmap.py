@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -58,7 +57,7 @@ class GLMap(MapState):
         """
 
         check_parts(config, embedder)  # before any file is made
-        store = MapStore.open(Path(path), create_with=config or MapConfig())
+        store = MapStore.open(path, create_with=config or MapConfig())
         try:
             glmap = cls(store.config, embedder, text_merger)
             store.load_into(glmap)
@@ -71,7 +70,7 @@ class GLMap(MapState):
     def save_as(self, path: str | os.PathLike[str]) -> None:
         """Write the whole map to a new store file at `path` and keep committing there."""
 
-        self.store = MapStore.create_from(Path(path), self)
+        self.store = MapStore.create_from(path, self)
 
     def close(self) -> None:
         if self.store is not None:

@@ -73,7 +73,7 @@ class MapStore:
 
     # ------------------------------------------------------------- open / create
     @classmethod
-    def open(cls, path: Path, create_with: MapConfig | None = None) -> MapStore:
+    def open(cls, path: str | os.PathLike[str], create_with: MapConfig | None = None) -> MapStore:
         """Open an existing store, or create one with `create_with` if `path` does not exist.
 
         Raises:
@@ -159,7 +159,9 @@ class MapStore:
         return cls(path, connect(path), config, SCHEMA_VERSION)
 
     @classmethod
-    def create_from(cls, path: Path, glmap: MapState, overwrite: bool = False) -> MapStore:
+    def create_from(
+        cls, path: str | os.PathLike[str], glmap: MapState, overwrite: bool = False
+    ) -> MapStore:
         """Write all of `glmap` to a new file at `path` (atomically)."""
         path = _checked_path(path)
         if path.exists() and not overwrite:
@@ -354,7 +356,12 @@ class MapStore:
 
 
 def _checked_path(path: str | os.PathLike[str]) -> Path:
-    """`path` as a Path; a NUL character (no file system takes one) is refused."""
+    """`path` as a Path; anything but a str or path, or a NUL character (no file system
+    takes one), is refused."""
+    if not isinstance(path, (str, os.PathLike)) or isinstance(path, bytes):
+        raise StoreError(
+            f"map path {path!r} ({type(path).__name__}) is no file name; give a str or a Path."
+        )
     out = Path(path)
     if "\x00" in str(out):
         raise StoreError(
