@@ -21,7 +21,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors",),
     # glmap_tools: the root's __version__; orphans, ray_cluster: the worker processes and the
     # Ray connection that batch builds (ingest) and evaluations (eval) share; launch_env: what
-    # every launcher sets first; limits: bounds the settings check without numpy
+    # every launcher sets first; limits: bounds the settings check without numpy; checks: the
+    # type predicates input checks share
     (
         "glmap_tools",
         "lazy",
@@ -31,6 +32,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "ray_cluster",
         "launch_env",
         "limits",
+        "checks",
     ),
     ("geometry",),
     ("gaussians",),

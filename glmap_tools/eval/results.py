@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from glmap_tools.atomic import write_atomic
+from glmap_tools.checks import is_integer, is_real
 from glmap_tools.errors import InvalidInputError, StoreError
 
 CONFIG_FILE = "eval.json"
@@ -61,11 +62,10 @@ _OPTIONAL_FIELDS = {
 
 
 def _is_kind(value: Any, kind: str) -> bool:
-    number = isinstance(value, int | float) and not isinstance(value, bool)
     return {
         "bool": isinstance(value, bool),
-        "int": isinstance(value, int) and not isinstance(value, bool),
-        "number or null": value is None or number,
+        "int": is_integer(value),
+        "number or null": value is None or is_real(value),
         "str": isinstance(value, str),
         "str or null": value is None or isinstance(value, str),
         "object": isinstance(value, dict),

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from glmap_tools.atomic import write_atomic
+from glmap_tools.checks import is_integer, is_real
 from glmap_tools.errors import GLMapError, InvalidInputError, did_you_mean
 from glmap_tools.eval.sqa_table import reading_ok, summarize, summarize_forms
 from glmap_tools.orphans import exit_with_parent
@@ -364,9 +365,9 @@ _OPTIONAL_ANSWER_FIELDS = {
 
 def _is(value: Any, kind: type) -> bool:
     if kind is float:
-        return isinstance(value, int | float) and not isinstance(value, bool)
+        return is_real(value)
     if kind is int:
-        return isinstance(value, int) and not isinstance(value, bool)
+        return is_integer(value)
     return isinstance(value, kind)
 
 

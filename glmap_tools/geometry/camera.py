@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glmap_tools.checks import is_real
 from glmap_tools.errors import InvalidInputError
 from glmap_tools.limits import MAX_COORDINATE
 
@@ -40,7 +41,7 @@ class Intrinsics:
     def __post_init__(self) -> None:
         for name in ("fx", "fy", "cx", "cy"):
             value = getattr(self, name)
-            if not _real(value):
+            if not is_real(value):
                 raise InvalidInputError(f"Intrinsics {name}={value!r} is not a number of pixels.")
         for name in ("fx", "fy"):
             value = getattr(self, name)
@@ -218,7 +219,7 @@ class Pose:
         """
         named = (("x", x), ("y", y), ("height", height), ("heading", heading), ("pitch", pitch))
         for name, value in named:
-            if not (_real(value) and math.isfinite(value)):
+            if not (is_real(value) and math.isfinite(value)):
                 raise InvalidInputError(f"{name}={value!r} must be a finite number.")
         forward = np.array(
             [
@@ -254,10 +255,3 @@ class Pose:
     def transform_points(self, points_camera: np.ndarray) -> np.ndarray:
         """Map [N, 3] camera-frame points to the world."""
         return points_camera @ self.rotation.T + self.translation
-
-
-def _real(value: object) -> bool:
-    """Whether `value` is a real number (numpy's included), not a bool."""
-    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
-        value, bool | np.bool_
-    )

@@ -4,11 +4,11 @@ store work on a `MapState`; `GLMap` adds integrating, persistence and the querie
 
 from __future__ import annotations
 
-import numbers
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from glmap_tools.checks import is_integer
 from glmap_tools.errors import InvalidInputError, UnknownIdError, did_you_mean
 from glmap_tools.gaussians.config import EstimatorConfig
 from glmap_tools.gaussians.estimator import GaussianEstimator
@@ -42,7 +42,7 @@ def unit_id_of(value: object) -> int:
     Raises:
         InvalidInputError: anything else (a bool, a float, a string, ...).
     """
-    if isinstance(value, numbers.Integral) and not isinstance(value, bool | np.bool_):
+    if is_integer(value):
         return int(value)
     raise InvalidInputError(
         f"unit id {value!r} is not an integer; give the id of an instance or region, as "

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from glmap_tools.checks import is_integer
 from glmap_tools.errors import InvalidInputError
 
 
@@ -98,17 +99,13 @@ class FrameSemantics:
                 )
 
 
-def _is_id(value: object) -> bool:
-    return isinstance(value, int | np.integer) and not isinstance(value, bool)
-
-
 def _check_object_fields(obj: object) -> None:
     """Refuse an object observation whose fields are not of their kinds (a library caller's
     slip): an integer local id, text label and description, a boolean mask of two axes."""
     if not isinstance(obj, ObjectObservation):
         raise InvalidInputError(f"objects holds {obj!r:.60}, not an ObjectObservation.")
     what = f"object {obj.local_id!r:.40}"
-    if not _is_id(obj.local_id):
+    if not is_integer(obj.local_id):
         raise InvalidInputError(f"{what}: its local_id is not an integer; number the objects.")
     if not isinstance(obj.label, str) or not isinstance(obj.description, str):
         raise InvalidInputError(f"{what}: its label and description must be text (str).")
@@ -125,12 +122,12 @@ def _check_group_fields(group: object) -> None:
     if not isinstance(group, GroupObservation):
         raise InvalidInputError(f"groups holds {group!r:.60}, not a GroupObservation.")
     what = f"group {group.local_id!r:.40}"
-    if not _is_id(group.local_id):
+    if not is_integer(group.local_id):
         raise InvalidInputError(f"{what}: its local_id is not an integer; number the groups.")
     if not isinstance(group.description, str):
         raise InvalidInputError(f"{what}: its description must be text (str).")
     members = group.members
-    if not isinstance(members, list | tuple) or not all(_is_id(m) for m in members):
+    if not isinstance(members, list | tuple) or not all(is_integer(m) for m in members):
         raise InvalidInputError(
             f"{what}: its members {members!r:.60} must be a list of object local ids."
         )

@@ -32,6 +32,8 @@ from importlib.util import find_spec
 from pathlib import Path
 from typing import Any, BinaryIO, cast
 
+from glmap_tools.checks import is_real
+
 # Imports inside functions stay there: anyio, mcp load on first use: `glmap-mcp` answers the
 # handshake before they load (the launch path); `bench tokens` and `bench startup` stay light; an
 # import that may fail is caught where it is used.
@@ -167,7 +169,7 @@ def _claim(fd: int, mode: str, diversion: int) -> tuple[BinaryIO, int | None]:
 
 def _request_id(value: Any) -> bool:
     """Whether `value` is a JSON-RPC request id (a string or a number)."""
-    return isinstance(value, str | int | float) and not isinstance(value, bool)
+    return isinstance(value, str) or is_real(value)
 
 
 class StdioRelay:
