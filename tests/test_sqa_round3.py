@@ -1,57 +1,12 @@
 """Situations and questions as people write them, round three (issue 43): grammar-level
 variants (fronted clauses, polite wrappers, options before the question, other verbs and
-side words). The tuned phrasings read right one by one.
+side words).
 
-The "held-out" set was written and committed before round three's rules changed and read
-35 / 42 situations and 71 / 72 questions right then. Round four tuned on its misreads, so
-it is a tuned set from here on (round four's held-out set is tests/test_sqa_round4.py):
-now 42 / 42 and 72 / 72, held whole."""
-
-import json
-from pathlib import Path
-
-import pytest
+Its sets are held in tests/test_sqa_phrasing_sets.py."""
 
 from glmap_tools.sqa.answer import question_type
 from glmap_tools.sqa.reading import read_situation
 from glmap_tools.sqa.wording import variants
-from tests.test_sqa_round2 import _summary, held_out_shares
-
-HELD_OUT_FLOOR = {"situations": 1.0, "questions": 1.0}  # tuned on since round four
-DATA = Path(__file__).parent / "data"
-TUNED = json.loads((DATA / "sqa_round3_tuned.json").read_text())
-HELD_OUT = json.loads((DATA / "sqa_round3_heldout.json").read_text())
-
-
-@pytest.mark.parametrize("case", TUNED["situations"], ids=lambda c: c["text"][:40])
-def test_each_tuned_situation_reads_to_its_anchor_facing_and_constraints(case):
-    r = read_situation(case["text"])
-    assert _summary(r) == (case["anchor"], case["facing"], case["constraints"]), r.as_dict()
-
-
-@pytest.mark.parametrize("case", TUNED["questions"], ids=lambda c: c["text"][:40])
-def test_each_tuned_question_falls_to_its_family(case):
-    assert question_type(case["text"])[0] == case["family"]
-
-
-def test_held_out_situations_read_right_as_measured():
-    share, wrong = held_out_shares(HELD_OUT)["situations"]
-    assert share >= HELD_OUT_FLOOR["situations"], wrong
-
-
-def test_held_out_questions_fall_to_their_family_as_measured():
-    share, wrong = held_out_shares(HELD_OUT)["questions"]
-    assert share >= HELD_OUT_FLOOR["questions"], wrong
-
-
-def test_round_three_shares_no_sentence_with_the_earlier_sets():
-    earlier = set()
-    for name in ("sqa_round2_tuned.json", "sqa_round2_heldout.json"):
-        data = json.loads((DATA / name).read_text())
-        earlier |= {c["text"] for c in data["situations"] + data["questions"]}
-    tuned = {c["text"] for c in TUNED["situations"] + TUNED["questions"]}
-    held = {c["text"] for c in HELD_OUT["situations"] + HELD_OUT["questions"]}
-    assert not (tuned | held) & earlier and not tuned & held
 
 
 def test_a_question_as_written_wins_over_its_other_wordings():

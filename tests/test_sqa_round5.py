@@ -12,50 +12,14 @@ thirsty; which way ...").
 
 The rules of this round were written against the tuned set, whose sentences are other
 sentences of those kinds, so the held-out set's figure after them (48 / 48, 56 / 56) is no
-longer a held-out measure: the 42 / 48 and 49 / 56 above are."""
-
-import json
-from pathlib import Path
+longer a held-out measure: the 42 / 48 and 49 / 56 above are. The sets are held in
+tests/test_sqa_phrasing_sets.py."""
 
 import pytest
 
-from glmap_tools.sqa.answer import OfflineAnswerer, question_type
+from glmap_tools.sqa.answer import OfflineAnswerer
 from glmap_tools.sqa.reading import read_situation
-from tests.test_sqa_round2 import _summary, held_out_shares
 from tests.test_sqa_round2_answers import WHERE
-
-DATA = Path(__file__).parent / "data"
-HELD_OUT = json.loads((DATA / "sqa_round5_heldout.json").read_text())
-TUNED = json.loads((DATA / "sqa_round5_tuned.json").read_text())
-
-
-@pytest.mark.parametrize("case", TUNED["situations"], ids=lambda c: c["text"][:40])
-def test_each_tuned_situation_reads_to_its_anchor_facing_and_constraints(case):
-    r = read_situation(case["text"])
-    assert _summary(r) == (case["anchor"], case["facing"], case["constraints"]), r.as_dict()
-
-
-@pytest.mark.parametrize("case", TUNED["questions"], ids=lambda c: c["text"][:40])
-def test_each_tuned_question_falls_to_its_family(case):
-    assert question_type(case["text"])[0] == case["family"]
-
-
-def test_the_held_out_set_reads_as_measured_after_this_rounds_rules():
-    shares = held_out_shares(HELD_OUT)
-    assert shares["situations"] == (1.0, []) and shares["questions"] == (1.0, [])
-
-
-def test_round_five_shares_no_sentence_with_the_earlier_sets():
-    earlier = set()
-    for name in ("round2_tuned", "round2_heldout", "round3_tuned", "round3_heldout"):
-        data = json.loads((DATA / f"sqa_{name}.json").read_text())
-        earlier |= {c["text"] for c in data["situations"] + data["questions"]}
-    data = json.loads((DATA / "sqa_round4_heldout.json").read_text())
-    earlier |= {c["text"] for c in data["situations"] + data["questions"]}
-    held = [c["text"] for c in HELD_OUT["situations"] + HELD_OUT["questions"]]
-    tuned = [c["text"] for c in TUNED["situations"] + TUNED["questions"]]
-    assert len(held) == len(set(held)) == 104 and len(tuned) == len(set(tuned)) == 30
-    assert not (set(held) | set(tuned)) & earlier and not set(held) & set(tuned)
 
 
 @pytest.mark.parametrize(

@@ -11,51 +11,14 @@ participle in "is there anything lying on", "could I reach", "is the number of X
 "where should I go" after an intent.
 
 As in round five, the held-out set's figure after this round's rules (28 / 28, 30 / 30) is
-no longer a held-out measure: the 16 / 28 and 26 / 30 above are."""
-
-import json
-from pathlib import Path
+no longer a held-out measure: the 16 / 28 and 26 / 30 above are. The sets are held in
+tests/test_sqa_phrasing_sets.py."""
 
 import pytest
 
-from glmap_tools.sqa.answer import OfflineAnswerer, question_type
+from glmap_tools.sqa.answer import OfflineAnswerer
 from glmap_tools.sqa.reading import read_situation
-from tests.test_sqa_round2 import _summary, held_out_shares
 from tests.test_sqa_round2_answers import WHERE
-
-DATA = Path(__file__).parent / "data"
-HELD_OUT = json.loads((DATA / "sqa_round6_heldout.json").read_text())
-TUNED = json.loads((DATA / "sqa_round6_tuned.json").read_text())
-
-
-@pytest.mark.parametrize("case", TUNED["situations"], ids=lambda c: c["text"][:40])
-def test_each_tuned_situation_reads_to_its_anchor_facing_and_constraints(case):
-    r = read_situation(case["text"])
-    assert _summary(r) == (case["anchor"], case["facing"], case["constraints"]), r.as_dict()
-
-
-@pytest.mark.parametrize("case", TUNED["questions"], ids=lambda c: c["text"][:40])
-def test_each_tuned_question_falls_to_its_family(case):
-    assert question_type(case["text"])[0] == case["family"]
-
-
-def test_the_held_out_set_reads_as_measured_after_this_rounds_rules():
-    shares = held_out_shares(HELD_OUT)
-    assert shares["situations"] == (1.0, []) and shares["questions"] == (1.0, [])
-
-
-def test_round_six_shares_no_sentence_with_the_earlier_sets():
-    earlier = set()
-    for name in (
-        "round2_tuned", "round2_heldout", "round3_tuned", "round3_heldout", "round4_heldout",
-        "round5_heldout", "round5_tuned",
-    ):  # fmt: skip
-        data = json.loads((DATA / f"sqa_{name}.json").read_text())
-        earlier |= {c["text"] for c in data["situations"] + data["questions"]}
-    held = [c["text"] for c in HELD_OUT["situations"] + HELD_OUT["questions"]]
-    tuned = [c["text"] for c in TUNED["situations"] + TUNED["questions"]]
-    assert len(held) == len(set(held)) == 58 and len(tuned) == len(set(tuned)) == 22
-    assert not (set(held) | set(tuned)) & earlier and not set(held) & set(tuned)
 
 
 @pytest.mark.parametrize(

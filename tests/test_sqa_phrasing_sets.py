@@ -1,0 +1,112 @@
+"""Situations and questions as people write them: every set in tests/data/sqa_round*.json.
+
+A tuned set is what rules were written against: each of its sentences reads right. A held-out
+set was written and committed before the rules of its round changed and is held to a floor;
+its figure when written (below) is the one for text the reader had not met. Once rules are
+written after its misreads were seen, its floor rises to what it reads and it says no more
+about unseen text. docs/evaluation.md has the table.
+
+- round2_heldout: 0.9 each since round two.
+- round3_heldout: 35 / 42 situations and 71 / 72 questions when written; round four tuned on
+  its misreads.
+- round4_heldout: 43 / 48 and 63 / 64 when written; 46 / 48 and 63 / 64 after round four's
+  rules (tuned on round three's misreads and its own tuned sentences). Still misread: a
+  leading "Just before going out,", "I cannot see the fridge from where I stand at the
+  counter" (the negation drops the place too), "If I turn around, will the door be visible?".
+- round5_heldout: 42 / 48 and 49 / 56 when written (tests/test_sqa_round5.py lists its kinds
+  of misread); whole after round five's rules.
+- round6_heldout: 16 / 28 and 26 / 30 when written (tests/test_sqa_round6.py); whole after
+  round six's rules.
+- round7_heldout: 22 / 24 and 22 / 24 when written after round six's rules, never tuned on.
+  Still misread: "the lamp's on my right" (the object keeps its "'s"), "resting my elbows on
+  the windowsill" (the elbows taken for the place), "which way to the front door?" (no
+  verb), "could I see the window if I turned to the right?" (read as plain seeing).
+"""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from glmap_tools.sqa.answer import question_type
+from glmap_tools.sqa.reading import read_situation
+from glmap_tools.sqa.relations import relation_phrases
+
+DATA = Path(__file__).parent / "data"
+TUNED = ("round2_tuned", "round3_tuned", "round5_tuned", "round6_tuned")
+# held-out set: (situations, questions) floor of the share read right
+HELD_OUT = {
+    "round2_heldout": (0.9, 0.9),
+    "round3_heldout": (1.0, 1.0),
+    "round4_heldout": (0.95, 0.98),
+    "round5_heldout": (1.0, 1.0),
+    "round6_heldout": (1.0, 1.0),
+    "round7_heldout": (0.9, 0.9),
+}
+SIZES = {  # sentences per set (situations + questions)
+    "round2_tuned": 102, "round2_heldout": 79, "round3_tuned": 80, "round3_heldout": 114,
+    "round4_heldout": 112, "round5_heldout": 104, "round5_tuned": 30, "round6_heldout": 58,
+    "round6_tuned": 22, "round7_heldout": 48,
+}  # fmt: skip
+
+
+def load(name: str) -> dict:  # type: ignore[type-arg]
+    return json.loads((DATA / f"sqa_{name}.json").read_text())
+
+
+def summary(r):  # type: ignore[no-untyped-def]
+    """(the anchor's object words, facing, [[object, side or clock hour]]) of a reading."""
+    cons = [[c.object, c.side or c.clock] for c in r.constraints]
+    return relation_phrases(r.anchor)[0], r.facing, cons
+
+
+def read_right(case: dict) -> bool:  # type: ignore[type-arg]
+    return summary(read_situation(case["text"])) == (
+        case["anchor"],
+        case["facing"],
+        case["constraints"],
+    )
+
+
+def held_out_shares(data: dict) -> dict:  # type: ignore[type-arg]
+    """{situations, questions}: (share read right / to their family, the texts that miss)."""
+    right = [read_right(c) for c in data["situations"]]
+    family = [question_type(q["text"])[0] == q["family"] for q in data["questions"]]
+    return {
+        kind: (sum(ok) / len(ok), [c["text"] for c, v in zip(data[kind], ok, strict=True) if not v])
+        for kind, ok in (("situations", right), ("questions", family))
+    }
+
+
+def _cases(kind: str) -> list:  # type: ignore[type-arg]
+    return [
+        pytest.param(c, id=f"{name}: {c['text'][:40]}") for name in TUNED for c in load(name)[kind]
+    ]
+
+
+@pytest.mark.parametrize("case", _cases("situations"))
+def test_each_tuned_situation_reads_to_its_anchor_facing_and_constraints(case):
+    r = read_situation(case["text"])
+    assert summary(r) == (case["anchor"], case["facing"], case["constraints"]), r.as_dict()
+
+
+@pytest.mark.parametrize("case", _cases("questions"))
+def test_each_tuned_question_falls_to_its_family(case):
+    assert question_type(case["text"])[0] == case["family"]
+
+
+@pytest.mark.parametrize("name", HELD_OUT)
+def test_each_held_out_set_reads_at_least_its_floor(name):
+    shares = held_out_shares(load(name))
+    for kind, floor in zip(("situations", "questions"), HELD_OUT[name], strict=True):
+        share, wrong = shares[kind]
+        assert share >= floor, (kind, wrong)
+
+
+def test_no_sentence_is_in_two_sets_and_every_set_is_counted():
+    names = sorted(p.stem.removeprefix("sqa_") for p in DATA.glob("sqa_round*.json"))
+    assert names == sorted(SIZES) == sorted((*TUNED, *HELD_OUT))
+    texts = {n: [c["text"] for c in load(n)["situations"] + load(n)["questions"]] for n in names}
+    assert {n: len(t) for n, t in texts.items()} == SIZES
+    every = [t for n in names for t in texts[n]]
+    assert len(every) == len(set(every))
