@@ -57,3 +57,8 @@ def test_a_thing_brought_in_by_there_is_is_what_it_names_and_the_floor_no_place(
 ):
     r = read_situation(text)
     assert (r.anchor, r.relation) == (anchor, relation)
+
+
+def test_a_there_is_clause_that_places_the_thing_around_me_stays_a_constraint():
+    r = read_situation("There is a clock at two o'clock and I am sitting on the bed.")
+    assert (r.anchor, [(c.object, c.clock) for c in r.constraints]) == ("bed", [("clock", 2)])

@@ -300,16 +300,16 @@ def read_situation(text: str) -> SituationReading:
             continue  # "i cannot see the tv", "after entering the room", "a mirror above it"
         clause = asides.without_lead_time(clause)
         clause = re.sub(r"^(?:and|while|with|but|so|also|then)\s+", "", clause)
-        named = asides.introduced(clause)
-        if named is not None:  # "there is a sofa against the wall (and i sit on it)"
-            out["named"] = asides.qualifiers(object_words(named))
-            continue
         both = asides.either_side(clause)
         if both is not None:  # "a nightstand on either side of me"
             obj = object_words(both)
             cons += [Constraint(obj, side="left"), Constraint(obj, side="right")]
             continue
         if _egocentric(clause, cons, fronts):
+            continue
+        named = asides.introduced(clause)
+        if named is not None:  # "there is a sofa against the wall (and i sit on it)"
+            out["named"] = asides.qualifiers(object_words(named))
             continue
         rest = _facing(clause, out, cons, fronts)
         if rest is not None:
