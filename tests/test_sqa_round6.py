@@ -49,6 +49,11 @@ def test_the_new_wordings_are_answered_from_the_map(question, kind, answer):
         ("There is a lamp in the corner.", "", ""),  # says nothing of where I am
         ("I am on the floor next to the bed.", "bed", "next to"),
         ("I am sitting on the floor.", "floor", "on"),  # the floor alone is still the place
+        (
+            "I am standing on the rug in front of the fireplace.",
+            "rug in front of the fireplace",
+            "on",
+        ),
         ("I am standing to the left of the fridge.", "fridge", "to"),
     ],
 )

@@ -69,7 +69,7 @@ _PART_OF = re.compile(
     r"|left|right|left-hand side|right-hand side)( of (?:the |a |an |my )?)(?=\w)"
 )
 # What one stands or sits on before the place: "on the floor next to the coffee table".
-_GROUND = ("floor", "ground", "carpet", "rug")
+_GROUND = ("floor", "ground")  # a rug or a carpet can be a unit of its own
 _PLACE_TAIL = r"(?: (?:on|by|near|next to|against|under|in) (?:the|a|an) [\w -]+)?"
 _REL_START = r"^(?:" + "|".join(RELATIONS) + r") "
 # A verb before the relation that is no posture: "i stopped next to the bookcase".
