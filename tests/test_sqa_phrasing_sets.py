@@ -21,6 +21,13 @@ about unseen text. docs/evaluation.md has the table.
   Still misread: "the lamp's on my right" (the object keeps its "'s"), "resting my elbows on
   the windowsill" (the elbows taken for the place), "which way to the front door?" (no
   verb), "could I see the window if I turned to the right?" (read as plain seeing).
+- round8_heldout: 25 / 30 and 27 / 30 when written after this sitting's rules, never tuned
+  on. Misread: "the towel is hanging to my right" (the participle kept with the object), a
+  leading "While the kettle boils," (the conjunction split off first), "the stool in front
+  of the kitchen island" and "the chair to the left of the fireplace" (relations the
+  locator does not read kept in the name), "putting on my shoes by the front door" (the
+  shoes taken for the place); "what is the material of the floor?", "what's the object at
+  my two o'clock?", "is the shelf above me?".
 """
 
 import json
@@ -42,11 +49,12 @@ HELD_OUT = {
     "round5_heldout": (1.0, 1.0),
     "round6_heldout": (1.0, 1.0),
     "round7_heldout": (0.9, 0.9),
+    "round8_heldout": (0.8, 0.9),
 }
 SIZES = {  # sentences per set (situations + questions)
     "round2_tuned": 102, "round2_heldout": 79, "round3_tuned": 80, "round3_heldout": 114,
     "round4_heldout": 112, "round5_heldout": 104, "round5_tuned": 30, "round6_heldout": 58,
-    "round6_tuned": 22, "round7_heldout": 48,
+    "round6_tuned": 22, "round7_heldout": 48, "round8_heldout": 60,
 }  # fmt: skip
 
 
