@@ -51,7 +51,7 @@ def test_the_new_wordings_are_answered_from_the_map(question, kind, answer):
         ("I am sitting on the floor.", "floor", "on"),  # the floor alone is still the place
         (
             "I am standing on the rug in front of the fireplace.",
-            "rug in front of the fireplace",
+            "rug near the fireplace",
             "on",
         ),
         ("I am standing to the left of the fridge.", "fridge", "to"),

@@ -64,7 +64,7 @@ NEGATION = re.compile(
     r"\b(?:not|n't|cannot|never|no longer|nowhere)\b|\b(?:can|do|does|is|am|are)not\b"
 )
 _LEADING = re.compile(
-    r"^(?:after|before|while|whilst|when|once|upon|having|as soon as|since|just after)\b"
+    r"^(?:after|before|while|whilst|when|once|upon|having|as soon as|as|since|just after)\b"
 )
 EITHER = re.compile(r"\bon (?:either|both|each) side(?:s)? of me\b")
 # Where another thing is from the one just named: "and the mirror is above it".
@@ -222,10 +222,10 @@ def qualifiers(obj: str) -> str:
     )
     obj = re.sub(r"(?<=\w) (?:nearest|closest) (?:the|a|an) ", " near the ", obj)
     # "the shelf against the wall", "the cupboard above the stove", "the wall opposite the
-    # window": the locator reads them as near
+    # window", "the stool in front of the island": the locator reads them as near
     obj = re.sub(
         r"(?<=\w) (?:against|above|over|below|under|underneath|beneath|opposite(?: to)?"
-        r"|across from) (?:the|a|an) ",
+        r"|across from|in front of|to the (?:left|right)(?: side)? of) (?:the|a|an) ",
         " near the ",
         obj,
     )

@@ -15,6 +15,12 @@ def split_clauses(text: str) -> list[str]:
     t = " " + " ".join(text.lower().replace("’", "'").replace("`", "'").split()) + " "
     t = re.sub(r"\bi'm\b", "i am", t)
     t = re.sub(r"\bthere's\b", "there is", t)
+    # "while the kettle boils, ...": a leading clause about something else sets the scene
+    t = re.sub(r"^\s*(?:while|whilst|as|when|since|because|once)\s+(?!i\b)[^,;.]*,", " ", t)
+    # "the lamp's on my right"
+    t = re.sub(
+        r"\b([a-z]+)'s (?=(?:on|to|at|in|behind|right|just|directly|straight)\b)", r"\1 is ", t
+    )
     t = re.sub(r"\bi(?:'ve| have) got\b|\bi've\b", "i have", t)
     t = re.sub(r"\bo ?clock\b|\bo' clock\b", "o'clock", t)
     t = asides.hands_to_sides(t)

@@ -47,7 +47,11 @@ _NUM = r"(?P<h>\d{1,2}|" + "|".join(HOUR_WORDS[1:12]) + r"|twelve)"
 _CLOCK_TAIL = r"(?:\s*o'?clock)(?:\s+(?:direction|position|orientation))?"
 _SIDE = r"(?P<s>left|right)(?:[- ]hand)?(?: side)?(?: of me)?"
 
-_IS = r"(?:is |are |stands |sits |lies )?"  # "the lamp (is) on my left"
+# "the lamp (is) on my left", "a coat is hanging behind me"
+_IS = (
+    r"(?:(?:is|are) (?:(?:standing|hanging|sitting|lying|placed|located|leaning|kept|resting"
+    r"|mounted|set) )?|stands |sits |lies |hangs )?"
+)
 _THERE = r",? (?:is |are |there is |there are |there's |i (?:can )?see |i have |stands |sits )?"
 _JUST = r"(?:right |directly |straight |immediately |just )?"
 _AHEAD = r"(?:in front of me|ahead of me|before me|straight ahead|ahead)"
@@ -153,6 +157,14 @@ def _position(clause: str, out: dict[str, Any]) -> None:
         out.setdefault("posture", "sitting" if w in ("seated", "sat") else w)
         rest = " ".join(words[1:])
         rest = re.sub(r"^(?:up|down|here|there)\s+", "", rest)
+        # "resting my elbows on the windowsill": the body part is not the place
+        rest = re.sub(
+            r"^my (?:elbows?|arms?|hands?|feet|foot|legs?|head|chin|back|knees?)\s+(?="
+            + _REL_START[1:]
+            + ")",
+            "",
+            rest,
+        )
         # an adverb between the posture and the place: "sitting cross-legged on the rug"
         if not re.match(_REL_START, rest):
             rest = re.sub(r"^(?!(?:the|a|an|my)\b)[\w-]+\s+(?=" + _REL_START[1:] + ")", "", rest)
@@ -212,7 +224,13 @@ def _activity(rest: str, words: list[str], out: dict[str, Any]) -> str | None:
     """An activity ("rinsing a cup at the kitchen sink", "closing the curtains") into `out`;
     the place after it, or None when the clause names none (what is worked on, if anything,
     is then the anchor)."""
-    m = re.search(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s", " " + rest + " ")
+    # "putting on my shoes by the door": the particle is the verb's, not a place
+    particle = re.match(
+        r"^(?:putting|taking|trying|pulling|slipping|picking) (?:on|off|up)\s", rest
+    )
+    m = re.compile(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s").search(
+        " " + rest + " ", particle.end() if particle else 0
+    )
     loc = None
     if m and m.start() > 0:
         head = rest[: m.start() - 1].strip() if m.start() > 0 else ""

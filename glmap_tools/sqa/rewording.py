@@ -52,6 +52,16 @@ _SYNONYMS: tuple[tuple[str, str | Callable[[re.Match[str]], str]], ...] = (
     (_FEELING, ""),  # the question after it says what for
     # "could I touch the lamp without getting up?"
     (r"^(?:could|would) i (?=(?:touch|reach|grab|pick up|put my hand on|get to)\b)", "can i "),
+    (r"^what is the material of ", "what material is "),
+    (
+        r"^what is the (?:object|thing|item|furniture)"
+        r" (?=(?:at|on|in|to) (?:my |the )?\S+ ?o'clock)",
+        "what is ",
+    ),
+    (
+        r"^(?:which|what) (?:way|direction) (?:to|towards?) (?:the )?",
+        "which way should i go to get to the ",
+    ),
     # "can you count the pillows around me", "please count how many chairs there are"
     (r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?)?count (?=how many\b)", ""),
     (r"^(?:please,? )?(?:(?:can|could|would|will) you (?:please )?)?(?=count\b)", ""),
@@ -133,9 +143,19 @@ _FRONTED = re.compile(
 
 # Said of the question, not of what it asks: "is the window open right now?"
 _TIME_TAIL = re.compile(r",? (?:right now|at the moment|at present|currently|just now)(?=[?.!]*$)")
-_NORMAL = (
+_NORMAL: tuple[tuple[str, str | Callable[[re.Match[str]], str]], ...] = (
     (r" (?:in total|altogether|in all)(?=[?.!]*$)", ""),  # "how many ... in total"
     (r"\bin between\b", "between"),
+    (r"\b(if|when|once) i (?:turned|were to turn|was to turn)\b", r"\1 i turn"),
+    # "is the picture above me?": whether to look up
+    (
+        r"^(?:is|are) (?:the )?((?:(?!\bor\b)[a-z -])+?) (above|over|below|under|beneath) me"
+        r"(?=[?.!]*$)",
+        lambda m: (
+            f"should i look {'up' if m.group(2) in ('above', 'over') else 'down'} to see "
+            f"the {m.group(1)}"
+        ),
+    ),
     (r"\b(above|below|under|over) (?:my )?eye[- ]?(?:level|line)\b", r"\1 my eyes"),
     # "are there an odd or even number of lamps?"
     (
