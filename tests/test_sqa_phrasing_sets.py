@@ -29,12 +29,13 @@ about unseen text. docs/evaluation.md has the table.
   of the fireplace" (relations the locator does not read kept in the name), "putting on my
   shoes by the front door" (the shoes taken for the place); "what is the material of the
   floor?", "what's the object at my two o'clock?", "is the shelf above me?".
-- round9_heldout: 31 / 35 and 35 / 36 when written after round eight's rules, never tuned
-  on: the figure for the reader as it stands. Misread: "at the kitchen counter on a bar
-  stool" (the stool kept in the counter's name), "pulling a book off the shelf" (the book
-  taken for the place), "there is a rug under my feet and I'm standing at the window" (the
-  rug taken for the place), "looking at the mirror on the wall" (read as the mirror, where
-  the set says "mirror on the wall"); "which object is closest to where I am?".
+- round9_heldout: 31 / 35 and 35 / 36 when written after round eight's rules; 34 / 35 and
+  36 / 36 after round nine's (tests/test_sqa_round9.py). Its misreads were: "at the kitchen
+  counter on a bar stool" (the stool kept in the counter's name), "pulling a book off the
+  shelf" (the book taken for the place), "there is a rug under my feet and I'm standing at
+  the window" (the rug taken for the place), "looking at the mirror on the wall" (read as
+  the mirror, where the set says "mirror on the wall", still so); "which object is closest
+  to where I am?".
 """
 
 import json
@@ -47,7 +48,10 @@ from glmap_tools.sqa.reading import read_situation
 from glmap_tools.sqa.relations import relation_phrases
 
 DATA = Path(__file__).parent / "data"
-TUNED = ("round2_tuned", "round3_tuned", "round5_tuned", "round6_tuned", "round8_tuned")
+TUNED = (
+    "round2_tuned", "round3_tuned", "round5_tuned", "round6_tuned", "round8_tuned",
+    "round9_tuned",
+)  # fmt: skip
 # held-out set: (situations, questions) floor of the share read right
 HELD_OUT = {
     "round2_heldout": (0.9, 0.9),
@@ -57,13 +61,13 @@ HELD_OUT = {
     "round6_heldout": (1.0, 1.0),
     "round7_heldout": (1.0, 1.0),
     "round8_heldout": (1.0, 1.0),
-    "round9_heldout": (0.88, 0.97),
+    "round9_heldout": (0.97, 1.0),
 }
 SIZES = {  # sentences per set (situations + questions)
     "round2_tuned": 102, "round2_heldout": 79, "round3_tuned": 80, "round3_heldout": 114,
     "round4_heldout": 112, "round5_heldout": 104, "round5_tuned": 30, "round6_heldout": 58,
     "round6_tuned": 22, "round7_heldout": 48, "round8_heldout": 60, "round8_tuned": 19,
-    "round9_heldout": 71,
+    "round9_heldout": 71, "round9_tuned": 8,
 }  # fmt: skip
 
 

@@ -225,8 +225,11 @@ def _activity(rest: str, words: list[str], out: dict[str, Any]) -> str | None:
     the place after it, or None when the clause names none (what is worked on, if anything,
     is then the anchor)."""
     # "putting on my shoes by the door": the particle is the verb's, not a place
+    # "drying off next to the rack": a particle before another relation
     particle = re.match(
-        r"^(?:putting|taking|trying|pulling|slipping|picking) (?:on|off|up)\s", rest
+        r"^(?:(?:putting|taking|trying|pulling|slipping|picking) (?:on|off|up)"
+        r"|[a-z]+ing (?:on|off|up)(?= (?:" + "|".join(re.escape(r) for r in RELATIONS) + r") ))\s",
+        rest,
     )
     m = re.compile(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s").search(
         " " + rest + " ", particle.end() if particle else 0
@@ -271,6 +274,8 @@ def _anchor(rest: str, out: dict[str, Any]) -> None:
     obj = object_words(re.sub(r"\s+" + _DOING + r"\b.*$", "", obj))
     obj = _ACTIVITY_TAIL.sub("", obj)  # "the counter chopping onions"
     obj = asides.COVERED.sub("", obj)  # "the bed under the duvet"
+    if rel != "on":  # "at the desk on a stool": what I sit on, not the place's name
+        obj = re.sub(r"(?<=\w) on (?:a|an) [\w -]+$", "", obj)
     obj = _PART_OF.sub("", obj)
     if obj in asides.PRONOUNS and out.get("named"):  # "there is a sofa ...; i sit on it"
         obj = out["named"]

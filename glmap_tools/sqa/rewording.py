@@ -146,6 +146,10 @@ _TIME_TAIL = re.compile(r",? (?:right now|at the moment|at present|currently|jus
 _NORMAL: tuple[tuple[str, str | Callable[[re.Match[str]], str]], ...] = (
     (r" (?:in total|altogether|in all)(?=[?.!]*$)", ""),  # "how many ... in total"
     (r"\bin between\b", "between"),
+    (
+        r"\bto where (?:i am|i'm|i stand|i sit|i)(?: standing| sitting| seated)?(?=[?.!]*$)",
+        "to me",
+    ),
     (r"\b(if|when|once) i (?:turned|were to turn|was to turn)\b", r"\1 i turn"),
     # "is the picture above me?": whether to look up
     (

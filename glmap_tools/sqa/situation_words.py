@@ -96,6 +96,8 @@ RELATIONS = (
     "along",
     "around",
     "out of",
+    "off of",
+    "off",
     "over",
     "from",
     "with",
