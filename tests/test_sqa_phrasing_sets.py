@@ -36,6 +36,10 @@ about unseen text. docs/evaluation.md has the table.
   the window" (the rug taken for the place), "looking at the mirror on the wall" (read as
   the mirror, where the set says "mirror on the wall", still so); "which object is closest
   to where I am?".
+- round10_heldout: 28 / 30 and 36 / 36 when written after round nine's rules, never tuned
+  on: the figure for the reader as it stands. Misread: "on the bed's edge" (the possessive
+  part kept as the name) and "at the window with the radiator under it" (the clause about
+  the radiator kept in the window's name).
 """
 
 import json
@@ -62,12 +66,13 @@ HELD_OUT = {
     "round7_heldout": (1.0, 1.0),
     "round8_heldout": (1.0, 1.0),
     "round9_heldout": (0.97, 1.0),
+    "round10_heldout": (0.93, 1.0),
 }
 SIZES = {  # sentences per set (situations + questions)
     "round2_tuned": 102, "round2_heldout": 79, "round3_tuned": 80, "round3_heldout": 114,
     "round4_heldout": 112, "round5_heldout": 104, "round5_tuned": 30, "round6_heldout": 58,
     "round6_tuned": 22, "round7_heldout": 48, "round8_heldout": 60, "round8_tuned": 19,
-    "round9_heldout": 71, "round9_tuned": 8,
+    "round9_heldout": 71, "round9_tuned": 8, "round10_heldout": 66,
 }  # fmt: skip
 
 
