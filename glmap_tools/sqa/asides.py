@@ -121,7 +121,15 @@ def negated(clause: str) -> bool:
 
 PRONOUNS = ("it", "them", "this", "that", "this one", "that one", "one of them", "one of those")
 _THERE_IS = re.compile(
-    r"^there (?:is|are) (?P<x>(?:a|an|one|some|the|two|three|four|several|a few) .+)$"
+    r"^there (?:is|are) (?P<x>(?:(?:a|an|one|some|the|two|three|four|several|a few) )?[a-z].+)$"
+    # "the cat is on the bed": a scene around me, said of something else
+    r"|^(?P<y>(?:the|a|an) [\w' -]+?) (?:is|are) (?:on|in|at|by|next to|near|under|above|beside"
+    r"|against|behind|in front of|inside) (?:the|a|an) .+$"
+)
+# Where I was, not where I am: "i just got off the couch".
+_LEFT = re.compile(
+    r"^i (?:just |have just |had )?(?:got off|got up from|got out of|left|stepped off|stepped out"
+    r" of|came out of|walked away from|came from)\b"
 )
 
 
@@ -131,7 +139,12 @@ def introduced(clause: str) -> str | None:
     m = _THERE_IS.match(clause)
     if m is None or re.search(r"\bi\b", clause):  # egocentric ones are read before
         return None
-    return m.group("x")
+    return m.group("x") or m.group("y")
+
+
+def left_behind(clause: str) -> bool:
+    """Does the clause say where I was ("i just got off the couch")? It is not where I am."""
+    return bool(_LEFT.match(clause))
 
 
 def of_another(clause: str) -> bool:

@@ -17,6 +17,10 @@ def split_clauses(text: str) -> list[str]:
     t = re.sub(r"\bthere's\b", "there is", t)
     # "while the kettle boils, ...": a leading clause about something else sets the scene
     t = re.sub(r"^\s*(?:while|whilst|as|when|since|because|once)\s+(?!i\b)[^,;.]*,", " ", t)
+    # "when i wake up, i sit on the bed": a time of mine before where I am
+    t = re.sub(
+        r"^\s*(?:when|whenever|after|before|once|as soon as)\s+i\s[^,;.]*,(?=\s*i\b)", " ", t
+    )
     # "the lamp's on my right"
     t = re.sub(
         r"\b([a-z]+)'s (?=(?:on|to|at|in|behind|right|just|directly|straight)\b)", r"\1 is ", t

@@ -135,6 +135,7 @@ def object_words(phrase: str) -> str:
     p = phrase.strip(" .,;:!?\"'")
     p = re.sub(r"^(?:there (?:is|are)|there's|i (?:can )?see|i have|is|are)\s+", "", p)
     p = re.sub(r"\s+(?:of me|from me|to me|as well|too)$", "", p)
+    p = re.sub(r"\s+(?:standing|hanging|sitting|lying|placed|leaning|resting)$", "", p)
     prev = None
     while prev != p:
         prev = p
@@ -227,7 +228,7 @@ def _activity(rest: str, words: list[str], out: dict[str, Any]) -> str | None:
     # "putting on my shoes by the door": the particle is the verb's, not a place
     # "drying off next to the rack": a particle before another relation
     particle = re.match(
-        r"^(?:(?:putting|taking|trying|pulling|slipping|picking) (?:on|off|up)"
+        r"^(?:(?:putting|taking|trying|pulling|slipping|picking|turning|switching) (?:on|off|up)"
         r"|[a-z]+ing (?:on|off|up)(?= (?:" + "|".join(re.escape(r) for r in RELATIONS) + r") ))\s",
         rest,
     )
@@ -286,7 +287,7 @@ def _anchor(rest: str, out: dict[str, Any]) -> None:
     if sub and object_words(sub.group(1)) in ROOMS:
         room, rel, obj = object_words(sub.group(1)), sub.group(2), object_words(sub.group(3))
         obj = f"{obj} in the {room}"
-    elif sub and rel == "on" and object_words(sub.group(1)) in _GROUND and sub.group(2) != "on":
+    elif sub and object_words(sub.group(1)) in _GROUND and sub.group(2) != "on":
         rel, obj = sub.group(2), object_words(sub.group(3))  # the floor is no place
     obj = asides.qualifiers(obj)  # "a stool at the kitchen island": stool next to the island
     if obj and (not out.get("anchor") or out.get("relation") == "in" and obj not in ROOMS):
@@ -319,6 +320,7 @@ def read_situation(text: str) -> SituationReading:
             asides.negated(clause)
             or asides.leading_adverbial(clause, i, len(clauses))
             or asides.of_another(clause)
+            or asides.left_behind(clause)
         ):
             continue  # "i cannot see the tv", "after entering the room", "a mirror above it"
         clause = asides.without_lead_time(clause)
