@@ -76,7 +76,6 @@ _SYNONYMS: tuple[tuple[str, str | Callable[[re.Match[str]], str]], ...] = (
         r" (if|when|after|once) ",
         r"can i see the \1 \2 ",
     ),
-    (r"\b(?:if|when|once) i (?:turned|were to turn|was to turn)\b", "if i turn"),
     (
         r"^(if|when|since) i (?:wanted|wished|needed|would want|would like|had) to\b",
         r"\1 i want to",
