@@ -21,6 +21,16 @@ def split_clauses(text: str) -> list[str]:
     t = re.sub(
         r"^\s*(?:when|whenever|after|before|once|as soon as)\s+i\s[^,;.]*,(?=\s*i\b)", " ", t
     )
+    # "i was sitting on the bed and the window was on my left": told in the past, read now
+    t = re.sub(r"\bi was\b", "i am", t)
+    t = re.sub(r"\bwas\b", "is", t)
+    t = re.sub(r"\bwere\b", "are", t)
+    # "at the counter with a cup in my hand": what I hold is no place
+    t = re.sub(
+        r"\s+with (?:a|an|the|my|some) [\w -]+? in my (?:hands?|lap|arms)\b(?= *[,;.!?]| *$)",
+        "",
+        t,
+    )
     # "the lamp's on my right"
     t = re.sub(
         r"\b([a-z]+)'s (?=(?:on|to|at|in|behind|right|just|directly|straight)\b)", r"\1 is ", t

@@ -195,10 +195,11 @@ def _place_words(clause: str, out: dict[str, Any]) -> tuple[str, str | None]:
         rest,
     )
     rest = _VERB.sub("", rest)
-    # "i wash dishes at the sink": a verb with its object before the place
+    # "i wash dishes at the sink": a verb with its object before the place; "while i cook":
+    # a verb alone
     present = re.match(
         r"^(?:i|we)\s+(?!(?:am|are|was|were|have|has|had|can|could|will|would|do|did|may|"
-        r"might|must|should|see|look|face)\b)([a-z]+)\s+(?!" + _REL_START[1:] + r")",
+        r"might|must|should|see|look|face)\b)([a-z]+)(?:\s+(?!" + _REL_START[1:] + r")|$)",
         clause,
     )
     # "i relax in the armchair": after "i", a word before the place is a verb
