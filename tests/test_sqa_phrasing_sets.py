@@ -46,6 +46,9 @@ about unseen text. docs/evaluation.md has the table.
   sitting off to my right?", "what object is at 3 o'clock from me?", "are the curtains
   drawn?", "what's sitting on top of the dresser?", "is anything on the nightstand?",
   "where's the bin relative to me?", "is the clock above my eye level or below it?".
+  31 / 31 and 31 / 32 after round eleven's rules (tests/test_sqa_round11.py); "where's the
+  bin relative to me?" stays "direction", the family that rule reads "where is X relative to
+  me" as on purpose (both answer with a side).
 """
 
 import json
@@ -60,7 +63,7 @@ from glmap_tools.sqa.relations import relation_phrases
 DATA = Path(__file__).parent / "data"
 TUNED = (
     "round2_tuned", "round3_tuned", "round5_tuned", "round6_tuned", "round8_tuned",
-    "round9_tuned",
+    "round9_tuned", "round11_tuned",
 )  # fmt: skip
 # held-out set: (situations, questions) floor of the share read right
 HELD_OUT = {
@@ -73,13 +76,14 @@ HELD_OUT = {
     "round8_heldout": (1.0, 1.0),
     "round9_heldout": (0.97, 1.0),
     "round10_heldout": (0.93, 1.0),
-    "round11_heldout": (0.93, 0.78),
+    "round11_heldout": (1.0, 0.96),
 }
 SIZES = {  # sentences per set (situations + questions)
     "round2_tuned": 102, "round2_heldout": 79, "round3_tuned": 80, "round3_heldout": 114,
     "round4_heldout": 112, "round5_heldout": 104, "round5_tuned": 30, "round6_heldout": 58,
     "round6_tuned": 22, "round7_heldout": 48, "round8_heldout": 60, "round8_tuned": 19,
     "round9_heldout": 71, "round9_tuned": 8, "round10_heldout": 66, "round11_heldout": 63,
+    "round11_tuned": 19,
 }  # fmt: skip
 
 

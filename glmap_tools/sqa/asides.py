@@ -142,9 +142,18 @@ def introduced(clause: str) -> str | None:
     return m.group("x") or m.group("y")
 
 
+# How I came, naming no place: "i have just walked in", "i got home".
+_CAME = re.compile(
+    r"^i (?:have |had )?(?:just |only just )?(?:walked|came|come|got|stepped|wandered|arrived"
+    r"|moved|entered)(?: (?:in|inside|back|home|here|over|up|down))?(?: (?:in|inside|home|here))?"
+    r"(?: now)?$"
+)
+
+
 def left_behind(clause: str) -> bool:
-    """Does the clause say where I was ("i just got off the couch")? It is not where I am."""
-    return bool(_LEFT.match(clause))
+    """Does the clause say where I was ("i just got off the couch") or only that I came ("i
+    have just walked in")? It is not where I am."""
+    return bool(_LEFT.match(clause) or _CAME.match(clause))
 
 
 def of_another(clause: str) -> bool:

@@ -31,6 +31,8 @@ def split_clauses(text: str) -> list[str]:
         "",
         t,
     )
+    # "the fridge is over to my left", "the toaster way off to my right"
+    t = re.sub(r"\s(?:way\s)?(?:over|off)\s(?=(?:to|on)\s(?:my|the)\s(?:left|right)\b)", " ", t)
     # "the lamp's on my right"
     t = re.sub(
         r"\b([a-z]+)'s (?=(?:on|to|at|in|behind|right|just|directly|straight)\b)", r"\1 is ", t

@@ -160,6 +160,36 @@ _NORMAL: tuple[tuple[str, str | Callable[[re.Match[str]], str]], ...] = (
         ),
     ),
     (r"\b(above|below|under|over) (?:my )?eye[- ]?(?:level|line)\b", r"\1 my eyes"),
+    # "is the clock above my eye level or below it?": the options together, as they are read
+    (
+        r"^(is|are) (the (?:(?!\bor\b)[a-z -])+?) (above|below|over|under) my eyes or"
+        r" (above|below|over|under)(?: it| them| my eyes)?(?=[?.!]*$)",
+        r"\1 \2 \3 or \4 my eyes",
+    ),
+    # "what's sitting off to my right?", "what is placed on the shelf?"
+    (
+        r"^(what(?: object| thing)?(?: is|'s)) (?:(?:sitting|standing|lying|located|placed|kept"
+        r"|hanging|resting) )?(?:(?:way )?(?:off|over) )?(?=(?:on|to|at|in|behind|next to|by) )",
+        r"\1 ",
+    ),
+    # "what object is at 3 o'clock from me?"
+    (
+        r"\b(o'? ?clock)(?: (?:from|relative to|in relation to) (?:me|here|where i(?:'m| am)?"
+        r"(?: standing| sitting)?))(?=[?.!]*$)",
+        r"\1",
+    ),
+    (
+        r"^(is|are) (anything|something) (?:(?:sitting|lying|placed|kept|resting|standing) )?"
+        r"(?=(?:on|in|under|inside) )",
+        r"\1 there \2 ",
+    ),
+    # "are the curtains drawn?", "is the lamp lit?"
+    (
+        r"^(is|are) (the (?:curtains?|blinds?|drapes?|shades?)) (?:drawn|pulled)(?: shut| closed)?"
+        r"(?=[?.!]*$)",
+        r"\1 \2 closed",
+    ),
+    (r"^(is|are) (the (?:(?!\bor\b)[a-z -])+?) (?:lit|lit up)(?=[?.!]*$)", r"\1 \2 on"),
     # "are there an odd or even number of lamps?"
     (
         r"^(?:are|is) there an? (?:odd|even) or (?:an? )?(?:even|odd) number of (.+?)(?=[?.!]*$)",
