@@ -1,5 +1,6 @@
-"""Situations told in the past tense, with a bare verb for what I do, or with what I hold:
-misreadings a probe of sentences outside the phrasing sets found."""
+"""Situations told in the past tense, with a bare verb for what I do, with what I hold, or
+with "it" after two things: misreadings a probe of sentences outside the phrasing sets
+found."""
 
 import pytest
 
@@ -48,3 +49,18 @@ def test_a_verb_alone_is_what_i_do_not_where_i_am(text):
 )
 def test_what_i_hold_is_no_part_of_the_place(text, anchor):
     assert read_situation(text).anchor == anchor
+
+
+@pytest.mark.parametrize(
+    ("text", "anchor"),
+    [
+        ("The lamp is next to the sofa, and I am sitting on it.", "sofa"),
+        ("The cat is on the bed and I'm lying on it.", "bed"),
+        ("The tv is across from the couch and I'm sitting on it.", "couch"),
+        ("There is a sofa against the wall and I am sitting on it.", "sofa"),
+        ("A cushion is on the chair and I am sitting on it.", "cushion"),  # both hold me
+        ("The plant is by the window and I'm standing next to it.", "plant"),  # no seat asked
+    ],
+)
+def test_it_that_i_sit_or_lie_on_is_the_seat_of_the_two_things_just_named(text, anchor):
+    assert summary(read_situation(text))[0] == anchor  # the anchor's object words

@@ -124,7 +124,8 @@ _THERE_IS = re.compile(
     r"^there (?:is|are) (?P<x>(?:(?:a|an|one|some|the|two|three|four|several|a few) )?[a-z].+)$"
     # "the cat is on the bed": a scene around me, said of something else
     r"|^(?P<y>(?:the|a|an) [\w' -]+?) (?:is|are) (?:on|in|at|by|next to|near|under|above|beside"
-    r"|against|behind|in front of|inside) (?:the|a|an) .+$"
+    r"|against|behind|in front of|inside|across from|opposite(?: to)?|to the (?:left|right) of)"
+    r" (?P<z>(?:the|a|an) .+)$"
 )
 # Where I was, not where I am: "i just got off the couch".
 _LEFT = re.compile(
@@ -148,6 +149,15 @@ _CAME = re.compile(
     r"|moved|entered)(?: (?:in|inside|back|home|here|over|up|down))?(?: (?:in|inside|home|here))?"
     r"(?: now)?$"
 )
+
+
+def introduced_place(clause: str) -> str | None:
+    """What the thing a scene clause brings in stands by ("the lamp is next to the sofa":
+    the sofa), or None."""
+    m = _THERE_IS.match(clause)
+    if m is None or m.group("z") is None or re.search(r"\bi\b", clause):
+        return None
+    return m.group("z")
 
 
 def left_behind(clause: str) -> bool:

@@ -30,7 +30,14 @@ from glmap_tools.sqa.reading_form import SIDE_BEARING as SIDE_BEARING
 from glmap_tools.sqa.reading_form import SIDES as SIDES
 from glmap_tools.sqa.reading_form import Constraint, SituationReading
 from glmap_tools.sqa.reading_form import Side as Side
-from glmap_tools.sqa.situation_words import BASE_POSTURES, HOUR_WORDS, POSTURES, RELATIONS, ROOMS
+from glmap_tools.sqa.situation_words import (
+    BASE_POSTURES,
+    HOUR_WORDS,
+    POSTURES,
+    RELATIONS,
+    ROOMS,
+    SEATS,
+)
 
 _DET = re.compile(r"^(?:the|a|an|some|my|this|that|one|two|three|several|few|of)\s+")
 _LEAD = re.compile(
@@ -281,6 +288,9 @@ def _anchor(rest: str, out: dict[str, Any]) -> None:
     obj = _PART_OF.sub("", obj)
     if obj in asides.PRONOUNS and out.get("named"):  # "there is a sofa ...; i sit on it"
         obj = out["named"]
+        place = out.get("named_place")
+        if place and _seat(place) and not _seat(obj) and out.get("posture") is not None:
+            obj = place  # "the lamp is next to the sofa, and i am sitting on it"
     if ego is not None and obj:
         out.setdefault("ego", []).append((obj, ego))
     # "in the kitchen next to the fridge": the object, not the room, is the anchor.
@@ -295,6 +305,12 @@ def _anchor(rest: str, out: dict[str, Any]) -> None:
         if out.get("anchor") and out.get("relation") == "in":
             obj = f"{obj} in the {out['anchor']}"
         out["anchor"], out["relation"] = obj, rel
+
+
+def _seat(phrase: str) -> bool:
+    """Is it something one sits, lies or stands on (by the last word of its name)?"""
+    words = phrase.split()
+    return bool(words) and words[-1] in SEATS
 
 
 def read_situation(text: str) -> SituationReading:
@@ -336,6 +352,8 @@ def read_situation(text: str) -> SituationReading:
         named = asides.introduced(clause)
         if named is not None:  # "there is a sofa against the wall (and i sit on it)"
             out["named"] = asides.qualifiers(object_words(named))
+            place = asides.introduced_place(clause)
+            out["named_place"] = object_words(place) if place is not None else None
             continue
         rest = _facing(clause, out, cons, fronts)
         if rest is not None:

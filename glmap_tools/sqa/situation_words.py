@@ -55,6 +55,14 @@ BASE_POSTURES = {
     "wait": "waiting",
     "rest": "resting",
 }
+# What one sits, lies or stands on (by the last word of its name): "the lamp is next to the
+# sofa and i sit on it" is the sofa.
+SEATS = (
+    "sofa", "couch", "chair", "armchair", "bed", "bench", "stool", "ottoman", "loveseat",
+    "settee", "recliner", "futon", "hammock", "pouf", "beanbag", "cushion", "rug", "mat",
+    "carpet", "floor", "step", "steps", "stairs", "toilet", "seat", "daybed", "chaise",
+    "mattress", "swing", "sofabed", "bunk",
+)  # fmt: skip
 # Longest first: "in front of" before "in", "on top of" before "on".
 RELATIONS = (
     "in front of",
