@@ -64,3 +64,17 @@ def test_what_i_hold_is_no_part_of_the_place(text, anchor):
 )
 def test_it_that_i_sit_or_lie_on_is_the_seat_of_the_two_things_just_named(text, anchor):
     assert summary(read_situation(text))[0] == anchor  # the anchor's object words
+
+
+@pytest.mark.parametrize(
+    ("text", "anchor"),
+    [
+        ("I'm perched on the sofa's arm with the lamp on my left.", "sofa"),
+        ("I'm at the table's far end.", "table"),
+        ("I'm lying on the couch with a blanket over it.", "couch"),
+        ("I'm sitting at the table with the chairs around it.", "table"),
+        ("I am standing at the counter with the sink next to it, facing the window.", "counter"),
+    ],
+)
+def test_a_part_owned_by_the_place_and_what_stands_by_it_are_the_place(text, anchor):
+    assert summary(read_situation(text))[0] == anchor

@@ -31,6 +31,13 @@ def split_clauses(text: str) -> list[str]:
         "",
         t,
     )
+    # "at the window with the radiator under it": what stands by the place is no part of it
+    t = re.sub(
+        r"\s+with (?:the|a|an|some) [\w -]+? (?:under|below|beneath|above|over|beside|next to|by"
+        r"|near|around|behind|in front of|on top of|on|in) (?:it|them)\b(?= *[,;.!?]| *$)",
+        "",
+        t,
+    )
     # "the fridge is over to my left", "the toaster way off to my right"
     t = re.sub(r"\s(?:way\s)?(?:over|off)\s(?=(?:to|on)\s(?:my|the)\s(?:left|right)\b)", " ", t)
     # "the lamp's on my right"

@@ -79,6 +79,10 @@ _PART_OF = re.compile(
     r"(?:end|top|bottom|edge|side|corner|arm|armrest|back|foot|head|front|middle|center|centre"
     r"|left|right|left-hand side|right-hand side)( of (?:the |a |an |my )?)(?=\w)"
 )
+_PART_OWNED = re.compile(
+    r"'s (?:far |near |other |left |right |front |back )?(?:end|top|bottom|edge|side|corner|arm"
+    r"|armrest|back|foot|head|front|middle|center|centre)$"
+)
 # What one stands or sits on before the place: "on the floor next to the coffee table".
 _GROUND = ("floor", "ground")  # a rug or a carpet can be a unit of its own
 _PLACE_TAIL = r"(?: (?:on|by|near|next to|against|under|in) (?:the|a|an) [\w -]+)?"
@@ -286,6 +290,7 @@ def _anchor(rest: str, out: dict[str, Any]) -> None:
     if rel != "on":  # "at the desk on a stool": what I sit on, not the place's name
         obj = re.sub(r"(?<=\w) on (?:a|an) [\w -]+$", "", obj)
     obj = _PART_OF.sub("", obj)
+    obj = _PART_OWNED.sub("", obj)  # "the bed's edge"
     if obj in asides.PRONOUNS and out.get("named"):  # "there is a sofa ...; i sit on it"
         obj = out["named"]
         place = out.get("named_place")
