@@ -55,7 +55,8 @@ about unseen text. docs/evaluation.md has the table.
   (the laptop), "in the doorway with the bed straight ahead" (the bed kept with the
   doorway), "my chair is pushed back from the desk and I'm sitting in it" ("it" unread), a
   run-on "at the stove cooking pasta the fridge is on my right"; "what's right behind my
-  back?", "how many cushions can I spot?".
+  back?", "how many cushions can I spot?". Whole after round twelve's rules
+  (tests/test_sqa_round12.py).
 """
 
 import json
@@ -70,7 +71,7 @@ from glmap_tools.sqa.relations import relation_phrases
 DATA = Path(__file__).parent / "data"
 TUNED = (
     "round2_tuned", "round3_tuned", "round5_tuned", "round6_tuned", "round8_tuned",
-    "round9_tuned", "round11_tuned",
+    "round9_tuned", "round11_tuned", "round12_tuned",
 )  # fmt: skip
 # held-out set: (situations, questions) floor of the share read right
 HELD_OUT = {
@@ -84,14 +85,14 @@ HELD_OUT = {
     "round9_heldout": (0.97, 1.0),
     "round10_heldout": (1.0, 1.0),
     "round11_heldout": (1.0, 0.96),
-    "round12_heldout": (0.8, 0.93),
+    "round12_heldout": (1.0, 1.0),
 }
 SIZES = {  # sentences per set (situations + questions)
     "round2_tuned": 102, "round2_heldout": 79, "round3_tuned": 80, "round3_heldout": 114,
     "round4_heldout": 112, "round5_heldout": 104, "round5_tuned": 30, "round6_heldout": 58,
     "round6_tuned": 22, "round7_heldout": 48, "round8_heldout": 60, "round8_tuned": 19,
     "round9_heldout": 71, "round9_tuned": 8, "round10_heldout": 66, "round11_heldout": 63,
-    "round11_tuned": 19, "round12_heldout": 62,
+    "round11_tuned": 19, "round12_heldout": 62, "round12_tuned": 8,
 }  # fmt: skip
 
 

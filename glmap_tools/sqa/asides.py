@@ -123,9 +123,9 @@ PRONOUNS = ("it", "them", "this", "that", "this one", "that one", "one of them",
 _THERE_IS = re.compile(
     r"^there (?:is|are) (?P<x>(?:(?:a|an|one|some|the|two|three|four|several|a few) )?[a-z].+)$"
     # "the cat is on the bed": a scene around me, said of something else
-    r"|^(?P<y>(?:the|a|an) [\w' -]+?) (?:is|are) (?:on|in|at|by|next to|near|under|above|beside"
-    r"|against|behind|in front of|inside|across from|opposite(?: to)?|to the (?:left|right) of)"
-    r" (?P<z>(?:the|a|an) .+)$"
+    r"|^(?P<y>(?:the|a|an|my) [\w' -]+?) (?:is|are) (?:[a-z]+ed (?:back |up |out |away )?)?"
+    r"(?:on|in|at|by|next to|near|under|above|beside|against|behind|in front of|inside|from"
+    r"|across from|opposite(?: to)?|to the (?:left|right) of) (?P<z>(?:the|a|an|my) .+)$"
 )
 # Where I was, not where I am: "i just got off the couch".
 _LEFT = re.compile(

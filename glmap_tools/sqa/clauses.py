@@ -9,6 +9,15 @@ import re
 
 from glmap_tools.sqa import asides
 
+# Where an unpunctuated text starts another clause: "the fridge is on my right" after a word
+# that does not relate it to the place before ("the cabinet next to the fridge is ...").
+_RUN_ON = re.compile(
+    r"(?<!\bto)(?<!\bby)(?<!\bof)(?<!\bnear)(?<!\bbeside)(?<!\bfrom)(?<!\bat)(?<!\bon)(?<!\bin)"
+    r"(?<!\band)(?<!\bwith)(?<!\bbehind)(?<!\bunder)(?<!\bwhile)\s+(?=(?:the|a|an) "
+    r"(?:(?!(?:the|a|an|and|with|that|which|who)\b)[\w-]+ ){1,3}(?:is|are) (?:on|to|at|in|behind)"
+    r" (?:my|me)\b)"
+)
+
 
 def split_clauses(text: str) -> list[str]:
     """The clauses of a situation text, lower-cased, in order."""
@@ -46,6 +55,8 @@ def split_clauses(text: str) -> list[str]:
     )
     t = re.sub(r"\bi(?:'ve| have) got\b|\bi've\b", "i have", t)
     t = re.sub(r"\bo ?clock\b|\bo' clock\b", "o'clock", t)
+    if not re.search(r"[,;:.!?]", t.strip(" .!?")):  # a run-on sentence: "at the stove
+        t = _RUN_ON.sub(", ", t)  # cooking pasta the fridge is on my right"
     t = asides.hands_to_sides(t)
     t = asides.side_words(t)
     t = asides.ACROSS.sub("in front of me", t)
@@ -60,7 +71,8 @@ def split_clauses(text: str) -> list[str]:
         # not inside a description ("the floor lamp with a green shade").
         r"|\s+with\s+(?=my\b|(?:the|a|an)\s(?:(?!\b(?:and|is|are)\b)[\w\s-])+?\s"
         r"(?:on|to|at|in front of|behind)\s(?:my|me)\b"
-        r"|(?:the|a|an)\s[\w\s-]+?\son (?:either|both|each) sides? of me\b)",
+        r"|(?:the|a|an)\s[\w\s-]+?\son (?:either|both|each) sides? of me\b"
+        r"|(?:the|a|an)\s[\w\s-]+?\s(?:straight |right |directly )?ahead\b)",
         t,
     )
     out: list[str] = []

@@ -87,10 +87,11 @@ _PART_OWNED = re.compile(
 _GROUND = ("floor", "ground")  # a rug or a carpet can be a unit of its own
 _PLACE_TAIL = r"(?: (?:on|by|near|next to|against|under|in) (?:the|a|an) [\w -]+)?"
 _REL_START = r"^(?:" + "|".join(RELATIONS) + r") "
-# A verb before the relation that is no posture: "i stopped next to the bookcase".
+# A verb before the relation that is no posture: "i stopped next to the bookcase"; or the
+# manner of a posture: "cross-legged on the mat", "stretched out on the sofa".
 _VERB = re.compile(
-    r"^(?:\w+ed|was|got|went|came|remain|remains|stay|stays|am|is|sits|stands|lies)"
-    r"(?: (?:up|over|back|down|here|there))? (?=(?:" + "|".join(RELATIONS) + r") )"
+    r"^(?:[\w-]+ed|was|got|went|came|remain|remains|stay|stays|am|is|sits|stands|lies)"
+    r"(?: (?:up|over|back|down|out|here|there))? (?=(?:" + "|".join(RELATIONS) + r") )"
 )
 # A participle after the anchor starts another clause ("at the window looking outside").
 _DOING = (
@@ -244,9 +245,14 @@ def _activity(rest: str, words: list[str], out: dict[str, Any]) -> str | None:
         r"|[a-z]+ing (?:on|off|up)(?= (?:" + "|".join(re.escape(r) for r in RELATIONS) + r") ))\s",
         rest,
     )
-    m = re.compile(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s").search(
-        " " + rest + " ", particle.end() if particle else 0
-    )
+    relation = re.compile(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s")
+    m = relation.search(" " + rest + " ", particle.end() if particle else 0)
+    while m and (" " + rest + " ")[m.end() :].startswith("my "):
+        # "working on my laptop at the kitchen table": the place is after what is mine
+        later = relation.search(" " + rest + " ", m.end())
+        if later is None:
+            break
+        m = later
     loc = None
     if m and m.start() > 0:
         head = rest[: m.start() - 1].strip() if m.start() > 0 else ""

@@ -172,6 +172,8 @@ _NORMAL: tuple[tuple[str, str | Callable[[re.Match[str]], str]], ...] = (
         r"|hanging|resting) )?(?:(?:way )?(?:off|over) )?(?=(?:on|to|at|in|behind|next to|by) )",
         r"\1 ",
     ),
+    (r"\bbehind my back\b", "behind me"),
+    (r"\bcan i (?:spot|notice|make out|glimpse)\b", "can i see"),
     # "what object is at 3 o'clock from me?"
     (
         r"\b(o'? ?clock)(?: (?:from|relative to|in relation to) (?:me|here|where i(?:'m| am)?"
