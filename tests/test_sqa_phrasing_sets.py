@@ -57,6 +57,13 @@ about unseen text. docs/evaluation.md has the table.
   run-on "at the stove cooking pasta the fridge is on my right"; "what's right behind my
   back?", "how many cushions can I spot?". Whole after round twelve's rules
   (tests/test_sqa_round12.py).
+- round13_heldout: 25 / 30 and 27 / 31 when written after round twelve's rules, not tuned on:
+  the figure for the reader as it stands (one label was set to the sets' convention after
+  the first reading: a thing at my 12 o'clock is what I face). Misread: a leading "ok so",
+  "Me: on the couch (facing the tv)", a leading "At the moment", "the lid of the toilet",
+  "the kitchen floor next to the dishwasher"; "whats on my left" (no apostrophe), "what's
+  that thing at 2 o'clock?", "is there an even number of cushions?", "is the number of lamps
+  a multiple of 3?".
 """
 
 import json
@@ -86,6 +93,7 @@ HELD_OUT = {
     "round10_heldout": (1.0, 1.0),
     "round11_heldout": (1.0, 0.96),
     "round12_heldout": (1.0, 1.0),
+    "round13_heldout": (0.83, 0.87),
 }
 SIZES = {  # sentences per set (situations + questions)
     "round2_tuned": 102, "round2_heldout": 79, "round3_tuned": 80, "round3_heldout": 114,
@@ -93,6 +101,7 @@ SIZES = {  # sentences per set (situations + questions)
     "round6_tuned": 22, "round7_heldout": 48, "round8_heldout": 60, "round8_tuned": 19,
     "round9_heldout": 71, "round9_tuned": 8, "round10_heldout": 66, "round11_heldout": 63,
     "round11_tuned": 19, "round12_heldout": 62, "round12_tuned": 8,
+    "round13_heldout": 61,
 }  # fmt: skip
 
 
