@@ -44,6 +44,11 @@ def test_a_side_said_from_afar_and_how_i_came_read_as_where_i_am(text, reading):
     ],
 )
 def test_a_question_worded_another_way_gets_the_plain_questions_answer(question, plain):
+    assert_answered_as(question, plain)
+
+
+def assert_answered_as(question: str, plain: str) -> None:
+    """`question` gets the family, answer and support of `plain`, a form the reader knew."""
     answerer = OfflineAnswerer()
     got, want = answerer.answer(question, WHERE), answerer.answer(plain, WHERE)
     assert want.question_type != "unknown"
