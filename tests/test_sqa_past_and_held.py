@@ -60,6 +60,7 @@ def test_what_i_hold_is_no_part_of_the_place(text, anchor):
         ("There is a sofa against the wall and I am sitting on it.", "sofa"),
         ("A cushion is on the chair and I am sitting on it.", "cushion"),  # both hold me
         ("The plant is by the window and I'm standing next to it.", "plant"),  # no seat asked
+        ("The lamp by the bed is next to the chair and I'm sitting on it.", "chair"),
     ],
 )
 def test_it_that_i_sit_or_lie_on_is_the_seat_of_the_two_things_just_named(text, anchor):

@@ -319,9 +319,10 @@ def _anchor(rest: str, out: dict[str, Any]) -> None:
 
 
 def _seat(phrase: str) -> bool:
-    """Is it something one sits, lies or stands on (by the last word of its name)?"""
-    words = phrase.split()
-    return bool(words) and words[-1] in SEATS
+    """Is it something one sits, lies or stands on (by the last word of its name, before any
+    relation: "lamp near the bed" is a lamp)?"""
+    words = re.split(r" (?:near|next to|by|beside|at|on|in|under|against|behind) ", phrase)[0]
+    return bool(words.split()) and words.split()[-1] in SEATS
 
 
 def read_situation(text: str) -> SituationReading:
