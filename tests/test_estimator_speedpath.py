@@ -118,7 +118,8 @@ def test_the_lockstep_curvatures_are_the_scalar_newton_bit_for_bit():
     covs = a @ a.transpose(0, 2, 1) + 1e-6 * np.eye(3)
     covs[:200] = np.diag([2e-5, 2e-5, 2e-5]) + 1e-9 * np.eye(3)  # repeated roots: the formula
     covs[200:400] = np.diag(rng.uniform(1e-6, 1e-4, 3))  # diagonal
-    rows = covs[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+    # C order, as the fit's rows: another layout would compile the kernel again (seconds in CI)
+    rows = np.ascontiguousarray(covs[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]])
     expected = np.array([max(kernels.min_eigenvalue(*r), 0.0) / (r[0] + r[3] + r[5]) for r in rows])
     np.testing.assert_array_equal(kernels.curvatures(rows), expected)
     np.testing.assert_array_equal(kernels.curvatures(rows[5:70]), expected[5:70])
@@ -187,7 +188,8 @@ def test_pairs_whose_largest_d_is_subnormal_are_sorted(d_max):
     pi, pj = np.arange(40), np.arange(40) + 1
     d = np.where(np.arange(40) % 3 == 0, d_max, 0.0)
     expected = np.stack([pi, pj], axis=1)[np.lexsort((pj, pi, d))]
-    np.testing.assert_array_equal(clusters.sort_pairs(pi[::-1], pj[::-1], d[::-1]), expected)
+    backwards = (np.ascontiguousarray(a[::-1]) for a in (pi, pj, d))  # C order, as the fit's
+    np.testing.assert_array_equal(clusters.sort_pairs(*backwards), expected)
 
 
 def test_the_stage_clock_times_every_stage_and_changes_no_output():
