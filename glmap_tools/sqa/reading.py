@@ -30,6 +30,7 @@ from glmap_tools.sqa.reading_form import SIDE_BEARING as SIDE_BEARING
 from glmap_tools.sqa.reading_form import SIDES as SIDES
 from glmap_tools.sqa.reading_form import Constraint, SituationReading
 from glmap_tools.sqa.reading_form import Side as Side
+from glmap_tools.sqa.relations import relation_phrases
 from glmap_tools.sqa.situation_words import (
     BASE_POSTURES,
     HOUR_WORDS,
@@ -246,10 +247,11 @@ def _activity(rest: str, words: list[str], out: dict[str, Any]) -> str | None:
         rest,
     )
     relation = re.compile(r"\s(" + "|".join(re.escape(r) for r in RELATIONS) + r")\s")
-    m = relation.search(" " + rest + " ", particle.end() if particle else 0)
-    while m and (" " + rest + " ")[m.end() :].startswith("my "):
+    padded = " " + rest + " "
+    m = relation.search(padded, particle.end() if particle else 0)
+    while m and padded[m.end() :].startswith("my "):
         # "working on my laptop at the kitchen table": the place is after what is mine
-        later = relation.search(" " + rest + " ", m.end())
+        later = relation.search(padded, m.end())
         if later is None:
             break
         m = later
@@ -319,10 +321,10 @@ def _anchor(rest: str, out: dict[str, Any]) -> None:
 
 
 def _seat(phrase: str) -> bool:
-    """Is it something one sits, lies or stands on (by the last word of its name, before any
-    relation: "lamp near the bed" is a lamp)?"""
-    words = re.split(r" (?:near|next to|by|beside|at|on|in|under|against|behind) ", phrase)[0]
-    return bool(words.split()) and words.split()[-1] in SEATS
+    """Is it something one sits, lies or stands on (by the last word of its own name, before
+    any relation: "lamp near the bed" is a lamp)?"""
+    words = relation_phrases(phrase)[0].split()
+    return bool(words) and words[-1] in SEATS
 
 
 def read_situation(text: str) -> SituationReading:
