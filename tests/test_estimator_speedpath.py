@@ -211,3 +211,69 @@ def test_the_stage_clock_times_every_stage_and_changes_no_output():
     assert list(stages.seconds) == every
     assert all(s >= 0.0 for s in stages.seconds.values())
     assert list(stage_medians(plane, colours, CONFIG.voxel_size, 2)) == ["input checks", *every]
+
+
+def halves_clouds() -> dict[str, tuple[np.ndarray, float]]:
+    """Clouds for the two-thread voxelising: a noisy surface, one whose blocks overfill both
+    halves' tables and the join (a block per point), shared and duplicate points, tiny ones."""
+    rng = np.random.default_rng(11)
+    surface = np.c_[rng.uniform(0, 1.5, (60_000, 2)), rng.normal(0, 0.004, 60_000)]
+    sparse = rng.uniform(0, 60.0, (30_000, 3))
+    dupes = np.repeat(rng.uniform(0, 0.2, (700, 3)), 3, axis=0)
+    shared = np.concatenate([surface[:5000], surface[:5000][::-1]])  # the halves meet everywhere
+    return {
+        "surface": (surface, 0.015),
+        "a block per point": (sparse, 0.01),
+        "duplicates": (dupes, 0.015),
+        "the second half repeats the first": (shared, 0.02),
+        "one point": (surface[:1], 0.015),
+        "two points": (surface[:2], 0.015),
+        "three points": (surface[:3], 0.015),
+    }
+
+
+@pytest.mark.parametrize("name", list(halves_clouds()))
+def test_voxelising_in_halves_numbers_blocks_and_voxels_as_one_pass_does(name):
+    points, voxel = halves_clouds()[name]
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    lo = np.floor(points.min(axis=0) / voxel).astype(np.int64)
+    one_pass = voxels.voxelize(points, voxel, lo)
+    *halves, split = voxels.voxelize_halves(points, voxel, lo)
+    for a, b in zip(one_pass, halves, strict=True):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+    point_voxel = one_pass[0]
+    # the voxels from `split` on hold points of the second half only, and those below it
+    # are the first half's
+    assert point_voxel[: len(points) // 2].max(initial=-1) < split
+    assert set(np.unique(point_voxel[point_voxel >= split]).tolist()) <= set(
+        point_voxel[len(points) // 2 :].tolist()
+    )
+
+
+@pytest.mark.parametrize("name", ["surface", "duplicates", "the second half repeats the first"])
+def test_voxel_moments_summed_in_halves_are_the_one_thread_sums_to_the_bit(name):
+    points, voxel = halves_clouds()[name]
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    colors = np.random.default_rng(5).uniform(0, 1, (len(points), 3)).astype(np.float32)
+    lo = np.floor(points.min(axis=0) / voxel).astype(np.int64)
+    origin = (lo - voxels.CELL_MARGIN).astype(np.float64) * voxel
+    point_voxel, *_, split = voxels.voxelize_halves(points, voxel, lo)
+    n_voxels = int(point_voxel.max()) + 1
+    one = kernels.voxel_moments(points, colors, point_voxel, n_voxels, origin)
+    two = kernels.voxel_moments_split(points, colors, point_voxel, n_voxels, origin, split)
+    assert np.array_equal(one, two)
+
+
+def test_a_fit_in_halves_is_the_one_pass_fit():
+    from glmap_tools.gaussians._estimator_fast import fit_fast
+    from glmap_tools.gaussians.estimator import validate_cloud
+
+    points, voxel = halves_clouds()["surface"]
+    colours = np.random.default_rng(6).uniform(0, 1, (len(points), 3))
+    config = EstimatorConfig(voxel_size=voxel)
+    pts, cols, lo = validate_cloud(points, colours, voxel)
+    halves = fit_fast(pts, cols, config, lo, halves=True)
+    one_pass = fit_fast(pts, cols, config, lo, halves=False)
+    assert len(one_pass) > 1000
+    for a, b in zip(halves.arrays(), one_pass.arrays(), strict=True):
+        assert np.array_equal(a, b)

@@ -244,6 +244,8 @@ def warm_map_kernels() -> float:
     are enough for merged Gaussians (the fit's pair sweep, capped union and cluster sums),
     and its second and third observations fuse with the unit (`remerge`).
     """
+    from glmap_tools.gaussians._estimator_fast import fit_fast
+    from glmap_tools.gaussians.estimator import validate_cloud
     from glmap_tools.geometry import backproject
     from glmap_tools.language.embed import HashingEmbedder
     from glmap_tools.map import GLMap, MapConfig
@@ -257,6 +259,11 @@ def warm_map_kernels() -> float:
     frame, ids = synthetic.view(boxes, (0.0, -1.2, 1.1), (0.0, 0.0, 0.4), *WARM_VIEW)
     chair = backproject(frame.depth, frame.intrinsics, frame.pose, frame.rgb, ids == 1)
     glmap.estimator.fit(chair.points, chair.colors)
+    # and the two-thread voxelising of a frame-sized cloud (`fit_fast`'s halves), on the chair
+    points, colors, lo = validate_cloud(
+        chair.points, chair.colors, glmap.estimator.config.voxel_size
+    )
+    fit_fast(points, colors, glmap.estimator.config, lo, halves=True)
     for shift in (0.0, 0.05, 0.0):
         frame, ids = synthetic.view(boxes, (shift, -1.2, 1.1), (0.0, 0.0, 0.4), *WARM_VIEW)
         glmap.integrate(frame, synthetic.semantics(ids, texts))

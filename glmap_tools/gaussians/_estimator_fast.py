@@ -20,8 +20,9 @@ from glmap_tools.gaussians.types import GaussianSet
 if TYPE_CHECKING:
     from glmap_tools.gaussians.config import EstimatorConfig
 
-CHUNKS_PER_THREAD = 4
+CHUNKS_PER_THREAD = 1  # numba splits a prange statically: more chunks only cost
 PARALLEL_MIN_VOXELS = 10_000  # smaller clouds run on one thread (see design.md)
+PARALLEL_MIN_POINTS = 40_000  # smaller clouds are voxelised on one thread
 
 
 class StageTimes:
@@ -51,6 +52,7 @@ def fit_fast(
     config: EstimatorConfig,
     lo: np.ndarray,
     stages: StageTimes | None = None,
+    halves: bool | None = None,
 ) -> GaussianSet:
     """Fit and merge Gaussians to a validated, non-empty cloud.
 
@@ -60,20 +62,32 @@ def fit_fast(
         config: estimator settings.
         lo: [3] float64 smallest point coordinate per axis.
         stages: when given, each stage's process CPU time is added to it.
+        halves: voxelise and sum the voxel moments in two halves on two threads (the same
+            output); None: when the cloud has PARALLEL_MIN_POINTS points and numba two
+            threads or more.
     """
     lap = stages.lap if stages is not None else _no_lap
     voxel = float(config.voxel_size)
     lo_cell = np.floor(lo / voxel).astype(np.int64)
     origin = (lo_cell - voxels.CELL_MARGIN).astype(np.float64) * voxel
-    point_voxel, slot_voxel, voxel_block, voxel_slot, keys, table_keys, table_ids = voxels.voxelize(
-        points, voxel, lo_cell
-    )
+    if halves is None:
+        halves = len(points) >= PARALLEL_MIN_POINTS and numba.get_num_threads() > 1
+    if halves:
+        *voxelised, split = voxels.voxelize_halves(points, voxel, lo_cell)
+    else:
+        voxelised = list(voxels.voxelize(points, voxel, lo_cell))
+    point_voxel, slot_voxel, voxel_block, voxel_slot, keys, table_keys, table_ids = voxelised
     lap("voxelise")
     block_nbrs = grid.block_neighbours(keys, table_keys, table_ids)
     lap("block neighbours")
     threads = numba.get_num_threads() if len(voxel_block) >= PARALLEL_MIN_VOXELS else 1
     n_chunks = 1 if threads == 1 else CHUNKS_PER_THREAD * threads
-    moments = kernels.voxel_moments(points, colors, point_voxel, len(voxel_block), origin)
+    if halves:
+        moments = kernels.voxel_moments_split(
+            points, colors, point_voxel, len(voxel_block), origin, split
+        )
+    else:
+        moments = kernels.voxel_moments(points, colors, point_voxel, len(voxel_block), origin)
     lap("voxel moments")
     neighbours, first, n_neighbours, sums = kernels.neighbourhood_moments(
         voxel_block, voxel_slot, slot_voxel, block_nbrs, moments, n_chunks

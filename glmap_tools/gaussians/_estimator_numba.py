@@ -52,6 +52,77 @@ def voxel_moments(
 
 
 @numba.njit(cache=True)
+def _moments_of_voxels(
+    part: np.int64,
+    points: np.ndarray,
+    colors: np.ndarray,
+    point_voxel: np.ndarray,
+    split: int,
+    half: int,
+    origin: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """Part 0 sums the rows of voxels < split over every point, part 1 those of the others
+    over the points from `half` on; each zeroes its rows first."""
+    lo, hi = (ZERO, np.int64(split)) if part == 0 else (np.int64(split), np.int64(out.shape[0]))
+    for v in range(lo, hi):
+        for m in range(N_MOMENTS):
+            out[v, m] = 0.0
+    ox, oy, oz = origin[0], origin[1], origin[2]
+    for i in range(ZERO if part == 0 else np.int64(half), points.shape[0]):
+        v = point_voxel[i]
+        if v < lo or v >= hi:
+            continue
+        x = points[i, 0] - ox
+        y = points[i, 1] - oy
+        z = points[i, 2] - oz
+        out[v, 0] += 1.0
+        out[v, 1] += x
+        out[v, 2] += y
+        out[v, 3] += z
+        out[v, 4] += x * x
+        out[v, 5] += x * y
+        out[v, 6] += x * z
+        out[v, 7] += y * y
+        out[v, 8] += y * z
+        out[v, 9] += z * z
+        out[v, 10] += colors[i, 0]
+        out[v, 11] += colors[i, 1]
+        out[v, 12] += colors[i, 2]
+
+
+@numba.njit(cache=True, parallel=True)
+def _moments_parallel(
+    points: np.ndarray,
+    colors: np.ndarray,
+    point_voxel: np.ndarray,
+    split: int,
+    half: int,
+    origin: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    for part in numba.prange(2):  # nothing else here: array code would spawn parfors
+        _moments_of_voxels(np.int64(part), points, colors, point_voxel, split, half, origin, out)
+
+
+@numba.njit(cache=True)
+def voxel_moments_split(
+    points: np.ndarray,
+    colors: np.ndarray,
+    point_voxel: np.ndarray,
+    n_voxels: int,
+    origin: np.ndarray,
+    split: int,
+) -> np.ndarray:
+    """`voxel_moments` on two threads, the same bits, when the voxels from `split` on hold
+    points of the second half (from n // 2) only, as `voxelize_halves` numbers them: each
+    voxel's points are summed in input order by one thread."""
+    out = np.empty((n_voxels, N_MOMENTS))
+    _moments_parallel(points, colors, point_voxel, split, points.shape[0] // 2, origin, out)
+    return out
+
+
+@numba.njit(cache=True)
 def _neighbourhood_range(
     lo: int,
     hi: int,

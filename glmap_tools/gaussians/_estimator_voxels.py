@@ -17,6 +17,7 @@ CELL_MARGIN = 4  # one block of empty cells below the smallest coordinate
 EXPONENT_BITS = 0x7FF0000000000000  # of a float64: all set for inf and NaN
 ONE_BITS = 0x3F800000  # float32 1.0; non-negative float32s order as their bits
 NEGATIVE_ZERO_BITS = 0x80000000
+BLOCK_ROOM_DIVISOR = 32  # points per block the store is first sized for
 
 
 @numba.njit(cache=True, fastmath={"nnan", "nsz"})
@@ -54,23 +55,37 @@ def scan_cloud(points: np.ndarray, colors: np.ndarray) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True)
 def voxel_cells(points: np.ndarray, voxel: float, lo: np.ndarray) -> np.ndarray:
-    """[3 N] int32 cells floor(p / voxel) - lo + CELL_MARGIN, x y z of each point in turn.
+    """[3 N] int32 cells floor(p / voxel) - lo + CELL_MARGIN, x y z of each point in turn."""
+    out = np.empty(3 * points.shape[0], dtype=np.int32)
+    _cells_of_range(points, voxel, lo, ZERO, np.int64(points.shape[0]), out)
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _cells_of_range(
+    points: np.ndarray,
+    voxel: float,
+    lo: np.ndarray,
+    start: int | np.int64,
+    stop: int | np.int64,
+    out: np.ndarray,
+) -> None:
+    """Cells of points[start:stop] into out[3 start : 3 stop] (see `voxel_cells`).
 
     Flat arrays: the loop vectorises (the divisions four at a time), which [N, 3] indexing
     does not. Exact: floor(p / voxel) and lo are integers in float64, their difference small.
     """
-    flat = points.reshape(-1)
-    out = np.empty(flat.shape[0], dtype=np.int32)
+    flat = points.reshape(-1)[3 * start : 3 * stop]  # from 0: the loop then vectorises
+    cells = out[3 * start : 3 * stop]
     sx = float(lo[0] - CELL_MARGIN)
     sy = float(lo[1] - CELL_MARGIN)
     sz = float(lo[2] - CELL_MARGIN)
-    for i in range(points.shape[0]):
-        out[3 * i] = np.int32(np.floor(flat[3 * i] / voxel) - sx)
-        out[3 * i + 1] = np.int32(np.floor(flat[3 * i + 1] / voxel) - sy)
-        out[3 * i + 2] = np.int32(np.floor(flat[3 * i + 2] / voxel) - sz)
-    return out
+    for i in range(stop - start):
+        cells[3 * i] = np.int32(np.floor(flat[3 * i] / voxel) - sx)
+        cells[3 * i + 1] = np.int32(np.floor(flat[3 * i + 1] / voxel) - sy)
+        cells[3 * i + 2] = np.int32(np.floor(flat[3 * i + 2] / voxel) - sz)
 
 
 @numba.njit(cache=True)
@@ -86,7 +101,8 @@ def _voxelize_until_full(
     voxel_block: np.ndarray,
     voxel_slot: np.ndarray,
 ) -> int:
-    """Voxelize points from `start` until a new block would overfill the table.
+    """Voxelize points from `start` until a new block would overfill the table or the
+    block store (`keys`, `slot_voxel`).
 
     `state` = (n_blocks, n_voxels, last block key, its block) is updated in place.
     Returns the index of the first point not processed.
@@ -105,7 +121,7 @@ def _voxelize_until_full(
                     b = table_ids[h]
                     break
                 if tk == -1:
-                    if 2 * (n_blocks + 1) > cap:
+                    if 2 * (n_blocks + 1) > cap or n_blocks == keys.shape[0]:
                         state[0], state[1], state[2], state[3] = n_blocks, n_voxels, last_key, b
                         return i
                     table_keys[h] = k
@@ -158,6 +174,69 @@ def _rehash(keys: np.ndarray, n_keys: int, cap: int) -> tuple[np.ndarray, np.nda
 
 
 @numba.njit(cache=True)
+def _table_capacity(n: int) -> int:
+    """Hash table slots for n points: a power of two >= n / 8, at least 1024."""
+    cap = 1024
+    while cap < n // 8:
+        cap *= 2
+    return cap
+
+
+@numba.njit(cache=True)
+def _block_room(n: int) -> int:
+    """Blocks the store first holds for n points (it doubles when full): a frame has ~100
+    points per block, and a store much larger than its blocks is memory the allocator hands
+    back and faults in again on the next fit."""
+    return n // BLOCK_ROOM_DIVISOR + 16
+
+
+@numba.njit(cache=True)
+def _room_for_a_block(
+    n_blocks: int,
+    table_keys: np.ndarray,
+    table_ids: np.ndarray,
+    keys: np.ndarray,
+    slot_voxel: np.ndarray,
+) -> tuple:
+    """The table (rehashed at twice the slots) or the block store (twice the blocks), grown
+    so that one more block fits: (table keys, table ids, keys, slot_voxel)."""
+    if n_blocks == keys.shape[0]:
+        keys = _grown(keys, 2 * keys.shape[0], 0)
+        slot_voxel = _grown(slot_voxel, keys.shape[0] * SLOTS, -1)
+    if 2 * (n_blocks + 1) > table_keys.shape[0]:
+        table_keys, table_ids = _rehash(keys, n_blocks, 2 * table_keys.shape[0])
+    return table_keys, table_ids, keys, slot_voxel
+
+
+@numba.njit(cache=True)
+def _voxelize_rest(
+    cells: np.ndarray,
+    start: int,
+    state: np.ndarray,
+    table_keys: np.ndarray,
+    table_ids: np.ndarray,
+    keys: np.ndarray,
+    slot_voxel: np.ndarray,
+    point_voxel: np.ndarray,
+    voxel_block: np.ndarray,
+    voxel_slot: np.ndarray,
+) -> tuple:
+    """`_voxelize_until_full` from `start` to the last point, growing the table and the
+    block store when full; returns (table keys, table ids, keys, slot_voxel)."""
+    i = start
+    while True:
+        i = _voxelize_until_full(
+            cells, i, state, table_keys, table_ids, keys, slot_voxel,
+            point_voxel, voxel_block, voxel_slot,
+        )  # fmt: skip
+        if i == point_voxel.shape[0]:
+            return table_keys, table_ids, keys, slot_voxel
+        table_keys, table_ids, keys, slot_voxel = _room_for_a_block(
+            state[0], table_keys, table_ids, keys, slot_voxel
+        )
+
+
+@numba.njit(cache=True)
 def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
     """Number the blocks and occupied voxels of a cloud in first-seen order, in one pass.
 
@@ -168,30 +247,21 @@ def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
          block [V] and slot [V] of each voxel, block keys [B], hash table keys, table ids).
     """
     n = points.shape[0]
-    cap = 1024
-    while cap < n // 8:
-        cap *= 2
+    cap = _table_capacity(n)
     table_keys, table_ids = _rehash(np.empty(0, dtype=np.int64), ZERO, cap)
     cells = voxel_cells(points, voxel, lo)
-    keys = np.empty(cap // 2, dtype=np.int64)
+    rooms = _block_room(n)
+    keys = np.empty(rooms, dtype=np.int64)
     # A block's slots are set to -1 when the block is created: no memset of the whole store.
-    slot_voxel = np.empty((cap // 2) * SLOTS, dtype=np.int32)
+    slot_voxel = np.empty(rooms * SLOTS, dtype=np.int32)
     point_voxel = np.empty(n, dtype=np.int32)
     voxel_block = np.empty(n, dtype=np.int32)
     voxel_slot = np.empty(n, dtype=np.int32)
     state = np.array([0, 0, -1, -1], dtype=np.int64)
-    i = ZERO
-    while True:
-        i = _voxelize_until_full(
-            cells, i, state, table_keys, table_ids, keys, slot_voxel,
-            point_voxel, voxel_block, voxel_slot,
-        )  # fmt: skip
-        if i == n:
-            break
-        cap *= 2  # grow the table and the block storage, rehash
-        keys = _grown(keys, cap // 2, 0)
-        slot_voxel = _grown(slot_voxel, (cap // 2) * SLOTS, -1)
-        table_keys, table_ids = _rehash(keys, state[0], cap)
+    table_keys, table_ids, keys, slot_voxel = _voxelize_rest(
+        cells, ZERO, state, table_keys, table_ids, keys, slot_voxel,
+        point_voxel, voxel_block, voxel_slot,
+    )  # fmt: skip
     n_blocks, n_voxels = state[0], state[1]
     return (
         point_voxel,
@@ -202,3 +272,173 @@ def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
         table_keys,
         table_ids,
     )
+
+
+@numba.njit(cache=True)
+def _voxelize_half(
+    k: np.int64,  # int64 in both of the parfor's typings (one types k uint64): one compile
+    points: np.ndarray,
+    voxel: float,
+    lo: np.ndarray,
+    half: int,
+    cells: np.ndarray,
+    point_voxel: np.ndarray,
+    states: np.ndarray,
+    stops: np.ndarray,
+    a: tuple,
+    b: tuple,
+) -> None:
+    """Half k of `voxelize_halves`: its cells, then its voxels until its table is full."""
+    start, stop = (ZERO, np.int64(half)) if k == 0 else (np.int64(half), np.int64(points.shape[0]))
+    _cells_of_range(points, voxel, lo, start, stop, cells)
+    table_keys, table_ids, keys, slot_voxel, voxel_block, voxel_slot = a if k == 0 else b
+    stops[k] = _voxelize_until_full(
+        cells[3 * start : 3 * stop], ZERO, states[k], table_keys, table_ids, keys, slot_voxel,
+        point_voxel[start:stop], voxel_block, voxel_slot,
+    )  # fmt: skip
+
+
+@numba.njit(cache=True, parallel=True)
+def _voxelize_halves_parallel(
+    points: np.ndarray,
+    voxel: float,
+    lo: np.ndarray,
+    half: int,
+    cells: np.ndarray,
+    point_voxel: np.ndarray,
+    states: np.ndarray,
+    stops: np.ndarray,
+    a: tuple,
+    b: tuple,
+) -> None:
+    for k in numba.prange(2):  # nothing else here: array code would spawn parfors
+        _voxelize_half(
+            np.int64(k), points, voxel, lo, half, cells, point_voxel, states, stops, a, b
+        )
+
+
+@numba.njit(cache=True)
+def voxelize_halves(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
+    """`voxelize` with the two halves of the points hashed on two threads: the same outputs.
+
+    The first half numbers its blocks and voxels in the final table; the second numbers its
+    own, which then join the first's in their first-seen order (so a block or voxel first
+    seen in the second half gets the number `voxelize` gives it), and its points take the
+    joined numbers.
+
+    Returns:
+        `voxelize`'s outputs, then the number of voxels first seen in the first half (the
+        voxels numbered from it on hold points of the second half only).
+    """
+    n = points.shape[0]
+    half = n // 2
+    cap = _table_capacity(n)  # sized for the whole cloud: the second half's blocks join it
+    a_table_keys, a_table_ids = _rehash(np.empty(0, dtype=np.int64), ZERO, cap)
+    a_keys = np.empty(_block_room(n), dtype=np.int64)
+    a_slot_voxel = np.empty(a_keys.shape[0] * SLOTS, dtype=np.int32)
+    voxel_block = np.empty(n, dtype=np.int32)
+    voxel_slot = np.empty(n, dtype=np.int32)
+    b_cap = _table_capacity(n - half)
+    b_table_keys, b_table_ids = _rehash(np.empty(0, dtype=np.int64), ZERO, b_cap)
+    b_keys = np.empty(_block_room(n - half), dtype=np.int64)
+    b_slot_voxel = np.empty(b_keys.shape[0] * SLOTS, dtype=np.int32)
+    b_voxel_block = np.empty(n - half, dtype=np.int32)
+    b_voxel_slot = np.empty(n - half, dtype=np.int32)
+    cells = np.empty(3 * n, dtype=np.int32)
+    point_voxel = np.empty(n, dtype=np.int32)
+    states = np.empty((2, 4), dtype=np.int64)
+    states[:, 0] = 0
+    states[:, 1] = 0
+    states[:, 2] = -1
+    states[:, 3] = -1
+    stops = np.empty(2, dtype=np.int64)
+    _voxelize_halves_parallel(
+        points, voxel, lo, half, cells, point_voxel, states, stops,
+        (a_table_keys, a_table_ids, a_keys, a_slot_voxel, voxel_block, voxel_slot),
+        (b_table_keys, b_table_ids, b_keys, b_slot_voxel, b_voxel_block, b_voxel_slot),
+    )  # fmt: skip
+    # A half whose table filled goes on here, growing it as `voxelize` does.
+    a_table_keys, a_table_ids, a_keys, a_slot_voxel = _voxelize_rest(
+        cells[: 3 * half], stops[0], states[0], a_table_keys, a_table_ids, a_keys,
+        a_slot_voxel, point_voxel[:half], voxel_block, voxel_slot,
+    )  # fmt: skip
+    b_table_keys, b_table_ids, b_keys, b_slot_voxel = _voxelize_rest(
+        cells[3 * half :], stops[1], states[1], b_table_keys, b_table_ids, b_keys,
+        b_slot_voxel, point_voxel[half:], b_voxel_block, b_voxel_slot,
+    )  # fmt: skip
+    # The second half's blocks, then its voxels, join the first's in first-seen order.
+    first_half_voxels = states[0, 1]
+    a_table_keys, a_table_ids, a_keys, a_slot_voxel, n_blocks, n_voxels = _join_second_half(
+        states, a_table_keys, a_table_ids, a_keys, a_slot_voxel, voxel_block, voxel_slot,
+        b_keys, b_voxel_block, b_voxel_slot, point_voxel, half,
+    )  # fmt: skip
+    return (
+        point_voxel,
+        a_slot_voxel[: n_blocks * SLOTS],
+        voxel_block[:n_voxels],
+        voxel_slot[:n_voxels],
+        a_keys[:n_blocks],
+        a_table_keys,
+        a_table_ids,
+        first_half_voxels,
+    )
+
+
+@numba.njit(cache=True)
+def _join_second_half(
+    states: np.ndarray,
+    a_table_keys: np.ndarray,
+    a_table_ids: np.ndarray,
+    a_keys: np.ndarray,
+    a_slot_voxel: np.ndarray,
+    voxel_block: np.ndarray,
+    voxel_slot: np.ndarray,
+    b_keys: np.ndarray,
+    b_voxel_block: np.ndarray,
+    b_voxel_slot: np.ndarray,
+    point_voxel: np.ndarray,
+    half: int,
+) -> tuple:
+    """The second half's blocks, then its voxels, numbered after the first half's in their
+    first-seen order, and its points' voxels renumbered; returns the first half's table,
+    keys and slot store (grown as `voxelize` grows them) and the block and voxel counts."""
+    n_blocks, n_voxels = states[0, 0], states[0, 1]
+    block_map = np.empty(states[1, 0], dtype=np.int32)
+    for q in range(states[1, 0]):
+        key = b_keys[q]
+        if 2 * (n_blocks + 1) > a_table_keys.shape[0] or n_blocks == a_keys.shape[0]:
+            a_table_keys, a_table_ids, a_keys, a_slot_voxel = _room_for_a_block(
+                n_blocks, a_table_keys, a_table_ids, a_keys, a_slot_voxel
+            )
+        mask = a_table_keys.shape[0] - 1
+        h = hash_slot(key, mask)
+        while True:
+            tk = a_table_keys[h]
+            if tk == key:
+                block_map[q] = a_table_ids[h]
+                break
+            if tk == -1:
+                a_table_keys[h] = key
+                a_table_ids[h] = n_blocks
+                a_keys[n_blocks] = key
+                a_slot_voxel[n_blocks * SLOTS : (n_blocks + 1) * SLOTS] = -1
+                block_map[q] = n_blocks
+                n_blocks += 1
+                break
+            h = (h + 1) & mask
+    voxel_map = np.empty(states[1, 1], dtype=np.int32)
+    for u in range(states[1, 1]):
+        g = block_map[b_voxel_block[u]]
+        s = b_voxel_slot[u]
+        flat = g * SLOTS + s
+        v = a_slot_voxel[flat]
+        if v < 0:
+            v = n_voxels
+            a_slot_voxel[flat] = v
+            voxel_block[v] = g
+            voxel_slot[v] = s
+            n_voxels += 1
+        voxel_map[u] = v
+    for i in range(half, point_voxel.shape[0]):
+        point_voxel[i] = voxel_map[point_voxel[i]]
+    return a_table_keys, a_table_ids, a_keys, a_slot_voxel, n_blocks, n_voxels
