@@ -144,6 +144,24 @@ def test_the_input_scan_flags_what_numpy_flags_and_finds_the_extent():
         assert voxels.scan_cloud(points, c)[1] == ok, value
 
 
+@pytest.mark.parametrize("at", [0, 499, 500, 1000])
+def test_the_input_scan_in_halves_is_the_one_pass_scan(at):
+    rng = np.random.default_rng(7)
+    points = rng.normal(size=(1001, 3))
+    colors = rng.uniform(0, 1, (1001, 3)).astype(np.float32)
+    points[at] = [40.0, -40.0, 7.0]  # the extent's corner in either half
+    np.testing.assert_array_equal(
+        voxels.scan_cloud_halves(points, colors), voxels.scan_cloud(points, colors)
+    )
+    for bad_points, bad_colors in ((np.inf, 0.5), (0.0, 1.5)):
+        p, c = points.copy(), colors.copy()
+        p[at, 1] = bad_points
+        c[at, 2] = bad_colors
+        flags = voxels.scan_cloud_halves(p, c)[:2]
+        np.testing.assert_array_equal(flags, voxels.scan_cloud(p, c)[:2])
+        assert flags.min() == 0.0
+
+
 def test_the_candidates_in_key_order_are_the_candidates_packed_by_the_sweep():
     rng = np.random.default_rng(8)
     sums = np.abs(rng.normal(size=(500, 13))) + 0.01

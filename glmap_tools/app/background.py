@@ -245,6 +245,7 @@ def warm_map_kernels() -> float:
     and its second and third observations fuse with the unit (`remerge`).
     """
     from glmap_tools.gaussians._estimator_fast import fit_fast
+    from glmap_tools.gaussians._estimator_voxels import scan_cloud_halves
     from glmap_tools.gaussians.estimator import validate_cloud
     from glmap_tools.geometry import backproject
     from glmap_tools.language.embed import HashingEmbedder
@@ -259,10 +260,11 @@ def warm_map_kernels() -> float:
     frame, ids = synthetic.view(boxes, (0.0, -1.2, 1.1), (0.0, 0.0, 0.4), *WARM_VIEW)
     chair = backproject(frame.depth, frame.intrinsics, frame.pose, frame.rgb, ids == 1)
     glmap.estimator.fit(chair.points, chair.colors)
-    # and the two-thread voxelising of a frame-sized cloud (`fit_fast`'s halves), on the chair
+    # and the two-thread input scan and voxelising of a frame-sized cloud, on the chair
     points, colors, lo = validate_cloud(
         chair.points, chair.colors, glmap.estimator.config.voxel_size
     )
+    scan_cloud_halves(points, colors)
     fit_fast(points, colors, glmap.estimator.config, lo, halves=True)
     for shift in (0.0, 0.05, 0.0):
         frame, ids = synthetic.view(boxes, (shift, -1.2, 1.1), (0.0, 0.0, 0.4), *WARM_VIEW)

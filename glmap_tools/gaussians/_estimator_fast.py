@@ -41,8 +41,12 @@ class StageTimes:
 
 
 def scan(points: np.ndarray, colors: np.ndarray) -> tuple[bool, bool, np.ndarray, np.ndarray]:
-    """(points all finite, colours all in [0, 1], [3] point min, [3] point max), one pass."""
-    stats = voxels.scan_cloud(points, colors)
+    """(points all finite, colours all in [0, 1], [3] point min, [3] point max), one pass
+    (in two halves on two threads from PARALLEL_MIN_POINTS points)."""
+    if len(points) >= PARALLEL_MIN_POINTS and numba.get_num_threads() > 1:
+        stats = voxels.scan_cloud_halves(points, colors)
+    else:
+        stats = voxels.scan_cloud(points, colors)
     return bool(stats[0]), bool(stats[1]), stats[2:5], stats[5:8]
 
 

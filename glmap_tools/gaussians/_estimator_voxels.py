@@ -56,6 +56,32 @@ def scan_cloud(points: np.ndarray, colors: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def _scan_half(k: np.int64, points: np.ndarray, colors: np.ndarray, out: np.ndarray) -> None:
+    half = points.shape[0] // 2
+    start, stop = (ZERO, np.int64(half)) if k == 0 else (np.int64(half), np.int64(points.shape[0]))
+    out[k] = scan_cloud(points[start:stop], colors[start:stop])
+
+
+@numba.njit(cache=True, parallel=True)
+def _scan_halves_parallel(points: np.ndarray, colors: np.ndarray, out: np.ndarray) -> None:
+    for k in numba.prange(2):  # nothing else here: array code would spawn parfors
+        _scan_half(np.int64(k), points, colors, out)
+
+
+@numba.njit(cache=True)
+def scan_cloud_halves(points: np.ndarray, colors: np.ndarray) -> np.ndarray:
+    """`scan_cloud` of N >= 2 points, its two halves on two threads."""
+    halves = np.empty((2, 8))
+    _scan_halves_parallel(points, colors, halves)
+    out = np.empty(8)
+    out[0], out[1] = min(halves[0, 0], halves[1, 0]), min(halves[0, 1], halves[1, 1])
+    for a in range(2, 5):
+        out[a] = min(halves[0, a], halves[1, a])
+        out[a + 3] = max(halves[0, a + 3], halves[1, a + 3])
+    return out
+
+
+@numba.njit(cache=True)
 def voxel_cells(points: np.ndarray, voxel: float, lo: np.ndarray) -> np.ndarray:
     """[3 N] int32 cells floor(p / voxel) - lo + CELL_MARGIN, x y z of each point in turn."""
     out = np.empty(3 * points.shape[0], dtype=np.int32)
