@@ -163,3 +163,31 @@ def test_the_unmutated_store_opens_and_works(valid_store):
     assert len(glmap.instances) == 2 and len(glmap.regions) == 1 and len(glmap.structure)
     _use(glmap)
     glmap.close()
+
+
+@pytest.mark.parametrize(
+    ("shift", "said"),
+    [
+        ((0.0, -196_600.0, 0.0), "past the map's world_limit"),  # a flipped exponent bit
+        ((0.0, -400.0, 0.0), "more than the map's max_span"),
+    ],
+)
+def test_a_stored_pose_no_frame_could_have_had_is_refused_at_open(
+    valid_store, tmp_path, shift, said
+):
+    # Every integrated frame passed the map's bounds; a stored camera beyond them is damage,
+    # and a map opened with it would refuse every later frame.
+    from glmap_tools.map.store_rows import to_npy
+
+    path = tmp_path / "moved.glmap"
+    shutil.copy(valid_store, path)
+    conn = sqlite3.connect(path)
+    with conn:
+        ((blob,),) = conn.execute("SELECT pose FROM frames ORDER BY seq LIMIT 1").fetchall()
+        pose = np.load(io.BytesIO(blob))
+        pose[:3, 3] += shift
+        conn.execute("UPDATE frames SET pose = ? WHERE seq = 1", (to_npy(pose),))
+    conn.close()
+    with pytest.raises(StoreError, match=said) as refused:
+        GLMap.open(path, embedder=HashingEmbedder())
+    assert path.name in str(refused.value) and "frame" in str(refused.value)

@@ -371,7 +371,21 @@ def _read_layers(
             ok = False
         if not ok:
             raise refuse(f"frame {seq} pose is not a rigid world_from_camera matrix")
+        centre = pose[:3, 3]
+        if np.abs(centre).max() > config.world_limit:  # no frame past it was integrated
+            raise refuse(
+                f"frame {seq} pose puts the camera at {np.abs(centre).max():.4g} m from the "
+                f"origin, past the map's world_limit ({config.world_limit:g} m)"
+            )
         trajectory.append(pose)
+    if trajectory:
+        centres = np.array([p[:3, 3] for p in trajectory])
+        span = float((centres.max(axis=0) - centres.min(axis=0)).max())
+        if span > config.max_span:
+            raise refuse(
+                f"the frames' camera centres span {span:.4g} m, more than the map's "
+                f"max_span ({config.max_span:g} m)"
+            )
     return occupancy, structure, trajectory
 
 
