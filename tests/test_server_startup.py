@@ -329,6 +329,30 @@ def test_the_layer_warm_up_compiles_what_a_frame_update_calls():
     assert [list(k.signatures) for k in kernels] == warmed
 
 
+def test_the_halves_warm_up_compiles_what_a_frame_sized_fit_calls():
+    # `glmap-mcp --prepare` compiles the two-thread kernels beside the map's process; a type
+    # it missed would compile in the first frame-sized fit of every server.
+    import numpy as np
+
+    from glmap_tools.app.background import warm_halves_kernels
+    from glmap_tools.gaussians import _estimator_numba, _estimator_voxels
+    from glmap_tools.gaussians._estimator_fast import fit_fast
+    from glmap_tools.gaussians.config import EstimatorConfig
+    from glmap_tools.gaussians.estimator import validate_cloud
+
+    kernels = (_estimator_voxels.scan_cloud_halves, _estimator_voxels.voxelize_halves,
+               _estimator_numba.voxel_moments_split)  # fmt: skip
+    warm_halves_kernels()
+    warmed = [list(k.signatures) for k in kernels]
+    assert all(warmed)
+    rng = np.random.default_rng(1)
+    plane = np.c_[rng.uniform(0, 1.0, (50_000, 2)), rng.normal(0, 0.003, 50_000)]
+    points, colors, lo = validate_cloud(plane, rng.uniform(0, 1, (50_000, 3)), 0.015)
+    _estimator_voxels.scan_cloud_halves(points, colors)  # as `scan` calls it from 40k points
+    fit_fast(points, colors, EstimatorConfig(voxel_size=0.015), lo, halves=True)
+    assert [list(k.signatures) for k in kernels] == warmed
+
+
 def test_the_wide_cloud_warm_up_takes_the_hashed_grids_path(monkeypatch):
     from glmap_tools.app.background import warm_wide_cloud_kernels
     from glmap_tools.gaussians import _estimator_fast

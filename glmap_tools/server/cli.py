@@ -382,13 +382,15 @@ def prepare() -> int:
 
     Numba compiles on one core: the map's kernels compile in a second process while this
     one compiles the map layers' own, the renderer's and the simulator's, loads the embedder,
-    compiles the estimator's path for very wide clouds and prepares the handshake answers
+    compiles the estimator's paths for very wide clouds and (on two threads) for frame-sized
+    ones, and prepares the handshake answers
     (servers of its own, started one after another on a thread).
     """
     from concurrent.futures import ThreadPoolExecutor
 
     from glmap_tools.app.background import (
         load_embedder,
+        warm_halves_kernels,
         warm_layer_kernels,
         warm_view_and_sim_kernels,
         warm_wide_cloud_kernels,
@@ -404,6 +406,7 @@ def prepare() -> int:
             warm_view_and_sim_kernels()
             load_embedder("minilm", None).embed(["a chair"])
             warm_wide_cloud_kernels()  # while the map's process still compiles
+            warm_halves_kernels()
         finally:
             map_kernels.wait()
         versions = handshake.result()
