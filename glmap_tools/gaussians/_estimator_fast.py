@@ -67,8 +67,8 @@ def fit_fast(
         lo: [3] float64 smallest point coordinate per axis.
         stages: when given, each stage's process CPU time is added to it.
         halves: voxelise and sum the voxel moments in two halves on two threads (the same
-            output); None: when the cloud has PARALLEL_MIN_POINTS points and numba two
-            threads or more.
+            output); None: when the cloud has PARALLEL_MIN_POINTS points or more and numba
+            two threads or more.
     """
     lap = stages.lap if stages is not None else _no_lap
     voxel = float(config.voxel_size)
