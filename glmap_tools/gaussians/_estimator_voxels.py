@@ -217,6 +217,34 @@ def _block_room(n: int) -> int:
 
 
 @numba.njit(cache=True)
+def _empty_store(n: int) -> tuple:
+    """An empty table and block store for n points, and room for their voxels: (table keys,
+    table ids, block keys, voxel in each block slot, block and slot of each voxel). A
+    block's slots are set to -1 when the block is created: no memset of the whole store."""
+    table_keys, table_ids = _rehash(np.empty(0, dtype=np.int64), ZERO, _table_capacity(n))
+    keys = np.empty(_block_room(n), dtype=np.int64)
+    slot_voxel = np.empty(keys.shape[0] * SLOTS, dtype=np.int32)
+    voxel_block = np.empty(n, dtype=np.int32)
+    voxel_slot = np.empty(n, dtype=np.int32)
+    return table_keys, table_ids, keys, slot_voxel, voxel_block, voxel_slot
+
+
+@numba.njit(cache=True)
+def _voxelised(point_voxel: np.ndarray, n_blocks: int, n_voxels: int, store: tuple) -> tuple:
+    """`voxelize`'s outputs from a filled store of n_blocks blocks and n_voxels voxels."""
+    table_keys, table_ids, keys, slot_voxel, voxel_block, voxel_slot = store
+    return (
+        point_voxel,
+        slot_voxel[: n_blocks * SLOTS],
+        voxel_block[:n_voxels],
+        voxel_slot[:n_voxels],
+        keys[:n_blocks],
+        table_keys,
+        table_ids,
+    )
+
+
+@numba.njit(cache=True)
 def _room_for_a_block(
     n_blocks: int,
     table_keys: np.ndarray,
@@ -273,31 +301,18 @@ def voxelize(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
          block [V] and slot [V] of each voxel, block keys [B], hash table keys, table ids).
     """
     n = points.shape[0]
-    cap = _table_capacity(n)
-    table_keys, table_ids = _rehash(np.empty(0, dtype=np.int64), ZERO, cap)
+    table_keys, table_ids, keys, slot_voxel, voxel_block, voxel_slot = _empty_store(n)
     cells = voxel_cells(points, voxel, lo)
-    rooms = _block_room(n)
-    keys = np.empty(rooms, dtype=np.int64)
-    # A block's slots are set to -1 when the block is created: no memset of the whole store.
-    slot_voxel = np.empty(rooms * SLOTS, dtype=np.int32)
     point_voxel = np.empty(n, dtype=np.int32)
-    voxel_block = np.empty(n, dtype=np.int32)
-    voxel_slot = np.empty(n, dtype=np.int32)
     state = np.array([0, 0, -1, -1], dtype=np.int64)
     table_keys, table_ids, keys, slot_voxel = _voxelize_rest(
         cells, ZERO, state, table_keys, table_ids, keys, slot_voxel,
         point_voxel, voxel_block, voxel_slot,
     )  # fmt: skip
-    n_blocks, n_voxels = state[0], state[1]
-    return (
-        point_voxel,
-        slot_voxel[: n_blocks * SLOTS],
-        voxel_block[:n_voxels],
-        voxel_slot[:n_voxels],
-        keys[:n_blocks],
-        table_keys,
-        table_ids,
-    )
+    return _voxelised(
+        point_voxel, state[0], state[1],
+        (table_keys, table_ids, keys, slot_voxel, voxel_block, voxel_slot),
+    )  # fmt: skip
 
 
 @numba.njit(cache=True)
@@ -358,18 +373,8 @@ def voxelize_halves(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
     """
     n = points.shape[0]
     half = n // 2
-    cap = _table_capacity(n)  # sized for the whole cloud: the second half's blocks join it
-    a_table_keys, a_table_ids = _rehash(np.empty(0, dtype=np.int64), ZERO, cap)
-    a_keys = np.empty(_block_room(n), dtype=np.int64)
-    a_slot_voxel = np.empty(a_keys.shape[0] * SLOTS, dtype=np.int32)
-    voxel_block = np.empty(n, dtype=np.int32)
-    voxel_slot = np.empty(n, dtype=np.int32)
-    b_cap = _table_capacity(n - half)
-    b_table_keys, b_table_ids = _rehash(np.empty(0, dtype=np.int64), ZERO, b_cap)
-    b_keys = np.empty(_block_room(n - half), dtype=np.int64)
-    b_slot_voxel = np.empty(b_keys.shape[0] * SLOTS, dtype=np.int32)
-    b_voxel_block = np.empty(n - half, dtype=np.int32)
-    b_voxel_slot = np.empty(n - half, dtype=np.int32)
+    a = _empty_store(n)  # sized for the whole cloud: the second half's blocks join it
+    b = _empty_store(n - half)
     cells = np.empty(3 * n, dtype=np.int32)
     point_voxel = np.empty(n, dtype=np.int32)
     states = np.empty((2, 4), dtype=np.int64)
@@ -378,36 +383,26 @@ def voxelize_halves(points: np.ndarray, voxel: float, lo: np.ndarray) -> tuple:
     states[:, 2] = -1
     states[:, 3] = -1
     stops = np.empty(2, dtype=np.int64)
-    _voxelize_halves_parallel(
-        points, voxel, lo, half, cells, point_voxel, states, stops,
-        (a_table_keys, a_table_ids, a_keys, a_slot_voxel, voxel_block, voxel_slot),
-        (b_table_keys, b_table_ids, b_keys, b_slot_voxel, b_voxel_block, b_voxel_slot),
-    )  # fmt: skip
+    _voxelize_halves_parallel(points, voxel, lo, half, cells, point_voxel, states, stops, a, b)
     # A half whose table filled goes on here, growing it as `voxelize` does.
+    a_table_keys, a_table_ids, a_keys, a_slot_voxel, voxel_block, voxel_slot = a
     a_table_keys, a_table_ids, a_keys, a_slot_voxel = _voxelize_rest(
         cells[: 3 * half], stops[0], states[0], a_table_keys, a_table_ids, a_keys,
         a_slot_voxel, point_voxel[:half], voxel_block, voxel_slot,
     )  # fmt: skip
-    b_table_keys, b_table_ids, b_keys, b_slot_voxel = _voxelize_rest(
+    b_table_keys, b_table_ids, b_keys, b_slot_voxel, b_voxel_block, b_voxel_slot = b
+    b_keys = _voxelize_rest(
         cells[3 * half :], stops[1], states[1], b_table_keys, b_table_ids, b_keys,
         b_slot_voxel, point_voxel[half:], b_voxel_block, b_voxel_slot,
-    )  # fmt: skip
+    )[2]  # fmt: skip
     # The second half's blocks, then its voxels, join the first's in first-seen order.
     first_half_voxels = states[0, 1]
     a_table_keys, a_table_ids, a_keys, a_slot_voxel, n_blocks, n_voxels = _join_second_half(
         states, a_table_keys, a_table_ids, a_keys, a_slot_voxel, voxel_block, voxel_slot,
         b_keys, b_voxel_block, b_voxel_slot, point_voxel, half,
     )  # fmt: skip
-    return (
-        point_voxel,
-        a_slot_voxel[: n_blocks * SLOTS],
-        voxel_block[:n_voxels],
-        voxel_slot[:n_voxels],
-        a_keys[:n_blocks],
-        a_table_keys,
-        a_table_ids,
-        first_half_voxels,
-    )
+    store = (a_table_keys, a_table_ids, a_keys, a_slot_voxel, voxel_block, voxel_slot)
+    return (*_voxelised(point_voxel, n_blocks, n_voxels, store), first_half_voxels)
 
 
 @numba.njit(cache=True)
