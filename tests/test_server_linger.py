@@ -88,6 +88,30 @@ async def imported_by_a_later_call(maps: Path, run_dir: Path, log: Path) -> set[
     return imported
 
 
+async def test_a_relay_killed_while_its_server_starts_leaves_the_next_call_that_server(
+    tmp_path, run_dir
+):
+    # LangChain's get_tools() kills the process it started once it has the tool list, which the
+    # relay answers from the prepared answers: its server may still be importing then.
+    params = relay(tmp_path / "maps", run_dir)
+    first = subprocess.Popen(
+        [params.command, *params.args],
+        env=params.env,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+    )
+    deadline = time.monotonic() + 30
+    while not lingering_servers(str(run_dir)) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    first.kill()
+    first.wait()
+    (starting,) = lingering_servers(str(run_dir))
+    assert list((run_dir / "glmap").glob("*.sock")) == []  # not listening yet
+    async with Client(relay(tmp_path / "maps", run_dir)) as client:
+        answer(await client.call_tool("map_summary", {"include_image": False}))
+    assert lingering_servers(str(run_dir)) == [starting]  # the next call waited for it
+
+
 async def test_calls_at_once_start_one_server_take_turns_and_other_settings_get_their_own(
     tmp_path, run_dir
 ):

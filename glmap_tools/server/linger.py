@@ -17,6 +17,9 @@ of its own. The server's stderr goes to `<hash>.log` beside the socket.
 `<hash>.lock` (flock) keeps a server from leaving while a client connects: a relay holds it
 shared from its connect until the server's first line reaches it, and exclusive while it
 starts a server; the server leaves only when it takes it exclusively with no connection open.
+`<hash>.alive` (flock, exclusive) is held by the server for its whole life, from the relay's
+launch on: a relay that finds no socket but a server alive (one still starting, whose relay
+the client killed meanwhile) waits for that server instead of starting a second.
 """
 
 from __future__ import annotations
@@ -107,6 +110,7 @@ class ServerFiles:
         self.socket = folder / f"{key}.sock"
         self.lock = folder / f"{key}.lock"
         self.log = folder / f"{key}.log"
+        self.alive = folder / f"{key}.alive"
         if len(os.fsencode(self.socket)) > MAX_SOCKET_PATH:
             raise LingerError(
                 f"the socket path {str(self.socket)!r} is too long for a Unix socket; set "
@@ -127,17 +131,36 @@ def _connect(path: Path) -> socket.socket | None:
     return sock
 
 
+def _take_alive(files: ServerFiles) -> int | None:
+    """The alive lock, taken exclusively, when no server of this key lives; else None."""
+    fd = os.open(files.alive, os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        return None
+    return fd
+
+
 def _start(argv: list[str], files: ServerFiles) -> socket.socket:
     """Start the background server and wait until it listens (the caller holds the lock;
-    the server replaces the socket a dead one left)."""
-    with open(files.log, "wb") as log:
-        child = subprocess.Popen(
-            [sys.executable, "-m", "glmap_tools.server", *argv, SERVE_FLAG, str(files.socket)],
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL,
-            stderr=log,
-            start_new_session=True,  # outlives this process and the client's kill of its group
-        )
+    the server replaces the socket a dead one left). A server of this key that is alive
+    but not yet listening is waited for instead."""
+    alive = _take_alive(files)
+    if alive is None:
+        return _wait_for_the_starting_server(argv, files)
+    try:
+        with open(files.log, "wb") as log:
+            child = subprocess.Popen(
+                [sys.executable, "-m", "glmap_tools.server", *argv, SERVE_FLAG, str(files.socket)],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=log,
+                start_new_session=True,  # outlives this process and the client's kill of its group
+                pass_fds=(alive,),  # the server holds the alive lock from here on, for its life
+            )
+    finally:
+        os.close(alive)
     deadline = time.monotonic() + START_WAIT_S
     while True:
         sock = _connect(files.socket)
@@ -152,6 +175,26 @@ def _start(argv: list[str], files: ServerFiles) -> socket.socket:
             raise LingerError(
                 f"the background server did not listen within {START_WAIT_S:.0f} s; its log: "
                 f"{files.log}"
+            )
+        time.sleep(POLL_S)
+
+
+def _wait_for_the_starting_server(argv: list[str], files: ServerFiles) -> socket.socket:
+    """A connection to the server another relay started (and was killed before it listened);
+    a server of our own when that one dies first."""
+    deadline = time.monotonic() + START_WAIT_S
+    while True:
+        sock = _connect(files.socket)
+        if sock is not None:
+            return sock
+        alive = _take_alive(files)
+        if alive is not None:  # it died before it listened
+            os.close(alive)
+            return _start(argv, files)
+        if time.monotonic() > deadline:
+            raise LingerError(
+                f"the background server another call started did not listen within "
+                f"{START_WAIT_S:.0f} s; its log: {files.log}"
             )
         time.sleep(POLL_S)
 
