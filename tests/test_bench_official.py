@@ -85,3 +85,5 @@ def test_the_official_estimator_loads_from_a_clone_and_is_timed_beside_ours(tmp_
     cells = len(np.unique(np.floor(points[:, [1, 2, 0]] * [-1, -1, 1] / 0.03), axis=0))
     assert times.official_gaussians == (cells, cells // 2)
     assert times.official > 0 and times.official_merged > 0
+    fastest, slowest = times.official_range
+    assert 0 < fastest <= times.official <= slowest  # the median of two lies between them

@@ -36,6 +36,7 @@ class OfficialTimes:
     ours: float  # our fit and merge
     ours_unmerged: float  # our fit, merge off
     official_gaussians: tuple[int, int]  # (merge off, merge on)
+    official_range: tuple[float, float]  # fastest and slowest round of the default estimate()
 
 
 def load_official_estimator(root: Path) -> type:
@@ -100,4 +101,7 @@ def official_times(
             runs["ours unmerged"].append(_timed(ours_unmerged)[0])
     counts = (off.num_gaussians, merged.num_gaussians)
     med = {k: float(np.median(v)) for k, v in runs.items()}
-    return OfficialTimes(med["off"], med["off+merge"], med["ours"], med["ours unmerged"], counts)
+    spread = (min(runs["off"]), max(runs["off"]))
+    return OfficialTimes(
+        med["off"], med["off+merge"], med["ours"], med["ours unmerged"], counts, spread
+    )
